@@ -1,0 +1,112 @@
+// sirad bench: milliseconds per bundle and line crossings per second of the OpenCL kernels and
+// of the C++ reference, measured in the same run, on the Cornell box; then the relative RMS
+// difference between two independent runs against bundles. Prints CSV on stdout.
+//   sirad_bench_bundle [--patches N] [--grids 256,512,1024] [--bundles K] [--reference-bundles K]
+//                      [--error-bundles K] [--device D]
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/bundle_cl.h"
+#include "core/error.h"
+#include "core/mesh.h"
+#include "core/scene.h"
+#include "core/solver.h"
+
+using namespace sirad;
+
+namespace {
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// Median milliseconds per bundle over `bundles` bundles (after one warm-up), and crossings/s.
+std::pair<double, double> time_engine(const PatchMesh& mesh, BundleEngine& engine, int grid, int bundles) {
+  std::vector<glm::vec4> radiance(mesh.size(), glm::vec4(1.0f));
+  BundleResult r;
+  engine.run(make_bundle(mesh, grid, 1, 1000000), radiance, r);
+  std::vector<double> ms;
+  uint64_t crossings = 0;
+  double total = 0;
+  for (int k = 0; k < bundles; ++k) {
+    SiradBundle b = make_bundle(mesh, grid, 1, static_cast<uint64_t>(k));
+    auto t0 = std::chrono::steady_clock::now();
+    engine.run(b, radiance, r);
+    double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ms.push_back(1e3 * s);
+    total += s;
+    crossings += r.crossings;
+  }
+  return {median(ms), crossings / total};
+}
+
+double rel_rms(const PatchMesh& mesh, const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b) {
+  double num = 0, den = 0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    glm::vec3 e = mesh.emission(j);
+    if (e.x > 0 || e.y > 0 || e.z > 0) continue;
+    for (int c = 0; c < 3; ++c) {
+      double d = static_cast<double>(a[j][c]) - b[j][c];
+      num += mesh.area[j] * d * d;
+      den += mesh.area[j] * 0.25 * (static_cast<double>(a[j][c]) + b[j][c]) * (a[j][c] + b[j][c]);
+    }
+  }
+  return std::sqrt(num / den);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    std::size_t patches = 20000;
+    std::vector<int> grids = {256, 512, 1024};
+    int bundles = 30, ref_bundles = 3, error_bundles = 1024;
+    std::string device;
+    for (int i = 1; i + 1 < argc; i += 2) {
+      std::string k = argv[i], v = argv[i + 1];
+      if (k == "--patches") patches = std::stoul(v);
+      else if (k == "--bundles") bundles = std::stoi(v);
+      else if (k == "--reference-bundles") ref_bundles = std::stoi(v);
+      else if (k == "--error-bundles") error_bundles = std::stoi(v);
+      else if (k == "--device") device = v;
+      else if (k == "--grids") {
+        grids.clear();
+        std::stringstream ss(v);
+        for (std::string g; std::getline(ss, g, ',');) grids.push_back(std::stoi(g));
+      } else fail("unknown flag {}", k);
+    }
+    PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = patches});
+    auto cl = make_cl_engine(mesh, {.device = device});
+    auto ref = make_reference_engine(mesh);
+    std::printf("# device: %s; cornell, %zu patches\n", cl->description().c_str(), mesh.size());
+    std::printf("engine,grid,patches,ms_per_bundle_median,crossings_per_s\n");
+    for (int grid : grids) {
+      auto [ms, cps] = time_engine(mesh, *cl, grid, bundles);
+      std::printf("opencl,%d,%zu,%.3f,%.4g\n", grid, mesh.size(), ms, cps);
+      auto [rms, rcps] = time_engine(mesh, *ref, grid, ref_bundles);
+      std::printf("reference,%d,%zu,%.3f,%.4g\n", grid, mesh.size(), rms, rcps);
+      std::fflush(stdout);
+    }
+    if (error_bundles > 0) {
+      // Relative RMS difference of two independent runs, divided by sqrt(2): the error of one.
+      std::printf("\nbundles,relative_rms_error_per_patch\n");
+      Solver a(mesh, *cl, {.seed = 1}), b(mesh, *cl, {.seed = 2});
+      for (int k = 0; k < error_bundles; ++k) {
+        a.step(k);
+        b.step(k);
+        if (((k + 1) & k) == 0 && k + 1 >= 16)
+          std::printf("%d,%.5f\n", k + 1, rel_rms(mesh, a.estimate(), b.estimate()) / std::sqrt(2.0));
+      }
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sirad_bench_bundle: error: %s\n", e.what());
+    return 1;
+  }
+}

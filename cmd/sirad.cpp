@@ -1,0 +1,201 @@
+// sirad: the command line. `sirad render SCENE` solves a scene on one OpenCL device and writes
+// NAME.exr, NAME.png and NAME.ply; `sirad devices` lists the OpenCL devices.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "core/bundle_cl.h"
+#include "core/error.h"
+#include "core/mesh.h"
+#include "core/results.h"
+#include "core/scene.h"
+#include "core/solver.h"
+
+namespace sirad {
+namespace {
+
+struct RenderArgs {
+  std::string scene;
+  std::optional<int64_t> patches;
+  std::optional<double> max_edge;
+  int64_t bundles = 1000;
+  std::optional<int> grid;
+  uint64_t seed = 1;
+  std::string out;
+  std::string device;
+  std::string rule = "chain";
+  std::optional<int> burn_in;
+  int width = 512, height = 512;
+  float exposure = 0.0f;
+  bool flat = false;
+  bool skip_degenerate = false;
+  bool quiet = false;
+};
+
+// A progress bar on a terminal, a plain line every 10% otherwise.
+class Progress {
+ public:
+  Progress(int64_t total, bool quiet) : total_(total), quiet_(quiet), tty_(::isatty(STDERR_FILENO)) {}
+  void update(int64_t done, double seconds) {
+    if (quiet_) return;
+    double rate = seconds > 0 ? done / seconds : 0.0;
+    if (tty_) {
+      auto now = std::chrono::steady_clock::now();
+      if (done != total_ && now - last_ < std::chrono::milliseconds(100)) return;
+      last_ = now;
+      int width = 30, filled = static_cast<int>(width * done / std::max<int64_t>(total_, 1));
+      double eta = rate > 0 ? (total_ - done) / rate : 0.0;
+      std::fprintf(stderr, "\r[%s%s] %lld/%lld bundles  %.1f bundles/s  ETA %.0fs ",
+                   std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(),
+                   static_cast<long long>(done), static_cast<long long>(total_), rate, eta);
+      if (done == total_) std::fprintf(stderr, "\n");
+    } else if (done * 10 / std::max<int64_t>(total_, 1) > reported_ * 10 / std::max<int64_t>(total_, 1) || done == total_) {
+      reported_ = done;
+      std::fprintf(stderr, "sirad: %lld/%lld bundles, %.1f bundles/s\n", static_cast<long long>(done),
+                   static_cast<long long>(total_), rate);
+    }
+  }
+
+ private:
+  int64_t total_;
+  bool quiet_, tty_;
+  int64_t reported_ = 0;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+int render(const RenderArgs& a) {
+  // Check everything cheap before any work: flags, output place, scene, device.
+  if (a.patches && a.max_edge) fail("--patches and --max-edge exclude each other");
+  UpdateRule rule = parse_update_rule(a.rule);
+  std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
+  check_output_name(out);
+
+  ImportOptions import;
+  import.skip_degenerate = a.skip_degenerate;
+  Scene scene = load_scene(a.scene, import);
+  MeshOptions mesh_options;
+  if (a.patches) mesh_options.target_patches = static_cast<std::size_t>(*a.patches);
+  else if (a.max_edge) mesh_options.max_edge = *a.max_edge;
+  else mesh_options.target_patches = 10000;
+  PatchMesh mesh = mesh_scene(scene, mesh_options);
+  if (!mesh.camera) mesh.camera = default_camera(scene);
+
+  auto engine = make_cl_engine(mesh, {.device = a.device});
+  SolverOptions so;
+  so.seed = a.seed;
+  so.grid = a.grid.value_or(0);
+  so.rule = rule;
+  so.burn_in = a.burn_in.value_or(-1);
+  if (!a.quiet)
+    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule) on %s\n", a.scene.c_str(),
+                 mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
+                 to_string(rule), engine->description().c_str());
+
+  auto start = std::chrono::steady_clock::now();
+  Solver solver(mesh, *engine, so);
+  Progress progress(a.bundles, a.quiet);
+  for (int64_t k = 0; k < a.bundles; ++k) {
+    solver.step(static_cast<uint64_t>(k));
+    progress.update(k + 1, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  Attributes attrs = {
+      {"sirad.version", std::string(SIRAD_VERSION)},
+      {"sirad.scene", a.scene},
+      {"sirad.scene_hash", mesh.hash},
+      {"sirad.patches", static_cast<int64_t>(mesh.size())},
+      {"sirad.bundles", static_cast<int64_t>(a.bundles)},
+      {"sirad.burn_in", static_cast<int64_t>(solver.burn_in())},
+      {"sirad.grid", static_cast<int64_t>(solver.grid())},
+      {"sirad.seed", std::to_string(a.seed)},
+      {"sirad.rule", std::string(to_string(rule))},
+      {"sirad.nodes", int64_t{1}},
+      {"sirad.exchange_every", std::string("end")},
+      {"sirad.exchange_fraction", 1.0},
+      {"sirad.device", engine->description()},
+  };
+  ResultOptions ro;
+  ro.width = a.width;
+  ro.height = a.height;
+  ro.exposure = a.exposure;
+  ro.shading = a.flat ? Shading::flat : Shading::gouraud;
+  ResultFiles files = write_results(out, mesh, solver.estimate(), ro, attrs);
+
+  std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
+              std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
+  std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n", mesh.size(),
+              static_cast<long long>(a.bundles), solver.grid(), seconds, a.bundles / seconds,
+              static_cast<double>(solver.crossings()) / seconds);
+  return 0;
+}
+
+int devices() {
+  for (const auto& d : list_devices())
+    std::printf("%d:%d  %s / %s  (%s, %u compute units)\n", d.platform, d.device, d.platform_name.c_str(),
+                d.device_name.c_str(), d.version.c_str(), d.compute_units);
+  return 0;
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"sirad: diffuse global illumination by stochastic iteration with bundles of parallel lines"};
+  app.require_subcommand(1);
+  RenderArgs r;
+  auto* render_cmd = app.add_subcommand("render", "Solve a scene on one OpenCL device; write NAME.exr, .png, .ply");
+  render_cmd->add_option("scene", r.scene, "Built-in scene (cornell, furnace) or an .obj file")->required();
+  render_cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
+  render_cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")
+      ->check(CLI::PositiveNumber);
+  render_cmd->add_option("--bundles", r.bundles, "Bundles (random directions) to run")
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
+  render_cmd->add_option("--grid", r.grid, "Lines per side of a bundle (default: from the patch sizes)")
+      ->check(CLI::Range(2, 16384));
+  render_cmd->add_option("--seed", r.seed, "Run seed")->capture_default_str();
+  render_cmd->add_option("--out", r.out, "Output name: writes NAME.exr, NAME.png, NAME.ply (default: scene name)");
+  render_cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");
+  render_cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
+      ->check(CLI::IsMember({"chain", "average"}));
+  render_cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
+      ->check(CLI::Range(0, 1 << 20));
+  render_cmd->add_option("--width", r.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
+  render_cmd->add_option("--height", r.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+  render_cmd->add_option("--exposure", r.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
+  render_cmd->add_flag("--flat", r.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
+  render_cmd->add_flag("--skip-degenerate", r.skip_degenerate, "Drop zero-area triangles instead of failing");
+  render_cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
+  app.add_subcommand("devices", "List the OpenCL devices");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "sirad: error: %s (see sirad --help)\n", e.what());
+    return 2;
+  }
+  if (render_cmd->parsed()) return render(r);
+  return devices();
+}
+
+}  // namespace
+}  // namespace sirad
+
+int main(int argc, char** argv) {
+  try {
+    return sirad::run(argc, argv);
+  } catch (const sirad::Error& e) {
+    std::fprintf(stderr, "sirad: error: %s\n", e.what());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sirad: error: %s\n", e.what());
+  }
+  return 1;
+}

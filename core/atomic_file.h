@@ -1,0 +1,34 @@
+// sirad: atomic file replacement: output goes to a temporary beside the target, renamed onto it.
+#pragma once
+#include <cstddef>
+#include <cstdio>
+#include <string>
+
+namespace sirad {
+
+// Writes "<path>.tmp.<pid>.<n>" and, on commit(), flushes, syncs and renames it onto `path`, so
+// `path` is either untouched or complete. Destroyed uncommitted (an error on the way), it removes
+// the temporary. Every failure throws sirad::Error "cannot write <path>: <reason>".
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::string path);
+  ~AtomicFile();
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+
+  const std::string& path() const { return path_; }
+  std::FILE* stream() const { return file_; }
+  void write(const void* data, std::size_t size);
+  void commit();
+
+  // Throws "cannot write <path>: <reason>"; the _errno form uses strerror(error).
+  [[noreturn]] void fail(const std::string& reason) const;
+  [[noreturn]] void fail_errno(int error) const;
+
+ private:
+  std::string path_, temp_;
+  std::FILE* file_ = nullptr;
+  bool committed_ = false;
+};
+
+}  // namespace sirad

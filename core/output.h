@@ -1,0 +1,48 @@
+// sirad: the solver's outputs (DESIGN.md section 4): an EXR seen from the scene camera
+// (linear float RGB, Gouraud-shaded from vertex radiosities, header attributes with the run's
+// settings), a tone-mapped sRGB PNG of the same view and a binary PLY of the patches.
+// Every file is written atomically: to a temporary name beside it, then renamed.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/mesh.h"
+
+namespace sirad {
+
+// A run setting recorded in the EXR header, e.g. {"sirad.bundles", int64_t{1024}}.
+using AttributeValue = std::variant<int64_t, double, std::string>;
+using Attributes = std::vector<std::pair<std::string, AttributeValue>>;
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<glm::vec3> pixels;  // row-major, top row first
+  glm::vec3& at(int x, int y) { return pixels[static_cast<std::size_t>(y) * width + x]; }
+  const glm::vec3& at(int x, int y) const { return pixels[static_cast<std::size_t>(y) * width + x]; }
+};
+
+enum class Shading { gouraud, flat };
+
+// Per-patch-corner radiosity for Gouraud shading: the area-weighted mean of the patches that
+// share the welded vertex, restricted to those with the same material and a normal within
+// 30 degrees (so creases and material borders stay sharp). Result: 3 values per patch.
+std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
+                                                       const std::vector<glm::vec3>& radiosity);
+
+// Renders the mesh from `camera` with a z-buffer; pixels that see no front face show the
+// background (back faces are culled, as the solver treats them).
+Image render_view(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity,
+                  const Camera& camera, int width, int height, Shading shading);
+
+void write_exr(const std::string& path, const Image& image, const Attributes& attributes);
+// Tone map: pixel * 2^exposure, clamped to [0, 1], sRGB-encoded, 8 bits.
+void write_png(const std::string& path, const Image& image, float exposure = 0.0f);
+void write_ply(const std::string& path, const PatchMesh& mesh,
+               const std::vector<glm::vec3>& radiosity);
+
+}  // namespace sirad

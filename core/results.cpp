@@ -1,0 +1,35 @@
+// sirad: the EXR, PNG and PLY of a solution, written together.
+#include "core/results.h"
+
+#include <filesystem>
+
+#include <unistd.h>
+
+#include "core/error.h"
+
+namespace sirad {
+
+void check_output_name(const std::string& name) {
+  if (name.empty()) fail("--out: empty output name");
+  std::filesystem::path dir = std::filesystem::path(name).parent_path();
+  if (dir.empty()) dir = ".";
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) fail("--out {}: directory '{}' does not exist", name, dir.string());
+  if (::access(dir.c_str(), W_OK) != 0) fail("--out {}: directory '{}' is not writable", name, dir.string());
+}
+
+ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
+                          const std::vector<glm::vec3>& radiosity, const ResultOptions& options,
+                          const Attributes& attributes) {
+  if (options.width < 1 || options.height < 1 || options.width > 16384 || options.height > 16384)
+    fail("image size {}x{} outside 1..16384", options.width, options.height);
+  if (!mesh.camera) fail("{}: the mesh carries no camera", name);
+  Image image = render_view(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading);
+  ResultFiles files{name + ".exr", name + ".png", name + ".ply"};
+  write_exr(files.exr, image, attributes);
+  write_png(files.png, image, options.exposure);
+  write_ply(files.ply, mesh, radiosity);
+  return files;
+}
+
+}  // namespace sirad

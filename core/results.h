@@ -1,0 +1,29 @@
+// sirad: writing a solution as the three outputs of DESIGN.md section 4 (NAME.exr, NAME.png,
+// NAME.ply), shared by every driver (single node, coordinator).
+#pragma once
+#include <string>
+#include <vector>
+
+#include "core/output.h"
+
+namespace sirad {
+
+struct ResultOptions {
+  int width = 512, height = 512;
+  Shading shading = Shading::gouraud;
+  float exposure = 0.0f;
+};
+
+struct ResultFiles {
+  std::string exr, png, ply;
+};
+
+// Fails early, before any work, if NAME's directory does not exist or is not writable.
+void check_output_name(const std::string& name);
+
+// Renders the view of the mesh's camera and writes the three files atomically.
+ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
+                          const std::vector<glm::vec3>& radiosity, const ResultOptions& options,
+                          const Attributes& attributes);
+
+}  // namespace sirad

@@ -1,0 +1,72 @@
+// sirad: the scene as imported (triangles with diffuse materials and a camera) and the
+// ways to get one: OBJ+MTL files and the built-in scenes `cornell` and `furnace`.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace sirad {
+
+// A diffuse material. Units are radiance (DESIGN.md section 1): `emission` is emitted radiance
+// (MTL Ke), `reflectance` the diffuse albedo per channel in [0, 1] (MTL Kd).
+struct Material {
+  std::string name;
+  glm::vec3 reflectance{0.0f};
+  glm::vec3 emission{0.0f};
+};
+
+// A pinhole camera. `vfov_deg` is the full vertical field of view; the image aspect comes from
+// the output size.
+struct Camera {
+  glm::vec3 eye{0.0f};
+  glm::vec3 look_at{0.0f, 0.0f, 1.0f};
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
+  float vfov_deg = 40.0f;
+};
+
+// One input triangle, counter-clockwise seen from its front (the side its normal points to).
+struct Triangle {
+  std::array<glm::vec3, 3> p;
+  uint32_t material = 0;  // index into Scene::materials
+  uint32_t source_line = 0;  // 1-based line of the face in its file (0 if not from a file)
+};
+
+struct Scene {
+  std::string name;                 // built-in name or file path, for messages
+  std::vector<Material> materials;
+  std::vector<Triangle> triangles;
+  std::optional<Camera> camera;     // from the file's `# sirad camera` line or built-in
+  glm::vec3 background{0.0f};       // radiance seen by a line that leaves the scene
+};
+
+struct ImportOptions {
+  // Zero-area triangles are an error by default (bad input); with this they are dropped.
+  bool skip_degenerate = false;
+};
+
+// Loads `spec`: a built-in name ("cornell", "furnace") or a path to an .obj file (its .mtl
+// files resolved next to it). Validates everything: finite coordinates, indices in range,
+// known materials, reflectance in [0, 1], finite non-negative emission, at least one
+// triangle and at least one emitter. Throws sirad::Error naming file and line.
+Scene load_scene(const std::string& spec, const ImportOptions& options = {});
+
+// Parses OBJ text (with its MTL files provided by name) without touching the file system.
+// `name` is used in error messages. Used for the built-in scenes and by tests.
+Scene parse_obj(const std::string& name, const std::string& obj_text,
+                const std::vector<std::pair<std::string, std::string>>& mtl_files,
+                const ImportOptions& options = {});
+
+// The built-in scenes. `furnace`: a closed cube (side 1, inward normals), every face E = 1,
+// rho = 0.5, so B = 2 exactly everywhere.
+Scene builtin_cornell();
+Scene builtin_furnace();
+std::vector<std::string> builtin_scene_names();
+
+// A camera that frames the scene's bounding box, for scenes that carry none.
+Camera default_camera(const Scene& scene);
+
+}  // namespace sirad

@@ -1,0 +1,76 @@
+// sirad: stochastic iteration on one node (DESIGN.md section 1). Each step runs one bundle —
+// one random transport T* — on a BundleEngine and folds it into the running average
+//     L(m) = L(m-1) + (L'(m) - L(m-1)) / m        (kept as a double-precision sum)
+// with one of the two update rules for the transport's input:
+//     chain   (default)  L'(m) = E + T*_m L'(m-1)
+//     average (paper)    L'(m) = E + T*_m L(m-1)
+// The solver knows nothing of devices or networks: engines run bundles, drivers choose indices.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/bundle.h"
+#include "core/mesh.h"
+
+namespace sirad {
+
+enum class UpdateRule { chain, average };
+UpdateRule parse_update_rule(const std::string& name);  // "chain" | "average"
+const char* to_string(UpdateRule rule);
+
+struct SolverOptions {
+  uint64_t seed = 1;
+  int grid = 0;            // lines per side; 0: auto_grid(mesh)
+  UpdateRule rule = UpdateRule::chain;
+  int burn_in = -1;        // chain only: bundles run before counting; -1: auto
+  uint64_t chain_id = 0;   // keeps the burn-in bundles of different chains apart
+};
+
+// Burn-in that brings the chain's start-up bias below 1e-3 of its initial value:
+// the smallest k with rho_max^k < 1e-3, capped at 64 (0 for a scene that reflects nothing).
+int auto_burn_in(const PatchMesh& mesh);
+
+class Solver {
+ public:
+  Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options);
+
+  // Runs counted bundle `index` of the run and adds its estimate to the average.
+  void step(uint64_t index);
+
+  uint64_t bundles() const { return count_; }
+  uint64_t crossings() const { return crossings_; }
+  int grid() const { return grid_; }
+  int burn_in() const { return burn_in_; }
+  const SolverOptions& options() const { return options_; }
+
+  // The average of the per-bundle estimates, L(m) (the emission before any bundle).
+  std::vector<glm::vec3> estimate() const;
+  // Sum of the per-bundle estimates L'(1..m), double precision.
+  const std::vector<glm::dvec3>& sum() const { return sum_; }
+  // The input of the next transport: L'(m) under chain, L(m) under average.
+  const std::vector<glm::dvec3>& state() const { return state_; }
+  // The last bundle's raw result (gathered sums and hits), for tests and diagnostics.
+  const BundleResult& last() const { return result_; }
+
+  // E + rho (2 delta / A) gathered: one transport of the radiance that produced `gathered`.
+  std::vector<glm::dvec3> transport(const BundleResult& gathered) const;
+
+ private:
+  void run_bundle(uint64_t index, Stream stream);
+
+  const PatchMesh& mesh_;
+  BundleEngine& engine_;
+  SolverOptions options_;
+  int grid_;
+  int burn_in_;
+  double two_delta_;
+  std::vector<glm::dvec3> sum_, state_;
+  std::vector<glm::vec4> input_;
+  BundleResult result_;
+  uint64_t count_ = 0, crossings_ = 0;
+};
+
+}  // namespace sirad

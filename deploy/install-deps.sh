@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# sirad: install every build and run dependency from Debian 12 packages.
+# Used by the README's two commands, by .ci/run and by deploy/Dockerfile.
+# Idempotent: packages already present are left alone; apt-get runs only when one is missing.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config git
+  # OpenCL: ICD loader, headers, C++ bindings, the PoCL CPU driver, clinfo for diagnostics
+  ocl-icd-opencl-dev opencl-headers opencl-clhpp-headers pocl-opencl-icd clinfo
+  # ZeroMQ, maths, images, random numbers, hashing
+  libzmq3-dev cppzmq-dev libglm-dev libopenexr-dev openexr libpng-dev librandom123-dev libxxhash-dev
+  # scene import, command line, logging, configuration, wire schema
+  libtinyobjloader-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
+  libprotobuf-dev protobuf-compiler
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if ((${#missing[@]})); then
+  SUDO=""
+  if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+  echo "install-deps: installing ${missing[*]}" >&2
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+fi

@@ -1,0 +1,181 @@
+// sirad tests: the command line end to end: a real render writes the three outputs, and every
+// kind of bad input ends with one clear line and a non-zero exit and leaves no file behind.
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <gtest/gtest.h>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Outcome {
+  int status;
+  std::string out, err;
+};
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("sirad_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // Runs `sirad ARGS` in the test's directory; captures stdout, stderr and the exit status.
+  Outcome sirad(const std::string& args, const std::string& env = "") {
+    std::string out = (dir_ / "stdout.txt").string(), err = (dir_ / "stderr.txt").string();
+    std::string cmd = "cd '" + dir_.string() + "' && " + env + " '" + SIRAD_BINARY + "' " + args + " >'" + out +
+                      "' 2>'" + err + "' </dev/null";
+    int raw = std::system(cmd.c_str());
+    Outcome r{WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw), slurp(out), slurp(err)};
+    fs::remove(out);
+    fs::remove(err);
+    return r;
+  }
+
+  static std::string slurp(const std::string& path) {
+    std::ifstream in(path);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  }
+
+  void write(const std::string& name, const std::string& text) { std::ofstream(dir_ / name) << text; }
+
+  // No output or temporary file of any kind in the directory.
+  void expect_no_outputs() {
+    for (const auto& e : fs::directory_iterator(dir_)) {
+      std::string n = e.path().filename().string();
+      EXPECT_FALSE(n.find(".exr") != std::string::npos || n.find(".png") != std::string::npos ||
+                   n.find(".ply") != std::string::npos || n.find(".tmp") != std::string::npos)
+          << "left behind: " << n;
+    }
+  }
+
+  // A failure: non-zero exit, exactly one line on stderr starting "sirad: error:" and naming
+  // `what`, nothing written.
+  void expect_error(const Outcome& r, const std::string& what) {
+    EXPECT_NE(r.status, 0);
+    EXPECT_LT(r.status, 128) << "crashed";
+    EXPECT_EQ(r.err.rfind("sirad: error:", 0), 0u) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(what), std::string::npos) << "expected '" << what << "' in: " << r.err;
+    expect_no_outputs();
+  }
+
+  fs::path dir_;
+};
+
+const char* kTinyRoom = R"(mtllib room.mtl
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 0 0 1
+v 1 0 1
+v 1 1 1
+v 0 1 1
+usemtl lamp
+f 4 3 7 8
+usemtl wall
+f 1 5 6 2
+f 1 2 3 4
+f 5 8 7 6
+f 1 4 8 5
+f 2 6 7 3
+)";
+const char* kTinyMtl = "newmtl lamp\nKd 0.5 0.5 0.5\nKe 1 1 1\nnewmtl wall\nKd 0.5 0.5 0.5\n";
+
+TEST_F(Cli, RenderWritesThreeOutputsAndSummary) {
+  Outcome r = sirad("render cornell --patches 300 --bundles 16 --width 64 --height 64 --seed 3");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* ext : {".exr", ".png", ".ply"}) {
+    EXPECT_TRUE(fs::exists(dir_ / (std::string("cornell") + ext))) << ext;
+    EXPECT_NE(r.out.find((dir_ / (std::string("cornell") + ext)).string()), std::string::npos) << r.out;
+  }
+  EXPECT_NE(r.out.find("bundles/s"), std::string::npos);
+  EXPECT_NE(r.out.find("line crossings/s"), std::string::npos);
+  // The EXR header records the run's settings.
+  Imf::InputFile exr((dir_ / "cornell.exr").string().c_str());
+  auto* bundles = exr.header().findTypedAttribute<Imf::IntAttribute>("sirad.bundles");
+  auto* hash = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.scene_hash");
+  ASSERT_NE(bundles, nullptr);
+  ASSERT_NE(hash, nullptr);
+  EXPECT_EQ(bundles->value(), 16);
+  EXPECT_EQ(hash->value().size(), 32u);
+  EXPECT_EQ(std::system(("exrinfo -s '" + (dir_ / "cornell.exr").string() + "' >/dev/null").c_str()), 0);
+}
+
+TEST_F(Cli, SameSeedGivesBitwiseIdenticalFiles) {
+  ASSERT_EQ(sirad("render cornell --patches 300 --bundles 12 --width 48 --height 48 --out a").status, 0);
+  ASSERT_EQ(sirad("render cornell --patches 300 --bundles 12 --width 48 --height 48 --out b").status, 0);
+  for (const char* ext : {".exr", ".png", ".ply"})
+    EXPECT_EQ(slurp((dir_ / (std::string("a") + ext)).string()), slurp((dir_ / (std::string("b") + ext)).string()))
+        << ext;
+}
+
+TEST_F(Cli, MissingSceneFile) { expect_error(sirad("render nothere.obj --bundles 4"), "nothere.obj"); }
+
+TEST_F(Cli, MalformedSceneFile) {
+  write("bad.obj", "v 0 0 0\nv 1 0 0\nf 1 2 9\n");
+  expect_error(sirad("render bad.obj --bundles 4"), "bad.obj");
+}
+
+TEST_F(Cli, EmptyScene) {
+  write("empty.obj", "");
+  expect_error(sirad("render empty.obj --bundles 4"), "empty.obj");
+}
+
+TEST_F(Cli, SceneWithoutEmitter) {
+  write("dark.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  expect_error(sirad("render dark.obj --bundles 4"), "emitter");
+}
+
+TEST_F(Cli, NanVertex) {
+  write("room.mtl", kTinyMtl);
+  std::string obj = kTinyRoom;
+  obj.replace(obj.find("v 1 1 1"), 7, "v nan 1 1");
+  write("nan.obj", obj);
+  expect_error(sirad("render nan.obj --bundles 4"), "nan.obj");
+}
+
+TEST_F(Cli, DegenerateTriangleRefusedOrSkipped) {
+  write("room.mtl", kTinyMtl);
+  write("degenerate.obj", std::string(kTinyRoom) + "v 0.5 0.5 0.5\nf 9 9 9\n");
+  expect_error(sirad("render degenerate.obj --bundles 4"), "degenerate.obj");
+  Outcome r = sirad("render degenerate.obj --bundles 4 --patches 50 --width 16 --height 16 --skip-degenerate");
+  EXPECT_EQ(r.status, 0) << r.err;
+}
+
+TEST_F(Cli, NonsensicalFlags) {
+  expect_error(sirad("render cornell --grid 0"), "--grid");
+  expect_error(sirad("render cornell --bundles -5"), "--bundles");
+  expect_error(sirad("render cornell --bundles 0"), "--bundles");
+  expect_error(sirad("render cornell --patches 0"), "--patches");
+  expect_error(sirad("render cornell --rule sideways"), "--rule");
+  expect_error(sirad("render cornell --bundles lots"), "--bundles");
+  expect_error(sirad("render cornell --frobnicate"), "frobnicate");
+  expect_error(sirad("render cornell --out no/such/dir/x --bundles 2"), "no/such/dir");
+}
+
+TEST_F(Cli, UnknownDevice) { expect_error(sirad("render cornell --bundles 2 --device NoSuchDevice"), "NoSuchDevice"); }
+
+TEST_F(Cli, NoOpenClPlatform) {
+  // An empty ICD vendor directory: the loader finds no platform.
+  fs::create_directories(dir_ / "icd");
+  expect_error(sirad("render cornell --bundles 2 --patches 100", "OCL_ICD_VENDORS='" + (dir_ / "icd").string() + "'"),
+               "no OpenCL platform");
+}
+
+}  // namespace

@@ -1,0 +1,90 @@
+// sirad tests: shared helpers (small scenes, statistics over patch values).
+#pragma once
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/bundle_cl.h"
+#include "core/mesh.h"
+#include "core/scene.h"
+#include "core/solver.h"
+
+namespace sirad::test {
+
+// Runs `bundles` counted bundles 0..bundles-1 of one run on the default OpenCL device.
+inline Solver solve(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options, uint64_t bundles) {
+  Solver solver(mesh, engine, options);
+  for (uint64_t k = 0; k < bundles; ++k) solver.step(k);
+  return solver;
+}
+
+// Area-weighted mean of one channel.
+inline double area_mean(const PatchMesh& mesh, const std::vector<glm::vec3>& value, int channel = 0) {
+  double s = 0.0, a = 0.0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    s += static_cast<double>(mesh.area[j]) * value[j][channel];
+    a += mesh.area[j];
+  }
+  return s / a;
+}
+
+// Area-weighted relative RMS difference of a against b over the patches that do not emit,
+// all three channels: sqrt(sum A |a-b|^2 / sum A |b|^2).
+inline double relative_rms(const PatchMesh& mesh, const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b) {
+  double num = 0.0, den = 0.0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    glm::vec3 e = mesh.emission(j);
+    if (e.x > 0 || e.y > 0 || e.z > 0) continue;
+    for (int c = 0; c < 3; ++c) {
+      double d = static_cast<double>(a[j][c]) - b[j][c];
+      num += mesh.area[j] * d * d;
+      den += mesh.area[j] * static_cast<double>(b[j][c]) * b[j][c];
+    }
+  }
+  return std::sqrt(num / den);
+}
+
+// A closed room (cube of side 4, inward normals) with one emitting wall (Ke 1) and a closed
+// block inside (outward normals), every surface with reflectance rho.
+inline Scene closed_room(float rho) {
+  std::string obj = R"(mtllib room.mtl
+v 0 0 0
+v 4 0 0
+v 4 4 0
+v 0 4 0
+v 0 0 4
+v 4 0 4
+v 4 4 4
+v 0 4 4
+usemtl lamp
+f 4 3 7 8
+usemtl wall
+f 1 5 6 2
+f 1 2 3 4
+f 5 8 7 6
+f 1 4 8 5
+f 2 6 7 3
+v 1 0.5 1
+v 2.5 0.5 1
+v 2.5 2 1
+v 1 2 1
+v 1 0.5 2.5
+v 2.5 0.5 2.5
+v 2.5 2 2.5
+v 1 2 2.5
+f 9 12 11 10
+f 13 14 15 16
+f 9 10 14 13
+f 12 16 15 11
+f 9 13 16 12
+f 10 11 15 14
+)";
+  std::string rho_s = std::to_string(rho);
+  std::string mtl = "newmtl lamp\nKd " + rho_s + " " + rho_s + " " + rho_s + "\nKe 1 1 1\n" +
+                    "newmtl wall\nKd " + rho_s + " " + rho_s + " " + rho_s + "\nKe 0 0 0\n";
+  return parse_obj("closed_room.obj", obj, {{"room.mtl", mtl}});
+}
+
+}  // namespace sirad::test
