@@ -125,16 +125,27 @@ class ClEngine final : public BundleEngine {
     fill_.setArg(8, status_);
     queue_.enqueueNDRangeKernel(fill_, cl::NullRange, band_global, band_local, nullptr, &events_[2]);
 
+    // Gather: on a CPU each work-item takes a run of patches (no divergent lanes); elsewhere
+    // one patch per work-item.
+    cl_uint per_item = 1;
+    cl::NDRange gather_global = patch_global, gather_local = patch_local;
+    if (info_.is_cpu) {
+      std::size_t items = std::min<std::size_t>(std::max<std::size_t>(n_, 1), 64 * info_.compute_units);
+      per_item = static_cast<cl_uint>((n_ + items - 1) / items);
+      gather_global = cl::NDRange(items);
+      gather_local = cl::NDRange(1);
+    }
     gather_.setArg(0, projected_);
     gather_.setArg(1, n);
-    gather_.setArg(2, params_);
-    gather_.setArg(3, cell_start_);
-    gather_.setArg(4, crossings_);
-    gather_.setArg(5, status_);
-    gather_.setArg(6, radiance_);
-    gather_.setArg(7, gathered_);
-    gather_.setArg(8, hits_);
-    queue_.enqueueNDRangeKernel(gather_, cl::NullRange, patch_global, patch_local, nullptr, &events_[3]);
+    gather_.setArg(2, per_item);
+    gather_.setArg(3, params_);
+    gather_.setArg(4, cell_start_);
+    gather_.setArg(5, crossings_);
+    gather_.setArg(6, status_);
+    gather_.setArg(7, radiance_);
+    gather_.setArg(8, gathered_);
+    gather_.setArg(9, hits_);
+    queue_.enqueueNDRangeKernel(gather_, cl::NullRange, gather_global, gather_local, nullptr, &events_[3]);
 
     result.gathered.resize(n_);
     result.hits.resize(n_);

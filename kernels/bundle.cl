@@ -44,7 +44,16 @@ inline void row_span(const SiradProjected* p, int py, int grid, int* x0, int* x1
   float fy = (float)py;
   float lo = p->xmin, hi = p->xmax;
   for (int k = 0; k < 3; ++k) {
-    if (p->ea[k] == 0.0f) continue;
+    if (p->ea[k] == 0.0f) {
+      /* A horizontal edge decides the whole row, as `covers` would for every cell of it. */
+      float e = p->eb[k] * (fy - p->ey[k]);
+      if (!(e > 0.0f || (e == 0.0f && (p->flags & (1u << k))))) {
+        *x0 = 1;
+        *x1 = 0;
+        return;
+      }
+      continue;
+    }
     float xc = p->ex[k] + p->slope[k] * (fy - p->ey[k]);
     if (p->ea[k] > 0.0f) lo = fmax(lo, xc);
     else hi = fmin(hi, xc);
@@ -235,41 +244,43 @@ __kernel void fill_crossings(__global const SiradProjected* projected,
 
 /* Every crossing of patch j gathers the radiance of its front neighbour on that line, if the
  * neighbour shows j its front face, else the background. gathered[j] = the sum (rgb),
- * hits[j] = the number of lines crossing j. */
-__kernel void gather(__global const SiradProjected* projected, uint patch_count,
+ * hits[j] = the number of lines crossing j. Work-item i takes patches
+ * [i * per_item, (i + 1) * per_item): whole runs of patches on a CPU, one on a GPU. */
+__kernel void gather(__global const SiradProjected* projected, uint patch_count, uint per_item,
                      __constant SiradBundle* b, __global const uint* cell_start,
                      __global const SiradCrossing* crossings, __global const uint* status,
                      __global const float4* radiance, __global float4* gathered,
                      __global uint* hits) {
-  uint j = get_global_id(0);
-  if (j >= patch_count) return;
   if (status[0] != 0u) return;
-  SiradProjected p = projected[j];
+  uint first = get_global_id(0) * per_item;
+  uint last = min(first + per_item, patch_count);
   int grid = b->grid;
-  uint front_pos = (p.flags & SIRAD_FRONT_POS) ? 1u : 0u;
-  uint key = (j << 1) | front_pos;
   float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
-  float4 sum = (float4)(0.0f);
-  uint n = 0;
-  for (int y = p.rows[0]; y <= p.rows[1]; ++y) {
-    FOR_EACH_COVERED(&p, y, grid, x) {
-      int c = y * grid + x;
-      uint s = cell_start[c], e = cell_start[c + 1];
-      uint k = s;
-      while (k < e && crossings[k].key != key) ++k;
-      if (k == e) continue; /* cannot happen: fill used the same predicate */
-      ++n;
-      /* The front neighbour: the next crossing towards the side the normal points to. */
-      float4 seen = background;
-      if (front_pos) {
-        if (k + 1 < e && (crossings[k + 1].key & 1u) == 0u)
-          seen = radiance[crossings[k + 1].key >> 1];
-      } else {
-        if (k > s && (crossings[k - 1].key & 1u) == 1u) seen = radiance[crossings[k - 1].key >> 1];
+  for (uint j = first; j < last; ++j) {
+    SiradProjected p = projected[j];
+    uint front_pos = (p.flags & SIRAD_FRONT_POS) ? 1u : 0u;
+    uint key = (j << 1) | front_pos;
+    float4 sum = (float4)(0.0f);
+    uint n = 0;
+    for (int y = p.rows[0]; y <= p.rows[1]; ++y) {
+      FOR_EACH_COVERED(&p, y, grid, x) {
+        int c = y * grid + x;
+        uint s = cell_start[c], e = cell_start[c + 1];
+        uint k = s;
+        while (k < e && crossings[k].key != key) ++k;
+        if (k == e) continue; /* cannot happen: fill used the same predicate */
+        ++n;
+        /* The front neighbour: the next crossing towards the side the normal points to. */
+        float4 seen = background;
+        if (front_pos) {
+          if (k + 1 < e && (crossings[k + 1].key & 1u) == 0u) seen = radiance[crossings[k + 1].key >> 1];
+        } else {
+          if (k > s && (crossings[k - 1].key & 1u) == 1u) seen = radiance[crossings[k - 1].key >> 1];
+        }
+        sum += seen;
       }
-      sum += seen;
     }
+    gathered[j] = sum;
+    hits[j] = n;
   }
-  gathered[j] = sum;
-  hits[j] = n;
 }
