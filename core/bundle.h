@@ -15,7 +15,7 @@
 #include "core/mesh.h"
 #include "kernels/bundle_types.h"
 
-static_assert(sizeof(SiradBundle) == 4 * 20, "SiradBundle layout must match bundle_types.h");
+static_assert(sizeof(SiradBundle) == 4 * 21, "SiradBundle layout must match bundle_types.h");
 static_assert(sizeof(SiradProjected) == 4 * 26, "SiradProjected layout must match bundle_types.h");
 static_assert(sizeof(SiradCrossing) == 8, "SiradCrossing layout must match bundle_types.h");
 
@@ -31,7 +31,8 @@ struct BundleDraw {
 };
 BundleDraw draw_bundle(uint64_t seed, uint64_t index, Stream stream = Stream::bundles);
 
-// The bundle parameters for `mesh` with an R x R grid. `capacity` is set to `capacity_bound`.
+// The bundle parameters for `mesh` with an R x R grid. Banding and scratch capacities are the
+// engine's: make_bundle leaves one band of all rows and capacity = capacity_bound.
 SiradBundle make_bundle(const PatchMesh& mesh, int grid, uint64_t seed, uint64_t index,
                         Stream stream = Stream::bundles);
 

@@ -11,14 +11,10 @@ namespace sirad {
 
 namespace {
 
-constexpr std::size_t kPatchGroup = 64;  // local size of the per-patch kernels (fixed: PoCL
-                                         // compiles once per local size)
-
-std::size_t round_up(std::size_t n, std::size_t m) { return (n + m - 1) / m * m; }
-
 class ClEngine final : public BundleEngine {
  public:
-  ClEngine(const PatchMesh& mesh, const ClEngineOptions& options) : n_(mesh.size()) {
+  ClEngine(const PatchMesh& mesh, const ClEngineOptions& options)
+      : n_(mesh.size()), band_capacity_(options.band_capacity) {
     device_ = select_device(options.device);
     info_ = describe_device(device_);
     context_ = cl::Context(device_);
@@ -29,14 +25,17 @@ class ClEngine final : public BundleEngine {
     if (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) build += " -cl-fp32-correctly-rounded-divide-sqrt";
     cl::Program program = build_program(context_, device_, {"kernels/bundle_types.h", "kernels/bundle.cl"}, build);
     project_ = cl::Kernel(program, "project_patches");
-    count_ = cl::Kernel(program, "count_crossings");
-    fill_ = cl::Kernel(program, "fill_crossings");
-    gather_ = cl::Kernel(program, "gather");
+    transfer_ = cl::Kernel(program, "transfer_band");
+    combine_ = cl::Kernel(program, "combine");
 
     bands_ = options.bands;
     if (bands_ <= 0)
       if (const char* env = std::getenv("SIRAD_BANDS")) bands_ = std::atoi(env);
     if (bands_ <= 0) bands_ = info_.is_cpu ? static_cast<int>(8 * info_.compute_units) : 1 << 30;
+    // Runs of patches per work-item: whole runs on a CPU (no divergent lanes), one elsewhere.
+    patch_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(n_, 1), 16 * info_.compute_units)
+                                : std::max<std::size_t>(n_, 1);
+    per_item_ = static_cast<cl_uint>((n_ + patch_items_ - 1) / patch_items_);
 
     // Geometry: vertices relative to the bounding-sphere centre, patches as uint4.
     std::vector<glm::vec4> verts = centred_vertices(mesh);
@@ -51,7 +50,6 @@ class ClEngine final : public BundleEngine {
     radiance_ = cl::Buffer(context_, CL_MEM_READ_ONLY, n_ * sizeof(glm::vec4));
     gathered_ = cl::Buffer(context_, CL_MEM_WRITE_ONLY, n_ * sizeof(glm::vec4));
     hits_ = cl::Buffer(context_, CL_MEM_WRITE_ONLY, n_ * sizeof(cl_uint));
-    status_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 2 * sizeof(cl_uint));
   }
 
   std::string description() const override {
@@ -61,128 +59,138 @@ class ClEngine final : public BundleEngine {
   void run(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) override {
     if (radiance.size() != n_) fail("bundle engine: {} radiance values for {} patches", radiance.size(), n_);
     try {
-      run_cl(bundle, radiance, result);
+      // A band whose crossings do not fit its scratch makes the bundle run again with room
+      // for the largest band (the result does not depend on the room).
+      for (int attempt = 0;; ++attempt) {
+        uint64_t needed = run_cl(bundle, radiance, result);
+        if (needed == 0) return;
+        if (attempt == 2) fail("bundle needs {} crossings in one band; scratch did not grow", needed);
+        band_capacity_ = needed + needed / 4 + 1024;
+      }
     } catch (const cl::Error& e) {
       fail("OpenCL on {}: {}", description(), describe_cl_error(e));
     }
   }
 
  private:
-  void allocate(int grid, uint32_t capacity, int bands) {
-    if (grid == grid_ && capacity <= capacity_ && bands == allocated_bands_) return;
-    std::size_t cells = static_cast<std::size_t>(grid) * grid;
-    cell_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE, cells * sizeof(cl_uint));
-    cell_start_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (cells + 1) * sizeof(cl_uint));
-    band_total_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(bands) * sizeof(cl_uint));
-    crossings_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(capacity, 1) * sizeof(SiradCrossing));
+  // Scratch for `bands` bands of `rows_per_band` rows of `grid` lines.
+  void allocate(int grid, int rows_per_band, int bands) {
+    uint64_t cap = std::max<uint64_t>(band_capacity_, 1);
+    if (cap > 0xffffffffu / static_cast<uint64_t>(bands))
+      fail("bundle scratch of {} crossings per band x {} bands is beyond 32-bit indexing", cap, bands);
+    uint64_t pcap = std::min<uint64_t>(cap, std::max<std::size_t>(n_, 1));
+    if (grid == grid_ && bands == allocated_bands_ && cap == allocated_capacity_) return;
+    std::size_t entries = static_cast<std::size_t>(cap) * bands, partials = static_cast<std::size_t>(pcap) * bands;
+    e_line_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
+    e_depth_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_float));
+    e_key_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
+    s_depth_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_float));
+    s_key_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
+    s_src_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
+    e_neighbour_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
+    line_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE,
+                             static_cast<std::size_t>(bands) * rows_per_band * grid * sizeof(cl_uint));
+    partial_patch_ = cl::Buffer(context_, CL_MEM_READ_WRITE, partials * sizeof(cl_uint));
+    partial_sum_ = cl::Buffer(context_, CL_MEM_READ_WRITE, partials * sizeof(glm::vec4));
+    partial_hits_ = cl::Buffer(context_, CL_MEM_READ_WRITE, partials * sizeof(cl_uint));
+    band_stats_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 2 * static_cast<std::size_t>(bands) * sizeof(cl_uint));
     grid_ = grid;
-    capacity_ = capacity;
     allocated_bands_ = bands;
+    allocated_capacity_ = cap;
+    allocated_partials_ = pcap;
   }
 
-  void run_cl(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) {
+  // Runs one bundle; returns 0, or the crossings of the fullest band if a band overflowed.
+  uint64_t run_cl(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) {
     params_host_ = bundle;
     int bands = std::min(bands_, bundle.grid);
     params_host_.rows_per_band = (bundle.grid + bands - 1) / bands;
     params_host_.bands = (bundle.grid + params_host_.rows_per_band - 1) / params_host_.rows_per_band;
-    allocate(bundle.grid, bundle.capacity, params_host_.bands);
+    if (band_capacity_ == 0)  // first guess: twice an even share of the bound on all crossings
+      band_capacity_ = 2 * static_cast<uint64_t>(bundle.capacity) / params_host_.bands + 1024;
+    allocate(bundle.grid, params_host_.rows_per_band, params_host_.bands);
+    params_host_.capacity = static_cast<sirad_u32>(allocated_capacity_);
+    params_host_.partial_capacity = static_cast<sirad_u32>(allocated_partials_);
 
     cl_uint n = static_cast<cl_uint>(n_);
     queue_.enqueueWriteBuffer(params_, CL_FALSE, 0, sizeof(SiradBundle), &params_host_);
     queue_.enqueueWriteBuffer(radiance_, CL_FALSE, 0, n_ * sizeof(glm::vec4), radiance.data());
 
-    cl::NDRange patch_global(round_up(std::max<std::size_t>(n_, 1), kPatchGroup));
-    cl::NDRange patch_local(kPatchGroup);
-    cl::NDRange band_global(static_cast<std::size_t>(params_host_.bands));
-    // One work-item per work-group on a CPU (each is a thread's worth of rows); the
-    // runtime's choice elsewhere.
-    cl::NDRange band_local = info_.is_cpu ? cl::NDRange(1) : cl::NullRange;
+    cl::NDRange patch_global(patch_items_);
+    cl::NDRange one_per_group = info_.is_cpu ? cl::NDRange(1) : cl::NullRange;
 
     project_.setArg(0, vertices_);
     project_.setArg(1, patches_);
     project_.setArg(2, n);
-    project_.setArg(3, params_);
-    project_.setArg(4, projected_);
-    project_.setArg(5, rows_);
-    queue_.enqueueNDRangeKernel(project_, cl::NullRange, patch_global, patch_local, nullptr, &events_[0]);
+    project_.setArg(3, per_item_);
+    project_.setArg(4, params_);
+    project_.setArg(5, projected_);
+    project_.setArg(6, rows_);
+    queue_.enqueueNDRangeKernel(project_, cl::NullRange, patch_global, one_per_group, nullptr, &events_[0]);
 
-    count_.setArg(0, projected_);
-    count_.setArg(1, rows_);
-    count_.setArg(2, n);
-    count_.setArg(3, params_);
-    count_.setArg(4, cell_count_);
-    count_.setArg(5, band_total_);
-    queue_.enqueueNDRangeKernel(count_, cl::NullRange, band_global, band_local, nullptr, &events_[1]);
+    int arg = 0;
+    for (const cl::Buffer* buf : {&projected_, &rows_}) transfer_.setArg(arg++, *buf);
+    transfer_.setArg(arg++, n);
+    for (const cl::Buffer* buf : {&params_, &radiance_, &e_line_, &e_depth_, &e_key_, &s_depth_, &s_key_, &s_src_, &e_neighbour_,
+                                  &line_count_, &partial_patch_, &partial_sum_, &partial_hits_, &band_stats_})
+      transfer_.setArg(arg++, *buf);
+    queue_.enqueueNDRangeKernel(transfer_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(params_host_.bands)),
+                                one_per_group, nullptr, &events_[1]);
 
-    fill_.setArg(0, projected_);
-    fill_.setArg(1, rows_);
-    fill_.setArg(2, n);
-    fill_.setArg(3, params_);
-    fill_.setArg(4, cell_count_);
-    fill_.setArg(5, band_total_);
-    fill_.setArg(6, cell_start_);
-    fill_.setArg(7, crossings_);
-    fill_.setArg(8, status_);
-    queue_.enqueueNDRangeKernel(fill_, cl::NullRange, band_global, band_local, nullptr, &events_[2]);
-
-    // Gather: on a CPU each work-item takes a run of patches (no divergent lanes); elsewhere
-    // one patch per work-item.
-    cl_uint per_item = 1;
-    cl::NDRange gather_global = patch_global, gather_local = patch_local;
-    if (info_.is_cpu) {
-      std::size_t items = std::min<std::size_t>(std::max<std::size_t>(n_, 1), 64 * info_.compute_units);
-      per_item = static_cast<cl_uint>((n_ + items - 1) / items);
-      gather_global = cl::NDRange(items);
-      gather_local = cl::NDRange(1);
-    }
-    gather_.setArg(0, projected_);
-    gather_.setArg(1, n);
-    gather_.setArg(2, per_item);
-    gather_.setArg(3, params_);
-    gather_.setArg(4, cell_start_);
-    gather_.setArg(5, crossings_);
-    gather_.setArg(6, status_);
-    gather_.setArg(7, radiance_);
-    gather_.setArg(8, gathered_);
-    gather_.setArg(9, hits_);
-    queue_.enqueueNDRangeKernel(gather_, cl::NullRange, gather_global, gather_local, nullptr, &events_[3]);
+    combine_.setArg(0, rows_);
+    combine_.setArg(1, n);
+    combine_.setArg(2, per_item_);
+    arg = 3;
+    for (const cl::Buffer* buf : {&params_, &partial_patch_, &partial_sum_, &partial_hits_, &band_stats_, &gathered_, &hits_})
+      combine_.setArg(arg++, *buf);
+    queue_.enqueueNDRangeKernel(combine_, cl::NullRange, patch_global, one_per_group, nullptr, &events_[2]);
 
     result.gathered.resize(n_);
     result.hits.resize(n_);
-    cl_uint status[2] = {0, 0};
+    std::vector<cl_uint> stats(2 * static_cast<std::size_t>(params_host_.bands));
     queue_.enqueueReadBuffer(gathered_, CL_FALSE, 0, n_ * sizeof(glm::vec4), result.gathered.data());
     queue_.enqueueReadBuffer(hits_, CL_FALSE, 0, n_ * sizeof(cl_uint), result.hits.data());
-    queue_.enqueueReadBuffer(status_, CL_TRUE, 0, sizeof(status), status);
-    if (status[0] != 0)
-      fail("bundle needs {} crossings but the buffer holds {} (capacity bound violated)", status[1], bundle.capacity);
-    result.crossings = status[1];
-    if (profile_) {
-      for (int k = 0; k < 4; ++k)
-        kernel_ns_[k] += events_[k].getProfilingInfo<CL_PROFILING_COMMAND_END>() -
-                         events_[k].getProfilingInfo<CL_PROFILING_COMMAND_START>();
-      if (++profiled_ % 10 == 0)
-        std::fprintf(stderr, "sirad profile (ms/bundle): project %.3f count %.3f fill %.3f gather %.3f\n",
-                     kernel_ns_[0] * 1e-6 / profiled_, kernel_ns_[1] * 1e-6 / profiled_,
-                     kernel_ns_[2] * 1e-6 / profiled_, kernel_ns_[3] * 1e-6 / profiled_);
+    queue_.enqueueReadBuffer(band_stats_, CL_TRUE, 0, stats.size() * sizeof(cl_uint), stats.data());
+    uint64_t total = 0, fullest = 0;
+    for (std::size_t k = 0; k < stats.size(); k += 2) {
+      total += stats[k];
+      fullest = std::max<uint64_t>(fullest, stats[k]);
     }
+    if (fullest > allocated_capacity_) return fullest;
+    result.crossings = total;
+    if (profile_) report_profile();
+    return 0;
+  }
+
+  // SIRAD_PROFILE set: per-kernel device times, printed every 10 bundles.
+  void report_profile() {
+    for (int k = 0; k < 3; ++k)
+      kernel_ns_[k] += events_[k].getProfilingInfo<CL_PROFILING_COMMAND_END>() -
+                       events_[k].getProfilingInfo<CL_PROFILING_COMMAND_START>();
+    if (++profiled_ % 10 == 0)
+      std::fprintf(stderr, "sirad profile (ms/bundle): project %.3f transfer %.3f combine %.3f\n",
+                   kernel_ns_[0] * 1e-6 / profiled_, kernel_ns_[1] * 1e-6 / profiled_, kernel_ns_[2] * 1e-6 / profiled_);
   }
 
   std::size_t n_;
+  uint64_t band_capacity_;
   cl::Device device_;
   DeviceInfo info_;
   cl::Context context_;
   cl::CommandQueue queue_;
-  cl::Kernel project_, count_, fill_, gather_;
+  cl::Kernel project_, transfer_, combine_;
   int bands_ = 0;
-  cl::Buffer vertices_, patches_, params_, projected_, rows_, radiance_, gathered_, hits_, status_;
-  cl::Buffer cell_count_, cell_start_, band_total_, crossings_;
+  std::size_t patch_items_ = 1;
+  cl_uint per_item_ = 1;
+  cl::Buffer vertices_, patches_, params_, projected_, rows_, radiance_, gathered_, hits_;
+  cl::Buffer e_line_, e_depth_, e_key_, s_depth_, s_key_, s_src_, e_neighbour_, line_count_;
+  cl::Buffer partial_patch_, partial_sum_, partial_hits_, band_stats_;
   int grid_ = 0, allocated_bands_ = 0;
-  uint32_t capacity_ = 0;
+  uint64_t allocated_capacity_ = 0, allocated_partials_ = 0;
   SiradBundle params_host_{};
-  // SIRAD_PROFILE set: per-kernel device times, printed every 10 bundles.
   bool profile_ = false;
-  cl::Event events_[4];
-  double kernel_ns_[4] = {0, 0, 0, 0};
+  cl::Event events_[3];
+  double kernel_ns_[3] = {0, 0, 0};
   int profiled_ = 0;
 };
 

@@ -1,35 +1,41 @@
 /* sirad: one bundle of parallel global lines (DESIGN.md section 1) as OpenCL kernels.
  *
- * The host prepends kernels/bundle_types.h. Per bundle the host enqueues, in order:
- *   project_patches  (one work-item per patch)  patches -> grid plane, CCW order, depth plane
- *   count_crossings  (one work-item per band of grid rows) crossings per line
- *   fill_crossings   (one work-item per band)  prefix sums, crossing lists, sort by depth
- *   gather           (one work-item per patch)  each crossing gathers its front neighbour
- * Coverage of a line by a patch is decided by one predicate, `covers`, used by every pass,
- * so count, fill and gather agree bit for bit on which lines a patch crosses: edge functions
+ * The host prepends kernels/bundle_types.h. Per bundle it enqueues:
+ *   project_patches  (runs of patches)  patches -> grid plane, CCW order, depth plane
+ *   transfer_band    (one work-item per band of grid rows, written CPU-style)
+ *        1. collect: rasterise every patch that reaches the band, once, appending one
+ *           crossing (line, depth, patch) per covered line, in patch order;
+ *        2. sort the crossings by line (counting sort) and each line's list by depth;
+ *        3. find every crossing's front neighbour on its line;
+ *        4. sum, per patch, what its crossings in this band gather (a band partial).
+ *   combine          (runs of patches)  each patch adds its band partials in band order.
+ * Coverage of a line by a patch is decided by one predicate, `covers`: edge functions
  * evaluated with the edge's endpoints in canonical order (so two patches sharing an edge
  * compute exactly opposite values), a tie rule that gives a line through a shared edge to
  * exactly one of the two patches, and no floating-point contraction.
- * Sums do not depend on thread timing: every buffer element has one writer, and each patch
- * sums its crossings in its own raster order. No atomics anywhere.
+ * Sums do not depend on thread timing: every buffer element has one writer, a band sums in
+ * its own fixed order and patches add band partials in band order. No atomics anywhere.
  */
 #pragma OPENCL FP_CONTRACT OFF
 
+/* Helpers are inlined into every pass (PoCL leaves plain `inline` functions as calls). */
+#define SIRAD_INLINE inline __attribute__((always_inline))
+
 /* Edge function of the directed edge a -> b at p: > 0 when p is to its left. */
-inline float edge_raw(float ax, float ay, float bx, float by, float px, float py) {
+SIRAD_INLINE float edge_raw(float ax, float ay, float bx, float by, float px, float py) {
   return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
 }
 
 /* Edge k's value at (px, py): the edge function of its canonical direction, times the sign
  * that makes it positive inside (folded into ea, eb; negation is exact in IEEE arithmetic). */
-inline float edge_value(const SiradProjected* p, int k, float px, float py) {
+SIRAD_INLINE float edge_value(const SiradProjected* p, int k, float px, float py) {
   return p->eb[k] * (py - p->ey[k]) + p->ea[k] * (px - p->ex[k]);
 }
 
 /* Does the line through grid point (px, py) cross patch p? A point exactly on an edge belongs
  * to the one patch of the two sharing it that owns the edge (a fixed half-plane of edge
  * directions; the neighbour sees the opposite direction). */
-inline bool covers(const SiradProjected* p, int px, int py) {
+SIRAD_INLINE bool covers(const SiradProjected* p, int px, int py) {
   float fx = (float)px, fy = (float)py;
   for (int k = 0; k < 3; ++k) {
     float e = edge_value(p, k, fx, fy);
@@ -40,7 +46,7 @@ inline bool covers(const SiradProjected* p, int px, int py) {
 
 /* The columns of row py that may hold covered lines: the patch's x-extent narrowed by its
  * edges' half-planes, widened by one cell against rounding. */
-inline void row_span(const SiradProjected* p, int py, int grid, int* x0, int* x1) {
+SIRAD_INLINE void row_span(const SiradProjected* p, int py, int grid, int* x0, int* x1) {
   float fy = (float)py;
   float lo = p->xmin, hi = p->xmax;
   for (int k = 0; k < 3; ++k) {
@@ -73,138 +79,126 @@ inline void row_span(const SiradProjected* p, int py, int grid, int* x0, int* x1
   for (int x = x##_lo; x <= x##_hi; ++x)                                 \
     if ((x - x##_lo >= 2 && x##_hi - x >= 2) || covers(p, x, y))
 
-inline float depth_at(const SiradProjected* p, int px, int py) {
+SIRAD_INLINE float depth_at(const SiradProjected* p, int px, int py) {
   return p->z0 + p->dzdx * ((float)px - p->x0) + p->dzdy * ((float)py - p->y0);
 }
 
 /* Depth order along +w; at equal depth a patch facing -w comes first, so two back-to-back
  * faces at one place each look outwards; then by patch index. */
-inline bool crossing_before(SiradCrossing a, SiradCrossing b) {
+SIRAD_INLINE bool crossing_before(SiradCrossing a, SiradCrossing b) {
   if (a.depth != b.depth) return a.depth < b.depth;
   if ((a.key & 1u) != (b.key & 1u)) return (a.key & 1u) < (b.key & 1u);
   return a.key < b.key;
 }
 
+/* Edge k of a projected patch, from CCW vertex (ax, ay) to (bx, by): canonical point and
+ * coefficients, its row-crossing slope and whether it owns the points exactly on it. */
+SIRAD_INLINE void set_edge(SiradProjected* p, int k, float ax, float ay, float bx, float by) {
+  bool swap = bx < ax || (bx == ax && by < ay);
+  float px = swap ? bx : ax, py = swap ? by : ay;
+  float dxc = (swap ? ax : bx) - px, dyc = (swap ? ay : by) - py;
+  float sign = swap ? -1.0f : 1.0f;
+  p->ex[k] = px;
+  p->ey[k] = py;
+  p->eb[k] = sign * dxc;
+  p->ea[k] = -(sign * dyc);
+  p->slope[k] = p->ea[k] != 0.0f ? -p->eb[k] / p->ea[k] : 0.0f;
+  float dx = bx - ax, dy = by - ay;
+  if (dy < 0.0f || (dy == 0.0f && dx > 0.0f)) p->flags |= 1u << k;
+}
+
 /* Project every patch onto the grid plane of this bundle. `vertices` are relative to the
  * scene's bounding-sphere centre. rows[j] repeats the patch's row range compactly for the
- * band passes, which scan it for every band. */
+ * band pass, which scans it once per band. Work-item i takes patches
+ * [i * per_item, (i + 1) * per_item). */
 __kernel void project_patches(__global const float4* vertices, __global const uint4* patches,
-                              uint patch_count, __constant SiradBundle* b,
+                              uint patch_count, uint per_item, __constant SiradBundle* b,
                               __global SiradProjected* projected, __global int2* rows) {
-  uint j = get_global_id(0);
-  if (j >= patch_count) return;
-  uint4 idx = patches[j];
-  uint ids[3] = {idx.x, idx.y, idx.z};
-  float X[3], Y[3], Z[3];
-  for (int k = 0; k < 3; ++k) {
-    float4 q = vertices[ids[k]];
-    X[k] = (q.x * b->u[0] + q.y * b->u[1] + q.z * b->u[2]) * b->scale + b->offset_x;
-    Y[k] = (q.x * b->v[0] + q.y * b->v[1] + q.z * b->v[2]) * b->scale + b->offset_y;
-    Z[k] = q.x * b->w[0] + q.y * b->w[1] + q.z * b->w[2];
-  }
-  SiradProjected p;
-  float area2 = edge_raw(X[0], Y[0], X[1], Y[1], X[2], Y[2]);
-  /* Counter-clockwise in (X, Y) means the normal has a positive component along +w. */
-  bool front_pos = area2 > 0.0f;
-  int o[3] = {0, front_pos ? 1 : 2, front_pos ? 2 : 1};
-  float vx[3] = {X[o[0]], X[o[1]], X[o[2]]};
-  float vy[3] = {Y[o[0]], Y[o[1]], Y[o[2]]};
-  float vz[3] = {Z[o[0]], Z[o[1]], Z[o[2]]};
-  p.flags = front_pos ? SIRAD_FRONT_POS : 0u;
-  for (int k = 0; k < 3; ++k) {
-    int k1 = k == 2 ? 0 : k + 1;
-    float ax = vx[k], ay = vy[k], bx = vx[k1], by = vy[k1];
-    bool swap = bx < ax || (bx == ax && by < ay);
-    float px = swap ? bx : ax, py = swap ? by : ay;
-    float dxc = (swap ? ax : bx) - px, dyc = (swap ? ay : by) - py;
-    float sign = swap ? -1.0f : 1.0f;
-    p.ex[k] = px;
-    p.ey[k] = py;
-    p.eb[k] = sign * dxc;
-    p.ea[k] = -(sign * dyc);
-    p.slope[k] = p.ea[k] != 0.0f ? -p.eb[k] / p.ea[k] : 0.0f;
-    float dx = bx - ax, dy = by - ay;
-    if (dy < 0.0f || (dy == 0.0f && dx > 0.0f)) p.flags |= 1u << k;
-  }
-  p.x0 = vx[0];
-  p.y0 = vy[0];
-  p.xmin = fmin(vx[0], fmin(vx[1], vx[2]));
-  p.xmax = fmax(vx[0], fmax(vx[1], vx[2]));
-  p.pad = 0u;
-  float a = fabs(area2);
-  if (!(a > 0.0f)) {
-    /* Seen edge-on: crosses no line. */
-    p.z0 = 0.0f; p.dzdx = 0.0f; p.dzdy = 0.0f;
-    p.rows[0] = 1; p.rows[1] = 0;
-  } else {
-    p.z0 = vz[0];
-    p.dzdx = ((vz[1] - vz[0]) * (vy[2] - vy[0]) - (vz[2] - vz[0]) * (vy[1] - vy[0])) / a;
-    p.dzdy = ((vz[2] - vz[0]) * (vx[1] - vx[0]) - (vz[1] - vz[0]) * (vx[2] - vx[0])) / a;
-    float ylo = fmin(vy[0], fmin(vy[1], vy[2]));
-    float yhi = fmax(vy[0], fmax(vy[1], vy[2]));
-    p.rows[0] = (int)ceil(fmax(ylo, 0.0f));
-    p.rows[1] = (int)floor(fmin(yhi, (float)(b->grid - 1)));
-  }
-  projected[j] = p;
-  rows[j] = (int2)(p.rows[0], p.rows[1]);
-}
-
-/* Count the crossings of every line in this work-item's band of rows. */
-__kernel void count_crossings(__global const SiradProjected* projected,
-                              __global const int2* rows, uint patch_count,
-                              __constant SiradBundle* b, __global uint* cell_count,
-                              __global uint* band_total) {
-  int band = get_global_id(0);
-  if (band >= b->bands) return;
-  int grid = b->grid;
-  int r0 = band * b->rows_per_band, r1 = min(r0 + b->rows_per_band, grid);
-  for (int c = r0 * grid; c < r1 * grid; ++c) cell_count[c] = 0;
-  uint total = 0;
-  for (uint j = 0; j < patch_count; ++j) {
-    int2 r = rows[j];
-    if (r.y < r0 || r.x >= r1) continue;
-    SiradProjected p = projected[j];
-    int ya = max(r.x, r0), yb = min(r.y, r1 - 1);
-    for (int y = ya; y <= yb; ++y) {
-      FOR_EACH_COVERED(&p, y, grid, x) {
-        cell_count[y * grid + x] += 1;
-        total += 1;
-      }
+  uint last = min((uint)get_global_id(0) * per_item + per_item, patch_count);
+  for (uint j = get_global_id(0) * per_item; j < last; ++j) {
+    uint4 idx = patches[j];
+    float4 q0 = vertices[idx.x], q1 = vertices[idx.y], q2 = vertices[idx.z];
+#define SIRAD_PROJECT(q, X, Y, Z)                                                   \
+    float X = (q.x * b->u[0] + q.y * b->u[1] + q.z * b->u[2]) * b->scale + b->offset_x; \
+    float Y = (q.x * b->v[0] + q.y * b->v[1] + q.z * b->v[2]) * b->scale + b->offset_y; \
+    float Z = q.x * b->w[0] + q.y * b->w[1] + q.z * b->w[2];
+    SIRAD_PROJECT(q0, X0, Y0, Z0)
+    SIRAD_PROJECT(q1, X1, Y1, Z1)
+    SIRAD_PROJECT(q2, X2, Y2, Z2)
+#undef SIRAD_PROJECT
+    float area2 = edge_raw(X0, Y0, X1, Y1, X2, Y2);
+    /* Counter-clockwise in (X, Y) means the normal has a positive component along +w;
+     * otherwise swap the last two vertices. */
+    bool front_pos = area2 > 0.0f;
+    float x1 = front_pos ? X1 : X2, y1 = front_pos ? Y1 : Y2, z1 = front_pos ? Z1 : Z2;
+    float x2 = front_pos ? X2 : X1, y2 = front_pos ? Y2 : Y1, z2 = front_pos ? Z2 : Z1;
+    SiradProjected p;
+    p.flags = front_pos ? SIRAD_FRONT_POS : 0u;
+    set_edge(&p, 0, X0, Y0, x1, y1);
+    set_edge(&p, 1, x1, y1, x2, y2);
+    set_edge(&p, 2, x2, y2, X0, Y0);
+    p.x0 = X0;
+    p.y0 = Y0;
+    p.xmin = fmin(X0, fmin(x1, x2));
+    p.xmax = fmax(X0, fmax(x1, x2));
+    p.pad = 0u;
+    float a = fabs(area2);
+    if (!(a > 0.0f)) {
+      /* Seen edge-on: crosses no line. */
+      p.z0 = 0.0f;
+      p.dzdx = 0.0f;
+      p.dzdy = 0.0f;
+      p.rows[0] = 1;
+      p.rows[1] = 0;
+    } else {
+      p.z0 = Z0;
+      p.dzdx = ((z1 - Z0) * (y2 - Y0) - (z2 - Z0) * (y1 - Y0)) / a;
+      p.dzdy = ((z2 - Z0) * (x1 - X0) - (z1 - Z0) * (x2 - X0)) / a;
+      float ylo = fmin(Y0, fmin(y1, y2));
+      float yhi = fmax(Y0, fmax(y1, y2));
+      p.rows[0] = (int)ceil(fmax(ylo, 0.0f));
+      p.rows[1] = (int)floor(fmin(yhi, (float)(b->grid - 1)));
     }
+    projected[j] = p;
+    rows[j] = (int2)(p.rows[0], p.rows[1]);
   }
-  band_total[band] = total;
 }
 
-/* Lay out the crossing lists (an exclusive prefix sum over all lines, row-major), fill them
- * in patch order and sort each by depth. status[0] = 1 if they do not fit; status[1] =
- * total crossings of the bundle. */
-__kernel void fill_crossings(__global const SiradProjected* projected,
-                             __global const int2* rows, uint patch_count,
-                             __constant SiradBundle* b, __global uint* cell_count,
-                             __global const uint* band_total, __global uint* cell_start,
-                             __global SiradCrossing* crossings, __global uint* status) {
+/* One band of grid rows: collect, sort, pair and sum its crossings (see the banner).
+ * Scratch per band: b->capacity entries each of line (band-local), depth and key in
+ * collection order, depth, key and source index sorted by line, and the neighbour found for
+ * each collected crossing; b->partial_capacity partial sums (patch, rgb, hits) in patch
+ * order; rows_per_band * grid line counters. band_stats[2 band] = crossings in the band
+ * (also when they did not fit), band_stats[2 band + 1] = partials written. */
+__kernel void transfer_band(__global const SiradProjected* projected, __global const int2* rows,
+                            uint patch_count, __constant SiradBundle* b,
+                            __global const float4* radiance, __global uint* e_line,
+                            __global float* e_depth, __global uint* e_key, __global float* s_depth,
+                            __global uint* s_key, __global uint* s_src, __global uint* e_neighbour,
+                            __global uint* line_count, __global uint* partial_patch,
+                            __global float4* partial_sum, __global uint* partial_hits,
+                            __global uint* band_stats) {
   int band = get_global_id(0);
   if (band >= b->bands) return;
-  int grid = b->grid;
-  uint base = 0, all = 0;
-  for (int k = 0; k < b->bands; ++k) {
-    if (k < band) base += band_total[k];
-    all += band_total[k];
-  }
-  if (band == 0) {
-    status[0] = all > b->capacity ? 1u : 0u;
-    status[1] = all;
-  }
-  if (all > b->capacity) return;
-  int r0 = band * b->rows_per_band, r1 = min(r0 + b->rows_per_band, grid);
-  /* Starts of this band's lists; the counts become fill cursors. */
-  uint running = base;
-  for (int c = r0 * grid; c < r1 * grid; ++c) {
-    cell_start[c] = running;
-    running += cell_count[c];
-    cell_count[c] = 0;
-  }
-  if (r1 == grid) cell_start[grid * grid] = running;
+  const int grid = b->grid;
+  const uint cap = b->capacity;
+  const uint base = (uint)band * cap;
+  const uint pbase = (uint)band * b->partial_capacity;
+  const int r0 = band * b->rows_per_band, r1 = min(r0 + b->rows_per_band, grid);
+  __global uint* count = line_count + (size_t)band * b->rows_per_band * grid;
+  const int lines = (r1 - r0) * grid;
+  e_line += base;
+  e_depth += base;
+  e_key += base;
+  s_depth += base;
+  s_key += base;
+  s_src += base;
+  e_neighbour += base;
+
+  /* 1. Collect, patch by patch (a patch's crossings in this band are contiguous), counting
+   * the crossings of every line. */
+  for (int l = 0; l < lines; ++l) count[l] = 0;
+  uint m = 0;
   for (uint j = 0; j < patch_count; ++j) {
     int2 r = rows[j];
     if (r.y < r0 || r.x >= r1) continue;
@@ -212,72 +206,128 @@ __kernel void fill_crossings(__global const SiradProjected* projected,
     uint key = (j << 1) | ((p.flags & SIRAD_FRONT_POS) ? 1u : 0u);
     int ya = max(r.x, r0), yb = min(r.y, r1 - 1);
     for (int y = ya; y <= yb; ++y) {
+      uint row = (uint)((y - r0) * grid);
       FOR_EACH_COVERED(&p, y, grid, x) {
-        int c = y * grid + x;
-        SiradCrossing s;
-        s.depth = depth_at(&p, x, y);
-        s.key = key;
-        crossings[cell_start[c] + cell_count[c]] = s;
-        cell_count[c] += 1;
-      }
-    }
-  }
-  /* Sort every list by depth: insertion sort (lists are short), shell gaps for long ones. */
-  const int gaps[6] = {57, 23, 10, 4, 1, 0};
-  for (int c = r0 * grid; c < r1 * grid; ++c) {
-    uint s = cell_start[c], n = cell_count[c];
-    if (n < 2) continue;
-    for (int g = (n > 64 ? 0 : 4); gaps[g] > 0; ++g) {
-      uint gap = (uint)gaps[g];
-      for (uint i = gap; i < n; ++i) {
-        SiradCrossing t = crossings[s + i];
-        uint k = i;
-        while (k >= gap && crossing_before(t, crossings[s + k - gap])) {
-          crossings[s + k] = crossings[s + k - gap];
-          k -= gap;
+        if (m < cap) {
+          e_line[m] = row + (uint)x;
+          e_depth[m] = depth_at(&p, x, y);
+          e_key[m] = key;
+          count[row + (uint)x] += 1;
         }
-        crossings[s + k] = t;
+        ++m;
       }
     }
   }
+  band_stats[2 * band] = m;
+  band_stats[2 * band + 1] = 0;
+  if (m > cap) return; /* the host grows the scratch and runs the bundle again */
+
+  /* 2. Counting sort by line into contiguous lists; afterwards count[l] ends line l. */
+  uint running = 0;
+  for (int l = 0; l < lines; ++l) {
+    uint c = count[l];
+    count[l] = running;
+    running += c;
+  }
+  for (uint i = 0; i < m; ++i) {
+    uint at = count[e_line[i]]++;
+    s_depth[at] = e_depth[i];
+    s_key[at] = e_key[i];
+    s_src[at] = i;
+  }
+
+  /* 2b, 3. Sort each line by depth (insertion sort: lists are short; shell gaps for long
+   * ones), then give every crossing its front neighbour: the next crossing towards the side
+   * its normal points to, if that one faces back; else none (the background). */
+  const int gaps[6] = {57, 23, 10, 4, 1, 0};
+  uint start = 0;
+  for (int l = 0; l < lines; ++l) {
+    uint end = count[l], n = end - start;
+    if (n == 0) continue;
+    if (n > 1) {
+      for (int g = (n > 64 ? 0 : 4); gaps[g] > 0; ++g) {
+        uint gap = (uint)gaps[g];
+        for (uint i = start + gap; i < end; ++i) {
+          SiradCrossing t = {s_depth[i], s_key[i]};
+          uint src = s_src[i];
+          uint k = i;
+          while (k >= start + gap) {
+            SiradCrossing u = {s_depth[k - gap], s_key[k - gap]};
+            if (!crossing_before(t, u)) break;
+            s_depth[k] = u.depth;
+            s_key[k] = u.key;
+            s_src[k] = s_src[k - gap];
+            k -= gap;
+          }
+          s_depth[k] = t.depth;
+          s_key[k] = t.key;
+          s_src[k] = src;
+        }
+      }
+    }
+    for (uint k = start; k < end; ++k) {
+      uint key = s_key[k];
+      uint nb = 0xffffffffu;
+      if (key & 1u) {
+        if (k + 1 < end && (s_key[k + 1] & 1u) == 0u) nb = s_key[k + 1] >> 1;
+      } else if (k > start && (s_key[k - 1] & 1u)) {
+        nb = s_key[k - 1] >> 1;
+      }
+      e_neighbour[s_src[k]] = nb;
+    }
+    start = end;
+  }
+
+  /* 4. Band partials: each patch's crossings, in collection order. */
+  const float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
+  uint partials = 0;
+  for (uint i = 0; i < m;) {
+    uint key = e_key[i];
+    float4 sum = (float4)(0.0f);
+    uint hits = 0;
+    for (; i < m && e_key[i] == key; ++i) {
+      uint nb = e_neighbour[i];
+      sum += nb == 0xffffffffu ? background : radiance[nb];
+      ++hits;
+    }
+    partial_patch[pbase + partials] = key >> 1;
+    partial_sum[pbase + partials] = sum;
+    partial_hits[pbase + partials] = hits;
+    ++partials;
+  }
+  band_stats[2 * band + 1] = partials;
 }
 
-/* Every crossing of patch j gathers the radiance of its front neighbour on that line, if the
- * neighbour shows j its front face, else the background. gathered[j] = the sum (rgb),
- * hits[j] = the number of lines crossing j. Work-item i takes patches
- * [i * per_item, (i + 1) * per_item): whole runs of patches on a CPU, one on a GPU. */
-__kernel void gather(__global const SiradProjected* projected, uint patch_count, uint per_item,
-                     __constant SiradBundle* b, __global const uint* cell_start,
-                     __global const SiradCrossing* crossings, __global const uint* status,
-                     __global const float4* radiance, __global float4* gathered,
-                     __global uint* hits) {
-  if (status[0] != 0u) return;
+/* Each patch adds its band partials, in band order (binary search in each band's list,
+ * which is in patch order). gathered[j] = sum over the lines crossing j of what they bring
+ * (rgb), hits[j] = the number of those lines. Work-item i takes patches
+ * [i * per_item, (i + 1) * per_item). Nothing is written when a band overflowed. */
+__kernel void combine(__global const int2* rows, uint patch_count, uint per_item,
+                      __constant SiradBundle* b, __global const uint* partial_patch,
+                      __global const float4* partial_sum, __global const uint* partial_hits,
+                      __global const uint* band_stats, __global float4* gathered,
+                      __global uint* hits) {
+  for (int k = 0; k < b->bands; ++k)
+    if (band_stats[2 * k] > b->capacity) return;
   uint first = get_global_id(0) * per_item;
   uint last = min(first + per_item, patch_count);
-  int grid = b->grid;
-  float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
   for (uint j = first; j < last; ++j) {
-    SiradProjected p = projected[j];
-    uint front_pos = (p.flags & SIRAD_FRONT_POS) ? 1u : 0u;
-    uint key = (j << 1) | front_pos;
     float4 sum = (float4)(0.0f);
     uint n = 0;
-    for (int y = p.rows[0]; y <= p.rows[1]; ++y) {
-      FOR_EACH_COVERED(&p, y, grid, x) {
-        int c = y * grid + x;
-        uint s = cell_start[c], e = cell_start[c + 1];
-        uint k = s;
-        while (k < e && crossings[k].key != key) ++k;
-        if (k == e) continue; /* cannot happen: fill used the same predicate */
-        ++n;
-        /* The front neighbour: the next crossing towards the side the normal points to. */
-        float4 seen = background;
-        if (front_pos) {
-          if (k + 1 < e && (crossings[k + 1].key & 1u) == 0u) seen = radiance[crossings[k + 1].key >> 1];
-        } else {
-          if (k > s && (crossings[k - 1].key & 1u) == 1u) seen = radiance[crossings[k - 1].key >> 1];
+    int2 r = rows[j];
+    if (r.x <= r.y) {
+      for (int band = r.x / b->rows_per_band; band <= r.y / b->rows_per_band; ++band) {
+        uint base = (uint)band * b->partial_capacity;
+        uint lo = 0, hi = band_stats[2 * band + 1];
+        while (lo < hi) {
+          uint mid = (lo + hi) / 2;
+          if (partial_patch[base + mid] < j) lo = mid + 1;
+          else hi = mid;
         }
-        sum += seen;
+        if (lo < band_stats[2 * band + 1] && partial_patch[base + lo] == j) {
+          sum += partial_sum[base + lo];
+          n += partial_hits[base + lo];
+        }
       }
     }
     gathered[j] = sum;
