@@ -38,14 +38,14 @@ void expect_same_bundle(const PatchMesh& mesh, BundleEngine& cl, BundleEngine& r
 }
 
 TEST(BundleKernel, MatchesReferenceOnCornellRandomBundles) {
-  PatchMesh mesh = mesh_scene(builtin_furnace(), {.target_patches = 800});
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 800});
   auto cl = make_cl_engine(mesh);
   auto ref = make_reference_engine(mesh);
   for (uint64_t k = 0; k < 6; ++k) expect_same_bundle(mesh, *cl, *ref, make_bundle(mesh, 96, 7, k));
 }
 
 TEST(BundleKernel, MatchesReferenceOnGrazingAndAxisDirections) {
-  PatchMesh mesh = mesh_scene(builtin_furnace(), {.target_patches = 500});
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 500});
   auto cl = make_cl_engine(mesh);
   auto ref = make_reference_engine(mesh);
   SiradBundle base = make_bundle(mesh, 64, 3, 0);
