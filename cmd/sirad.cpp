@@ -156,7 +156,7 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--bundles", r.bundles, "Bundles (random directions) to run")
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
   render_cmd->add_option("--grid", r.grid, "Lines per side of a bundle (default: from the patch sizes)")
-      ->check(CLI::Range(2, 16384));
+      ->check(CLI::Range(2, 8192));
   render_cmd->add_option("--seed", r.seed, "Run seed")->capture_default_str();
   render_cmd->add_option("--out", r.out, "Output name: writes NAME.exr, NAME.png, NAME.ply (default: scene name)");
   render_cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");

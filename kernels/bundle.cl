@@ -170,14 +170,14 @@ __kernel void project_patches(__global const float4* vertices, __global const ui
  * each collected crossing; b->partial_capacity partial sums (patch, rgb, hits) in patch
  * order; rows_per_band * grid line counters. band_stats[2 band] = crossings in the band
  * (also when they did not fit), band_stats[2 band + 1] = partials written. */
-__kernel void transfer_band(__global const SiradProjected* projected, __global const int2* rows,
+__kernel void transfer_band(__global const SiradProjected* restrict projected, __global const int2* restrict rows,
                             uint patch_count, __constant SiradBundle* b,
-                            __global const float4* radiance, __global uint* e_line,
-                            __global float* e_depth, __global uint* e_key, __global float* s_depth,
-                            __global uint* s_key, __global uint* s_src, __global uint* e_neighbour,
-                            __global uint* line_count, __global uint* partial_patch,
-                            __global float4* partial_sum, __global uint* partial_hits,
-                            __global uint* band_stats) {
+                            __global const float4* restrict radiance, __global uint* restrict e_line,
+                            __global float* restrict e_depth, __global uint* restrict e_key, __global float* restrict s_depth,
+                            __global uint* restrict s_key, __global uint* restrict s_src, __global uint* restrict e_neighbour,
+                            __global uint* restrict line_count, __global uint* restrict partial_patch,
+                            __global float4* restrict partial_sum, __global uint* restrict partial_hits,
+                            __global uint* restrict band_stats) {
   int band = get_global_id(0);
   if (band >= b->bands) return;
   const int grid = b->grid;
