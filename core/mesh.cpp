@@ -1,0 +1,338 @@
+// sirad: meshing: regular n x n subdivision of input triangles, exact vertex welding, content hash.
+#include "core/mesh.h"
+
+#include <xxhash.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <limits>
+#include <memory>
+#include <new>
+
+#include "core/error.h"
+
+namespace sirad {
+namespace {
+
+constexpr uint64_t kMaxPatches = 0x7fffffff;  // 2^31 - 1
+// Patch counts saturate here (well above kMaxPatches, far below uint64 overflow).
+constexpr uint64_t kSaturated = uint64_t{1} << 40;
+
+double longest_edge(const Triangle& t) {
+  const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
+  return std::sqrt(
+      std::max({glm::dot(b - a, b - a), glm::dot(c - b, c - b), glm::dot(a - c, a - c)}));
+}
+
+// Subdivisions per edge: n = max(1, ceil(longest / max_edge)); max_edge 0 means none.
+uint64_t subdivisions(double longest, double max_edge) {
+  if (max_edge == 0.0) return 1;
+  const double n = std::ceil(longest / max_edge);
+  if (!(n < double(uint64_t{1} << 20))) return uint64_t{1} << 20;  // n^2 alone saturates
+  return std::max<uint64_t>(1, static_cast<uint64_t>(n));
+}
+
+// Total patches for `max_edge`, saturating at kSaturated. Monotone non-increasing in max_edge.
+uint64_t patch_count(const std::vector<double>& longest, double max_edge) {
+  uint64_t total = 0;
+  for (double l : longest) {
+    const uint64_t n = subdivisions(l, max_edge);
+    total = std::min(kSaturated, total + n * n);
+  }
+  return total;
+}
+
+// The max_edge whose patch count is closest to `target` (ties: the smaller count), found by
+// bisection over the bit patterns of positive doubles (ordered like their values).
+double max_edge_for_target(const std::vector<double>& longest, uint64_t target) {
+  const double top = *std::max_element(longest.begin(), longest.end());
+  // count(hi) = number of triangles <= target; count(lo) > target since its n for the
+  // longest triangle exceeds sqrt(target).
+  double hi = top;
+  double lo = top / (std::ceil(std::sqrt(double(target))) + 1.0);
+  uint64_t lo_bits = std::bit_cast<uint64_t>(lo), hi_bits = std::bit_cast<uint64_t>(hi);
+  while (hi_bits - lo_bits > 1) {
+    const uint64_t mid = lo_bits + (hi_bits - lo_bits) / 2;
+    if (patch_count(longest, std::bit_cast<double>(mid)) > target)
+      lo_bits = mid;
+    else
+      hi_bits = mid;
+  }
+  lo = std::bit_cast<double>(lo_bits);
+  hi = std::bit_cast<double>(hi_bits);
+  // Adjacent doubles: count(lo) is the smallest count above target, count(hi) the largest
+  // at or below it.
+  return patch_count(longest, lo) - target < target - patch_count(longest, hi) ? lo : hi;
+}
+
+// Exact float bit pattern of a position, -0.0 folded into 0.0: the welding key.
+using Key = std::array<uint32_t, 3>;
+
+uint32_t float_bits(float f) { return f == 0.0f ? 0u : std::bit_cast<uint32_t>(f); }
+
+Key key_of(const glm::vec3& p) { return {float_bits(p.x), float_bits(p.y), float_bits(p.z)}; }
+
+// Welds positions by exact bit pattern: an open-addressing hash table (linear probing, load
+// at most 1/2) of indices into `vertices`, which receives new positions in order of first use.
+class Welder {
+ public:
+  Welder(std::vector<glm::vec3>& vertices, const std::string& name, std::size_t expected)
+      : vertices_(vertices), name_(name) {
+    resize(std::bit_ceil(std::max<std::size_t>(1024, 2 * expected)));
+  }
+
+  uint32_t operator()(const glm::vec3& p) {
+    const Key key = key_of(p);
+    if (2 * (vertices_.size() + 1) > slots_.size()) resize(2 * slots_.size());
+    for (std::size_t s = hash(key);; s = (s + 1) & mask_) {
+      if (slots_[s] == kEmpty) {
+        if (vertices_.size() >= kEmpty) fail("{}: mesh has more than 2^32 - 1 vertices", name_);
+        slots_[s] = static_cast<uint32_t>(vertices_.size());
+        vertices_.push_back({std::bit_cast<float>(key[0]), std::bit_cast<float>(key[1]),
+                             std::bit_cast<float>(key[2])});
+        return slots_[s];
+      }
+      if (key_of(vertices_[slots_[s]]) == key) return slots_[s];
+    }
+  }
+
+ private:
+  static constexpr uint32_t kEmpty = std::numeric_limits<uint32_t>::max();
+
+  std::size_t hash(const Key& key) const { return XXH3_64bits(key.data(), sizeof key) & mask_; }
+
+  void resize(std::size_t size) {
+    slots_.assign(size, kEmpty);
+    mask_ = size - 1;
+    for (uint32_t i = 0; i < vertices_.size(); ++i) {
+      std::size_t s = hash(key_of(vertices_[i]));
+      while (slots_[s] != kEmpty) s = (s + 1) & mask_;
+      slots_[s] = i;
+    }
+  }
+
+  std::vector<glm::vec3>& vertices_;
+  const std::string& name_;
+  std::vector<uint32_t> slots_;
+  std::size_t mask_ = 0;
+};
+
+bool lex_less(const glm::vec3& a, const glm::vec3& b) {
+  if (a.x != b.x) return a.x < b.x;
+  if (a.y != b.y) return a.y < b.y;
+  return a.z < b.z;
+}
+
+// The point k/n of the way from p to q, computed canonically: from the lexicographically
+// smaller endpoint, in double, so both triangles sharing the edge get the same float bits.
+glm::vec3 edge_point(glm::vec3 p, glm::vec3 q, uint64_t k, uint64_t n) {
+  if (k == 0) return p;
+  if (k == n) return q;
+  if (lex_less(q, p)) {
+    std::swap(p, q);
+    k = n - k;
+  }
+  const glm::dvec3 lo(p), hi(q);
+  return glm::vec3(lo + (hi - lo) * (double(k) / double(n)));
+}
+
+// Grid point (i, j) of triangle abc split n ways: a + (i/n)(b - a) + (j/n)(c - a).
+glm::vec3 grid_point(const Triangle& t, uint64_t i, uint64_t j, uint64_t n) {
+  const auto& [a, b, c] = t.p;
+  if (j == 0) return edge_point(a, b, i, n);
+  if (i == 0) return edge_point(a, c, j, n);
+  if (i + j == n) return edge_point(b, c, j, n);
+  const double w = 1.0 / double(n);
+  return glm::vec3(glm::dvec3(a) * (double(n - i - j) * w) + glm::dvec3(b) * (double(i) * w) +
+                   glm::dvec3(c) * (double(j) * w));
+}
+
+// Appends the n*n patches of triangle `t` (index `ti`). Order: rows j = 0..n-1 from edge ab
+// towards c; in each row from the a side, alternately the upright sub-triangle
+// (i,j),(i+1,j),(i,j+1) and the inverted one (i+1,j),(i+1,j+1),(i,j+1). Both keep the
+// parent's orientation.
+void subdivide(const Scene& scene, uint32_t ti, uint64_t n, Welder& weld, PatchMesh& mesh,
+               std::vector<uint32_t>& grid) {
+  const Triangle& t = scene.triangles[ti];
+  // Step 1: weld the (n+1)(n+2)/2 grid points, row by row.
+  grid.clear();
+  for (uint64_t j = 0; j <= n; ++j)
+    for (uint64_t i = 0; i + j <= n; ++i) grid.push_back(weld(grid_point(t, i, j, n)));
+  const auto at = [&](uint64_t i, uint64_t j) { return grid[j * (n + 1) - j * (j - 1) / 2 + i]; };
+  // Step 2: emit the sub-triangles with their normal and area (double precision).
+  const auto emit = [&](uint32_t a, uint32_t b, uint32_t c) {
+    const glm::dvec3 pa(mesh.vertices[a]), pb(mesh.vertices[b]), pc(mesh.vertices[c]);
+    const glm::dvec3 cross = glm::cross(pb - pa, pc - pa);
+    const double length = glm::length(cross);
+    const auto area = static_cast<float>(0.5 * length);
+    if (!(area > 0.0f) || !std::isfinite(area)) {
+      if (t.source_line > 0)
+        fail("{}: triangle {} (line {}): a patch has zero or non-finite area in float", scene.name,
+             ti, t.source_line);
+      fail("{}: triangle {}: a patch has zero or non-finite area in float", scene.name, ti);
+    }
+    mesh.patches.push_back({a, b, c});
+    mesh.normal.push_back(glm::vec3(cross / length));
+    mesh.area.push_back(area);
+    mesh.material.push_back(t.material);
+    mesh.source_triangle.push_back(ti);
+  };
+  for (uint64_t j = 0; j < n; ++j)
+    for (uint64_t i = 0; i + j < n; ++i) {
+      emit(at(i, j), at(i + 1, j), at(i, j + 1));
+      if (i + j + 1 < n) emit(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+    }
+}
+
+// Bounding sphere: AABB centre, radius the largest vertex distance (double), enlarged by
+// 1e-6 relative and rounded up so every vertex lies strictly inside.
+void bound(PatchMesh& mesh, const std::string& name) {
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const glm::vec3& v : mesh.vertices) {
+    lo = glm::min(lo, glm::dvec3(v));
+    hi = glm::max(hi, glm::dvec3(v));
+  }
+  mesh.bound_center = glm::vec3(0.5 * (lo + hi));
+  double radius = 0.0;
+  for (const glm::vec3& v : mesh.vertices)
+    radius = std::max(radius, glm::length(glm::dvec3(v) - glm::dvec3(mesh.bound_center)));
+  radius *= 1.0 + 1e-6;
+  if (!(radius < double(std::numeric_limits<float>::max())))
+    fail("{}: scene extent too large", name);
+  mesh.bound_radius = static_cast<float>(radius);
+  if (double(mesh.bound_radius) <= radius)
+    mesh.bound_radius = std::nextafter(mesh.bound_radius, std::numeric_limits<float>::infinity());
+}
+
+// Canonical little-endian bytes fed to a streaming XXH3-128.
+class Hasher {
+ public:
+  Hasher() : state_(XXH3_createState(), &XXH3_freeState) {
+    if (!state_ || XXH3_128bits_reset(state_.get()) != XXH_OK) throw std::bad_alloc();
+  }
+  void bytes(const void* data, std::size_t size) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    buffer_.insert(buffer_.end(), p, p + size);
+    if (buffer_.size() >= (1 << 16)) flush();
+  }
+  void u32(uint32_t v) {
+    const unsigned char b[4] = {static_cast<unsigned char>(v), static_cast<unsigned char>(v >> 8),
+                                static_cast<unsigned char>(v >> 16),
+                                static_cast<unsigned char>(v >> 24)};
+    bytes(b, 4);
+  }
+  void u64(uint64_t v) {
+    u32(static_cast<uint32_t>(v));
+    u32(static_cast<uint32_t>(v >> 32));
+  }
+  void f32(float f) { u32(float_bits(f)); }
+  void vec(const glm::vec3& v) {
+    f32(v.x);
+    f32(v.y);
+    f32(v.z);
+  }
+  std::string hex() {
+    flush();
+    XXH128_canonical_t canonical;
+    XXH128_canonicalFromHash(&canonical, XXH3_128bits_digest(state_.get()));
+    static constexpr char kDigits[] = "0123456789abcdef";
+    std::string out;
+    for (unsigned char b : canonical.digest) {
+      out += kDigits[b >> 4];
+      out += kDigits[b & 15];
+    }
+    return out;
+  }
+
+ private:
+  void flush() {
+    XXH3_128bits_update(state_.get(), buffer_.data(), buffer_.size());
+    buffer_.clear();
+  }
+  std::unique_ptr<XXH3_state_t, decltype(&XXH3_freeState)> state_;
+  std::vector<unsigned char> buffer_;
+};
+
+}  // namespace
+
+PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
+  // Step 1: options and input.
+  if (std::isnan(options.max_edge) || options.max_edge < 0.0)
+    fail("{}: max_edge {} must be a positive length", scene.name, options.max_edge);
+  if (options.target_patches > 0 && options.max_edge > 0.0)
+    fail("{}: set target_patches or max_edge, not both", scene.name);
+  if (options.target_patches > kMaxPatches)
+    fail("{}: target of {} patches exceeds 2^31 - 1", scene.name, options.target_patches);
+  if (scene.triangles.empty()) fail("{}: scene has no triangles", scene.name);
+  std::vector<double> longest;
+  longest.reserve(scene.triangles.size());
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    const Triangle& t = scene.triangles[i];
+    for (const glm::vec3& p : t.p)
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        fail("{}: triangle {} has a non-finite vertex", scene.name, i);
+    if (t.material >= scene.materials.size())
+      fail("{}: triangle {} has material {} of {}", scene.name, i, t.material,
+           scene.materials.size());
+    longest.push_back(longest_edge(t));
+  }
+
+  // Step 2: the edge length, and the patch count checked before anything is allocated.
+  double max_edge = options.max_edge;
+  if (options.target_patches > scene.triangles.size())
+    max_edge = max_edge_for_target(longest, options.target_patches);
+  const uint64_t total = patch_count(longest, max_edge);
+  if (total > kMaxPatches)
+    fail("{}: meshing would make {}{} patches, more than 2^31 - 1", scene.name,
+         total == kSaturated ? "over " : "", total);
+
+  // Step 3: subdivide and weld, in input triangle order.
+  PatchMesh mesh;
+  try {
+    mesh.patches.reserve(total);
+    mesh.normal.reserve(total);
+    mesh.area.reserve(total);
+    mesh.material.reserve(total);
+    mesh.source_triangle.reserve(total);
+    // About one vertex per two patches, plus the corners and edges of each input triangle.
+    Welder weld(mesh.vertices, scene.name, total / 2 + 3 * scene.triangles.size());
+    std::vector<uint32_t> grid;
+    for (std::size_t i = 0; i < scene.triangles.size(); ++i)
+      subdivide(scene, static_cast<uint32_t>(i), subdivisions(longest[i], max_edge), weld, mesh,
+                grid);
+  } catch (const std::bad_alloc&) {
+    fail("{}: out of memory meshing {} patches", scene.name, total);
+  }
+
+  // Step 4: scene data, bounds and the content hash.
+  mesh.materials = scene.materials;
+  mesh.background = scene.background;
+  mesh.camera = scene.camera;
+  bound(mesh, scene.name);
+  mesh.hash = content_hash(mesh);
+  return mesh;
+}
+
+std::string content_hash(const PatchMesh& mesh) {
+  Hasher h;
+  static constexpr char kTag[] = "sirad-mesh-v1";
+  h.bytes(kTag, sizeof kTag - 1);
+  h.u64(mesh.vertices.size());
+  h.u64(mesh.patches.size());
+  h.u64(mesh.materials.size());
+  for (const glm::vec3& v : mesh.vertices) h.vec(v);
+  for (const auto& p : mesh.patches)
+    for (uint32_t v : p) h.u32(v);
+  for (uint32_t m : mesh.material) h.u32(m);
+  for (const Material& m : mesh.materials) {
+    h.vec(m.reflectance);
+    h.vec(m.emission);
+  }
+  h.vec(mesh.background);
+  return h.hex();
+}
+
+}  // namespace sirad

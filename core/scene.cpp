@@ -1,0 +1,515 @@
+// sirad: scene import (line-exact OBJ parsing, MTL via tinyobjloader), validation, built-ins.
+#include "core/scene.h"
+
+#include <tiny_obj_loader.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cfloat>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+#include <limits>
+#include <map>
+#include <new>
+#include <numbers>
+#include <sstream>
+#include <string_view>
+#include <system_error>
+#include <unordered_map>
+#include <utility>
+
+#include "core/error.h"
+#include "core/resources.h"
+
+namespace sirad {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Limits against hostile input. Real radiosity scenes are orders of magnitude smaller.
+constexpr std::uintmax_t kMaxFileBytes = std::uintmax_t{1} << 31;  // 2 GiB
+constexpr std::size_t kMaxVertices = std::size_t{1} << 26;
+constexpr std::size_t kMaxTriangles = std::size_t{1} << 26;
+constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+constexpr float kDefaultReflectance = 0.8f;  // faces without `usemtl`
+
+// Supplies an MTL file named by `mtllib` on OBJ line `line`: its label for messages, its text.
+using MtlSource =
+    std::function<std::pair<std::string, std::string>(const std::string& file, uint32_t line)>;
+
+// Text from a file made safe for a one-line message: at most 40 bytes, non-printables as '?'.
+std::string printable(std::string_view s) {
+  std::string out;
+  for (char ch : s.substr(0, 40)) {
+    const auto c = static_cast<unsigned char>(ch);
+    out += (c >= 0x20 && c < 0x7f) ? ch : '?';
+  }
+  if (s.size() > 40) out += "...";
+  return out;
+}
+
+bool is_blank(char c) { return c == ' ' || c == '\t'; }
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && is_blank(s.front())) s.remove_prefix(1);
+  while (!s.empty() && is_blank(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+void split(std::string_view s, std::vector<std::string_view>& out) {
+  out.clear();
+  std::size_t i = 0;
+  while (i < s.size()) {
+    while (i < s.size() && is_blank(s[i])) ++i;
+    const std::size_t start = i;
+    while (i < s.size() && !is_blank(s[i])) ++i;
+    if (i > start) out.push_back(s.substr(start, i - start));
+  }
+}
+
+bool is_identifier(std::string_view s) {
+  if (s.empty() || !(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
+  return std::all_of(s.begin(), s.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+  });
+}
+
+// A material name as written after `newmtl` / `usemtl`: trailing comment and blanks removed.
+std::string material_name(std::string_view s) {
+  return std::string(trim(s.substr(0, s.find('#'))));
+}
+
+enum class Parsed { ok, not_a_number, out_of_range };
+
+// A whole token as a float (decimal or exponent form, optional sign). "nan"/"inf" parse; the
+// caller checks finiteness. Values beyond float range are out_of_range.
+Parsed parse_float(std::string_view s, float& out) {
+  if (s.size() > 1 && s[0] == '+' && s[1] != '-') s.remove_prefix(1);
+  double v = 0.0;
+  const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (s.empty() || ptr != s.data() + s.size() || ec == std::errc::invalid_argument)
+    return Parsed::not_a_number;
+  if (ec == std::errc::result_out_of_range || (std::isfinite(v) && std::fabs(v) > FLT_MAX))
+    return Parsed::out_of_range;
+  out = static_cast<float>(v);
+  return Parsed::ok;
+}
+
+// A zero-area or collinear triangle: |cross| <= 1e-12 * longest_edge^2, in double.
+bool is_degenerate(const std::array<glm::vec3, 3>& p) {
+  const glm::dvec3 a(p[0]), b(p[1]), c(p[2]);
+  const double longest2 =
+      std::max({glm::dot(b - a, b - a), glm::dot(c - b, c - b), glm::dot(a - c, a - c)});
+  return !(glm::length(glm::cross(b - a, c - a)) > 1e-12 * longest2);
+}
+
+void validate_material(const Material& m, const std::string& file) {
+  for (int k = 0; k < 3; ++k)
+    if (!(m.reflectance[k] >= 0.0f && m.reflectance[k] <= 1.0f))
+      fail("{}: material '{}': Kd {} outside [0, 1]", file, printable(m.name), m.reflectance[k]);
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(m.emission[k]))
+      fail("{}: material '{}': Ke {} is not finite", file, printable(m.name), m.emission[k]);
+    if (m.emission[k] < 0.0f)
+      fail("{}: material '{}': Ke {} is negative", file, printable(m.name), m.emission[k]);
+  }
+}
+
+// An OBJ file parsed line by line so that every message can name its line; fan-triangulated
+// faces are kept as vertex indices until the end, when materials and vertices are resolved.
+class ObjParser {
+ public:
+  explicit ObjParser(std::string name) : name_(std::move(name)) {}
+
+  void parse(std::string_view text) {
+    if (text.size() > kMaxFileBytes) fail("{}: file is larger than 2 GiB", name_);
+    std::size_t pos = 0;
+    while (pos < text.size()) {
+      std::size_t end = text.find_first_of("\r\n", pos);
+      if (end == std::string_view::npos) end = text.size();
+      ++line_;
+      statement(text.substr(pos, end - pos));
+      const bool crlf = end + 1 < text.size() && text[end] == '\r' && text[end + 1] == '\n';
+      pos = end + (crlf ? 2 : 1);
+    }
+  }
+
+  Scene finish(const MtlSource& source, const ImportOptions& options);
+
+ private:
+  struct RawTriangle {
+    std::array<uint32_t, 3> v;
+    uint32_t line;
+    uint32_t slot;  // index into slots_, or kNone without `usemtl`
+  };
+
+  template <typename... Args>
+  [[noreturn]] void error(fmt::format_string<Args...> f, Args&&... args) const {
+    fail("{}:{}: {}", name_, line_, fmt::format(f, std::forward<Args>(args)...));
+  }
+
+  void statement(std::string_view line) {
+    // Step 1: reject binary data (control bytes other than tab).
+    for (char ch : line) {
+      const auto c = static_cast<unsigned char>(ch);
+      if ((c < 0x20 && c != '\t') || c == 0x7f) error("binary data, not OBJ text");
+    }
+    // Step 2: comments (maybe the camera), then the statement without a trailing comment.
+    std::string_view s = trim(line);
+    if (s.empty()) return;
+    if (s[0] == '#') {
+      comment(s.substr(1));
+      return;
+    }
+    s = trim(s.substr(0, s.find('#')));
+    split(s, tokens_);
+    const std::string_view key = tokens_[0];
+    if (key == "v") {
+      vertex();
+    } else if (key == "f") {
+      face();
+    } else if (key == "usemtl") {
+      usemtl(material_name(s.substr(key.size())));
+    } else if (key == "mtllib") {
+      if (tokens_.size() < 2) error("mtllib without a file name");
+      for (std::size_t i = 1; i < tokens_.size(); ++i) {
+        const std::string file(tokens_[i]);
+        if (std::none_of(mtllibs_.begin(), mtllibs_.end(),
+                         [&](const auto& m) { return m.first == file; }))
+          mtllibs_.emplace_back(file, line_);
+      }
+    } else if (!is_identifier(key)) {
+      // Other OBJ statements (vt, vn, g, o, s, l, ...) carry nothing a radiosity scene uses.
+      error("not an OBJ statement: '{}'", printable(key));
+    }
+  }
+
+  void vertex() {
+    if (tokens_.size() < 4) error("vertex needs 3 coordinates");
+    glm::vec3 p;
+    for (int k = 0; k < 3; ++k) {
+      const std::string_view t = tokens_[k + 1];
+      switch (parse_float(t, p[k])) {
+        case Parsed::not_a_number:
+          error("bad vertex coordinate '{}'", printable(t));
+        case Parsed::out_of_range:
+          error("vertex coordinate '{}' out of range", printable(t));
+        case Parsed::ok:
+          break;
+      }
+      if (!std::isfinite(p[k])) error("vertex has a non-finite coordinate");
+    }
+    if (vertices_.size() >= kMaxVertices) error("more than {} vertices", kMaxVertices);
+    vertices_.push_back(p);
+  }
+
+  void face() {
+    const std::size_t count = tokens_.size() - 1;
+    if (count < 3) error("face has {} vertices, needs at least 3", count);
+    face_.clear();
+    for (std::size_t i = 1; i <= count; ++i) {
+      std::string_view ref = tokens_[i].substr(0, tokens_[i].find('/'));
+      if (ref.size() > 1 && ref[0] == '+' && ref[1] != '-') ref.remove_prefix(1);
+      int64_t k = 0;
+      const auto [ptr, ec] = std::from_chars(ref.data(), ref.data() + ref.size(), k);
+      if (ref.empty() || ptr != ref.data() + ref.size() || ec == std::errc::invalid_argument)
+        error("bad face index '{}'", printable(tokens_[i]));
+      if (ec == std::errc::result_out_of_range)
+        error("face index {} out of range ({} vertices)", printable(ref), vertices_.size());
+      if (k == 0) error("face index 0 is invalid (OBJ indices start at 1)");
+      // Negative indices count back from the latest vertex; positive ones are checked at the
+      // end (they may refer to vertices defined further down).
+      const int64_t index = k > 0 ? k - 1 : static_cast<int64_t>(vertices_.size()) + k;
+      if (index < 0 || index >= static_cast<int64_t>(kMaxVertices))
+        error("face index {} out of range ({} vertices)", k, vertices_.size());
+      face_.push_back(static_cast<uint32_t>(index));
+    }
+    if (triangles_.size() + (count - 2) > kMaxTriangles)
+      error("more than {} triangles", kMaxTriangles);
+    for (std::size_t i = 1; i + 1 < count; ++i)
+      triangles_.push_back({{face_[0], face_[i], face_[i + 1]}, line_, slot_});
+  }
+
+  void usemtl(const std::string& name) {
+    if (name.empty()) error("usemtl without a material name");
+    const auto [it, added] = slot_of_.try_emplace(name, static_cast<uint32_t>(slots_.size()));
+    if (added) slots_.push_back(name);
+    slot_ = it->second;
+  }
+
+  // `# sirad camera eye X Y Z look X Y Z up X Y Z fov DEG`, keywords in any order, all required.
+  void comment(std::string_view body) {
+    split(body, tokens_);
+    if (tokens_.size() < 2 || tokens_[0] != "sirad" || tokens_[1] != "camera") return;
+    const auto bad = [&](const std::string& why) {
+      error("malformed '# sirad camera' line: {}", why);
+    };
+    if (camera_) bad("a second camera line");
+    std::map<std::string_view, glm::vec3> given;
+    for (std::size_t i = 2; i < tokens_.size();) {
+      const std::string_view key = tokens_[i++];
+      const int arity = key == "fov" ? 1 : (key == "eye" || key == "look" || key == "up") ? 3 : 0;
+      if (arity == 0) bad(fmt::format("unknown keyword '{}'", printable(key)));
+      if (given.count(key)) bad(fmt::format("'{}' given twice", key));
+      if (i + arity > tokens_.size())
+        bad(fmt::format("'{}' needs {} number{}", key, arity, arity == 1 ? "" : "s"));
+      glm::vec3 value(0.0f);
+      for (int k = 0; k < arity; ++k, ++i)
+        if (parse_float(tokens_[i], value[k]) != Parsed::ok || !std::isfinite(value[k]))
+          bad(fmt::format("'{}' has a bad number '{}'", key, printable(tokens_[i])));
+      given[key] = value;
+    }
+    for (const char* key : {"eye", "look", "up", "fov"})
+      if (!given.count(key)) bad(fmt::format("missing '{}'", key));
+    Camera camera{given["eye"], given["look"], given["up"], given["fov"].x};
+    if (!(camera.vfov_deg > 0.0f && camera.vfov_deg < 180.0f))
+      bad(fmt::format("fov {} outside (0, 180)", camera.vfov_deg));
+    const glm::dvec3 view = glm::dvec3(camera.look_at) - glm::dvec3(camera.eye);
+    const glm::dvec3 up(camera.up);
+    if (!(glm::length(view) > 0.0)) bad("eye and look are the same point");
+    if (!(glm::length(glm::cross(view, up)) > 1e-6 * glm::length(view) * glm::length(up)))
+      bad("up is zero or parallel to the view direction");
+    camera_ = camera;
+  }
+
+  std::string name_;
+  uint32_t line_ = 0;
+  std::vector<std::string_view> tokens_;
+  std::vector<uint32_t> face_;
+  std::vector<glm::vec3> vertices_;
+  std::vector<RawTriangle> triangles_;
+  std::vector<std::string> slots_;  // material names in order of first `usemtl`
+  std::unordered_map<std::string, uint32_t> slot_of_;
+  uint32_t slot_ = kNone;
+  std::vector<std::pair<std::string, uint32_t>> mtllibs_;  // file and line, first mention
+  std::optional<Camera> camera_;
+};
+
+Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
+  // Step 1: material libraries, each parsed by tinyobjloader; the first definition of a name
+  // wins. Its warnings concern parameters sirad ignores (d/Tr, textures).
+  struct Defined {
+    Material material;
+    std::string file;
+  };
+  std::unordered_map<std::string, Defined> defined;
+  for (const auto& [file, line] : mtllibs_) {
+    const auto [label, text] = source(file, line);
+    if (text.find('\0') != std::string::npos) fail("{}: binary data, not MTL text", label);
+    std::istringstream in(text);
+    std::map<std::string, int> map;
+    std::vector<tinyobj::material_t> materials;
+    std::string warn, err;
+    tinyobj::LoadMtl(&map, &materials, &in, &warn, &err);
+    if (!err.empty()) fail("{}: {}", label, printable(err.substr(0, err.find('\n'))));
+    for (const auto& m : materials) {
+      const std::string name = material_name(m.name);
+      if (name.empty()) continue;  // tinyobjloader's unnamed default
+      defined.try_emplace(name, Defined{{name,
+                                         {m.diffuse[0], m.diffuse[1], m.diffuse[2]},
+                                         {m.emission[0], m.emission[1], m.emission[2]}},
+                                        label});
+    }
+  }
+
+  // Step 2: triangles in file order: indices in range, non-degenerate, materials resolved and
+  // validated on first use (Scene::materials holds only used ones, in order of first use).
+  Scene scene;
+  scene.name = name_;
+  scene.camera = camera_;
+  std::vector<uint32_t> index_of_slot(slots_.size(), kNone);
+  uint32_t default_index = kNone;
+  std::size_t skipped = 0;
+  scene.triangles.reserve(triangles_.size());
+  for (const RawTriangle& raw : triangles_) {
+    line_ = raw.line;
+    Triangle t;
+    for (int k = 0; k < 3; ++k) {
+      if (raw.v[k] >= vertices_.size())
+        error("face index {} out of range ({} vertices)", raw.v[k] + 1, vertices_.size());
+      t.p[k] = vertices_[raw.v[k]];
+    }
+    if (is_degenerate(t.p)) {
+      if (!options.skip_degenerate)
+        error("degenerate triangle (zero area) with vertices {}, {}, {}", raw.v[0] + 1,
+              raw.v[1] + 1, raw.v[2] + 1);
+      ++skipped;
+      continue;
+    }
+    uint32_t& index = raw.slot == kNone ? default_index : index_of_slot[raw.slot];
+    if (index == kNone) {
+      index = static_cast<uint32_t>(scene.materials.size());
+      if (raw.slot == kNone) {
+        scene.materials.push_back({"default", glm::vec3(kDefaultReflectance), glm::vec3(0.0f)});
+      } else {
+        const auto it = defined.find(slots_[raw.slot]);
+        if (it == defined.end())
+          error("unknown material '{}' (not defined in any material library)",
+                printable(slots_[raw.slot]));
+        validate_material(it->second.material, it->second.file);
+        scene.materials.push_back(it->second.material);
+      }
+    }
+    t.material = index;
+    t.source_line = raw.line;
+    scene.triangles.push_back(t);
+  }
+
+  // Step 3: something to solve: a triangle and an emitter.
+  if (scene.triangles.empty()) {
+    if (skipped > 0) fail("{}: scene has no triangles ({} skipped as degenerate)", name_, skipped);
+    fail("{}: scene has no triangles", name_);
+  }
+  const bool emits =
+      std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) {
+        return m.emission.x > 0.0f || m.emission.y > 0.0f || m.emission.z > 0.0f;
+      });
+  if (!emits) fail("{}: scene has no emitter (no material with Ke > 0)", name_);
+  return scene;
+}
+
+// Runs an import, turning exhaustion of memory into a one-line error.
+template <typename F>
+Scene guarded(const std::string& name, F&& import) {
+  try {
+    return import();
+  } catch (const std::bad_alloc&) {
+    fail("{}: out of memory", name);
+  } catch (const std::length_error&) {
+    fail("{}: out of memory", name);
+  }
+}
+
+Scene import_obj(const std::string& name, std::string_view text, const MtlSource& source,
+                 const ImportOptions& options) {
+  return guarded(name, [&] {
+    ObjParser parser(name);
+    parser.parse(text);
+    return parser.finish(source, options);
+  });
+}
+
+// A whole regular file, at most 2 GiB; never blocks on FIFOs or devices.
+std::string read_file(const fs::path& path, const std::string& label) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (status.type() == fs::file_type::not_found) fail("{}: no such file", label);
+  if (ec) fail("{}: cannot access ({})", label, ec.message());
+  if (fs::is_directory(status)) fail("{}: is a directory, not a file", label);
+  if (!fs::is_regular_file(status)) fail("{}: not a regular file", label);
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (!ec && size > kMaxFileBytes) fail("{}: file is larger than 2 GiB", label);
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+    fail("{}: cannot open ({})", label, std::error_code(errno, std::generic_category()).message());
+  std::string text;
+  if (!ec) text.reserve(size);
+  std::vector<char> chunk(1 << 16);
+  while (in.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || in.gcount() > 0) {
+    const auto n = static_cast<std::size_t>(in.gcount());
+    if (text.size() + n > kMaxFileBytes) fail("{}: file is larger than 2 GiB", label);
+    text.append(chunk.data(), n);
+  }
+  if (in.bad()) fail("{}: read error", label);
+  return text;
+}
+
+}  // namespace
+
+Scene parse_obj(const std::string& name, const std::string& obj_text,
+                const std::vector<std::pair<std::string, std::string>>& mtl_files,
+                const ImportOptions& options) {
+  const MtlSource source = [&](const std::string& file, uint32_t line) {
+    for (const auto& [mtl_name, text] : mtl_files)
+      if (mtl_name == file) return std::pair{mtl_name, text};
+    fail("{}:{}: material library '{}' not provided", name, line, printable(file));
+  };
+  return import_obj(name, obj_text, source, options);
+}
+
+Scene load_scene(const std::string& spec, const ImportOptions& options) {
+  if (spec == "cornell") return builtin_cornell();
+  if (spec == "furnace") return builtin_furnace();
+  const fs::path path(spec);
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (extension != ".obj")
+    fail("{}: unsupported scene format (supported: .obj, built-ins: cornell, furnace)", spec);
+  return guarded(spec, [&] {
+    const std::string text = read_file(path, spec);
+    const fs::path dir = path.parent_path();
+    const MtlSource source = [&](const std::string& file, uint32_t) {
+      const fs::path mtl = dir / file;
+      return std::pair{mtl.string(), read_file(mtl, mtl.string())};
+    };
+    return import_obj(spec, text, source, options);
+  });
+}
+
+Scene builtin_cornell() {
+  const std::string obj(resource("scenes/cornell_box.obj"));
+  const std::string mtl(resource("scenes/cornell_box.mtl"));
+  Scene scene = parse_obj("cornell", obj, {{"cornell_box.mtl", mtl}});
+  scene.name = "cornell";
+  return scene;
+}
+
+Scene builtin_furnace() {
+  Scene scene;
+  scene.name = "furnace";
+  scene.materials.push_back({"furnace", glm::vec3(0.5f), glm::vec3(1.0f)});
+  // Each face of the unit cube as a quad q0..q3 spanning the two other axes u, v (so its normal
+  // is +axis); on the far side (coordinate 1) reversed, so every normal points into the cube.
+  for (int axis = 0; axis < 3; ++axis) {
+    const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    for (int side = 0; side < 2; ++side) {
+      std::array<glm::vec3, 4> q;
+      const float uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+      for (int k = 0; k < 4; ++k) {
+        q[k][axis] = static_cast<float>(side);
+        q[k][u] = uv[k][0];
+        q[k][v] = uv[k][1];
+      }
+      if (side == 1) std::swap(q[1], q[3]);
+      scene.triangles.push_back({{q[0], q[1], q[2]}, 0, 0});
+      scene.triangles.push_back({{q[0], q[2], q[3]}, 0, 0});
+    }
+  }
+  scene.camera = Camera{{0.5f, 0.5f, 0.05f}, {0.5f, 0.5f, 1.0f}, {0.0f, 1.0f, 0.0f}, 90.0f};
+  return scene;
+}
+
+std::vector<std::string> builtin_scene_names() { return {"cornell", "furnace"}; }
+
+Camera default_camera(const Scene& scene) {
+  Camera camera;
+  if (scene.triangles.empty()) {
+    camera.eye = {0.0f, 0.0f, -1.0f};
+    camera.look_at = {0.0f, 0.0f, 0.0f};
+    return camera;
+  }
+  // Look at the bounding box centre along +Z from far enough that its bounding sphere fits
+  // the vertical field of view.
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const Triangle& t : scene.triangles)
+    for (const glm::vec3& p : t.p) {
+      lo = glm::min(lo, glm::dvec3(p));
+      hi = glm::max(hi, glm::dvec3(p));
+    }
+  const glm::dvec3 centre = 0.5 * (lo + hi);
+  double radius = 0.5 * glm::length(hi - lo);
+  if (!(radius > 0.0)) radius = 1.0;
+  const double distance = radius / std::sin(0.5 * camera.vfov_deg * std::numbers::pi / 180.0);
+  camera.look_at = glm::vec3(centre);
+  camera.eye = glm::vec3(centre - glm::dvec3(0.0, 0.0, distance));
+  camera.up = {0.0f, 1.0f, 0.0f};
+  return camera;
+}
+
+}  // namespace sirad

@@ -1,0 +1,280 @@
+// sirad tests: meshing (subdivision counts, edge lengths, area, target counts, welding, hash).
+#include "core/mesh.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <limits>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "core/scene.h"
+
+namespace sirad {
+namespace {
+
+double edge_length(const glm::vec3& a, const glm::vec3& b) {
+  return glm::length(glm::dvec3(a) - glm::dvec3(b));
+}
+
+double longest_edge(const Triangle& t) {
+  return std::max(
+      {edge_length(t.p[0], t.p[1]), edge_length(t.p[1], t.p[2]), edge_length(t.p[2], t.p[0])});
+}
+
+double triangle_area(const Triangle& t) {
+  const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
+  return 0.5 * glm::length(glm::cross(b - a, c - a));
+}
+
+glm::dvec3 triangle_normal(const Triangle& t) {
+  const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
+  return glm::normalize(glm::cross(b - a, c - a));
+}
+
+// Patches per input triangle, in order.
+std::vector<std::size_t> patches_per_triangle(const PatchMesh& mesh, std::size_t triangles) {
+  std::vector<std::size_t> count(triangles, 0);
+  for (uint32_t t : mesh.source_triangle) ++count.at(t);
+  return count;
+}
+
+// The unit square z = 0 as two triangles (CCW from +z), emitting.
+Scene unit_square() {
+  Scene s;
+  s.name = "square";
+  s.materials.push_back({"m", glm::vec3(0.5f), glm::vec3(1.0f)});
+  s.triangles.push_back({{glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(1, 1, 0)}, 0, 0});
+  s.triangles.push_back({{glm::vec3(0, 0, 0), glm::vec3(1, 1, 0), glm::vec3(0, 1, 0)}, 0, 0});
+  return s;
+}
+
+TEST(MeshSubdivision, MaxEdgeGivesNSquaredPatchesAndShortEdges) {
+  const Scene scene = builtin_cornell();
+  for (double max_edge : {1000.0, 120.0, 37.5}) {
+    MeshOptions options;
+    options.max_edge = max_edge;
+    const PatchMesh mesh = mesh_scene(scene, options);
+    const auto counts = patches_per_triangle(mesh, scene.triangles.size());
+    for (std::size_t t = 0; t < scene.triangles.size(); ++t) {
+      const auto n = static_cast<std::size_t>(
+          std::max(1.0, std::ceil(longest_edge(scene.triangles[t]) / max_edge)));
+      EXPECT_EQ(counts[t], n * n) << "triangle " << t << ", max_edge " << max_edge;
+    }
+    // Source triangles appear in input order.
+    EXPECT_TRUE(std::is_sorted(mesh.source_triangle.begin(), mesh.source_triangle.end()));
+    for (const auto& p : mesh.patches)
+      for (int k = 0; k < 3; ++k)
+        EXPECT_LE(edge_length(mesh.vertices[p[k]], mesh.vertices[p[(k + 1) % 3]]),
+                  max_edge * (1 + 1e-5));
+  }
+}
+
+TEST(MeshSubdivision, SubTriangleOrderAndOrientation) {
+  // One triangle split n = 3 ways: the first patch is the corner at a, the last the one at c.
+  Scene s = unit_square();
+  s.triangles.resize(1);
+  MeshOptions options;
+  options.max_edge = std::sqrt(2.0) / 3.0 + 1e-9;
+  const PatchMesh mesh = mesh_scene(s, options);
+  ASSERT_EQ(mesh.size(), 9u);
+  const auto& first = mesh.patches.front();
+  EXPECT_EQ(mesh.vertices[first[0]], glm::vec3(0, 0, 0));
+  EXPECT_EQ(mesh.vertices[first[1]], glm::vec3(1.0f / 3.0f, 0, 0));
+  EXPECT_EQ(mesh.vertices[first[2]], glm::vec3(1.0f / 3.0f, 1.0f / 3.0f, 0));
+  EXPECT_EQ(mesh.vertices[mesh.patches.back()[2]], glm::vec3(1, 1, 0));
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    EXPECT_EQ(mesh.normal[j], glm::vec3(0, 0, 1));
+    EXPECT_NEAR(mesh.area[j], 0.5 / 9.0, 1e-7);
+  }
+}
+
+TEST(MeshSubdivision, AreaIsPreserved) {
+  const Scene scene = builtin_cornell();
+  double input = 0.0;
+  for (const Triangle& t : scene.triangles) input += triangle_area(t);
+  for (double max_edge : {0.0, 80.0, 13.0}) {
+    MeshOptions options;
+    options.max_edge = max_edge;
+    const PatchMesh mesh = mesh_scene(scene, options);
+    double total = 0.0;
+    for (float a : mesh.area) {
+      EXPECT_GT(a, 0.0f);
+      total += a;
+    }
+    EXPECT_NEAR(total / input, 1.0, 1e-5) << "max_edge " << max_edge;
+  }
+}
+
+// Every patch count reachable by some max_edge, found at each step of every triangle's n
+// (edges L / k) and at the neighbouring doubles.
+std::set<std::size_t> achievable_counts(const Scene& scene, std::size_t up_to_n) {
+  std::vector<double> longest;
+  for (const Triangle& t : scene.triangles) longest.push_back(longest_edge(t));
+  std::set<std::size_t> counts;
+  for (double l : longest)
+    for (std::size_t k = 1; k <= up_to_n; ++k)
+      for (double e : {std::nextafter(l / k, 0.0), l / k, std::nextafter(l / k, 1e300)}) {
+        std::size_t total = 0;
+        for (double m : longest) {
+          const auto n = static_cast<std::size_t>(std::max(1.0, std::ceil(m / e)));
+          total += n * n;
+        }
+        counts.insert(total);
+      }
+  return counts;
+}
+
+TEST(MeshTarget, ClosestAchievableCount) {
+  const Scene scene = builtin_cornell();
+  const std::set<std::size_t> counts = achievable_counts(scene, 80);
+  for (std::size_t target : {39u, 100u, 777u, 5000u, 12345u}) {
+    // The closest achievable count, the smaller one on a tie.
+    std::size_t best = 0;
+    for (std::size_t c : counts) {
+      const auto d = [&](std::size_t x) { return x > target ? x - target : target - x; };
+      if (best == 0 || d(c) < d(best)) best = c;
+    }
+    MeshOptions options;
+    options.target_patches = target;
+    EXPECT_EQ(mesh_scene(scene, options).size(), best) << "target " << target;
+  }
+  // Fewer than the input triangles: one patch each.
+  MeshOptions few;
+  few.target_patches = 5;
+  EXPECT_EQ(mesh_scene(scene, few).size(), scene.triangles.size());
+}
+
+TEST(MeshTarget, BadOptionsAreErrors) {
+  const Scene scene = builtin_cornell();
+  const auto message = [&](const MeshOptions& o) {
+    try {
+      mesh_scene(scene, o);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  MeshOptions o;
+  o.max_edge = -1.0;
+  EXPECT_NE(message(o).find("max_edge -1"), std::string::npos) << message(o);
+  o.max_edge = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(message(o).find("max_edge nan"), std::string::npos) << message(o);
+  o.max_edge = 10.0;
+  o.target_patches = 100;
+  EXPECT_NE(message(o).find("not both"), std::string::npos) << message(o);
+  o = MeshOptions{};
+  o.target_patches = std::size_t{1} << 31;
+  EXPECT_NE(message(o).find("exceeds 2^31 - 1"), std::string::npos) << message(o);
+  o = MeshOptions{};
+  o.max_edge = 1e-6;  // about 10^17 patches: refused before allocating
+  EXPECT_NE(message(o).find("more than 2^31 - 1"), std::string::npos) << message(o);
+}
+
+TEST(MeshHash, StableOrderAndHash) {
+  const Scene scene = builtin_cornell();
+  MeshOptions options;
+  options.target_patches = 2000;
+  const PatchMesh a = mesh_scene(scene, options), b = mesh_scene(scene, options);
+  EXPECT_EQ(a.vertices, b.vertices);
+  EXPECT_EQ(a.patches, b.patches);
+  EXPECT_EQ(a.material, b.material);
+  EXPECT_EQ(a.hash, b.hash);
+  EXPECT_EQ(a.hash, content_hash(a));
+  ASSERT_EQ(a.hash.size(), 32u);
+  EXPECT_EQ(a.hash.find_first_not_of("0123456789abcdef"), std::string::npos);
+}
+
+TEST(MeshHash, ChangesWithContent) {
+  const Scene scene = builtin_cornell();
+  const PatchMesh mesh = mesh_scene(scene, {});
+  // One reflectance channel of one material, in the scene or in the mesh.
+  Scene brighter = scene;
+  brighter.materials[0].reflectance.y += 0.01f;
+  EXPECT_NE(mesh_scene(brighter, {}).hash, mesh.hash);
+  PatchMesh edited = mesh;
+  edited.materials.back().reflectance.x = 0.5f;
+  EXPECT_NE(content_hash(edited), mesh.hash);
+  // One vertex coordinate.
+  edited = mesh;
+  edited.vertices[3].z = std::nextafter(edited.vertices[3].z, 1e9f);
+  EXPECT_NE(content_hash(edited), mesh.hash);
+  // The background.
+  edited = mesh;
+  edited.background = glm::vec3(0.1f);
+  EXPECT_NE(content_hash(edited), mesh.hash);
+  // Names are not content.
+  edited = mesh;
+  edited.materials[0].name = "renamed";
+  EXPECT_EQ(content_hash(edited), mesh.hash);
+}
+
+TEST(MeshWeld, SharedEdgesAndDuplicatedVertices) {
+  // Two triangles sharing the diagonal, n = 4 each (longest edge sqrt(2) / 0.4 -> 4).
+  MeshOptions options;
+  options.max_edge = 0.4;
+  const PatchMesh mesh = mesh_scene(unit_square(), options);
+  EXPECT_EQ(mesh.size(), 32u);
+  EXPECT_EQ(mesh.vertices.size(), 25u);
+  // The diagonal written in opposite directions by the two triangles still welds.
+  Scene flipped = unit_square();
+  flipped.triangles[1].p = {glm::vec3(1, 1, 0), glm::vec3(0, 1, 0), glm::vec3(0, 0, 0)};
+  EXPECT_EQ(mesh_scene(flipped, options).vertices.size(), 25u);
+  // An OBJ that repeats the vertices for each face.
+  const Scene obj = parse_obj("dup.obj",
+                              "mtllib m.mtl\nusemtl e\n"
+                              "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n"
+                              "v 0 0 0\nv 1 1 0\nv 0 1 0\nf 4 5 6\n",
+                              {{"m.mtl", "newmtl e\nKd 0.5 0.5 0.5\nKe 1 1 1\n"}});
+  EXPECT_EQ(mesh_scene(obj, {}).vertices.size(), 4u);
+  EXPECT_EQ(mesh_scene(obj, options).vertices.size(), 25u);
+}
+
+TEST(MeshCornell, NormalsFollowSourceAndBoundContainsAll) {
+  const Scene scene = builtin_cornell();
+  MeshOptions options;
+  options.target_patches = 5000;
+  const PatchMesh mesh = mesh_scene(scene, options);
+  EXPECT_NEAR(double(mesh.size()), 5000.0, 500.0);
+  ASSERT_EQ(mesh.normal.size(), mesh.size());
+  ASSERT_EQ(mesh.area.size(), mesh.size());
+  ASSERT_EQ(mesh.material.size(), mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const Triangle& source = scene.triangles[mesh.source_triangle[j]];
+    EXPECT_EQ(mesh.material[j], source.material);
+    EXPECT_GT(glm::dot(glm::dvec3(mesh.normal[j]), triangle_normal(source)), 1.0 - 1e-5)
+        << "patch " << j;
+    EXPECT_NEAR(glm::length(glm::dvec3(mesh.normal[j])), 1.0, 1e-6);
+  }
+  for (const glm::vec3& v : mesh.vertices)
+    EXPECT_LT(glm::length(glm::dvec3(v) - glm::dvec3(mesh.bound_center)),
+              double(mesh.bound_radius));
+  EXPECT_LT(mesh.bound_radius,
+            1.01f * 0.5f * std::sqrt(556.0f * 556.0f + 548.8f * 548.8f + 559.2f * 559.2f));
+  EXPECT_EQ(mesh.materials.size(), scene.materials.size());
+  ASSERT_TRUE(mesh.camera.has_value());
+  EXPECT_EQ(mesh.camera->eye, scene.camera->eye);
+}
+
+TEST(MeshFurnace, InwardNormalsAndTotalArea) {
+  MeshOptions options;
+  options.target_patches = 1200;
+  const PatchMesh mesh = mesh_scene(builtin_furnace(), options);
+  double total = 0.0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    total += mesh.area[j];
+    const auto& p = mesh.patches[j];
+    const glm::dvec3 centroid = (glm::dvec3(mesh.vertices[p[0]]) + glm::dvec3(mesh.vertices[p[1]]) +
+                                 glm::dvec3(mesh.vertices[p[2]])) /
+                                3.0;
+    EXPECT_GT(glm::dot(glm::dvec3(mesh.normal[j]), glm::dvec3(0.5) - centroid), 0.0);
+  }
+  EXPECT_NEAR(total, 6.0, 6e-5);
+}
+
+}  // namespace
+}  // namespace sirad
