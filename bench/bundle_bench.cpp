@@ -15,6 +15,7 @@
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/mesh.h"
+#include "core/metrics.h"
 #include "core/scene.h"
 #include "core/solver.h"
 
@@ -45,20 +46,6 @@ std::pair<double, double> time_engine(const PatchMesh& mesh, BundleEngine& engin
     crossings += r.crossings;
   }
   return {median(ms), crossings / total};
-}
-
-double rel_rms(const PatchMesh& mesh, const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b) {
-  double num = 0, den = 0;
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    glm::vec3 e = mesh.emission(j);
-    if (e.x > 0 || e.y > 0 || e.z > 0) continue;
-    for (int c = 0; c < 3; ++c) {
-      double d = static_cast<double>(a[j][c]) - b[j][c];
-      num += mesh.area[j] * d * d;
-      den += mesh.area[j] * 0.25 * (static_cast<double>(a[j][c]) + b[j][c]) * (a[j][c] + b[j][c]);
-    }
-  }
-  return std::sqrt(num / den);
 }
 
 }  // namespace
@@ -102,7 +89,7 @@ int main(int argc, char** argv) {
         a.step(k);
         b.step(k);
         if (((k + 1) & k) == 0 && k + 1 >= 16)
-          std::printf("%d,%.5f\n", k + 1, rel_rms(mesh, a.estimate(), b.estimate()) / std::sqrt(2.0));
+          std::printf("%d,%.5f\n", k + 1, relative_rms(mesh, a.estimate(), b.estimate()) / std::sqrt(2.0));
       }
     }
   } catch (const std::exception& e) {

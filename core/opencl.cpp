@@ -88,27 +88,11 @@ DeviceInfo describe_device(const cl::Device& device) {
   return info;
 }
 
-std::vector<DeviceInfo> list_devices() {
-  std::vector<DeviceInfo> out;
-  auto ps = platforms();
-  for (std::size_t p = 0; p < ps.size(); ++p) {
-    auto ds = devices_of(ps[p]);
-    for (std::size_t d = 0; d < ds.size(); ++d) {
-      DeviceInfo info = describe_device(ds[d]);
-      info.platform = static_cast<int>(p);
-      info.device = static_cast<int>(d);
-      out.push_back(info);
-    }
-  }
-  return out;
-}
-
-cl::Device select_device(const std::string& requested) {
-  std::string spec = requested;
-  if (spec.empty())
-    if (const char* env = std::getenv("SIRAD_DEVICE")) spec = env;
-  auto ps = platforms();
+namespace {
+// Every device of every platform, with its indices.
+std::vector<std::pair<DeviceInfo, cl::Device>> enumerate_devices() {
   std::vector<std::pair<DeviceInfo, cl::Device>> all;
+  auto ps = platforms();
   for (std::size_t p = 0; p < ps.size(); ++p) {
     auto ds = devices_of(ps[p]);
     for (std::size_t d = 0; d < ds.size(); ++d) {
@@ -118,7 +102,22 @@ cl::Device select_device(const std::string& requested) {
       all.emplace_back(info, ds[d]);
     }
   }
-  if (all.empty()) fail("no OpenCL device found on {} platform(s) (check with `clinfo`)", ps.size());
+  return all;
+}
+}  // namespace
+
+std::vector<DeviceInfo> list_devices() {
+  std::vector<DeviceInfo> out;
+  for (auto& [info, dev] : enumerate_devices()) out.push_back(info);
+  return out;
+}
+
+cl::Device select_device(const std::string& requested) {
+  std::string spec = requested;
+  if (spec.empty())
+    if (const char* env = std::getenv("SIRAD_DEVICE")) spec = env;
+  auto all = enumerate_devices();
+  if (all.empty()) fail("no OpenCL device found (check with `clinfo`)");
 
   auto listing = [&] {
     std::string s;

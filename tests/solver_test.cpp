@@ -14,8 +14,6 @@
 namespace sirad {
 namespace {
 
-using test::area_mean;
-using test::relative_rms;
 using test::solve;
 
 // Furnace, chain rule. Exact answer B = 2 (E = 1, rho = 0.5, closed).

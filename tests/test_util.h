@@ -8,6 +8,7 @@
 
 #include "core/bundle_cl.h"
 #include "core/mesh.h"
+#include "core/metrics.h"
 #include "core/scene.h"
 #include "core/solver.h"
 
@@ -18,32 +19,6 @@ inline Solver solve(const PatchMesh& mesh, BundleEngine& engine, const SolverOpt
   Solver solver(mesh, engine, options);
   for (uint64_t k = 0; k < bundles; ++k) solver.step(k);
   return solver;
-}
-
-// Area-weighted mean of one channel.
-inline double area_mean(const PatchMesh& mesh, const std::vector<glm::vec3>& value, int channel = 0) {
-  double s = 0.0, a = 0.0;
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    s += static_cast<double>(mesh.area[j]) * value[j][channel];
-    a += mesh.area[j];
-  }
-  return s / a;
-}
-
-// Area-weighted relative RMS difference of a against b over the patches that do not emit,
-// all three channels: sqrt(sum A |a-b|^2 / sum A |b|^2).
-inline double relative_rms(const PatchMesh& mesh, const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b) {
-  double num = 0.0, den = 0.0;
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    glm::vec3 e = mesh.emission(j);
-    if (e.x > 0 || e.y > 0 || e.z > 0) continue;
-    for (int c = 0; c < 3; ++c) {
-      double d = static_cast<double>(a[j][c]) - b[j][c];
-      num += mesh.area[j] * d * d;
-      den += mesh.area[j] * static_cast<double>(b[j][c]) * b[j][c];
-    }
-  }
-  return std::sqrt(num / den);
 }
 
 // A closed room (cube of side 4, inward normals) with one emitting wall (Ke 1) and a closed
