@@ -44,9 +44,9 @@ SIRAD_INLINE bool covers(const SiradProjected* p, int px, int py) {
   return true;
 }
 
-/* The columns of row py that may hold covered lines: the patch's x-extent narrowed by its
- * edges' half-planes, widened by one cell against rounding. */
-SIRAD_INLINE void row_span(const SiradProjected* p, int py, int grid, int* x0, int* x1) {
+/* Where row py crosses patch p: the patch's x-extent narrowed by its edges' half-planes,
+ * [*lo, *hi] in grid units (empty if *lo > *hi). */
+SIRAD_INLINE void row_span(const SiradProjected* p, int py, float* lo_out, float* hi_out) {
   float fy = (float)py;
   float lo = p->xmin, hi = p->xmax;
   for (int k = 0; k < 3; ++k) {
@@ -54,9 +54,9 @@ SIRAD_INLINE void row_span(const SiradProjected* p, int py, int grid, int* x0, i
       /* A horizontal edge decides the whole row, as `covers` would for every cell of it. */
       float e = p->eb[k] * (fy - p->ey[k]);
       if (!(e > 0.0f || (e == 0.0f && (p->flags & (1u << k))))) {
-        *x0 = 1;
-        *x1 = 0;
-        return;
+        lo = 1.0f;
+        hi = 0.0f;
+        break;
       }
       continue;
     }
@@ -64,20 +64,26 @@ SIRAD_INLINE void row_span(const SiradProjected* p, int py, int grid, int* x0, i
     if (p->ea[k] > 0.0f) lo = fmax(lo, xc);
     else hi = fmin(hi, xc);
   }
-  lo = fmax(lo - 1.0f, 0.0f);
-  hi = fmin(hi + 1.0f, (float)(grid - 1));
-  *x0 = (int)ceil(lo);
-  *x1 = (int)floor(hi);
+  *lo_out = lo;
+  *hi_out = hi;
 }
 
-/* Visits the lines of row y that cross patch p, as `covers` decides: the cells at the ends
- * of the widened span are tested; the interior, at least one cell inside every edge, needs
- * no test. Every pass walks rows through this one macro, so they agree bit for bit. */
-#define FOR_EACH_COVERED(p, y, grid, x)                                  \
-  int x##_lo, x##_hi;                                                    \
-  row_span(p, y, grid, &x##_lo, &x##_hi);                                \
-  for (int x = x##_lo; x <= x##_hi; ++x)                                 \
-    if ((x - x##_lo >= 2 && x##_hi - x >= 2) || covers(p, x, y))
+/* The span's ends are computed to far better than SIRAD_SPAN_EPS cells (grid coordinates are
+ * below 8192, so rounding is below 1e-3 cells), and `covers` agrees with the exact geometry
+ * to the same precision: a line farther than that inside the span is covered, one farther
+ * outside is not. Only the lines within SIRAD_SPAN_EPS of an end need the exact test. */
+#define SIRAD_SPAN_EPS (1.0f / 32.0f)
+
+/* Visits the lines of row y that cross patch p, as `covers` decides. Every pass walks rows
+ * through this one macro, so they agree bit for bit. */
+#define FOR_EACH_COVERED(p, y, grid, x)                                                    \
+  float x##_lo, x##_hi;                                                                    \
+  row_span(p, y, &x##_lo, &x##_hi);                                                        \
+  int x##_first = (int)ceil(fmax(x##_lo - SIRAD_SPAN_EPS, 0.0f));                          \
+  int x##_last = (int)floor(fmin(x##_hi + SIRAD_SPAN_EPS, (float)(grid - 1)));             \
+  for (int x = x##_first; x <= x##_last; ++x)                                              \
+    if (((float)x >= x##_lo + SIRAD_SPAN_EPS && (float)x <= x##_hi - SIRAD_SPAN_EPS) ||   \
+        covers(p, x, y))
 
 SIRAD_INLINE float depth_at(const SiradProjected* p, int px, int py) {
   return p->z0 + p->dzdx * ((float)px - p->x0) + p->dzdy * ((float)py - p->y0);
