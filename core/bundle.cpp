@@ -65,9 +65,8 @@ SiradBundle make_bundle(const PatchMesh& mesh, int grid, uint64_t seed, uint64_t
   b.grid = grid;
   b.rows_per_band = grid;
   b.bands = 1;
-  uint64_t cap = capacity_bound(mesh, grid);
-  b.capacity = static_cast<sirad_u32>(std::min<uint64_t>(cap, 0xffffffffu));
-  b.partial_capacity = static_cast<sirad_u32>(std::min<uint64_t>(mesh.size(), 0xffffffffu));
+  b.capacity = 0;  // scratch sizes are the engine's
+  b.partial_capacity = 0;
   b.background[0] = mesh.background.x;
   b.background[1] = mesh.background.y;
   b.background[2] = mesh.background.z;

@@ -32,14 +32,14 @@ struct BundleDraw {
 BundleDraw draw_bundle(uint64_t seed, uint64_t index, Stream stream = Stream::bundles);
 
 // The bundle parameters for `mesh` with an R x R grid. Banding and scratch capacities are the
-// engine's: make_bundle leaves one band of all rows and capacity = capacity_bound.
+// engine's: make_bundle leaves one band of all rows and capacities 0.
 SiradBundle make_bundle(const PatchMesh& mesh, int grid, uint64_t seed, uint64_t index,
                         Stream stream = Stream::bundles);
 
 // World area of the cell each line stands for: (2 r / (R - 1))^2.
 double cell_area(const PatchMesh& mesh, int grid);
 
-// An upper bound on the crossings of any bundle: per patch, lattice points in a convex region
+// An upper bound on the crossings of any bundle (engines size their scratch from it): per patch, lattice points in a convex region
 // <= area + perimeter / 2 + 1 (in cell units), with the projected area and perimeter bounded
 // by the patch's own.
 uint64_t capacity_bound(const PatchMesh& mesh, int grid);

@@ -14,7 +14,8 @@ namespace {
 class ClEngine final : public BundleEngine {
  public:
   ClEngine(const PatchMesh& mesh, const ClEngineOptions& options)
-      : n_(mesh.size()), band_capacity_(options.band_capacity) {
+      : mesh_(mesh), n_(mesh.size()), row_capacity_(options.row_capacity),
+        list_capacity_(options.list_capacity) {
     device_ = select_device(options.device);
     info_ = describe_device(device_);
     context_ = cl::Context(device_);
@@ -59,13 +60,14 @@ class ClEngine final : public BundleEngine {
   void run(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) override {
     if (radiance.size() != n_) fail("bundle engine: {} radiance values for {} patches", radiance.size(), n_);
     try {
-      // A band whose crossings do not fit its scratch makes the bundle run again with room
-      // for the largest band (the result does not depend on the room).
+      // A row whose crossings, or a band whose patches, do not fit the scratch make the bundle
+      // run again with room for the largest (the result does not depend on the room).
       for (int attempt = 0;; ++attempt) {
-        uint64_t needed = run_cl(bundle, radiance, result);
-        if (needed == 0) return;
-        if (attempt == 2) fail("bundle needs {} crossings in one band; scratch did not grow", needed);
-        band_capacity_ = needed + needed / 4 + 1024;
+        Needed needed = run_cl(bundle, radiance, result);
+        if (needed.row == 0 && needed.list == 0) return;
+        if (attempt == 2) fail("bundle scratch did not grow ({} crossings in a row, {} patches in a band)", needed.row, needed.list);
+        if (needed.row) row_capacity_ = needed.row + needed.row / 4 + 1024;
+        if (needed.list) list_capacity_ = needed.list + needed.list / 4 + 1024;
       }
     } catch (const cl::Error& e) {
       fail("OpenCL on {}: {}", description(), describe_cl_error(e));
@@ -73,42 +75,48 @@ class ClEngine final : public BundleEngine {
   }
 
  private:
-  // Scratch for `bands` bands of `rows_per_band` rows of `grid` lines.
-  void allocate(int grid, int rows_per_band, int bands) {
-    uint64_t cap = std::max<uint64_t>(band_capacity_, 1);
-    if (cap > 0xffffffffu / static_cast<uint64_t>(bands))
-      fail("bundle scratch of {} crossings per band x {} bands is beyond 32-bit indexing", cap, bands);
-    uint64_t pcap = std::min<uint64_t>(cap, std::max<std::size_t>(n_, 1));
-    if (grid == grid_ && bands == allocated_bands_ && cap == allocated_capacity_) return;
-    std::size_t entries = static_cast<std::size_t>(cap) * bands, partials = static_cast<std::size_t>(pcap) * bands;
-    e_line_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
+  // Scratch for `bands` bands: row_capacity_ crossings of one row, list_capacity_ patches.
+  void allocate(int grid, int bands) {
+    uint64_t cap = std::max<uint64_t>(row_capacity_, 1);
+    uint64_t lcap = std::min<uint64_t>(std::max<uint64_t>(list_capacity_, 1), std::max<std::size_t>(n_, 1));
+    if (cap > 0xffffffffu / static_cast<uint64_t>(bands) || lcap > 0x7fffffffu / static_cast<uint64_t>(bands))
+      fail("bundle scratch of {} crossings and {} patches per band x {} bands is beyond 32-bit indexing", cap, lcap, bands);
+    if (grid == grid_ && bands == allocated_bands_ && cap == allocated_capacity_ && lcap == allocated_partials_) return;
+    std::size_t entries = static_cast<std::size_t>(cap) * bands, listed = static_cast<std::size_t>(lcap) * bands;
+    band_list_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
+    e_x_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
     e_depth_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_float));
     e_key_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
     s_depth_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_float));
     s_key_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
-    s_src_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
-    e_neighbour_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
-    line_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE,
-                             static_cast<std::size_t>(bands) * rows_per_band * grid * sizeof(cl_uint));
-    partial_patch_ = cl::Buffer(context_, CL_MEM_READ_WRITE, partials * sizeof(cl_uint));
-    partial_sum_ = cl::Buffer(context_, CL_MEM_READ_WRITE, partials * sizeof(glm::vec4));
-    partial_hits_ = cl::Buffer(context_, CL_MEM_READ_WRITE, partials * sizeof(cl_uint));
-    band_stats_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 2 * static_cast<std::size_t>(bands) * sizeof(cl_uint));
+    line_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(bands) * grid * sizeof(cl_uint));
+    partial_patch_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
+    partial_sum_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(glm::vec4));
+    partial_hits_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
+    band_stats_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 4 * static_cast<std::size_t>(bands) * sizeof(cl_uint));
     grid_ = grid;
     allocated_bands_ = bands;
     allocated_capacity_ = cap;
-    allocated_partials_ = pcap;
+    allocated_partials_ = lcap;
   }
 
-  // Runs one bundle; returns 0, or the crossings of the fullest band if a band overflowed.
-  uint64_t run_cl(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) {
+  // What did not fit in a run: the most crossings of one row and the most patches of one band
+  // (0 where everything fitted).
+  struct Needed {
+    uint64_t row = 0, list = 0;
+  };
+
+  // Runs one bundle; says what did not fit, if anything.
+  Needed run_cl(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) {
     params_host_ = bundle;
     int bands = std::min(bands_, bundle.grid);
     params_host_.rows_per_band = (bundle.grid + bands - 1) / bands;
     params_host_.bands = (bundle.grid + params_host_.rows_per_band - 1) / params_host_.rows_per_band;
-    if (band_capacity_ == 0)  // first guess: twice an even share of the bound on all crossings
-      band_capacity_ = 2 * static_cast<uint64_t>(bundle.capacity) / params_host_.bands + 1024;
-    allocate(bundle.grid, params_host_.rows_per_band, params_host_.bands);
+    // First guesses: a row holds at most a few times an even share of the bound on all
+    // crossings; a band is reached by a few times its share of the patches.
+    if (row_capacity_ == 0) row_capacity_ = 4 * capacity_bound(mesh_, bundle.grid) / bundle.grid + 1024;
+    if (list_capacity_ == 0) list_capacity_ = 4 * n_ / params_host_.bands + 4096;
+    allocate(bundle.grid, params_host_.bands);
     params_host_.capacity = static_cast<sirad_u32>(allocated_capacity_);
     params_host_.partial_capacity = static_cast<sirad_u32>(allocated_partials_);
 
@@ -131,7 +139,7 @@ class ClEngine final : public BundleEngine {
     int arg = 0;
     for (const cl::Buffer* buf : {&projected_, &rows_}) transfer_.setArg(arg++, *buf);
     transfer_.setArg(arg++, n);
-    for (const cl::Buffer* buf : {&params_, &radiance_, &e_line_, &e_depth_, &e_key_, &s_depth_, &s_key_, &s_src_, &e_neighbour_,
+    for (const cl::Buffer* buf : {&params_, &radiance_, &band_list_, &e_x_, &e_depth_, &e_key_, &s_depth_, &s_key_,
                                   &line_count_, &partial_patch_, &partial_sum_, &partial_hits_, &band_stats_})
       transfer_.setArg(arg++, *buf);
     queue_.enqueueNDRangeKernel(transfer_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(params_host_.bands)),
@@ -147,19 +155,21 @@ class ClEngine final : public BundleEngine {
 
     result.gathered.resize(n_);
     result.hits.resize(n_);
-    std::vector<cl_uint> stats(2 * static_cast<std::size_t>(params_host_.bands));
+    std::vector<cl_uint> stats(4 * static_cast<std::size_t>(params_host_.bands));
     queue_.enqueueReadBuffer(gathered_, CL_FALSE, 0, n_ * sizeof(glm::vec4), result.gathered.data());
     queue_.enqueueReadBuffer(hits_, CL_FALSE, 0, n_ * sizeof(cl_uint), result.hits.data());
     queue_.enqueueReadBuffer(band_stats_, CL_TRUE, 0, stats.size() * sizeof(cl_uint), stats.data());
-    uint64_t total = 0, fullest = 0;
-    for (std::size_t k = 0; k < stats.size(); k += 2) {
-      total += stats[k];
-      fullest = std::max<uint64_t>(fullest, stats[k]);
+    uint64_t total = 0;
+    Needed needed;
+    for (std::size_t k = 0; k < stats.size(); k += 4) {
+      if (stats[k] > allocated_capacity_) needed.row = std::max<uint64_t>(needed.row, stats[k]);
+      if (stats[k + 2] > allocated_partials_) needed.list = std::max<uint64_t>(needed.list, stats[k + 2]);
+      total += stats[k + 3];
     }
-    if (fullest > allocated_capacity_) return fullest;
+    if (needed.row || needed.list) return needed;
     result.crossings = total;
     if (profile_) report_profile();
-    return 0;
+    return {};
   }
 
   // SIRAD_PROFILE set: per-kernel device times, printed every 10 bundles.
@@ -172,8 +182,9 @@ class ClEngine final : public BundleEngine {
                    kernel_ns_[0] * 1e-6 / profiled_, kernel_ns_[1] * 1e-6 / profiled_, kernel_ns_[2] * 1e-6 / profiled_);
   }
 
+  const PatchMesh& mesh_;
   std::size_t n_;
-  uint64_t band_capacity_;
+  uint64_t row_capacity_, list_capacity_;
   cl::Device device_;
   DeviceInfo info_;
   cl::Context context_;
@@ -183,7 +194,7 @@ class ClEngine final : public BundleEngine {
   std::size_t patch_items_ = 1;
   cl_uint per_item_ = 1;
   cl::Buffer vertices_, patches_, params_, projected_, rows_, radiance_, gathered_, hits_;
-  cl::Buffer e_line_, e_depth_, e_key_, s_depth_, s_key_, s_src_, e_neighbour_, line_count_;
+  cl::Buffer band_list_, e_x_, e_depth_, e_key_, s_depth_, s_key_, line_count_;
   cl::Buffer partial_patch_, partial_sum_, partial_hits_, band_stats_;
   int grid_ = 0, allocated_bands_ = 0;
   uint64_t allocated_capacity_ = 0, allocated_partials_ = 0;

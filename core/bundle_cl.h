@@ -11,8 +11,10 @@ namespace sirad {
 struct ClEngineOptions {
   std::string device;  // see select_device; empty: SIRAD_DEVICE or the first PoCL CPU device
   int bands = 0;       // work-items (bands of grid rows) of the transfer pass; 0: chosen for the device
-  uint64_t band_capacity = 0;  // first scratch size per band in crossings (it grows on demand);
-                               // 0: twice an even share of capacity_bound
+  uint64_t row_capacity = 0;  // first scratch size for one row's crossings (it grows on demand);
+                              // 0: a few times an even share of capacity_bound
+  uint64_t list_capacity = 0; // first scratch size for the patches reaching one band (grows);
+                              // 0: a few times an even share of the patches
 };
 
 // Runs bundles on one OpenCL device. Throws sirad::Error for a missing device or platform,

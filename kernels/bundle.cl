@@ -2,12 +2,12 @@
  *
  * The host prepends kernels/bundle_types.h. Per bundle it enqueues:
  *   project_patches  (runs of patches)  patches -> grid plane, CCW order, depth plane
- *   transfer_band    (one work-item per band of grid rows, written CPU-style)
- *        1. collect: rasterise every patch that reaches the band, once, appending one
- *           crossing (line, depth, patch) per covered line, in patch order;
+ *   transfer_band    (one work-item per band of grid rows, written CPU-style), row by row:
+ *        1. collect: rasterise every patch that reaches the row, once, appending one
+ *           crossing (line, depth, patch) per covered line;
  *        2. sort the crossings by line (counting sort) and each line's list by depth;
- *        3. find every crossing's front neighbour on its line;
- *        4. sum, per patch, what its crossings in this band gather (a band partial).
+ *        3. let every crossing gather its front neighbour on its line, summing per patch;
+ *        4. write the band partials: per patch reaching the band, its sum and hits.
  *   combine          (runs of patches)  each patch adds its band partials in band order.
  * Coverage of a line by a patch is decided by one predicate, `covers`: edge functions
  * evaluated with the edge's endpoints in canonical order (so two patches sharing an edge
@@ -170,138 +170,159 @@ __kernel void project_patches(__global const float4* vertices, __global const ui
   }
 }
 
-/* One band of grid rows: collect, sort, pair and sum its crossings (see the banner).
- * Scratch per band: b->capacity entries each of line (band-local), depth and key in
- * collection order, depth, key and source index sorted by line, and the neighbour found for
- * each collected crossing; b->partial_capacity partial sums (patch, rgb, hits) in patch
- * order; rows_per_band * grid line counters. band_stats[2 band] = crossings in the band
- * (also when they did not fit), band_stats[2 band + 1] = partials written. */
-__kernel void transfer_band(__global const SiradProjected* restrict projected, __global const int2* restrict rows,
-                            uint patch_count, __constant SiradBundle* b,
-                            __global const float4* restrict radiance, __global uint* restrict e_line,
-                            __global float* restrict e_depth, __global uint* restrict e_key, __global float* restrict s_depth,
-                            __global uint* restrict s_key, __global uint* restrict s_src, __global uint* restrict e_neighbour,
-                            __global uint* restrict line_count, __global uint* restrict partial_patch,
-                            __global float4* restrict partial_sum, __global uint* restrict partial_hits,
+/* One band of grid rows, row by row (see the banner). Scratch per band:
+ *   band_list, acc, acc_hits, out_patch: b->partial_capacity entries (the patches that reach
+ *     the band, in patch order; their sums; compacted at the end into the band partials);
+ *   e_x, e_depth, e_key, s_depth, s_key: b->capacity crossings of one row, as collected and
+ *     sorted by line; line_count: grid counters (zero between rows).
+ * band_stats[4 band + 0..3] = the most crossings in one row, partials written, patches that
+ * reach the band, crossings in the band; the first and third are reported even when they do
+ * not fit, so the host can grow the scratch and run the bundle again. */
+__kernel void transfer_band(__global const SiradProjected* restrict projected,
+                            __global const int2* restrict rows, uint patch_count,
+                            __constant SiradBundle* b, __global const float4* restrict radiance,
+                            __global uint* restrict band_list, __global uint* restrict e_x,
+                            __global float* restrict e_depth, __global uint* restrict e_key,
+                            __global float* restrict s_depth, __global uint* restrict s_key,
+                            __global uint* restrict line_count, __global uint* restrict out_patch,
+                            __global float4* restrict acc, __global uint* restrict acc_hits,
                             __global uint* restrict band_stats) {
   int band = get_global_id(0);
   if (band >= b->bands) return;
   const int grid = b->grid;
-  const uint cap = b->capacity;
-  const uint base = (uint)band * cap;
-  const uint pbase = (uint)band * b->partial_capacity;
+  const uint cap = b->capacity, lcap = b->partial_capacity;
   const int r0 = band * b->rows_per_band, r1 = min(r0 + b->rows_per_band, grid);
-  __global uint* count = line_count + (size_t)band * b->rows_per_band * grid;
-  const int lines = (r1 - r0) * grid;
-  e_line += base;
-  e_depth += base;
-  e_key += base;
-  s_depth += base;
-  s_key += base;
-  s_src += base;
-  e_neighbour += base;
+  band_list += (size_t)band * lcap;
+  out_patch += (size_t)band * lcap;
+  acc += (size_t)band * lcap;
+  acc_hits += (size_t)band * lcap;
+  e_x += (size_t)band * cap;
+  e_depth += (size_t)band * cap;
+  e_key += (size_t)band * cap;
+  s_depth += (size_t)band * cap;
+  s_key += (size_t)band * cap;
+  __global uint* count = line_count + (size_t)band * grid;
+  __global uint* stats = band_stats + 4 * band;
 
-  /* 1. Collect, patch by patch (a patch's crossings in this band are contiguous), counting
-   * the crossings of every line. */
-  for (int l = 0; l < lines; ++l) count[l] = 0;
-  uint m = 0;
+  /* 1. The patches that reach the band, in patch order. */
+  uint patches = 0;
   for (uint j = 0; j < patch_count; ++j) {
     int2 r = rows[j];
     if (r.y < r0 || r.x >= r1) continue;
-    SiradProjected p = projected[j];
-    uint key = (j << 1) | ((p.flags & SIRAD_FRONT_POS) ? 1u : 0u);
-    int ya = max(r.x, r0), yb = min(r.y, r1 - 1);
-    for (int y = ya; y <= yb; ++y) {
-      uint row = (uint)((y - r0) * grid);
+    if (patches < lcap) band_list[patches] = j;
+    ++patches;
+  }
+  stats[0] = 0;
+  stats[1] = 0;
+  stats[2] = patches;
+  stats[3] = 0;
+  if (patches > lcap) return;
+  for (uint q = 0; q < patches; ++q) {
+    acc[q] = (float4)(0.0f);
+    acc_hits[q] = 0;
+  }
+  for (int x = 0; x < grid; ++x) count[x] = 0;
+
+  const float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
+  const int gaps[6] = {57, 23, 10, 4, 1, 0};
+  uint row_max = 0, total = 0;
+  for (int y = r0; y < r1; ++y) {
+    /* 2. Collect the row's crossings (key: position in the band list, front bit), counting
+     * per line, and the range of lines touched. */
+    uint m = 0;
+    int xa = grid, xb = -1;
+    for (uint q = 0; q < patches; ++q) {
+      uint j = band_list[q];
+      int2 r = rows[j];
+      if (r.x > y || r.y < y) continue;
+      SiradProjected p = projected[j];
+      uint key = (q << 1) | ((p.flags & SIRAD_FRONT_POS) ? 1u : 0u);
       FOR_EACH_COVERED(&p, y, grid, x) {
         if (m < cap) {
-          e_line[m] = row + (uint)x;
+          e_x[m] = (uint)x;
           e_depth[m] = depth_at(&p, x, y);
           e_key[m] = key;
-          count[row + (uint)x] += 1;
+          count[x] += 1;
+          xa = min(xa, x);
+          xb = max(xb, x);
         }
         ++m;
       }
     }
-  }
-  band_stats[2 * band] = m;
-  band_stats[2 * band + 1] = 0;
-  if (m > cap) return; /* the host grows the scratch and runs the bundle again */
+    total += m;
+    row_max = max(row_max, m);
+    if (m > cap) {
+      for (int x = xa; x <= xb; ++x) count[x] = 0;
+      continue; /* keep counting: the host needs the largest row */
+    }
 
-  /* 2. Counting sort by line into contiguous lists; afterwards count[l] ends line l. */
-  uint running = 0;
-  for (int l = 0; l < lines; ++l) {
-    uint c = count[l];
-    count[l] = running;
-    running += c;
-  }
-  for (uint i = 0; i < m; ++i) {
-    uint at = count[e_line[i]]++;
-    s_depth[at] = e_depth[i];
-    s_key[at] = e_key[i];
-    s_src[at] = i;
-  }
+    /* 3. Counting sort by line; afterwards count[x] ends line x's list. */
+    uint running = 0;
+    for (int x = xa; x <= xb; ++x) {
+      uint c = count[x];
+      count[x] = running;
+      running += c;
+    }
+    for (uint i = 0; i < m; ++i) {
+      uint at = count[e_x[i]]++;
+      s_depth[at] = e_depth[i];
+      s_key[at] = e_key[i];
+    }
 
-  /* 2b, 3. Sort each line by depth (insertion sort: lists are short; shell gaps for long
-   * ones), then give every crossing its front neighbour: the next crossing towards the side
-   * its normal points to, if that one faces back; else none (the background). */
-  const int gaps[6] = {57, 23, 10, 4, 1, 0};
-  uint start = 0;
-  for (int l = 0; l < lines; ++l) {
-    uint end = count[l], n = end - start;
-    if (n == 0) continue;
-    if (n > 1) {
-      for (int g = (n > 64 ? 0 : 4); gaps[g] > 0; ++g) {
-        uint gap = (uint)gaps[g];
-        for (uint i = start + gap; i < end; ++i) {
-          SiradCrossing t = {s_depth[i], s_key[i]};
-          uint src = s_src[i];
-          uint k = i;
-          while (k >= start + gap) {
-            SiradCrossing u = {s_depth[k - gap], s_key[k - gap]};
-            if (!crossing_before(t, u)) break;
-            s_depth[k] = u.depth;
-            s_key[k] = u.key;
-            s_src[k] = s_src[k - gap];
-            k -= gap;
+    /* 4. Each line: sort by depth (insertion sort: lists are short; shell gaps for long
+     * ones); every crossing gathers its front neighbour (the next crossing towards the side
+     * its normal points to, if that one faces back; else the background). */
+    uint start = 0;
+    for (int x = xa; x <= xb; ++x) {
+      uint end = count[x], n = end - start;
+      count[x] = 0;
+      if (n == 0) continue;
+      if (n > 1) {
+        for (int g = (n > 64 ? 0 : 4); gaps[g] > 0; ++g) {
+          uint gap = (uint)gaps[g];
+          for (uint i = start + gap; i < end; ++i) {
+            SiradCrossing t = {s_depth[i], s_key[i]};
+            uint k = i;
+            while (k >= start + gap) {
+              SiradCrossing u = {s_depth[k - gap], s_key[k - gap]};
+              if (!crossing_before(t, u)) break;
+              s_depth[k] = u.depth;
+              s_key[k] = u.key;
+              k -= gap;
+            }
+            s_depth[k] = t.depth;
+            s_key[k] = t.key;
           }
-          s_depth[k] = t.depth;
-          s_key[k] = t.key;
-          s_src[k] = src;
         }
       }
-    }
-    for (uint k = start; k < end; ++k) {
-      uint key = s_key[k];
-      uint nb = 0xffffffffu;
-      if (key & 1u) {
-        if (k + 1 < end && (s_key[k + 1] & 1u) == 0u) nb = s_key[k + 1] >> 1;
-      } else if (k > start && (s_key[k - 1] & 1u)) {
-        nb = s_key[k - 1] >> 1;
+      for (uint k = start; k < end; ++k) {
+        uint key = s_key[k];
+        float4 seen = background;
+        if (key & 1u) {
+          if (k + 1 < end && (s_key[k + 1] & 1u) == 0u) seen = radiance[band_list[s_key[k + 1] >> 1]];
+        } else if (k > start && (s_key[k - 1] & 1u)) {
+          seen = radiance[band_list[s_key[k - 1] >> 1]];
+        }
+        acc[key >> 1] += seen;
+        acc_hits[key >> 1] += 1;
       }
-      e_neighbour[s_src[k]] = nb;
+      start = end;
     }
-    start = end;
   }
+  stats[0] = row_max;
+  stats[3] = total;
+  if (row_max > cap) return;
 
-  /* 4. Band partials: each patch's crossings, in collection order. */
-  const float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
+  /* 5. Band partials: the patches with crossings here, in patch order. */
   uint partials = 0;
-  for (uint i = 0; i < m;) {
-    uint key = e_key[i];
-    float4 sum = (float4)(0.0f);
-    uint hits = 0;
-    for (; i < m && e_key[i] == key; ++i) {
-      uint nb = e_neighbour[i];
-      sum += nb == 0xffffffffu ? background : radiance[nb];
-      ++hits;
-    }
-    partial_patch[pbase + partials] = key >> 1;
-    partial_sum[pbase + partials] = sum;
-    partial_hits[pbase + partials] = hits;
+  for (uint q = 0; q < patches; ++q) {
+    if (acc_hits[q] == 0) continue;
+    out_patch[partials] = band_list[q];
+    acc[partials] = acc[q];
+    acc_hits[partials] = acc_hits[q];
     ++partials;
   }
-  band_stats[2 * band + 1] = partials;
+  stats[1] = partials;
 }
 
 /* Each patch adds its band partials, in band order (binary search in each band's list,
@@ -314,7 +335,7 @@ __kernel void combine(__global const int2* rows, uint patch_count, uint per_item
                       __global const uint* band_stats, __global float4* gathered,
                       __global uint* hits) {
   for (int k = 0; k < b->bands; ++k)
-    if (band_stats[2 * k] > b->capacity) return;
+    if (band_stats[4 * k] > b->capacity || band_stats[4 * k + 2] > b->partial_capacity) return;
   uint first = get_global_id(0) * per_item;
   uint last = min(first + per_item, patch_count);
   for (uint j = first; j < last; ++j) {
@@ -324,13 +345,13 @@ __kernel void combine(__global const int2* rows, uint patch_count, uint per_item
     if (r.x <= r.y) {
       for (int band = r.x / b->rows_per_band; band <= r.y / b->rows_per_band; ++band) {
         uint base = (uint)band * b->partial_capacity;
-        uint lo = 0, hi = band_stats[2 * band + 1];
+        uint lo = 0, hi = band_stats[4 * band + 1];
         while (lo < hi) {
           uint mid = (lo + hi) / 2;
           if (partial_patch[base + mid] < j) lo = mid + 1;
           else hi = mid;
         }
-        if (lo < band_stats[2 * band + 1] && partial_patch[base + lo] == j) {
+        if (lo < band_stats[4 * band + 1] && partial_patch[base + lo] == j) {
           sum += partial_sum[base + lo];
           n += partial_hits[base + lo];
         }

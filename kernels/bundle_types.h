@@ -34,8 +34,8 @@ typedef struct {
   sirad_i32 grid;           /* R: lines per side */
   sirad_i32 rows_per_band;  /* rows of the grid one work-item of count/fill owns */
   sirad_i32 bands;          /* ceil(grid / rows_per_band) */
-  sirad_u32 capacity;       /* crossings one band's scratch can hold (set by the engine) */
-  sirad_u32 partial_capacity; /* band partials one band's scratch can hold (set by the engine) */
+  sirad_u32 capacity;       /* crossings of one row the scratch can hold (set by the engine) */
+  sirad_u32 partial_capacity; /* patches reaching one band the scratch can hold (engine) */
   sirad_f32 background[4];  /* radiance gathered by a line that leaves the scene */
 } SiradBundle;
 

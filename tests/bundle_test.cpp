@@ -114,13 +114,13 @@ TEST(BundleKernel, FurnaceIsWatertight) {
 namespace sirad {
 namespace {
 
-// A band whose crossings overflow its scratch makes the engine grow the scratch and run the
-// bundle again: the result is the same as with ample room, bit for bit; and the band count
+// A row whose crossings, or a band whose patches, overflow the scratch make the engine grow
+// the scratch and run the bundle again: the result is the same as with ample room, bit for bit; and the band count
 // does not change the result beyond float summation order.
 TEST(BundleKernel, ScratchGrowthAndBandingDoNotChangeResults) {
   PatchMesh mesh = mesh_scene(builtin_furnace(), {.target_patches = 600});
   auto roomy = make_cl_engine(mesh);
-  auto tight = make_cl_engine(mesh, {.band_capacity = 16});
+  auto tight = make_cl_engine(mesh, {.row_capacity = 4, .list_capacity = 3});
   auto many_bands = make_cl_engine(mesh, {.bands = 37});
   auto radiance = patch_radiance(mesh);
   for (uint64_t k = 0; k < 4; ++k) {
