@@ -18,8 +18,13 @@
  */
 #pragma OPENCL FP_CONTRACT OFF
 
-/* Helpers are inlined into every pass (PoCL leaves plain `inline` functions as calls). */
+/* Helpers are inlined into every pass (PoCL's clang leaves plain `inline` functions as calls;
+ * other compilers get plain `inline`). */
+#ifdef __clang__
 #define SIRAD_INLINE inline __attribute__((always_inline))
+#else
+#define SIRAD_INLINE inline
+#endif
 
 /* Edge function of the directed edge a -> b at p: > 0 when p is to its left. */
 SIRAD_INLINE float edge_raw(float ax, float ay, float bx, float by, float px, float py) {
