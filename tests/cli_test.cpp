@@ -169,6 +169,15 @@ TEST_F(Cli, NonsensicalFlags) {
   expect_error(sirad("render cornell --out no/such/dir/x --bundles 2"), "no/such/dir");
 }
 
+TEST_F(Cli, DeviceByIndexNameAndEnvironment) {
+  const std::string args = "render furnace --patches 60 --bundles 2 --width 8 --height 8 -q";
+  expect_error(sirad(args + " --device 7:3"), "7:3");
+  expect_error(sirad(args, "SIRAD_DEVICE=NoSuchDevice"), "NoSuchDevice");
+  EXPECT_EQ(sirad(args + " --device 0:0").status, 0);
+  EXPECT_EQ(sirad(args + " --device portable").status, 0);  // PoCL's platform name, any case
+  EXPECT_EQ(sirad(args, "SIRAD_DEVICE=0:0").status, 0);
+}
+
 TEST_F(Cli, UnknownDevice) { expect_error(sirad("render cornell --bundles 2 --device NoSuchDevice"), "NoSuchDevice"); }
 
 TEST_F(Cli, NoOpenClPlatform) {
