@@ -211,7 +211,7 @@ std::unique_ptr<BundleEngine> make_cl_engine(const PatchMesh& mesh, const ClEngi
   try {
     return std::make_unique<ClEngine>(mesh, options);
   } catch (const cl::Error& e) {
-    fail("OpenCL: {}", describe_cl_error(e));
+    fail("OpenCL: setting up {} patches on the device failed: {}", mesh.size(), describe_cl_error(e));
   }
 }
 
