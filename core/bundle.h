@@ -17,7 +17,6 @@
 
 static_assert(sizeof(SiradBundle) == 4 * 21, "SiradBundle layout must match bundle_types.h");
 static_assert(sizeof(SiradProjected) == 4 * 26, "SiradProjected layout must match bundle_types.h");
-static_assert(sizeof(SiradCrossing) == 8, "SiradCrossing layout must match bundle_types.h");
 
 namespace sirad {
 

@@ -85,10 +85,8 @@ class ClEngine final : public BundleEngine {
     std::size_t entries = static_cast<std::size_t>(cap) * bands, listed = static_cast<std::size_t>(lcap) * bands;
     band_list_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
     e_x_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
-    e_depth_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_float));
-    e_key_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
-    s_depth_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_float));
-    s_key_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
+    e_sort_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_ulong));
+    s_sort_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_ulong));
     line_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(bands) * grid * sizeof(cl_uint));
     partial_patch_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
     partial_sum_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(glm::vec4));
@@ -139,7 +137,7 @@ class ClEngine final : public BundleEngine {
     int arg = 0;
     for (const cl::Buffer* buf : {&projected_, &rows_}) transfer_.setArg(arg++, *buf);
     transfer_.setArg(arg++, n);
-    for (const cl::Buffer* buf : {&params_, &radiance_, &band_list_, &e_x_, &e_depth_, &e_key_, &s_depth_, &s_key_,
+    for (const cl::Buffer* buf : {&params_, &radiance_, &band_list_, &e_x_, &e_sort_, &s_sort_,
                                   &line_count_, &partial_patch_, &partial_sum_, &partial_hits_, &band_stats_})
       transfer_.setArg(arg++, *buf);
     queue_.enqueueNDRangeKernel(transfer_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(params_host_.bands)),
@@ -194,7 +192,7 @@ class ClEngine final : public BundleEngine {
   std::size_t patch_items_ = 1;
   cl_uint per_item_ = 1;
   cl::Buffer vertices_, patches_, params_, projected_, rows_, radiance_, gathered_, hits_;
-  cl::Buffer band_list_, e_x_, e_depth_, e_key_, s_depth_, s_key_, line_count_;
+  cl::Buffer band_list_, e_x_, e_sort_, s_sort_, line_count_;
   cl::Buffer partial_patch_, partial_sum_, partial_hits_, band_stats_;
   int grid_ = 0, allocated_bands_ = 0;
   uint64_t allocated_capacity_ = 0, allocated_partials_ = 0;

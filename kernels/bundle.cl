@@ -94,12 +94,46 @@ SIRAD_INLINE float depth_at(const SiradProjected* p, int px, int py) {
   return p->z0 + p->dzdx * ((float)px - p->x0) + p->dzdy * ((float)py - p->y0);
 }
 
-/* Depth order along +w; at equal depth a patch facing -w comes first, so two back-to-back
- * faces at one place each look outwards; then by patch index. */
-SIRAD_INLINE bool crossing_before(SiradCrossing a, SiradCrossing b) {
-  if (a.depth != b.depth) return a.depth < b.depth;
-  if ((a.key & 1u) != (b.key & 1u)) return (a.key & 1u) < (b.key & 1u);
-  return a.key < b.key;
+/* A crossing's place on its line as one 64-bit key: depth along +w (as an ordered integer;
+ * -0 counts as +0), then at equal depth a patch facing -w first (so two back-to-back faces at
+ * one place each look outwards), then the patch's position in the band list (patch order).
+ * Integer order equals the float order of depths, so no comparison branches on floats. */
+SIRAD_INLINE ulong crossing_key(float depth, uint front_pos, uint q) {
+  uint u = as_uint(depth + 0.0f);
+  u = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+  return ((ulong)u << 32) | ((ulong)front_pos << 31) | (ulong)q;
+}
+#define KEY_FRONT(k) ((uint)((k) >> 31) & 1u)
+#define KEY_SLOT(k) ((uint)(k) & 0x7fffffffu)
+
+/* Sorts s[0..n) ascending: compare-exchange networks for the short lists that are the rule,
+ * insertion sort (with shell gaps for long lists) otherwise. */
+#define SIRAD_CX(a, b) { ulong lo_ = min(a, b); b = max(a, b); a = lo_; }
+SIRAD_INLINE void sort_line(__global ulong* s, uint n) {
+  if (n == 2) {
+    ulong a = s[0], c = s[1];
+    SIRAD_CX(a, c)
+    s[0] = a; s[1] = c;
+  } else if (n == 3) {
+    ulong a = s[0], c = s[1], d = s[2];
+    SIRAD_CX(a, c) SIRAD_CX(c, d) SIRAD_CX(a, c)
+    s[0] = a; s[1] = c; s[2] = d;
+  } else if (n == 4) {
+    ulong a = s[0], c = s[1], d = s[2], e = s[3];
+    SIRAD_CX(a, c) SIRAD_CX(d, e) SIRAD_CX(a, d) SIRAD_CX(c, e) SIRAD_CX(c, d)
+    s[0] = a; s[1] = c; s[2] = d; s[3] = e;
+  } else if (n > 4) {
+    const uint gaps[6] = {57, 23, 10, 4, 1, 0};
+    for (int g = (n > 64 ? 0 : 4); gaps[g] > 0; ++g) {
+      uint gap = gaps[g];
+      for (uint i = gap; i < n; ++i) {
+        ulong t = s[i];
+        uint k = i;
+        for (; k >= gap && t < s[k - gap]; k -= gap) s[k] = s[k - gap];
+        s[k] = t;
+      }
+    }
+  }
 }
 
 /* Edge k of a projected patch, from CCW vertex (ax, ay) to (bx, by): canonical point and
@@ -159,8 +193,8 @@ __kernel void project_patches(__global const float4* vertices, __global const ui
       p.z0 = 0.0f;
       p.dzdx = 0.0f;
       p.dzdy = 0.0f;
-      p.rows[0] = 1;
-      p.rows[1] = 0;
+      p.rows[0] = 0x7fffffff; /* an empty range that no band's filter lets through */
+      p.rows[1] = -0x7fffffff;
     } else {
       p.z0 = Z0;
       p.dzdx = ((z1 - Z0) * (y2 - Y0) - (z2 - Z0) * (y1 - Y0)) / a;
@@ -178,8 +212,8 @@ __kernel void project_patches(__global const float4* vertices, __global const ui
 /* One band of grid rows, row by row (see the banner). Scratch per band:
  *   band_list, acc, acc_hits, out_patch: b->partial_capacity entries (the patches that reach
  *     the band, in patch order; their sums; compacted at the end into the band partials);
- *   e_x, e_depth, e_key, s_depth, s_key: b->capacity crossings of one row, as collected and
- *     sorted by line; line_count: grid counters (zero between rows).
+ *   e_x, e_sort, s_sort: b->capacity crossings of one row: line and crossing_key as
+ *     collected, and the keys sorted by line; line_count: grid counters (zero between rows).
  * band_stats[4 band + 0..3] = the most crossings in one row, partials written, patches that
  * reach the band, crossings in the band; the first and third are reported even when they do
  * not fit, so the host can grow the scratch and run the bundle again. */
@@ -187,8 +221,7 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
                             __global const int2* restrict rows, uint patch_count,
                             __constant SiradBundle* b, __global const float4* restrict radiance,
                             __global uint* restrict band_list, __global uint* restrict e_x,
-                            __global float* restrict e_depth, __global uint* restrict e_key,
-                            __global float* restrict s_depth, __global uint* restrict s_key,
+                            __global ulong* restrict e_sort, __global ulong* restrict s_sort,
                             __global uint* restrict line_count, __global uint* restrict out_patch,
                             __global float4* restrict acc, __global uint* restrict acc_hits,
                             __global uint* restrict band_stats) {
@@ -202,10 +235,8 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   acc += (size_t)band * lcap;
   acc_hits += (size_t)band * lcap;
   e_x += (size_t)band * cap;
-  e_depth += (size_t)band * cap;
-  e_key += (size_t)band * cap;
-  s_depth += (size_t)band * cap;
-  s_key += (size_t)band * cap;
+  e_sort += (size_t)band * cap;
+  s_sort += (size_t)band * cap;
   __global uint* count = line_count + (size_t)band * grid;
   __global uint* stats = band_stats + 4 * band;
 
@@ -229,7 +260,6 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   for (int x = 0; x < grid; ++x) count[x] = 0;
 
   const float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
-  const int gaps[6] = {57, 23, 10, 4, 1, 0};
   uint row_max = 0, total = 0;
   for (int y = r0; y < r1; ++y) {
     /* 2. Collect the row's crossings (key: position in the band list, front bit), counting
@@ -241,12 +271,11 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
       int2 r = rows[j];
       if (r.x > y || r.y < y) continue;
       SiradProjected p = projected[j];
-      uint key = (q << 1) | ((p.flags & SIRAD_FRONT_POS) ? 1u : 0u);
+      uint front_pos = (p.flags & SIRAD_FRONT_POS) ? 1u : 0u;
       FOR_EACH_COVERED(&p, y, grid, x) {
         if (m < cap) {
           e_x[m] = (uint)x;
-          e_depth[m] = depth_at(&p, x, y);
-          e_key[m] = key;
+          e_sort[m] = crossing_key(depth_at(&p, x, y), front_pos, q);
           count[x] += 1;
           xa = min(xa, x);
           xb = max(xb, x);
@@ -270,46 +299,28 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
     }
     for (uint i = 0; i < m; ++i) {
       uint at = count[e_x[i]]++;
-      s_depth[at] = e_depth[i];
-      s_key[at] = e_key[i];
+      s_sort[at] = e_sort[i];
     }
 
-    /* 4. Each line: sort by depth (insertion sort: lists are short; shell gaps for long
-     * ones); every crossing gathers its front neighbour (the next crossing towards the side
-     * its normal points to, if that one faces back; else the background). */
+    /* 4. Each line: sort by depth; every crossing gathers its front neighbour (the next
+     * crossing towards the side its normal points to, if that one faces back; else the
+     * background). */
     uint start = 0;
     for (int x = xa; x <= xb; ++x) {
       uint end = count[x], n = end - start;
       count[x] = 0;
       if (n == 0) continue;
-      if (n > 1) {
-        for (int g = (n > 64 ? 0 : 4); gaps[g] > 0; ++g) {
-          uint gap = (uint)gaps[g];
-          for (uint i = start + gap; i < end; ++i) {
-            SiradCrossing t = {s_depth[i], s_key[i]};
-            uint k = i;
-            while (k >= start + gap) {
-              SiradCrossing u = {s_depth[k - gap], s_key[k - gap]};
-              if (!crossing_before(t, u)) break;
-              s_depth[k] = u.depth;
-              s_key[k] = u.key;
-              k -= gap;
-            }
-            s_depth[k] = t.depth;
-            s_key[k] = t.key;
-          }
-        }
-      }
+      sort_line(s_sort + start, n);
       for (uint k = start; k < end; ++k) {
-        uint key = s_key[k];
+        ulong key = s_sort[k];
         float4 seen = background;
-        if (key & 1u) {
-          if (k + 1 < end && (s_key[k + 1] & 1u) == 0u) seen = radiance[band_list[s_key[k + 1] >> 1]];
-        } else if (k > start && (s_key[k - 1] & 1u)) {
-          seen = radiance[band_list[s_key[k - 1] >> 1]];
+        if (KEY_FRONT(key)) {
+          if (k + 1 < end && KEY_FRONT(s_sort[k + 1]) == 0u) seen = radiance[band_list[KEY_SLOT(s_sort[k + 1])]];
+        } else if (k > start && KEY_FRONT(s_sort[k - 1])) {
+          seen = radiance[band_list[KEY_SLOT(s_sort[k - 1])]];
         }
-        acc[key >> 1] += seen;
-        acc_hits[key >> 1] += 1;
+        acc[KEY_SLOT(key)] += seen;
+        acc_hits[KEY_SLOT(key)] += 1;
       }
       start = end;
     }

@@ -49,7 +49,7 @@ typedef struct {
  * patch owns the points with e_k == 0). slope[k] gives the X where edge k meets row Y,
  * ex + slope (Y - ey), for narrowing the rows' spans (unused when ea[k] == 0).
  * depth(X, Y) = z0 + dzdx (X - x0) + dzdy (Y - y0), (x0, y0) its first vertex. rows: the grid rows it may cover,
- * rows[0] > rows[1] for a patch that covers no line. Bit 3 of flags: the normal has a
+ * rows = (INT_MAX, -INT_MAX) for a patch that covers no line. Bit 3 of flags: the normal has a
  * positive component along +w (front_pos). */
 typedef struct {
   sirad_f32 ex[3];
@@ -71,10 +71,5 @@ typedef struct {
 
 #define SIRAD_FRONT_POS 8u
 
-/* One patch crossing one line. `key` = patch index << 1 | front_pos. */
-typedef struct {
-  sirad_f32 depth;
-  sirad_u32 key;
-} SiradCrossing;
 
 #endif
