@@ -71,6 +71,10 @@ SiradBundle make_bundle(const PatchMesh& mesh, int grid, uint64_t seed, uint64_t
   b.background[1] = mesh.background.y;
   b.background[2] = mesh.background.z;
   b.background[3] = 0.0f;
+  // Two faces closer than 1e-5 of the scene's radius along a line are one place (a two-sided
+  // wall made of two coincident one-sided faces): far above the rounding of depths computed
+  // from different vertices, far below any gap a scene means light to pass through.
+  b.depth_tie = static_cast<float>(1e-5 * static_cast<double>(mesh.bound_radius));
   return b;
 }
 

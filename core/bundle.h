@@ -15,7 +15,7 @@
 #include "core/mesh.h"
 #include "kernels/bundle_types.h"
 
-static_assert(sizeof(SiradBundle) == 4 * 21, "SiradBundle layout must match bundle_types.h");
+static_assert(sizeof(SiradBundle) == 4 * 22, "SiradBundle layout must match bundle_types.h");
 static_assert(sizeof(SiradProjected) == 4 * 26, "SiradProjected layout must match bundle_types.h");
 
 namespace sirad {

@@ -108,6 +108,14 @@ class ReferenceEngine final : public BundleEngine {
         if (a.front_pos != c.front_pos) return !a.front_pos;
         return a.patch < c.patch;
       });
+    // Two coincident faces (one thin wall) whose rounded depths came out towards +w first:
+    // the face towards -w goes first, so each looks outwards.
+    for (auto& line : lines)
+      for (std::size_t k = 0; k + 1 < line.size(); ++k)
+        if (line[k].front_pos && !line[k + 1].front_pos && line[k + 1].depth - line[k].depth <= b.depth_tie) {
+          std::swap(line[k], line[k + 1]);
+          ++k;
+        }
 
     // Gather, visiting lines in row-major order (the order each kernel work-item sums in).
     const glm::vec4 background(b.background[0], b.background[1], b.background[2], 0.0f);

@@ -106,6 +106,25 @@ SIRAD_INLINE ulong crossing_key(float depth, uint front_pos, uint q) {
 #define KEY_FRONT(k) ((uint)((k) >> 31) & 1u)
 #define KEY_SLOT(k) ((uint)(k) & 0x7fffffffu)
 
+SIRAD_INLINE float key_depth(ulong key) {
+  uint u = (uint)(key >> 32);
+  return as_float((u & 0x80000000u) ? (u & 0x7fffffffu) : ~u);
+}
+
+/* Coincident faces: a face towards +w directly followed, within depth_tie, by a face towards
+ * -w is the two faces of one thin wall, whose rounded depths came out in the wrong order:
+ * put the -w face first so that each looks outwards. */
+SIRAD_INLINE void order_coincident(__global ulong* s, uint n, float tie) {
+  for (uint k = 0; k + 1 < n; ++k) {
+    if (KEY_FRONT(s[k]) == 1u && KEY_FRONT(s[k + 1]) == 0u && key_depth(s[k + 1]) - key_depth(s[k]) <= tie) {
+      ulong t = s[k];
+      s[k] = s[k + 1];
+      s[k + 1] = t;
+      ++k;
+    }
+  }
+}
+
 /* Sorts s[0..n) ascending: compare-exchange networks for the short lists that are the rule,
  * insertion sort (with shell gaps for long lists) otherwise. */
 #define SIRAD_CX(a, b) { ulong lo_ = min(a, b); b = max(a, b); a = lo_; }
@@ -311,6 +330,7 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
       count[x] = 0;
       if (n == 0) continue;
       sort_line(s_sort + start, n);
+      order_coincident(s_sort + start, n, b->depth_tie);
       for (uint k = start; k < end; ++k) {
         ulong key = s_sort[k];
         float4 seen = background;

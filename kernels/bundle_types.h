@@ -37,6 +37,7 @@ typedef struct {
   sirad_u32 capacity;       /* crossings of one row the scratch can hold (set by the engine) */
   sirad_u32 partial_capacity; /* patches reaching one band the scratch can hold (engine) */
   sirad_f32 background[4];  /* radiance gathered by a line that leaves the scene */
+  sirad_f32 depth_tie;      /* depths closer than this count as one place (see bundle.cl) */
 } SiradBundle;
 
 /* A patch projected onto the grid plane, ready for the coverage test of kernels/bundle.cl.
