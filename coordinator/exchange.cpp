@@ -1,0 +1,152 @@
+// sirad: bundle ledger, chunked per-node states and the exchange schedule (no sockets, no clocks).
+#include "coordinator/exchange.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+
+namespace sirad::cluster {
+
+Topology parse_topology(const std::string& s) {
+  if (s == "star") return Topology::star;
+  if (s == "ring") return Topology::ring;
+  fail("--topology: '{}' is not star or ring", s);
+}
+
+Mode parse_mode(const std::string& s) {
+  if (s == "sync") return Mode::sync;
+  if (s == "async") return Mode::async;
+  fail("--mode: '{}' is not sync or async", s);
+}
+
+Ledger::Ledger(uint64_t bundles) : bundles_(bundles) {
+  if (bundles > 0) free_.push_back({0, bundles});
+}
+
+std::vector<Range> Ledger::grant(uint32_t node, uint64_t count) {
+  std::vector<Range> out;
+  while (count > 0 && !free_.empty()) {
+    Range& f = free_.front();
+    Range g{f.first, f.first + std::min(count, f.size())};
+    f.first = g.last;
+    if (f.size() == 0) free_.erase(free_.begin());
+    count -= g.size();
+    out.push_back(g);
+    granted_[node].push_back(g);
+  }
+  return out;
+}
+
+void Ledger::done(uint32_t node, Range r) {
+  if (r.last <= r.first) fail("ledger: empty or reversed range [{}, {}) from node {}", r.first, r.last, node);
+  auto it = granted_.find(node);
+  if (it == granted_.end()) fail("ledger: node {} reports bundle {} it holds no grant for", node, r.first);
+  auto& held = it->second;
+  // The range must lie inside one held range (grants are handed out as whole ranges and
+  // reported in pieces of them).
+  auto h = std::find_if(held.begin(), held.end(), [&](const Range& g) { return g.first <= r.first && r.last <= g.last; });
+  if (h == held.end()) fail("ledger: node {} reports bundles [{}, {}) not granted to it or already done", node, r.first, r.last);
+  Range before{h->first, r.first}, after{r.last, h->last};
+  held.erase(h);
+  if (before.size()) held.push_back(before);
+  if (after.size()) held.push_back(after);
+  done_count_ += r.size();
+}
+
+void Ledger::abandon(uint32_t node) {
+  auto it = granted_.find(node);
+  if (it == granted_.end()) return;
+  for (const Range& r : it->second) free_.push_back(r);
+  granted_.erase(it);
+  // Keep the free list sorted and merged, so the lowest indices go out first.
+  std::sort(free_.begin(), free_.end(), [](const Range& a, const Range& b) { return a.first < b.first; });
+  std::vector<Range> merged;
+  for (const Range& r : free_) {
+    if (!merged.empty() && merged.back().last == r.first) merged.back().last = r.last;
+    else merged.push_back(r);
+  }
+  free_ = std::move(merged);
+}
+
+uint64_t Ledger::outstanding(uint32_t node) const {
+  auto it = granted_.find(node);
+  uint64_t n = 0;
+  if (it != granted_.end())
+    for (const Range& r : it->second) n += r.size();
+  return n;
+}
+
+std::vector<uint32_t> chunk_starts(uint32_t patches, uint32_t chunks) {
+  if (chunks == 0 || chunks > std::max<uint32_t>(patches, 1))
+    fail("chunks: {} chunks for {} patches (need 1 .. patches)", chunks, patches);
+  std::vector<uint32_t> starts(chunks + 1);
+  for (uint32_t c = 0; c <= chunks; ++c)
+    starts[c] = static_cast<uint32_t>(static_cast<uint64_t>(patches) * c / chunks);
+  return starts;
+}
+
+std::vector<uint32_t> exchange_chunks(uint32_t exchange, double fraction, uint32_t chunks) {
+  if (!(fraction > 0.0 && fraction <= 1.0)) fail("--exchange-fraction {} outside (0, 1]", fraction);
+  uint32_t n = std::min<uint32_t>(chunks, static_cast<uint32_t>(std::ceil(fraction * chunks - 1e-9)));
+  n = std::max<uint32_t>(n, 1);
+  std::vector<uint32_t> out(n);
+  for (uint32_t i = 0; i < n; ++i)
+    out[i] = static_cast<uint32_t>((static_cast<uint64_t>(exchange) * n + i) % chunks);
+  return out;
+}
+
+Aggregate::Aggregate(std::vector<uint32_t> starts, uint32_t nodes) : starts_(std::move(starts)) {
+  if (starts_.size() < 2) fail("aggregate: no chunks");
+  for (uint32_t p = 0; p < nodes; ++p) add_node();
+}
+
+void Aggregate::add_node() {
+  std::vector<Part> parts(chunks());
+  for (uint32_t c = 0; c < chunks(); ++c) parts[c].sum.assign(3 * static_cast<std::size_t>(chunk_size(c)), 0.0);
+  state_.push_back(std::move(parts));
+}
+
+void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint64_t count) {
+  if (node >= nodes()) fail("aggregate: no node {}", node);
+  if (chunk >= chunks()) fail("node {}: no chunk {} (the run has {})", node, chunk, chunks());
+  if (sum.size() != 3 * static_cast<std::size_t>(chunk_size(chunk)))
+    fail("node {}: chunk {} has {} values, expected {}", node, chunk, sum.size(), 3 * chunk_size(chunk));
+  Part& part = state_[node][chunk];
+  if (count < part.count) fail("node {}: count of chunk {} went back from {} to {}", node, chunk, part.count, count);
+  for (std::size_t i = 0; i < sum.size(); ++i)
+    if (!std::isfinite(sum[i]) || sum[i] < 0.0)
+      fail("node {}: chunk {} value {} is {}", node, chunk, i, sum[i]);
+  part.sum = std::move(sum);
+  part.count = count;
+}
+
+Aggregate::Part Aggregate::others(uint32_t node, uint32_t chunk, Topology topology) const {
+  if (topology == Topology::ring) return nodes() > 1 ? state_[(node + 1) % nodes()][chunk] : Part{std::vector<double>(3 * chunk_size(chunk), 0.0), 0};
+  Part out{std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
+  for (uint32_t p = 0; p < nodes(); ++p) {
+    if (p == node) continue;
+    const Part& s = state_[p][chunk];
+    for (std::size_t i = 0; i < s.sum.size(); ++i) out.sum[i] += s.sum[i];
+    out.count += s.count;
+  }
+  return out;
+}
+
+uint64_t Aggregate::count(uint32_t chunk) const {
+  uint64_t n = 0;
+  for (const auto& parts : state_) n += parts[chunk].count;
+  return n;
+}
+
+std::vector<double> Aggregate::estimate(uint32_t chunk) const {
+  std::vector<double> out(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0);
+  uint64_t n = count(chunk);
+  if (n == 0) return out;
+  for (const auto& parts : state_)
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] += parts[chunk].sum[i];
+  for (double& v : out) v /= static_cast<double>(n);
+  return out;
+}
+
+}  // namespace sirad::cluster

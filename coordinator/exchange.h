@@ -1,0 +1,89 @@
+// sirad: the cluster's bookkeeping as plain state, free of sockets and clocks (DESIGN.md
+// section 2): the bundle ledger (every index 0..K-1 granted once, done once), the per-node,
+// per-chunk (sum, count) states with the count-weighted global estimate, and the exchange
+// schedule (period I, fraction S rotating over chunks, star or ring). The coordinator over
+// ZeroMQ, the embedded default and a virtual-clock emulation all drive this same code.
+#pragma once
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace sirad::cluster {
+
+enum class Topology { star, ring };
+enum class Mode { sync, async };
+Topology parse_topology(const std::string& s);  // "star" | "ring"; throws sirad::Error
+Mode parse_mode(const std::string& s);          // "sync" | "async"; throws sirad::Error
+
+// A half-open range of bundle indices [first, last).
+struct Range {
+  uint64_t first = 0, last = 0;
+  uint64_t size() const { return last - first; }
+  bool operator==(const Range&) const = default;
+};
+
+// The run's bundle budget. Grants come from the lowest indices not yet given out; a grant
+// that is abandoned (its node died) goes back and is granted again; an index is done once.
+class Ledger {
+ public:
+  explicit Ledger(uint64_t bundles);
+  // Up to `count` indices for `node`, as ranges; empty when the budget is all granted.
+  std::vector<Range> grant(uint32_t node, uint64_t count);
+  // `node` finished `r`: every index must be granted to it and not yet done, or this throws
+  // sirad::Error naming the first offending index (nothing is counted twice).
+  void done(uint32_t node, Range r);
+  // Everything granted to `node` and not done returns to the budget.
+  void abandon(uint32_t node);
+  uint64_t bundles() const { return bundles_; }
+  uint64_t done_count() const { return done_count_; }
+  uint64_t outstanding(uint32_t node) const;
+  bool finished() const { return done_count_ == bundles_; }
+
+ private:
+  uint64_t bundles_;
+  std::vector<Range> free_;                           // sorted, disjoint
+  std::map<uint32_t, std::vector<Range>> granted_;    // per node, not yet done
+  uint64_t done_count_ = 0;
+};
+
+// Contiguous chunks of patches: chunk c is [starts[c], starts[c+1]), starts.back() = patches.
+std::vector<uint32_t> chunk_starts(uint32_t patches, uint32_t chunks);
+
+// The chunks a node reports at its e-th exchange: n = ceil(S * C) of them, rotating
+// (e * n + i) mod C, so every chunk goes out over time; S = 1 gives all.
+std::vector<uint32_t> exchange_chunks(uint32_t exchange, double fraction, uint32_t chunks);
+
+// The last (sum, count) received from every node for every chunk, and what follows from them.
+class Aggregate {
+ public:
+  Aggregate(std::vector<uint32_t> starts, uint32_t nodes);
+  uint32_t chunks() const { return static_cast<uint32_t>(starts_.size() - 1); }
+  uint32_t chunk_size(uint32_t c) const { return starts_[c + 1] - starts_[c]; }
+  uint32_t nodes() const { return static_cast<uint32_t>(state_.size()); }
+  void add_node();
+
+  // A node's new state of chunk c: 3 doubles (rgb) per patch of the chunk, and its count.
+  // Refused (sirad::Error, state unchanged) for a wrong size, a count that goes backwards, or a
+  // non-finite or negative value.
+  void set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint64_t count);
+
+  struct Part {
+    std::vector<double> sum;  // 3 per patch of the chunk
+    uint64_t count = 0;
+  };
+  const Part& state(uint32_t node, uint32_t chunk) const { return state_[node][chunk]; }
+  // What `node` receives for chunk c: star, the sum over all other nodes; ring, node + 1's.
+  Part others(uint32_t node, uint32_t chunk, Topology topology) const;
+  // The count-weighted global estimate of chunk c: sum of sums / sum of counts (zeros where no
+  // node has reported).
+  std::vector<double> estimate(uint32_t chunk) const;
+  uint64_t count(uint32_t chunk) const;
+
+ private:
+  std::vector<uint32_t> starts_;
+  std::vector<std::vector<Part>> state_;  // [node][chunk]
+};
+
+}  // namespace sirad::cluster

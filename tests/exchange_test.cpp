@@ -1,0 +1,120 @@
+// sirad tests: the coordinator's plain-state bookkeeping: the bundle ledger, chunked per-node
+// states with the count-weighted estimate, star and ring aggregates, the exchange rotation.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include <gtest/gtest.h>
+
+#include "coordinator/exchange.h"
+#include "core/error.h"
+
+namespace sirad::cluster {
+namespace {
+
+// Three nodes take grants of different sizes until the budget is gone, one dies half-way and
+// its grant is given again: every index 0..K-1 is done exactly once.
+TEST(ClusterLedger, EveryIndexOnceAcrossNodesAndAbandonedGrants) {
+  const uint64_t K = 1000;
+  Ledger ledger(K);
+  std::vector<int> done(K, 0);
+  auto finish = [&](uint32_t node, const std::vector<Range>& ranges) {
+    for (const Range& r : ranges) {
+      ledger.done(node, r);
+      for (uint64_t k = r.first; k < r.last; ++k) ++done[k];
+    }
+  };
+  auto lost = ledger.grant(2, 64);  // node 2 dies with this grant
+  ASSERT_EQ(ledger.outstanding(2), 64u);
+  for (int round = 0; !ledger.finished(); ++round) {
+    finish(0, ledger.grant(0, 37));
+    finish(1, ledger.grant(1, 5));
+    if (round == 3) ledger.abandon(2);
+    ASSERT_LT(round, 1000);
+  }
+  EXPECT_EQ(ledger.outstanding(2), 0u);
+  EXPECT_EQ(ledger.done_count(), K);
+  for (uint64_t k = 0; k < K; ++k) ASSERT_EQ(done[k], 1) << "index " << k;
+  EXPECT_TRUE(ledger.grant(0, 10).empty());
+}
+
+TEST(ClusterLedger, RefusesWhatWasNotGrantedOrIsDoneAlready) {
+  Ledger ledger(100);
+  auto g = ledger.grant(0, 10);
+  ASSERT_EQ(g.size(), 1u);
+  EXPECT_EQ(g[0], (Range{0, 10}));
+  EXPECT_THROW(ledger.done(1, {0, 5}), Error);    // not node 1's
+  EXPECT_THROW(ledger.done(0, {5, 15}), Error);   // beyond the grant
+  ledger.done(0, {0, 5});
+  EXPECT_THROW(ledger.done(0, {0, 5}), Error);    // counted twice
+  EXPECT_THROW(ledger.done(0, {7, 7}), Error);    // empty
+  ledger.abandon(0);
+  EXPECT_THROW(ledger.done(0, {5, 10}), Error);   // a late report for a grant given away
+  auto again = ledger.grant(1, 100);
+  ASSERT_FALSE(again.empty());
+  EXPECT_EQ(again[0], (Range{5, 100}));           // lowest indices first, merged
+  EXPECT_EQ(ledger.done_count(), 5u);
+}
+
+TEST(ClusterExchange, FractionSelectsRotatingChunks) {
+  // S = 1: all chunks every time.
+  auto all = exchange_chunks(7, 1.0, 8);
+  EXPECT_EQ(all.size(), 8u);
+  // S = 1/8 of 8 chunks: one chunk per exchange, each chunk once in 8 exchanges.
+  std::vector<int> seen(8, 0);
+  for (uint32_t e = 0; e < 8; ++e) {
+    auto c = exchange_chunks(e, 0.125, 8);
+    ASSERT_EQ(c.size(), 1u);
+    ++seen[c[0]];
+  }
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), 8);
+  // S = 0.3 of 10 chunks: 3 per exchange, rotating.
+  EXPECT_EQ(exchange_chunks(0, 0.3, 10), (std::vector<uint32_t>{0, 1, 2}));
+  EXPECT_EQ(exchange_chunks(4, 0.3, 10), (std::vector<uint32_t>{2, 3, 4}));
+  EXPECT_THROW(exchange_chunks(0, 0.0, 10), Error);
+  EXPECT_THROW(exchange_chunks(0, 1.5, 10), Error);
+}
+
+TEST(ClusterAggregate, CountWeightedEstimateStarAndRing) {
+  auto starts = chunk_starts(5, 2);  // chunks of 2 and 3 patches
+  ASSERT_EQ(starts, (std::vector<uint32_t>{0, 2, 5}));
+  Aggregate agg(starts, 3);
+  // Node p reports chunk 0 with every value (p + 1) * count: its mean is p + 1.
+  const uint64_t counts[3] = {10, 30, 60};
+  for (uint32_t p = 0; p < 3; ++p) agg.set(p, 0, std::vector<double>(6, (p + 1.0) * counts[p]), counts[p]);
+  // Count-weighted: (10*1 + 30*2 + 60*3) / 100 = 2.5.
+  for (double v : agg.estimate(0)) EXPECT_DOUBLE_EQ(v, 2.5);
+  EXPECT_EQ(agg.count(0), 100u);
+  for (double v : agg.estimate(1)) EXPECT_EQ(v, 0.0);  // nobody reported chunk 1
+  // Star: node 1 receives nodes 0 and 2; ring: node 1 receives node 2, node 2 receives node 0.
+  auto star = agg.others(1, 0, Topology::star);
+  EXPECT_EQ(star.count, 70u);
+  EXPECT_DOUBLE_EQ(star.sum[0], 10.0 + 180.0);
+  auto ring = agg.others(1, 0, Topology::ring);
+  EXPECT_EQ(ring.count, 60u);
+  EXPECT_EQ(agg.others(2, 0, Topology::ring).count, 10u);
+  // A late joiner starts empty and does not change the estimate until it reports.
+  agg.add_node();
+  for (double v : agg.estimate(0)) EXPECT_DOUBLE_EQ(v, 2.5);
+}
+
+TEST(ClusterAggregate, RefusesImpossibleStates) {
+  Aggregate agg(chunk_starts(4, 2), 2);
+  agg.set(0, 1, std::vector<double>(6, 1.0), 5);
+  EXPECT_THROW(agg.set(0, 1, std::vector<double>(6, 1.0), 4), Error);  // count backwards
+  EXPECT_THROW(agg.set(0, 1, std::vector<double>(5, 1.0), 6), Error);  // wrong size
+  EXPECT_THROW(agg.set(0, 2, std::vector<double>(6, 1.0), 6), Error);  // no such chunk
+  auto nan = std::vector<double>(6, 1.0);
+  nan[3] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(agg.set(1, 0, nan, 1), Error);
+  EXPECT_THROW(agg.set(1, 0, std::vector<double>(6, -1.0), 1), Error);
+  EXPECT_EQ(agg.state(0, 1).count, 5u);  // unchanged by the refusals
+  EXPECT_EQ(agg.count(0), 0u);
+  EXPECT_THROW(chunk_starts(3, 4), Error);
+  EXPECT_THROW(parse_topology("mesh"), Error);
+  EXPECT_THROW(parse_mode("eventually"), Error);
+}
+
+}  // namespace
+}  // namespace sirad::cluster
