@@ -20,6 +20,19 @@ std::vector<glm::vec4> patch_radiance(const PatchMesh& mesh) {
   return r;
 }
 
+// `base` turned to the frame (u, v, w) with an integer grid offset: lines exactly on the
+// grid points where axis-aligned edges fall.
+SiradBundle aligned(SiradBundle base, const float (&u)[3], const float (&v)[3], const float (&w)[3]) {
+  for (int k = 0; k < 3; ++k) {
+    base.u[k] = u[k];
+    base.v[k] = v[k];
+    base.w[k] = w[k];
+  }
+  base.offset_x = std::floor(base.offset_x);
+  base.offset_y = std::floor(base.offset_y);
+  return base;
+}
+
 void expect_same_bundle(const PatchMesh& mesh, BundleEngine& cl, BundleEngine& ref, const SiradBundle& b) {
   auto radiance = patch_radiance(mesh);
   BundleResult a, r;
@@ -55,24 +68,12 @@ TEST(BundleKernel, MatchesReferenceOnGrazingAndAxisDirections) {
   const float frames[][2][3] = {{{1, 0, 0}, {0, 1, 0}}, {{0, 0, 1}, {1, 0, 0}}, {{0, 1, 0}, {0, 0, 1}},
                                 {{1, 0, 0}, {0, -1, 0}}, {{0, 0, 1}, {1, -1e-4f, 0}}, {{0, 1, 0}, {-0.70710678f, 0, 0.70710678f}}};
   for (int d = 0; d < 6; ++d) {
-    SiradBundle b = base;
-    for (int k = 0; k < 3; ++k) {
-      b.w[k] = dirs[d][k];
-      b.u[k] = frames[d][0][k];
-      b.v[k] = frames[d][1][k];
-    }
-    b.offset_x = std::floor(b.offset_x);
-    b.offset_y = std::floor(b.offset_y);
+    SiradBundle b = aligned(base, frames[d][0], frames[d][1], dirs[d]);
     SCOPED_TRACE(d);
     expect_same_bundle(mesh, *cl, *ref, b);
   }
 }
 
-}  // namespace
-}  // namespace sirad
-
-namespace sirad {
-namespace {
 
 // Watertightness: inside the closed furnace cube every line meets the walls in facing pairs,
 // so with radiance 1 everywhere each crossing gathers exactly 1: gathered == hits for every
@@ -87,17 +88,7 @@ TEST(BundleKernel, FurnaceIsWatertight) {
   for (uint64_t k = 0; k < 8; ++k) bundles.push_back(make_bundle(mesh, 200, 21, k));
   SiradBundle axis = make_bundle(mesh, 101, 21, 99);
   const float frame[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  for (int d = 0; d < 3; ++d) {
-    SiradBundle b = axis;
-    for (int k = 0; k < 3; ++k) {
-      b.u[k] = frame[(d + 1) % 3][k];
-      b.v[k] = frame[(d + 2) % 3][k];
-      b.w[k] = frame[d][k];
-    }
-    b.offset_x = std::floor(b.offset_x);
-    b.offset_y = std::floor(b.offset_y);
-    bundles.push_back(b);
-  }
+  for (int d = 0; d < 3; ++d) bundles.push_back(aligned(axis, frame[(d + 1) % 3], frame[(d + 2) % 3], frame[d]));
   for (std::size_t i = 0; i < bundles.size(); ++i) {
     BundleResult r;
     cl->run(bundles[i], one, r);
@@ -108,15 +99,10 @@ TEST(BundleKernel, FurnaceIsWatertight) {
   }
 }
 
-}  // namespace
-}  // namespace sirad
-
-namespace sirad {
-namespace {
 
 // A row whose crossings, or a band whose patches, overflow the scratch make the engine grow
-// the scratch and run the bundle again: the result is the same as with ample room, bit for bit; and the band count
-// does not change the result beyond float summation order.
+// the scratch and run the bundle again: the result is the same as with ample room, bit for
+// bit; and the band count does not change the result beyond float summation order.
 TEST(BundleKernel, ScratchGrowthAndBandingDoNotChangeResults) {
   PatchMesh mesh = mesh_scene(builtin_furnace(), {.target_patches = 600});
   auto roomy = make_cl_engine(mesh);
@@ -139,11 +125,6 @@ TEST(BundleKernel, ScratchGrowthAndBandingDoNotChangeResults) {
   }
 }
 
-}  // namespace
-}  // namespace sirad
-
-namespace sirad {
-namespace {
 
 // A thin two-sided wall made of two coincident one-sided faces, alone in empty space: every
 // line through it meets the back-facing pair, and each face must look outwards, into the
