@@ -33,6 +33,8 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   two_delta_ = 2.0 * cell_area(mesh, grid_);
   const std::size_t n = mesh.size();
   sum_.assign(n, glm::dvec3(0.0));
+  others_sum_.assign(n, glm::dvec3(0.0));
+  others_count_.assign(n, 0);
   state_.resize(n);
   for (std::size_t j = 0; j < n; ++j) state_[j] = glm::dvec3(mesh.emission(j));
   input_.resize(n);
@@ -66,9 +68,26 @@ void Solver::step(uint64_t index) {
   if (options_.rule == UpdateRule::chain) {
     state_ = std::move(estimate);
   } else {
-    const double inv = 1.0 / static_cast<double>(count_);
-    for (std::size_t j = 0; j < state_.size(); ++j) state_[j] = sum_[j] * inv;
+    update_average_state();
   }
+}
+
+void Solver::update_average_state() {
+  // L_p = (S_p + O_p) / (m_p + M_p): the average over every sample this node has seen.
+  for (std::size_t j = 0; j < state_.size(); ++j) {
+    uint64_t m = count_ + others_count_[j];
+    if (m > 0) state_[j] = (sum_[j] + others_sum_[j]) / static_cast<double>(m);
+  }
+}
+
+void Solver::absorb(std::size_t first, std::span<const glm::dvec3> others, uint64_t others_count) {
+  if (first > mesh_.size() || others.size() > mesh_.size() - first)
+    fail("absorb: patches [{}, {}) outside the mesh's {}", first, first + others.size(), mesh_.size());
+  for (std::size_t i = 0; i < others.size(); ++i) {
+    others_sum_[first + i] = others[i];
+    others_count_[first + i] = others_count;
+  }
+  if (options_.rule == UpdateRule::average) update_average_state();
 }
 
 std::vector<glm::vec3> Solver::estimate() const {

@@ -7,6 +7,7 @@
 // The solver knows nothing of devices or networks: engines run bundles, drivers choose indices.
 #pragma once
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,12 @@ class Solver {
   // The last bundle's raw result (gathered sums and hits), for tests and diagnostics.
   const BundleResult& last() const { return result_; }
 
+  // The other nodes' aggregate for patches [first, first + others.size()) (DESIGN.md "Many
+  // nodes"): their summed estimates and their count, as the last exchange gave them. Under the
+  // average rule the next transport's input becomes (S_p + O_p) / (m_p + M_p) there; under
+  // chain it is kept (for the cluster's error estimate) and the chain itself is untouched.
+  void absorb(std::size_t first, std::span<const glm::dvec3> others, uint64_t others_count);
+
   // E + rho (2 delta / A) gathered: one transport of the radiance that produced `gathered`.
   std::vector<glm::dvec3> transport(const BundleResult& gathered) const;
 
@@ -67,7 +74,11 @@ class Solver {
   int grid_;
   int burn_in_;
   double two_delta_;
+  void update_average_state();
+
   std::vector<glm::dvec3> sum_, state_;
+  std::vector<glm::dvec3> others_sum_;     // O_p per patch
+  std::vector<uint64_t> others_count_;     // M_p per patch
   std::vector<glm::vec4> input_;
   BundleResult result_;
   uint64_t count_ = 0, crossings_ = 0;

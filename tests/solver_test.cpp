@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
+#include "core/error.h"
 #include "tests/test_util.h"
 
 namespace sirad {
@@ -241,6 +242,35 @@ TEST(SolverConvergence, CornellDifferenceFallsAsInverseSqrt) {
   std::printf("cornell: relative RMS difference %.4f at 256 bundles, %.4f at 4096: slope %.3f\n", std::sqrt(d_lo),
               std::sqrt(d_hi), slope);
   EXPECT_NEAR(slope, -0.5, 0.12);
+}
+
+// Exchange under the average rule (DESIGN.md "Many nodes"): after absorbing the others' sums
+// O and count M for a range of patches, the next transport's input there is
+// (S_p + O_p) / (m_p + M_p) exactly, elsewhere S_p / m_p; under chain the state is untouched.
+TEST(SolverExchange, AbsorbMakesTheAverageInputTheUnionOfSamples) {
+  PatchMesh mesh = mesh_scene(builtin_furnace(), {.target_patches = 48});
+  auto engine = make_cl_engine(mesh);
+  Solver a(mesh, *engine, {.seed = 1, .grid = 24, .rule = UpdateRule::average});
+  Solver b(mesh, *engine, {.seed = 2, .grid = 24, .rule = UpdateRule::average});
+  for (uint64_t k = 0; k < 10; ++k) a.step(k);
+  for (uint64_t k = 0; k < 30; ++k) b.step(100 + k);
+  const std::size_t first = 12, n = 20;
+  a.absorb(first, std::span(b.sum()).subspan(first, n), b.bundles());
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    glm::dvec3 expected = (j >= first && j < first + n) ? (a.sum()[j] + b.sum()[j]) / 40.0 : a.sum()[j] / 10.0;
+    for (int c = 0; c < 3; ++c) ASSERT_DOUBLE_EQ(a.state()[j][c], expected[c]) << "patch " << j;
+  }
+  // The next step keeps the others in: its input average counts 11 + 30 samples there.
+  a.step(10);
+  EXPECT_DOUBLE_EQ(a.state()[first].x, (a.sum()[first].x + b.sum()[first].x) / 41.0);
+  EXPECT_DOUBLE_EQ(a.state()[0].x, a.sum()[0].x / 11.0);
+  EXPECT_THROW(a.absorb(mesh.size() - 1, std::span(b.sum()).subspan(0, 2), 1), Error);
+
+  Solver c(mesh, *engine, {.seed = 3, .grid = 24});
+  for (uint64_t k = 0; k < 5; ++k) c.step(k);
+  auto before = c.state();
+  c.absorb(0, std::span(b.sum()), b.bundles());
+  EXPECT_EQ(0, std::memcmp(before.data(), c.state().data(), before.size() * sizeof(before[0])));
 }
 
 }  // namespace
