@@ -1,0 +1,21 @@
+// sirad: a scene as bytes, for sending it to nodes (SCENE messages, proto/PROTOCOL.md 3.1).
+// Nodes mesh the decoded scene themselves (meshing is deterministic) and check the content
+// hash of the result against the run's, so no patch data is taken on trust.
+#pragma once
+#include <string>
+#include <string_view>
+
+#include "core/scene.h"
+
+namespace sirad {
+
+// "sirad-scene-v1", then little-endian counts and arrays: materials (name, reflectance,
+// emission), triangles (3 vertices, material), background, optional camera.
+std::string encode_scene(const Scene& scene);
+
+// The inverse; every count, index and value is checked (finite coordinates, reflectance in
+// [0, 1], finite non-negative emission, at least one triangle and one emitter). Throws
+// sirad::Error naming `label` and the problem.
+Scene decode_scene(std::string_view bytes, const std::string& label);
+
+}  // namespace sirad

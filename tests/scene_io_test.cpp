@@ -1,0 +1,56 @@
+// sirad tests: the scene encoding nodes receive: a round trip meshes to the same content hash;
+// truncated, padded and tampered bytes are refused with a one-line reason.
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "core/mesh.h"
+#include "core/scene_io.h"
+
+namespace sirad {
+namespace {
+
+TEST(SceneIo, RoundTripMeshesToTheSameHash) {
+  for (const Scene& scene : {builtin_cornell(), builtin_furnace()}) {
+    std::string bytes = encode_scene(scene);
+    Scene back = decode_scene(bytes, "wire");
+    EXPECT_EQ(back.name, scene.name);
+    ASSERT_EQ(back.triangles.size(), scene.triangles.size());
+    EXPECT_EQ(back.camera.has_value(), scene.camera.has_value());
+    EXPECT_EQ(mesh_scene(back, {.target_patches = 2000}).hash, mesh_scene(scene, {.target_patches = 2000}).hash);
+    EXPECT_EQ(encode_scene(back), bytes);
+  }
+}
+
+void expect_refused(const std::string& bytes, const std::string& reason) {
+  try {
+    decode_scene(bytes, "wire");
+    ADD_FAILURE() << "accepted; expected: " << reason;
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(reason), std::string::npos) << e.what();
+  }
+}
+
+TEST(SceneIo, MalformedBytesAreRefused) {
+  std::string good = encode_scene(builtin_cornell());
+  expect_refused("", "not a sirad scene");
+  expect_refused("garbage that is long enough to read", "not a sirad scene");
+  for (std::size_t cut : {good.size() - 1, good.size() / 2, std::size_t{20}})
+    expect_refused(good.substr(0, cut), "truncated");
+  expect_refused(good + "x", "after the scene");
+  // A vertex made NaN: the first triangle's first coordinate.
+  Scene s = builtin_cornell();
+  s.triangles[0].p[0].x = std::numeric_limits<float>::quiet_NaN();
+  expect_refused(encode_scene(s), "non-finite vertex");
+  s = builtin_cornell();
+  s.triangles[3].material = 99;
+  expect_refused(encode_scene(s), "uses material 99");
+  s = builtin_cornell();
+  s.materials[0].reflectance.y = 1.5f;
+  expect_refused(encode_scene(s), "outside [0, 1]");
+  s = builtin_cornell();
+  for (auto& m : s.materials) m.emission = glm::vec3(0.0f);
+  expect_refused(encode_scene(s), "no emitter");
+}
+
+}  // namespace
+}  // namespace sirad
