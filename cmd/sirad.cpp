@@ -10,7 +10,12 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <atomic>
+#include <thread>
+
+#include "coordinator/coordinator.h"
 #include "core/bundle_cl.h"
+#include "node/node.h"
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/results.h"
@@ -36,6 +41,13 @@ struct RenderArgs {
   bool flat = false;
   bool skip_degenerate = false;
   bool quiet = false;
+  // The embedded cluster: N local nodes over ZeroMQ inproc (0: the plain single-node solver).
+  int nodes = 0;
+  std::string exchange_every = "end";
+  double exchange_fraction = 1.0;
+  std::string topology = "star";
+  std::string mode = "async";
+  int chunks = 16;
 };
 
 // A progress bar on a terminal, a plain line every 10% otherwise.
@@ -69,6 +81,108 @@ class Progress {
   std::chrono::steady_clock::time_point last_{};
 };
 
+// The header attributes every run records, then the outputs, then their paths on stdout.
+Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, UpdateRule rule) {
+  return {
+      {"sirad.version", std::string(SIRAD_VERSION)},
+      {"sirad.scene", a.scene},
+      {"sirad.scene_hash", mesh.hash},
+      {"sirad.patches", static_cast<int64_t>(mesh.size())},
+      {"sirad.bundles", static_cast<int64_t>(a.bundles)},
+      {"sirad.grid", static_cast<int64_t>(grid)},
+      {"sirad.seed", std::to_string(a.seed)},
+      {"sirad.rule", std::string(to_string(rule))},
+      {"sirad.nodes", static_cast<int64_t>(std::max(a.nodes, 1))},
+      {"sirad.exchange_every", a.exchange_every},
+      {"sirad.exchange_fraction", a.exchange_fraction},
+  };
+}
+
+void write_outputs(const RenderArgs& a, const std::string& out, const PatchMesh& mesh,
+                   const std::vector<glm::vec3>& radiosity, const Attributes& attrs) {
+  ResultOptions ro;
+  ro.width = a.width;
+  ro.height = a.height;
+  ro.exposure = a.exposure;
+  ro.shading = a.flat ? Shading::flat : Shading::gouraud;
+  ResultFiles files = write_results(out, mesh, radiosity, ro, attrs);
+  std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
+              std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
+}
+
+// The embedded default: the coordinator on this thread, N nodes on their own threads, all over
+// ZeroMQ inproc with the same code as a cluster.
+int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, const PatchMesh& mesh,
+                    UpdateRule rule, const std::string& out) {
+  cluster::RunConfig rc;
+  rc.scene = scene;
+  rc.mesh_options = mesh_options;
+  rc.bundles = static_cast<uint64_t>(a.bundles);
+  rc.seed = a.seed;
+  rc.grid = a.grid.value_or(0);
+  rc.rule = rule;
+  rc.burn_in = a.burn_in.value_or(-1);
+  if (a.exchange_every != "end") {
+    try {
+      rc.exchange_every = static_cast<uint32_t>(std::stoul(a.exchange_every));
+    } catch (const std::exception&) {
+      fail("--exchange-every '{}' is not a bundle count or 'end'", a.exchange_every);
+    }
+    if (rc.exchange_every == 0) fail("--exchange-every must be at least 1 (or 'end')");
+  }
+  rc.fraction = a.exchange_fraction;
+  rc.topology = cluster::parse_topology(a.topology);
+  rc.mode = cluster::parse_mode(a.mode);
+  rc.chunks = static_cast<uint32_t>(a.chunks);
+  rc.min_nodes = static_cast<uint32_t>(a.nodes);
+  rc.strict = true;
+
+  const std::string endpoint = "inproc://sirad-embedded";
+  zmq::context_t context;
+  zmq::socket_t router(context, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  router.bind(endpoint);
+  std::atomic<bool> stop{false}, failed{false};
+  std::vector<std::thread> threads;
+  std::vector<std::string> node_errors(static_cast<std::size_t>(a.nodes));
+  for (int i = 0; i < a.nodes; ++i)
+    threads.emplace_back([&, i] {
+      try {
+        node::serve(context, endpoint, {.name = fmt::format("local-{}", i), .device = a.device, .stop = &stop});
+      } catch (const std::exception& e) {
+        node_errors[static_cast<std::size_t>(i)] = e.what();
+        failed = true;
+      }
+    });
+  rc.abort = &failed;
+  auto start = std::chrono::steady_clock::now();
+  cluster::RunResult result;
+  try {
+    result = cluster::coordinate(router, rc, mesh);
+  } catch (...) {
+    stop = true;
+    for (auto& t : threads) t.join();
+    for (int i = 0; i < a.nodes; ++i)
+      if (!node_errors[static_cast<std::size_t>(i)].empty()) fail("local-{}: {}", i, node_errors[static_cast<std::size_t>(i)]);
+    throw;
+  }
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stop = true;
+  for (auto& t : threads) t.join();
+
+  Attributes attrs = run_attributes(a, mesh, rc.grid ? rc.grid : auto_grid(mesh), rule);
+  attrs.emplace_back("sirad.topology", a.topology);
+  attrs.emplace_back("sirad.mode", a.mode);
+  write_outputs(a, out, mesh, result.radiosity, attrs);
+  for (const auto& n : result.nodes)
+    std::printf("node %s: %llu bundles, %u exchanges\n", n.name.c_str(), static_cast<unsigned long long>(n.bundles), n.exchanges);
+  std::printf("patches %zu, bundles %lld, nodes %d, %.2f s, %.1f bundles/s, exchange traffic %llu B in, %llu B out\n",
+              mesh.size(), static_cast<long long>(a.bundles), a.nodes, seconds, a.bundles / seconds,
+              static_cast<unsigned long long>(result.exchange_bytes_in),
+              static_cast<unsigned long long>(result.exchange_bytes_out));
+  return 0;
+}
+
 int render(const RenderArgs& a) {
   // Check everything cheap before any work: flags, output place, scene, device.
   if (a.patches && a.max_edge) fail("--patches and --max-edge exclude each other");
@@ -86,6 +200,7 @@ int render(const RenderArgs& a) {
   PatchMesh mesh = mesh_scene(scene, mesh_options);
   if (!mesh.camera) mesh.camera = default_camera(scene);
 
+  if (a.nodes > 0) return render_embedded(a, scene, mesh_options, mesh, rule, out);
   auto engine = make_cl_engine(mesh, {.device = a.device});
   SolverOptions so;
   so.seed = a.seed;
@@ -106,30 +221,10 @@ int render(const RenderArgs& a) {
   }
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  Attributes attrs = {
-      {"sirad.version", std::string(SIRAD_VERSION)},
-      {"sirad.scene", a.scene},
-      {"sirad.scene_hash", mesh.hash},
-      {"sirad.patches", static_cast<int64_t>(mesh.size())},
-      {"sirad.bundles", static_cast<int64_t>(a.bundles)},
-      {"sirad.burn_in", static_cast<int64_t>(solver.burn_in())},
-      {"sirad.grid", static_cast<int64_t>(solver.grid())},
-      {"sirad.seed", std::to_string(a.seed)},
-      {"sirad.rule", std::string(to_string(rule))},
-      {"sirad.nodes", int64_t{1}},
-      {"sirad.exchange_every", std::string("end")},
-      {"sirad.exchange_fraction", 1.0},
-      {"sirad.device", engine->description()},
-  };
-  ResultOptions ro;
-  ro.width = a.width;
-  ro.height = a.height;
-  ro.exposure = a.exposure;
-  ro.shading = a.flat ? Shading::flat : Shading::gouraud;
-  ResultFiles files = write_results(out, mesh, solver.estimate(), ro, attrs);
-
-  std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
-              std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
+  Attributes attrs = run_attributes(a, mesh, solver.grid(), rule);
+  attrs.emplace_back("sirad.burn_in", static_cast<int64_t>(solver.burn_in()));
+  attrs.emplace_back("sirad.device", engine->description());
+  write_outputs(a, out, mesh, solver.estimate(), attrs);
   std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n", mesh.size(),
               static_cast<long long>(a.bundles), solver.grid(), seconds, a.bundles / seconds,
               static_cast<double>(solver.crossings()) / seconds);
@@ -170,6 +265,15 @@ int run(int argc, char** argv) {
   render_cmd->add_flag("--flat", r.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
   render_cmd->add_flag("--skip-degenerate", r.skip_degenerate, "Drop zero-area triangles instead of failing");
   render_cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
+  render_cmd->add_option("--nodes", r.nodes, "Embedded cluster: N local nodes over ZeroMQ inproc (0: single node)")
+      ->check(CLI::Range(0, 64));
+  render_cmd->add_option("--exchange-every", r.exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
+  render_cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")
+      ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
+  render_cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
+  render_cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
+  render_cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
+      ->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_subcommand("devices", "List the OpenCL devices");
 
   try {

@@ -89,8 +89,11 @@ DeviceInfo describe_device(const cl::Device& device) {
 }
 
 namespace {
-// Every device of every platform, with its indices.
+// Every device of every platform, with its indices. Serialised: an ICD loader and PoCL are
+// not safe to initialise from several threads at once (the embedded cluster's nodes do).
 std::vector<std::pair<DeviceInfo, cl::Device>> enumerate_devices() {
+  static std::mutex mutex;
+  std::lock_guard lock(mutex);
   std::vector<std::pair<DeviceInfo, cl::Device>> all;
   auto ps = platforms();
   for (std::size_t p = 0; p < ps.size(); ++p) {

@@ -117,6 +117,19 @@ TEST_F(Cli, RenderWritesThreeOutputsAndSummary) {
   EXPECT_EQ(std::system(("exrinfo -s '" + (dir_ / "cornell.exr").string() + "' >/dev/null").c_str()), 0);
 }
 
+TEST_F(Cli, EmbeddedClusterRendersWithTwoNodes) {
+  Outcome r = sirad("render cornell --nodes 2 --patches 300 --bundles 40 --exchange-every 10 --width 32 --height 32");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* ext : {".exr", ".png", ".ply"}) EXPECT_TRUE(fs::exists(dir_ / (std::string("cornell") + ext))) << ext;
+  EXPECT_NE(r.out.find("node local-0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("node local-1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("nodes 2"), std::string::npos) << r.out;
+  Imf::InputFile exr((dir_ / "cornell.exr").string().c_str());
+  auto* nodes = exr.header().findTypedAttribute<Imf::IntAttribute>("sirad.nodes");
+  ASSERT_NE(nodes, nullptr);
+  EXPECT_EQ(nodes->value(), 2);
+}
+
 TEST_F(Cli, SameSeedGivesBitwiseIdenticalFiles) {
   ASSERT_EQ(sirad("render cornell --patches 300 --bundles 12 --width 48 --height 48 --out a").status, 0);
   ASSERT_EQ(sirad("render cornell --patches 300 --bundles 12 --width 48 --height 48 --out b").status, 0);
@@ -167,6 +180,8 @@ TEST_F(Cli, NonsensicalFlags) {
   expect_error(sirad("render cornell --bundles lots"), "--bundles");
   expect_error(sirad("render cornell --frobnicate"), "frobnicate");
   expect_error(sirad("render cornell --out no/such/dir/x --bundles 2"), "no/such/dir");
+  expect_error(sirad("render cornell --nodes 2 --exchange-every often"), "--exchange-every");
+  expect_error(sirad("render cornell --nodes 2 --topology mesh"), "--topology");
 }
 
 TEST_F(Cli, DeviceByIndexNameAndEnvironment) {

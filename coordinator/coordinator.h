@@ -1,0 +1,59 @@
+// sirad: the coordinator (proto/PROTOCOL.md): serves one run on a ROUTER socket, handing out
+// grants from the bundle budget, answering reports with the exchange the policy says, and
+// collecting the final states into the count-weighted estimate. The bookkeeping is
+// coordinator/exchange.h; this file only moves messages.
+#pragma once
+#include <atomic>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+#include <zmq.hpp>
+
+#include "coordinator/exchange.h"
+#include "core/mesh.h"
+#include "core/scene.h"
+#include "core/solver.h"
+
+namespace sirad::cluster {
+
+struct RunConfig {
+  Scene scene;            // sent to the nodes, which mesh it with `mesh_options`
+  MeshOptions mesh_options;
+  uint64_t bundles = 1000;
+  uint64_t seed = 1;
+  int grid = 0;           // the run's grid (0: auto from the mesh)
+  UpdateRule rule = UpdateRule::chain;
+  int burn_in = -1;
+  uint32_t exchange_every = 0;  // I; 0: states only at the end
+  double fraction = 1.0;        // S
+  Topology topology = Topology::star;
+  Mode mode = Mode::async;
+  uint32_t chunks = 16;
+  uint32_t min_nodes = 1;       // nodes ready before the first grant
+  double timeout_s = 0;         // 0: none; else the run fails if it takes longer
+  const std::atomic<bool>* abort = nullptr;  // set: the run fails at once (a local node died)
+  bool strict = false;          // a node's ERROR ends the run (the embedded default: its nodes
+                                // are this process's own threads)
+};
+
+struct NodeReport {
+  std::string name;
+  uint64_t bundles = 0;
+  uint32_t exchanges = 0;
+};
+
+struct RunResult {
+  std::vector<glm::vec3> radiosity;  // the count-weighted estimate per patch
+  std::vector<NodeReport> nodes;
+  uint64_t exchange_bytes_in = 0, exchange_bytes_out = 0;  // REPORT and UPDATE bulk
+  uint32_t exchanges = 0;
+};
+
+// Serves one run of `mesh` (meshed from config.scene with config.mesh_options) until every
+// bundle is done and every node's final state is in. Malformed or unexpected messages are
+// refused and logged; the run goes on. Throws sirad::Error on the timeout.
+RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh);
+
+}  // namespace sirad::cluster

@@ -1,0 +1,24 @@
+// sirad: the worker node (proto/PROTOCOL.md): connects a DEALER to a coordinator, says HELLO,
+// receives the run and the scene, meshes it and checks its hash, then runs the bundles it is
+// granted on its OpenCL device and exchanges chunk states as the grants say, until STOP; then
+// it waits for the next run. The bundle engine and the solver know nothing of the network.
+#pragma once
+#include <atomic>
+#include <string>
+
+#include <zmq.hpp>
+
+namespace sirad::node {
+
+struct NodeOptions {
+  std::string name = "node";
+  std::string device;                      // see select_device
+  const std::atomic<bool>* stop = nullptr; // set: leave after the current message
+  int poll_ms = 100;
+};
+
+// Serves runs until `stop` is set or the coordinator sends BYE. Throws sirad::Error on a local
+// failure (no device); protocol errors from the coordinator are logged and answered.
+void serve(zmq::context_t& context, const std::string& endpoint, const NodeOptions& options);
+
+}  // namespace sirad::node
