@@ -122,14 +122,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.grid = a.grid.value_or(0);
   rc.rule = rule;
   rc.burn_in = a.burn_in.value_or(-1);
-  if (a.exchange_every != "end") {
-    try {
-      rc.exchange_every = static_cast<uint32_t>(std::stoul(a.exchange_every));
-    } catch (const std::exception&) {
-      fail("--exchange-every '{}' is not a bundle count or 'end'", a.exchange_every);
-    }
-    if (rc.exchange_every == 0) fail("--exchange-every must be at least 1 (or 'end')");
-  }
+  rc.exchange_every = cluster::parse_exchange_every(a.exchange_every);
   rc.fraction = a.exchange_fraction;
   rc.topology = cluster::parse_topology(a.topology);
   rc.mode = cluster::parse_mode(a.mode);

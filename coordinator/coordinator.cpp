@@ -137,6 +137,7 @@ class Coordinator {
   }
 
   void hello(const std::string& id, const wire::Hello& h) {
+    if (peers_.count(id)) return;  // an idle node repeats HELLO until it has a run
     Peer& p = peers_[id];
     p.index = aggregate_.nodes();
     p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : h.node_name();

@@ -20,6 +20,20 @@ Mode parse_mode(const std::string& s) {
   fail("--mode: '{}' is not sync or async", s);
 }
 
+uint32_t parse_exchange_every(const std::string& s) {
+  if (s == "end") return 0;
+  std::size_t used = 0;
+  unsigned long v = 0;
+  try {
+    v = std::stoul(s, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != s.size() || s.empty() || s[0] == '-' || v == 0 || v > 0xffffffffUL)
+    fail("--exchange-every '{}' is not a bundle count >= 1 or 'end'", s);
+  return static_cast<uint32_t>(v);
+}
+
 Ledger::Ledger(uint64_t bundles) : bundles_(bundles) {
   if (bundles > 0) free_.push_back({0, bundles});
 }

@@ -16,6 +16,8 @@ enum class Topology { star, ring };
 enum class Mode { sync, async };
 Topology parse_topology(const std::string& s);  // "star" | "ring"; throws sirad::Error
 Mode parse_mode(const std::string& s);          // "sync" | "async"; throws sirad::Error
+// --exchange-every: a bundle count >= 1, or "end" (0: states only at the end of the run).
+uint32_t parse_exchange_every(const std::string& s);
 
 // A half-open range of bundle indices [first, last).
 struct Range {

@@ -43,8 +43,15 @@ class Node {
   }
 
   void serve() {
+    auto last_hello = std::chrono::steady_clock::now();
     hello();
     while (!(options_.stop && options_.stop->load())) {
+      // Without a run, say HELLO again every second: a coordinator that starts (or restarts)
+      // later hears of this node that way.
+      if (!state_ && !pending_ && std::chrono::steady_clock::now() - last_hello > std::chrono::seconds(1)) {
+        hello();
+        last_hello = std::chrono::steady_clock::now();
+      }
       auto frames = proto::receive(socket_, options_.poll_ms);
       if (!frames) continue;
       Message m;

@@ -1,6 +1,7 @@
 // sirad: SIRAD/1 over ZeroMQ: multipart send and receive with a timeout.
 #include "proto/transport.h"
 
+#include <cerrno>
 #include <cstring>
 
 namespace sirad::proto {
@@ -14,7 +15,12 @@ void send(zmq::socket_t& socket, const Message& message, const std::string* rout
 
 std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms) {
   zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
-  if (zmq::poll(&item, 1, std::chrono::milliseconds(timeout_ms)) == 0) return std::nullopt;
+  try {
+    if (zmq::poll(&item, 1, std::chrono::milliseconds(timeout_ms)) == 0) return std::nullopt;
+  } catch (const zmq::error_t& e) {
+    if (e.num() == EINTR) return std::nullopt;  // a signal: the caller checks its stop flag
+    throw;
+  }
   std::vector<std::string> frames;
   zmq::message_t part;
   do {

@@ -13,7 +13,8 @@ namespace sirad::proto {
 // Sends `message`, preceded by `routing_id` on a ROUTER socket.
 void send(zmq::socket_t& socket, const Message& message, const std::string* routing_id = nullptr);
 
-// Every frame of the next multipart message, or nothing after `timeout_ms`.
+// Every frame of the next multipart message, or nothing after `timeout_ms` (or when a signal
+// interrupts the wait).
 std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms);
 
 // The bytes of doubles, and back (little-endian, as the spec's bulk frames).

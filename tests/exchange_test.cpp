@@ -114,6 +114,9 @@ TEST(ClusterAggregate, RefusesImpossibleStates) {
   EXPECT_THROW(chunk_starts(3, 4), Error);
   EXPECT_THROW(parse_topology("mesh"), Error);
   EXPECT_THROW(parse_mode("eventually"), Error);
+  EXPECT_EQ(parse_exchange_every("end"), 0u);
+  EXPECT_EQ(parse_exchange_every("16"), 16u);
+  for (const char* bad : {"0", "-3", "often", "16x", "", "99999999999"}) EXPECT_THROW(parse_exchange_every(bad), Error) << bad;
 }
 
 }  // namespace

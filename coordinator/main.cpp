@@ -1,0 +1,127 @@
+// sirad-coordinator: serves one run of a scene to the nodes that connect, then writes the
+// outputs of the single-node solver (NAME.exr, NAME.png, NAME.ply).
+//   sirad-coordinator SCENE --listen tcp://*:5555 [--bundles K --patches N --grid R --seed S
+//     --out NAME --exchange-every I|end --exchange-fraction S --topology star|ring
+//     --mode sync|async --min-nodes P --chunks C --endpoint-file FILE --timeout SECONDS]
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+
+#include <CLI/CLI.hpp>
+
+#include "coordinator/coordinator.h"
+#include "core/atomic_file.h"
+#include "core/bundle.h"
+#include "core/error.h"
+#include "core/results.h"
+
+using namespace sirad;
+
+int main(int argc, char** argv) {
+  CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
+  std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
+                          rule = "chain", endpoint_file;
+  int64_t bundles = 1000, patches = 10000;
+  std::optional<int> grid;
+  uint64_t seed = 1;
+  double fraction = 1.0, timeout = 0;
+  int min_nodes = 1, chunks = 16, width = 512, height = 512;
+  app.add_option("scene", scene_spec, "Built-in scene (cornell, furnace) or an .obj file")->required();
+  app.add_option("--listen", listen, "ZeroMQ endpoint to bind")->capture_default_str();
+  app.add_option("--bundles", bundles, "Bundles in the run")->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
+  app.add_option("--patches", patches, "Mesh to about this many patches")->check(CLI::Range(int64_t{1}, int64_t{1} << 31))->capture_default_str();
+  app.add_option("--grid", grid, "Lines per side of a bundle (default: from the patch sizes)")->check(CLI::Range(2, 8192));
+  app.add_option("--seed", seed, "Run seed")->capture_default_str();
+  app.add_option("--out", out, "Output name (default: scene name)");
+  app.add_option("--rule", rule, "chain or average")->check(CLI::IsMember({"chain", "average"}))->capture_default_str();
+  app.add_option("--exchange-every", exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
+  app.add_option("--exchange-fraction", fraction, "Fraction S of chunks per exchange")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
+  app.add_option("--topology", topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
+  app.add_option("--mode", mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
+  app.add_option("--min-nodes", min_nodes, "Nodes ready before the first grant")->check(CLI::Range(1, 4096))->capture_default_str();
+  app.add_option("--chunks", chunks, "Chunks of patches exchanged separately")->check(CLI::Range(1, 4096))->capture_default_str();
+  app.add_option("--width", width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
+  app.add_option("--height", height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+  app.add_option("--endpoint-file", endpoint_file, "Write the bound endpoint here (for scripts: tcp://*:0 picks a port)");
+  app.add_option("--timeout", timeout, "Fail if the run takes longer (seconds; 0: never)")->check(CLI::NonNegativeNumber);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "sirad-coordinator: error: %s (see sirad-coordinator --help)\n", e.what());
+    return 2;
+  }
+  try {
+    if (out.empty()) out = std::filesystem::path(scene_spec).stem().string();
+    check_output_name(out);
+    cluster::RunConfig rc;
+    rc.scene = load_scene(scene_spec);
+    rc.mesh_options.target_patches = static_cast<std::size_t>(patches);
+    PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
+    if (!mesh.camera) mesh.camera = default_camera(rc.scene);
+    rc.bundles = static_cast<uint64_t>(bundles);
+    rc.seed = seed;
+    rc.grid = grid.value_or(0);
+    rc.rule = parse_update_rule(rule);
+    rc.exchange_every = cluster::parse_exchange_every(exchange_every);
+    rc.fraction = fraction;
+    rc.topology = cluster::parse_topology(topology);
+    rc.mode = cluster::parse_mode(mode);
+    rc.chunks = static_cast<uint32_t>(chunks);
+    rc.min_nodes = static_cast<uint32_t>(min_nodes);
+    rc.timeout_s = timeout;
+
+    zmq::context_t context;
+    zmq::socket_t router(context, zmq::socket_type::router);
+    router.set(zmq::sockopt::linger, 0);
+    try {
+      router.bind(listen);
+    } catch (const zmq::error_t& e) {
+      fail("--listen {}: {}", listen, e.what());
+    }
+    std::string bound = router.get(zmq::sockopt::last_endpoint);
+    std::fprintf(stderr, "sirad-coordinator: %s: %zu patches, %lld bundles; listening on %s\n", scene_spec.c_str(),
+                 mesh.size(), static_cast<long long>(bundles), bound.c_str());
+    if (!endpoint_file.empty()) {
+      AtomicFile f(endpoint_file);
+      f.write(bound.data(), bound.size());
+      f.commit();
+    }
+    auto start = std::chrono::steady_clock::now();
+    cluster::RunResult result = cluster::coordinate(router, rc, mesh);
+    double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    Attributes attrs = {
+        {"sirad.scene", scene_spec},
+        {"sirad.scene_hash", mesh.hash},
+        {"sirad.patches", static_cast<int64_t>(mesh.size())},
+        {"sirad.bundles", bundles},
+        {"sirad.grid", static_cast<int64_t>(rc.grid ? rc.grid : auto_grid(mesh))},
+        {"sirad.seed", std::to_string(seed)},
+        {"sirad.rule", rule},
+        {"sirad.nodes", static_cast<int64_t>(result.nodes.size())},
+        {"sirad.exchange_every", exchange_every},
+        {"sirad.exchange_fraction", fraction},
+        {"sirad.topology", topology},
+        {"sirad.mode", mode},
+    };
+    ResultOptions ro;
+    ro.width = width;
+    ro.height = height;
+    ResultFiles files = write_results(out, mesh, result.radiosity, ro, attrs);
+    std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
+                std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
+    for (const auto& n : result.nodes)
+      std::printf("node %s: %llu bundles, %u exchanges\n", n.name.c_str(), static_cast<unsigned long long>(n.bundles),
+                  n.exchanges);
+    std::printf("patches %zu, bundles %lld, nodes %zu, %.2f s, exchange traffic %llu B in, %llu B out\n", mesh.size(),
+                static_cast<long long>(bundles), result.nodes.size(), seconds,
+                static_cast<unsigned long long>(result.exchange_bytes_in),
+                static_cast<unsigned long long>(result.exchange_bytes_out));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sirad-coordinator: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

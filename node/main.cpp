@@ -1,0 +1,44 @@
+// sirad-node: a worker that serves runs from a coordinator until stopped (SIGINT/SIGTERM).
+//   sirad-node --connect tcp://HOST:5555 [--device D] [--name NAME]
+#include <csignal>
+#include <cstdio>
+
+#include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include "core/error.h"
+#include "node/node.h"
+
+namespace {
+std::atomic<bool> stop{false};
+void on_signal(int) { stop = true; }
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"sirad-node: runs bundles for a sirad coordinator"};
+  std::string endpoint, device;
+  char host[256] = "node";
+  ::gethostname(host, sizeof(host) - 1);
+  std::string name = host;
+  app.add_option("--connect", endpoint, "Coordinator endpoint, e.g. tcp://host:5555")->required();
+  app.add_option("--device", device, "OpenCL device: P:D or part of its name (env SIRAD_DEVICE)");
+  app.add_option("--name", name, "Name shown by the coordinator")->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "sirad-node: error: %s (see sirad-node --help)\n", e.what());
+    return 2;
+  }
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  try {
+    zmq::context_t context;
+    sirad::node::serve(context, endpoint, {.name = name, .device = device, .stop = &stop});
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sirad-node: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
