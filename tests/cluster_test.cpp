@@ -10,6 +10,7 @@
 #include "coordinator/coordinator.h"
 #include "core/metrics.h"
 #include "node/node.h"
+#include "proto/transport.h"
 
 namespace sirad::cluster {
 namespace {
@@ -113,6 +114,62 @@ TEST(Cluster, RingAndStarBothRun) {
     EXPECT_EQ(total, 192u);
     EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.08);
   }
+}
+
+// Hostile traffic during a real run: a raw ZeroMQ client sends a truncated message, a wrong
+// version, an unknown command, a header that does not parse, a REPORT before HELLO and a
+// REPORT for a grant it never held. Each is refused (an ERROR comes back where the peer is
+// known or the message parsed) and the run completes with every bundle, unbiased.
+TEST(Cluster, MalformedMessagesAreRefusedWhileARunGoesOn) {
+  RunConfig c = furnace(256);
+  c.exchange_every = 16;
+  Outcome out;
+  out.mesh = mesh_scene(c.scene, c.mesh_options);
+  zmq::context_t context;
+  zmq::socket_t router(context, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  router.bind("tcp://127.0.0.1:*");
+  std::string endpoint = router.get(zmq::sockopt::last_endpoint);
+  std::atomic<bool> stop{false};
+  std::thread node([&] { node::serve(context, endpoint, {.name = "honest", .stop = &stop}); });
+  std::thread attacker([&] {
+    zmq::socket_t s(context, zmq::socket_type::dealer);
+    s.set(zmq::sockopt::linger, 0);
+    s.connect(endpoint);
+    auto raw = [&](std::vector<std::string> frames) {
+      for (std::size_t i = 0; i < frames.size(); ++i)
+        s.send(zmq::buffer(frames[i]), i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+    };
+    wire::Report r;
+    r.set_run_id(1);
+    r.set_grant_id(1);
+    auto* d = r.add_done();
+    d->set_first(0);
+    d->set_last(100);
+    raw({"SIRAD1"});                                        // truncated
+    raw({"SIRAD0", std::string(1, '\x01'), ""});          // wrong version
+    raw({"SIRAD1", std::string(1, '\x42'), ""});          // unknown command
+    raw({"SIRAD1", std::string(1, '\x06'), "\xff\xff"}); // header does not parse
+    proto::send(s, {proto::Command::report, r, {}});        // REPORT before HELLO
+    wire::Hello h;
+    h.set_node_name("attacker");
+    proto::send(s, {proto::Command::hello, h, {}});
+    proto::send(s, {proto::Command::report, r, {}});        // a grant it never held
+    int errors = 0;
+    for (int i = 0; i < 50 && errors < 2; ++i)
+      if (auto f = proto::receive(s, 100)) errors += proto::decode(*f).command == proto::Command::error;
+    EXPECT_EQ(errors, 2) << "REPORT before HELLO and the foreign grant answer ERROR";
+  });
+  c.min_nodes = 1;
+  c.timeout_s = 60;
+  out.result = coordinate(router, c, out.mesh);
+  stop = true;
+  node.join();
+  attacker.join();
+  uint64_t total = 0;
+  for (const auto& n : out.result.nodes) total += n.bundles;
+  EXPECT_EQ(total, 256u);
+  EXPECT_NEAR(area_mean(out.mesh, out.result.radiosity), 2.0, 0.08);
 }
 
 }  // namespace
