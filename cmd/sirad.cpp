@@ -149,6 +149,10 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
     });
   rc.abort = &failed;
   auto start = std::chrono::steady_clock::now();
+  Progress progress(a.bundles, a.quiet);
+  rc.progress = [&](uint64_t done, uint64_t) {
+    progress.update(static_cast<int64_t>(done), std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  };
   cluster::RunResult result;
   try {
     result = cluster::coordinate(router, rc, mesh);
@@ -169,8 +173,10 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   write_outputs(a, out, mesh, result.radiosity, attrs);
   for (const auto& n : result.nodes)
     std::printf("node %s: %llu bundles, %u exchanges\n", n.name.c_str(), static_cast<unsigned long long>(n.bundles), n.exchanges);
-  std::printf("patches %zu, bundles %lld, nodes %d, %.2f s, %.1f bundles/s, exchange traffic %llu B in, %llu B out\n",
-              mesh.size(), static_cast<long long>(a.bundles), a.nodes, seconds, a.bundles / seconds,
+  std::printf("patches %zu, bundles %lld, grid %d, nodes %d, %.2f s, %.1f bundles/s, %.3g line crossings/s, "
+              "exchange traffic %llu B in, %llu B out\n",
+              mesh.size(), static_cast<long long>(a.bundles), rc.grid ? rc.grid : auto_grid(mesh), a.nodes, seconds,
+              a.bundles / seconds, static_cast<double>(result.crossings) / seconds,
               static_cast<unsigned long long>(result.exchange_bytes_in),
               static_cast<unsigned long long>(result.exchange_bytes_out));
   return 0;

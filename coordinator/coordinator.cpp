@@ -91,6 +91,7 @@ class Coordinator {
     result.exchange_bytes_in = bytes_in_;
     result.exchange_bytes_out = bytes_out_;
     result.exchanges = exchanges_;
+    result.crossings = crossings_;
     return result;
   }
 
@@ -217,6 +218,8 @@ class Coordinator {
       p.bundles += d.last() - d.first();
     }
     take_chunks(p, r, bulk);
+    crossings_ += r.crossings();
+    if (config_.progress) config_.progress(ledger_.done_count(), config_.bundles);
     p.holds_grant = false;
     if (r.chunks_size() > 0) {
       // The exchange: the others' aggregate (star) or the next node's state (ring).
@@ -253,7 +256,7 @@ class Coordinator {
   std::string scene_bytes_;
   wire::Run run_;
   std::map<std::string, Peer> peers_;
-  uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0;
+  uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0, crossings_ = 0;
   uint32_t exchanges_ = 0;
 };
 

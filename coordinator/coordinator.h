@@ -5,6 +5,7 @@
 #pragma once
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -34,7 +35,8 @@ struct RunConfig {
   uint32_t min_nodes = 1;       // nodes ready before the first grant
   double timeout_s = 0;         // 0: none; else the run fails if it takes longer
   const std::atomic<bool>* abort = nullptr;  // set: the run fails at once (a local node died)
-  bool strict = false;          // a node's ERROR ends the run (the embedded default: its nodes
+  bool strict = false;
+  std::function<void(uint64_t done, uint64_t total)> progress;  // called as bundles complete          // a node's ERROR ends the run (the embedded default: its nodes
                                 // are this process's own threads)
 };
 
@@ -42,6 +44,7 @@ struct NodeReport {
   std::string name;
   uint64_t bundles = 0;
   uint32_t exchanges = 0;
+  uint64_t crossings = 0;  // line-patch crossings of all counted bundles
 };
 
 struct RunResult {
@@ -49,6 +52,7 @@ struct RunResult {
   std::vector<NodeReport> nodes;
   uint64_t exchange_bytes_in = 0, exchange_bytes_out = 0;  // REPORT and UPDATE bulk
   uint32_t exchanges = 0;
+  uint64_t crossings = 0;  // line-patch crossings of all counted bundles
 };
 
 // Serves one run of `mesh` (meshed from config.scene with config.mesh_options) until every

@@ -147,10 +147,12 @@ class Node {
     wire::Report report;
     report.set_run_id(g.run_id());
     report.set_grant_id(g.grant_id());
+    uint64_t crossings = state_->solver->crossings();
     for (const auto& r : g.ranges()) {
       for (uint64_t k = r.first(); k < r.last(); ++k) state_->solver->step(k);
       *report.add_done() = r;
     }
+    report.set_crossings(state_->solver->crossings() - crossings);
     Message m{Command::report, {}, chunk_frames(g.report_chunks(), report)};
     m.header = report;
     proto::send(socket_, m);
