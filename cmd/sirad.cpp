@@ -48,6 +48,7 @@ struct RenderArgs {
   std::string topology = "star";
   std::string mode = "async";
   int chunks = 16;
+  std::string status_json;
 };
 
 // A progress bar on a terminal, a plain line every 10% otherwise.
@@ -153,6 +154,8 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.progress = [&](uint64_t done, uint64_t) {
     progress.update(static_cast<int64_t>(done), std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   };
+  if (!a.status_json.empty())
+    rc.status = [&](const cluster::Status& st) { cluster::write_status(a.status_json, st); };
   cluster::RunResult result;
   try {
     result = cluster::coordinate(router, rc, mesh);
@@ -271,6 +274,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   render_cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
   render_cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
+  render_cmd->add_option("--status-json", r.status_json, "With --nodes: rewrite this file with the run's status every second");
   render_cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
       ->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_subcommand("devices", "List the OpenCL devices");

@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include "core/atomic_file.h"
 #include "core/bundle.h"
 #include "core/error.h"
 #include "core/scene_io.h"
@@ -27,6 +28,7 @@ struct Peer {
   bool holds_grant = false;
   uint32_t exchange = 0;
   uint64_t bundles = 0;
+  std::chrono::steady_clock::time_point last_seen = std::chrono::steady_clock::now();
 };
 
 class Coordinator {
@@ -54,7 +56,12 @@ class Coordinator {
 
   RunResult run() {
     auto start = std::chrono::steady_clock::now();
+    auto last_status = start;
     while (!done()) {
+      if (config_.status && std::chrono::steady_clock::now() - last_status >= std::chrono::seconds(1)) {
+        last_status = std::chrono::steady_clock::now();
+        config_.status(snapshot(start));
+      }
       if (config_.timeout_s > 0 &&
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > config_.timeout_s)
         fail("run did not finish within {} s ({} of {} bundles done)", config_.timeout_s, ledger_.done_count(),
@@ -63,6 +70,7 @@ class Coordinator {
       auto frames = proto::receive(router_, 100);
       if (!frames || frames->size() < 2) continue;
       std::string id = frames->front();
+      if (auto it = peers_.find(id); it != peers_.end()) it->second.last_seen = std::chrono::steady_clock::now();
       Message m;
       try {
         m = proto::decode({frames->begin() + 1, frames->end()});
@@ -78,6 +86,7 @@ class Coordinator {
         error(id, e.what());
       }
     }
+    if (config_.status) config_.status(snapshot(start));
     RunResult result;
     result.radiosity.resize(mesh_.size());
     for (uint32_t c = 0; c + 1 < starts_.size(); ++c) {
@@ -96,6 +105,17 @@ class Coordinator {
   }
 
  private:
+  Status snapshot(std::chrono::steady_clock::time_point start) const {
+    auto now = std::chrono::steady_clock::now();
+    Status s;
+    s.bundles_done = ledger_.done_count();
+    s.bundles = config_.bundles;
+    s.elapsed_s = std::chrono::duration<double>(now - start).count();
+    for (const auto& [id, p] : peers_)
+      s.nodes.push_back({p.name, p.bundles, p.exchange, std::chrono::duration<double>(now - p.last_seen).count()});
+    return s;
+  }
+
   bool done() const {
     if (!ledger_.finished() || peers_.empty()) return false;
     for (const auto& [id, p] : peers_)
@@ -260,7 +280,35 @@ class Coordinator {
   uint32_t exchanges_ = 0;
 };
 
+std::string json_string(const std::string& s) {
+  std::string out = "\"";
+  for (unsigned char c : s) {
+    if (c == '"' || c == '\\') out += '\\', out += static_cast<char>(c);
+    else if (c < 0x20) out += fmt::format("\\u{:04x}", c);
+    else out += static_cast<char>(c);
+  }
+  return out + "\"";
+}
+
 }  // namespace
+
+std::string to_json(const Status& s) {
+  std::string nodes;
+  for (const auto& n : s.nodes)
+    nodes += fmt::format("{}{{\"name\": {}, \"bundles\": {}, \"exchanges\": {}, \"last_seen_s\": {:.3f}}}",
+                         nodes.empty() ? "" : ", ", json_string(n.name), n.bundles, n.exchanges, n.last_seen_s);
+  double rate = s.elapsed_s > 0 ? static_cast<double>(s.bundles_done) / s.elapsed_s : 0.0;
+  return fmt::format("{{\"bundles_done\": {}, \"bundles\": {}, \"elapsed_s\": {:.3f}, \"bundles_per_s\": {:.3f}, "
+                     "\"nodes\": [{}]}}\n",
+                     s.bundles_done, s.bundles, s.elapsed_s, rate, nodes);
+}
+
+void write_status(const std::string& path, const Status& status) {
+  std::string text = to_json(status);
+  AtomicFile f(path);
+  f.write(text.data(), text.size());
+  f.commit();
+}
 
 RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh) {
   return Coordinator(router, config, mesh).run();

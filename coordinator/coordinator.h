@@ -19,6 +19,23 @@
 
 namespace sirad::cluster {
 
+// A snapshot of the run for progress views and --status-json.
+struct Status {
+  uint64_t bundles_done = 0, bundles = 0;
+  double elapsed_s = 0;
+  struct Node {
+    std::string name;
+    uint64_t bundles = 0;
+    uint32_t exchanges = 0;
+    double last_seen_s = 0;  // seconds since its last message
+  };
+  std::vector<Node> nodes;
+};
+// The status as a JSON object (names escaped), one line.
+std::string to_json(const Status& status);
+// Rewrites `path` atomically with the status (for --status-json).
+void write_status(const std::string& path, const Status& status);
+
 struct RunConfig {
   Scene scene;            // sent to the nodes, which mesh it with `mesh_options`
   MeshOptions mesh_options;
@@ -35,16 +52,16 @@ struct RunConfig {
   uint32_t min_nodes = 1;       // nodes ready before the first grant
   double timeout_s = 0;         // 0: none; else the run fails if it takes longer
   const std::atomic<bool>* abort = nullptr;  // set: the run fails at once (a local node died)
-  bool strict = false;
-  std::function<void(uint64_t done, uint64_t total)> progress;  // called as bundles complete          // a node's ERROR ends the run (the embedded default: its nodes
+  bool strict = false;          // a node's ERROR ends the run (the embedded default: its nodes
                                 // are this process's own threads)
+  std::function<void(uint64_t done, uint64_t total)> progress;  // called as bundles complete
+  std::function<void(const Status&)> status;  // called about once a second, and at the end
 };
 
 struct NodeReport {
   std::string name;
   uint64_t bundles = 0;
   uint32_t exchanges = 0;
-  uint64_t crossings = 0;  // line-patch crossings of all counted bundles
 };
 
 struct RunResult {

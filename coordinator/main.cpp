@@ -21,7 +21,7 @@ using namespace sirad;
 int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
   std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
-                          rule = "chain", endpoint_file;
+                          rule = "chain", endpoint_file, status_json;
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
   app.add_option("--width", width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
   app.add_option("--height", height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
   app.add_option("--endpoint-file", endpoint_file, "Write the bound endpoint here (for scripts: tcp://*:0 picks a port)");
+  app.add_option("--status-json", status_json, "Rewrite this file with the run's status every second");
   app.add_option("--timeout", timeout, "Fail if the run takes longer (seconds; 0: never)")->check(CLI::NonNegativeNumber);
   try {
     app.parse(argc, argv);
@@ -72,6 +73,7 @@ int main(int argc, char** argv) {
     rc.chunks = static_cast<uint32_t>(chunks);
     rc.min_nodes = static_cast<uint32_t>(min_nodes);
     rc.timeout_s = timeout;
+    if (!status_json.empty()) rc.status = [&](const cluster::Status& st) { cluster::write_status(status_json, st); };
 
     zmq::context_t context;
     zmq::socket_t router(context, zmq::socket_type::router);

@@ -118,7 +118,8 @@ TEST_F(Cli, RenderWritesThreeOutputsAndSummary) {
 }
 
 TEST_F(Cli, EmbeddedClusterRendersWithTwoNodes) {
-  Outcome r = sirad("render cornell --nodes 2 --patches 300 --bundles 40 --exchange-every 10 --width 32 --height 32");
+  Outcome r = sirad("render cornell --nodes 2 --patches 300 --bundles 40 --exchange-every 10 --width 32 --height 32 "
+                    "--status-json status.json");
   ASSERT_EQ(r.status, 0) << r.err;
   for (const char* ext : {".exr", ".png", ".ply"}) EXPECT_TRUE(fs::exists(dir_ / (std::string("cornell") + ext))) << ext;
   EXPECT_NE(r.out.find("node local-0"), std::string::npos) << r.out;
@@ -128,6 +129,12 @@ TEST_F(Cli, EmbeddedClusterRendersWithTwoNodes) {
   auto* nodes = exr.header().findTypedAttribute<Imf::IntAttribute>("sirad.nodes");
   ASSERT_NE(nodes, nullptr);
   EXPECT_EQ(nodes->value(), 2);
+  // The status file's last rewrite: every bundle done, both nodes listed.
+  std::string status = slurp((dir_ / "status.json").string());
+  EXPECT_NE(status.find("\"bundles_done\": 40, \"bundles\": 40"), std::string::npos) << status;
+  EXPECT_NE(status.find("\"name\": \"local-0\""), std::string::npos) << status;
+  EXPECT_NE(status.find("\"name\": \"local-1\""), std::string::npos) << status;
+  fs::remove(dir_ / "status.json");
 }
 
 TEST_F(Cli, SameSeedGivesBitwiseIdenticalFiles) {

@@ -57,6 +57,18 @@ RunConfig furnace(uint64_t bundles) {
   return c;
 }
 
+// The status JSON escapes what a node may call itself.
+TEST(Cluster, StatusJsonEscapesNodeNames) {
+  Status s;
+  s.bundles_done = 3;
+  s.bundles = 10;
+  s.elapsed_s = 1.5;
+  s.nodes.push_back({"a\"b\\c\nd", 3, 1, 0.25});
+  EXPECT_EQ(to_json(s),
+            "{\"bundles_done\": 3, \"bundles\": 10, \"elapsed_s\": 1.500, \"bundles_per_s\": 2.000, \"nodes\": "
+            "[{\"name\": \"a\\\"b\\\\c\\u000ad\", \"bundles\": 3, \"exchanges\": 1, \"last_seen_s\": 0.250}]}\n");
+}
+
 // Three nodes over loopback TCP (a port the system picks): the bundles add up to the budget
 // (the ledger refuses any index done twice), and the furnace's mean is 2 within 4 standard
 // deviations of a 1024-bundle chain average (0.04; see SolverFurnace in solver_test.cpp).
