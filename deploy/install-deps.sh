@@ -14,8 +14,9 @@ packages=(
   # scene import, command line, logging, configuration, wire schema
   libtinyobjloader-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
   libprotobuf-dev protobuf-compiler
-  # tests and benchmarks; docker-compose only validates deploy/docker-compose.yml (no engine)
-  libgtest-dev libgmock-dev libbenchmark-dev docker-compose
+  # tests and benchmarks; docker-compose only validates deploy/docker-compose.yml (no engine);
+  # iproute2 (ip, tc) runs the namespace cluster
+  libgtest-dev libgmock-dev libbenchmark-dev docker-compose iproute2
 )
 
 missing=()
