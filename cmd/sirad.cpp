@@ -82,7 +82,8 @@ class Progress {
   std::chrono::steady_clock::time_point last_{};
 };
 
-// The header attributes every run records, then the outputs, then their paths on stdout.
+// The header attributes of a single-node run (cluster runs: cluster::run_attributes), then the
+// outputs and their paths on stdout.
 Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, UpdateRule rule) {
   return {
       {"sirad.version", std::string(SIRAD_VERSION)},
@@ -170,15 +171,11 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   stop = true;
   for (auto& t : threads) t.join();
 
-  Attributes attrs = run_attributes(a, mesh, rc.grid ? rc.grid : auto_grid(mesh), rule);
-  attrs.emplace_back("sirad.topology", a.topology);
-  attrs.emplace_back("sirad.mode", a.mode);
-  write_outputs(a, out, mesh, result.radiosity, attrs);
-  for (const auto& n : result.nodes)
-    std::printf("node %s: %llu bundles, %u exchanges\n", n.name.c_str(), static_cast<unsigned long long>(n.bundles), n.exchanges);
+  write_outputs(a, out, mesh, result.radiosity, cluster::run_attributes(rc, result, mesh, a.scene));
+  std::fputs(cluster::node_lines(result).c_str(), stdout);
   std::printf("patches %zu, bundles %lld, grid %d, nodes %d, %.2f s, %.1f bundles/s, %.3g line crossings/s, "
               "exchange traffic %llu B in, %llu B out\n",
-              mesh.size(), static_cast<long long>(a.bundles), rc.grid ? rc.grid : auto_grid(mesh), a.nodes, seconds,
+              mesh.size(), static_cast<long long>(a.bundles), result.grid, a.nodes, seconds,
               a.bundles / seconds, static_cast<double>(result.crossings) / seconds,
               static_cast<unsigned long long>(result.exchange_bytes_in),
               static_cast<unsigned long long>(result.exchange_bytes_out));

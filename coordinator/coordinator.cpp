@@ -101,6 +101,7 @@ class Coordinator {
     result.exchange_bytes_out = bytes_out_;
     result.exchanges = exchanges_;
     result.crossings = crossings_;
+    result.grid = static_cast<int>(run_.grid());
     return result;
   }
 
@@ -301,6 +302,30 @@ std::string to_json(const Status& s) {
   return fmt::format("{{\"bundles_done\": {}, \"bundles\": {}, \"elapsed_s\": {:.3f}, \"bundles_per_s\": {:.3f}, "
                      "\"nodes\": [{}]}}\n",
                      s.bundles_done, s.bundles, s.elapsed_s, rate, nodes);
+}
+
+Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMesh& mesh, const std::string& scene) {
+  return {
+      {"sirad.version", std::string(SIRAD_VERSION)},
+      {"sirad.scene", scene},
+      {"sirad.scene_hash", mesh.hash},
+      {"sirad.patches", static_cast<int64_t>(mesh.size())},
+      {"sirad.bundles", static_cast<int64_t>(c.bundles)},
+      {"sirad.grid", static_cast<int64_t>(r.grid)},
+      {"sirad.seed", std::to_string(c.seed)},
+      {"sirad.rule", std::string(to_string(c.rule))},
+      {"sirad.nodes", static_cast<int64_t>(r.nodes.size())},
+      {"sirad.exchange_every", c.exchange_every == 0 ? std::string("end") : std::to_string(c.exchange_every)},
+      {"sirad.exchange_fraction", c.fraction},
+      {"sirad.topology", std::string(c.topology == Topology::star ? "star" : "ring")},
+      {"sirad.mode", std::string(c.mode == Mode::sync ? "sync" : "async")},
+  };
+}
+
+std::string node_lines(const RunResult& r) {
+  std::string out;
+  for (const auto& n : r.nodes) out += fmt::format("node {}: {} bundles, {} exchanges\n", n.name, n.bundles, n.exchanges);
+  return out;
 }
 
 void write_status(const std::string& path, const Status& status) {

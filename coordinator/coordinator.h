@@ -14,6 +14,7 @@
 
 #include "coordinator/exchange.h"
 #include "core/mesh.h"
+#include "core/output.h"
 #include "core/scene.h"
 #include "core/solver.h"
 
@@ -70,7 +71,16 @@ struct RunResult {
   uint64_t exchange_bytes_in = 0, exchange_bytes_out = 0;  // REPORT and UPDATE bulk
   uint32_t exchanges = 0;
   uint64_t crossings = 0;  // line-patch crossings of all counted bundles
+  int grid = 0;            // the run's grid (config.grid, or the auto grid of the mesh)
 };
+
+// The EXR header attributes of a cluster run (DESIGN.md section 4: scene hash, bundles, nodes,
+// R, I, S, seed, and the topology and mode), `scene` naming it as the user did.
+Attributes run_attributes(const RunConfig& config, const RunResult& result, const PatchMesh& mesh,
+                          const std::string& scene);
+
+// One line per node: "node NAME: B bundles, E exchanges".
+std::string node_lines(const RunResult& result);
 
 // Serves one run of `mesh` (meshed from config.scene with config.mesh_options) until every
 // bundle is done and every node's final state is in. Malformed or unexpected messages are

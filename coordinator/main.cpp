@@ -94,29 +94,13 @@ int main(int argc, char** argv) {
     auto start = std::chrono::steady_clock::now();
     cluster::RunResult result = cluster::coordinate(router, rc, mesh);
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    Attributes attrs = {
-        {"sirad.scene", scene_spec},
-        {"sirad.scene_hash", mesh.hash},
-        {"sirad.patches", static_cast<int64_t>(mesh.size())},
-        {"sirad.bundles", bundles},
-        {"sirad.grid", static_cast<int64_t>(rc.grid ? rc.grid : auto_grid(mesh))},
-        {"sirad.seed", std::to_string(seed)},
-        {"sirad.rule", rule},
-        {"sirad.nodes", static_cast<int64_t>(result.nodes.size())},
-        {"sirad.exchange_every", exchange_every},
-        {"sirad.exchange_fraction", fraction},
-        {"sirad.topology", topology},
-        {"sirad.mode", mode},
-    };
     ResultOptions ro;
     ro.width = width;
     ro.height = height;
-    ResultFiles files = write_results(out, mesh, result.radiosity, ro, attrs);
+    ResultFiles files = write_results(out, mesh, result.radiosity, ro, cluster::run_attributes(rc, result, mesh, scene_spec));
     std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
                 std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
-    for (const auto& n : result.nodes)
-      std::printf("node %s: %llu bundles, %u exchanges\n", n.name.c_str(), static_cast<unsigned long long>(n.bundles),
-                  n.exchanges);
+    std::fputs(cluster::node_lines(result).c_str(), stdout);
     std::printf("patches %zu, bundles %lld, nodes %zu, %.2f s, exchange traffic %llu B in, %llu B out\n", mesh.size(),
                 static_cast<long long>(bundles), result.nodes.size(), seconds,
                 static_cast<unsigned long long>(result.exchange_bytes_in),
