@@ -113,7 +113,14 @@ class Coordinator {
     s.bundles = config_.bundles;
     s.elapsed_s = std::chrono::duration<double>(now - start).count();
     for (const auto& [id, p] : peers_)
-      s.nodes.push_back({p.name, p.bundles, p.exchange, std::chrono::duration<double>(now - p.last_seen).count()});
+      {
+      Status::Node n;
+      n.name = p.name;
+      n.bundles = p.bundles;
+      n.exchanges = p.exchange;
+      n.last_seen_s = std::chrono::duration<double>(now - p.last_seen).count();
+      s.nodes.push_back(n);
+    }
     return s;
   }
 
@@ -281,28 +288,7 @@ class Coordinator {
   uint32_t exchanges_ = 0;
 };
 
-std::string json_string(const std::string& s) {
-  std::string out = "\"";
-  for (unsigned char c : s) {
-    if (c == '"' || c == '\\') out += '\\', out += static_cast<char>(c);
-    else if (c < 0x20) out += fmt::format("\\u{:04x}", c);
-    else out += static_cast<char>(c);
-  }
-  return out + "\"";
-}
-
 }  // namespace
-
-std::string to_json(const Status& s) {
-  std::string nodes;
-  for (const auto& n : s.nodes)
-    nodes += fmt::format("{}{{\"name\": {}, \"bundles\": {}, \"exchanges\": {}, \"last_seen_s\": {:.3f}}}",
-                         nodes.empty() ? "" : ", ", json_string(n.name), n.bundles, n.exchanges, n.last_seen_s);
-  double rate = s.elapsed_s > 0 ? static_cast<double>(s.bundles_done) / s.elapsed_s : 0.0;
-  return fmt::format("{{\"bundles_done\": {}, \"bundles\": {}, \"elapsed_s\": {:.3f}, \"bundles_per_s\": {:.3f}, "
-                     "\"nodes\": [{}]}}\n",
-                     s.bundles_done, s.bundles, s.elapsed_s, rate, nodes);
-}
 
 Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMesh& mesh, const std::string& scene) {
   return {
@@ -326,13 +312,6 @@ std::string node_lines(const RunResult& r) {
   std::string out;
   for (const auto& n : r.nodes) out += fmt::format("node {}: {} bundles, {} exchanges\n", n.name, n.bundles, n.exchanges);
   return out;
-}
-
-void write_status(const std::string& path, const Status& status) {
-  std::string text = to_json(status);
-  AtomicFile f(path);
-  f.write(text.data(), text.size());
-  f.commit();
 }
 
 RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh) {

@@ -13,29 +13,13 @@
 #include <zmq.hpp>
 
 #include "coordinator/exchange.h"
+#include "coordinator/status.h"
 #include "core/mesh.h"
 #include "core/output.h"
 #include "core/scene.h"
 #include "core/solver.h"
 
 namespace sirad::cluster {
-
-// A snapshot of the run for progress views and --status-json.
-struct Status {
-  uint64_t bundles_done = 0, bundles = 0;
-  double elapsed_s = 0;
-  struct Node {
-    std::string name;
-    uint64_t bundles = 0;
-    uint32_t exchanges = 0;
-    double last_seen_s = 0;  // seconds since its last message
-  };
-  std::vector<Node> nodes;
-};
-// The status as a JSON object (names escaped), one line.
-std::string to_json(const Status& status);
-// Rewrites `path` atomically with the status (for --status-json).
-void write_status(const std::string& path, const Status& status);
 
 struct RunConfig {
   Scene scene;            // sent to the nodes, which mesh it with `mesh_options`

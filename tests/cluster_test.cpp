@@ -63,10 +63,17 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   s.bundles_done = 3;
   s.bundles = 10;
   s.elapsed_s = 1.5;
-  s.nodes.push_back({"a\"b\\c\nd", 3, 1, 0.25});
+  Status::Node n;
+  n.name = "a\"b\\c\nd";
+  n.bundles = 3;
+  n.exchanges = 1;
+  n.last_seen_s = 0.25;
+  s.nodes.push_back(n);
   EXPECT_EQ(to_json(s),
-            "{\"bundles_done\": 3, \"bundles\": 10, \"elapsed_s\": 1.500, \"bundles_per_s\": 2.000, \"nodes\": "
-            "[{\"name\": \"a\\\"b\\\\c\\u000ad\", \"bundles\": 3, \"exchanges\": 1, \"last_seen_s\": 0.250}]}\n");
+            "{\"bundles_done\": 3, \"bundles\": 10, \"elapsed_s\": 1.500, \"bundles_per_s\": 2.000, \"error_estimate\": null, "
+            "\"exchanges\": 0, \"bytes_in\": 0, \"bytes_out\": 0, \"nodes\": [{\"name\": \"a\\\"b\\\\c\\u000ad\", "
+            "\"device\": \"\", \"state\": \"\", \"bundles\": 3, \"exchanges\": 1, \"last_seen_s\": 0.250, "
+            "\"bundles_per_s\": 0.000, \"busy_s\": 0.000, \"idle_s\": 0.000}]}\n");
 }
 
 // Three nodes over loopback TCP (a port the system picks): the bundles add up to the budget

@@ -1,0 +1,38 @@
+// sirad: a snapshot of a cluster run, for the terminal view, --status-json and tools. Plain
+// data: the coordinator fills it about once a second and at the end of the run.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace sirad::cluster {
+
+struct Status {
+  uint64_t bundles_done = 0, bundles = 0;
+  double elapsed_s = 0;
+  // Relative RMS error of the estimate per patch (area-weighted, non-emitting patches) from the
+  // spread of the nodes' independent estimates; negative while fewer than two nodes have sent
+  // states (Aggregate::spread_error).
+  double error_estimate = -1;
+  uint32_t exchanges = 0;
+  uint64_t bytes_in = 0, bytes_out = 0;  // exchange traffic so far (REPORT / UPDATE bulk)
+  struct Node {
+    std::string name;
+    std::string device;        // as the node described it in HELLO
+    std::string state;         // "joining" | "working" | "waiting" | "done" | "dead"
+    uint64_t bundles = 0;
+    uint32_t exchanges = 0;
+    double last_seen_s = 0;    // seconds since its last message
+    double rate = 0;           // bundles per second since it was ready
+    double busy_s = 0;         // its own time running bundles (as last reported)
+    double idle_s = 0;         // its own time waiting for a grant while the run had work
+  };
+  std::vector<Node> nodes;
+};
+
+// The status as one line of JSON (names escaped), ending in a newline.
+std::string to_json(const Status& status);
+// Rewrites `path` atomically with to_json(status) (for --status-json).
+void write_status(const std::string& path, const Status& status);
+
+}  // namespace sirad::cluster
