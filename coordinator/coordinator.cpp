@@ -1,13 +1,16 @@
 // sirad: the coordinator's message loop over a ROUTER socket.
 #include "coordinator/coordinator.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
+#include <random>
 
 #include <fmt/format.h>
 
-#include "core/atomic_file.h"
 #include "core/bundle.h"
 #include "core/error.h"
 #include "core/scene_io.h"
@@ -20,15 +23,21 @@ namespace {
 using proto::Command;
 using proto::Message;
 
+using Clock = std::chrono::steady_clock;
+
 struct Peer {
-  uint32_t index = 0;
-  std::string name;
-  bool ready = false, stopped = false, final_in = false;
+  std::string id;       // ZeroMQ routing id
+  uint32_t index = 0;   // in the run's aggregate (a node that rejoins gets a new one)
+  std::string name, device;
+  bool ready = false, stopped = false, final_in = false, dead = false;
   uint64_t grant_id = 0;
   bool holds_grant = false;
   uint32_t exchange = 0;
   uint64_t bundles = 0;
-  std::chrono::steady_clock::time_point last_seen = std::chrono::steady_clock::now();
+  double busy_s = 0, idle_s = 0;
+  Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
+  emulation::LinkModel down;  // the emulated coordinator -> node link
+  proto::DelayQueue queue;    // messages on that link
 };
 
 class Coordinator {
@@ -36,8 +45,11 @@ class Coordinator {
   Coordinator(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh)
       : router_(router), config_(config), mesh_(mesh), ledger_(config.bundles),
         starts_(chunk_starts(static_cast<uint32_t>(mesh.size()), std::min<uint32_t>(config.chunks, static_cast<uint32_t>(mesh.size())))),
-        aggregate_(starts_, 0), scene_bytes_(encode_scene(config.scene)) {
-    run_.set_run_id(1);
+        aggregate_(starts_, 0), scene_bytes_(encode_scene(config.scene)), weight_(mesh.size()) {
+    // A reconnecting node keeps its routing id; the new connection takes it over.
+    router_.set(zmq::sockopt::router_handover, 1);
+    std::random_device rd;
+    run_.set_run_id((static_cast<uint64_t>(rd()) << 32 | rd()) | 1);  // a stale message names another run
     run_.set_scene_hash(mesh.hash);
     run_.set_seed(config.seed);
     run_.set_grid(static_cast<uint32_t>(config.grid == 0 ? auto_grid(mesh) : config.grid));
@@ -52,25 +64,29 @@ class Coordinator {
     run_.set_bundles(config.bundles);
     run_.set_target_patches(config.mesh_options.target_patches);
     run_.set_max_edge(config.mesh_options.max_edge);
+    for (std::size_t j = 0; j < mesh.size(); ++j) {
+      glm::vec3 e = mesh.emission(j);
+      weight_[j] = e.x + e.y + e.z > 0 ? 0.0 : static_cast<double>(mesh.area[j]);
+    }
   }
 
   RunResult run() {
-    auto start = std::chrono::steady_clock::now();
-    auto last_status = start;
+    start_ = Clock::now();
+    auto last_status = start_;
     while (!done()) {
-      if (config_.status && std::chrono::steady_clock::now() - last_status >= std::chrono::seconds(1)) {
-        last_status = std::chrono::steady_clock::now();
-        config_.status(snapshot(start));
+      auto now = Clock::now();
+      if (config_.status && now - last_status >= std::chrono::seconds(1)) {
+        last_status = now;
+        config_.status(snapshot());
       }
-      if (config_.timeout_s > 0 &&
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > config_.timeout_s)
+      if (config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s)
         fail("run did not finish within {} s ({} of {} bundles done)", config_.timeout_s, ledger_.done_count(),
              config_.bundles);
       if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
-      auto frames = proto::receive(router_, 100);
+      keep_alive(now);
+      auto frames = proto::receive(router_, wait_ms(now));
       if (!frames || frames->size() < 2) continue;
       std::string id = frames->front();
-      if (auto it = peers_.find(id); it != peers_.end()) it->second.last_seen = std::chrono::steady_clock::now();
       Message m;
       try {
         m = proto::decode({frames->begin() + 1, frames->end()});
@@ -86,7 +102,9 @@ class Coordinator {
         error(id, e.what());
       }
     }
-    if (config_.status) config_.status(snapshot(start));
+    // FINAL is in from every live node; let the last shaped messages (STOPs) go out.
+    for (auto& [id, p] : peers_) p.queue.flush(router_, std::numeric_limits<double>::infinity());
+    if (config_.status) config_.status(snapshot());
     RunResult result;
     result.radiosity.resize(mesh_.size());
     for (uint32_t c = 0; c + 1 < starts_.size(); ++c) {
@@ -96,7 +114,7 @@ class Coordinator {
         result.radiosity[j] = glm::vec3(static_cast<float>(est[i]), static_cast<float>(est[i + 1]), static_cast<float>(est[i + 2]));
       }
     }
-    for (const auto& [id, p] : peers_) result.nodes.push_back({p.name, p.bundles, p.exchange});
+    for (const Peer* p : all_peers()) result.nodes.push_back({p->name, p->bundles, p->exchange, p->busy_s, p->idle_s, p->dead});
     result.exchange_bytes_in = bytes_in_;
     result.exchange_bytes_out = bytes_out_;
     result.exchanges = exchanges_;
@@ -106,41 +124,109 @@ class Coordinator {
   }
 
  private:
-  Status snapshot(std::chrono::steady_clock::time_point start) const {
-    auto now = std::chrono::steady_clock::now();
+  static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+  double clock(Clock::time_point t) const { return seconds(t - start_); }
+
+  // Every peer of the run in join order: the departed (dead, replaced by a rejoin) and the current.
+  std::vector<const Peer*> all_peers() const {
+    std::vector<const Peer*> out;
+    for (const Peer& p : departed_) out.push_back(&p);
+    for (const auto& [id, p] : peers_) out.push_back(&p);
+    std::sort(out.begin(), out.end(), [](const Peer* a, const Peer* b) { return a->index < b->index; });
+    return out;
+  }
+
+  Status snapshot() const {
+    auto now = Clock::now();
     Status s;
     s.bundles_done = ledger_.done_count();
     s.bundles = config_.bundles;
-    s.elapsed_s = std::chrono::duration<double>(now - start).count();
-    for (const auto& [id, p] : peers_)
-      {
+    s.elapsed_s = seconds(now - start_);
+    s.error_estimate = aggregate_.spread_error(weight_);
+    s.exchanges = exchanges_;
+    s.bytes_in = bytes_in_;
+    s.bytes_out = bytes_out_;
+    for (const Peer* p : all_peers()) {
       Status::Node n;
-      n.name = p.name;
-      n.bundles = p.bundles;
-      n.exchanges = p.exchange;
-      n.last_seen_s = std::chrono::duration<double>(now - p.last_seen).count();
+      n.name = p->name;
+      n.device = p->device;
+      n.state = p->dead ? "dead" : p->final_in ? "done" : !p->ready ? "joining" : p->holds_grant ? "working" : "waiting";
+      n.bundles = p->bundles;
+      n.exchanges = p->exchange;
+      n.last_seen_s = seconds(now - p->last_seen);
+      double up = p->ready ? seconds(now - p->ready_at) : 0.0;
+      n.rate = up > 0 ? static_cast<double>(p->bundles) / up : 0.0;
+      n.busy_s = p->busy_s;
+      n.idle_s = p->idle_s;
       s.nodes.push_back(n);
     }
     return s;
   }
 
   bool done() const {
-    if (!ledger_.finished() || peers_.empty()) return false;
+    if (!ledger_.finished()) return false;
     for (const auto& [id, p] : peers_)
-      if (p.ready && !p.final_in) return false;
+      if (!p.dead && p.ready && !p.final_in) return false;
     return true;
   }
 
-  void log(const std::string& id, const std::string& what) {
-    std::fprintf(stderr, "sirad-coordinator: %s: %s\n", peer_name(id).c_str(), what.c_str());
+  // Heartbeats to every live peer that has heard nothing for an interval; flushes the emulated
+  // links; declares dead the ready peers silent for `liveness` intervals.
+  void keep_alive(Clock::time_point now) {
+    auto interval = std::chrono::milliseconds(config_.heartbeat_ms);
+    for (auto& [id, p] : peers_) {
+      if (p.dead) continue;
+      if (p.ready && now - p.last_seen > interval * config_.liveness) {
+        declare_dead(p, fmt::format("silent for {:.1f} s", seconds(now - p.last_seen)));
+        continue;
+      }
+      if (now - p.last_sent >= interval) send(p, {Command::heartbeat, {}, {}});
+      p.queue.flush(router_, clock(now));
+    }
   }
-  std::string peer_name(const std::string& id) const {
+
+  void declare_dead(Peer& p, const std::string& why) {
+    uint64_t back = ledger_.outstanding(p.index);
+    ledger_.abandon(p.index);
+    p.dead = true;
+    p.holds_grant = false;
+    p.queue.clear();
+    std::fprintf(stderr, "sirad-coordinator: %s: declared dead (%s); %llu granted bundles return to the budget\n",
+                 p.name.c_str(), why.c_str(), static_cast<unsigned long long>(back));
+    schedule();  // a sync barrier may have been waiting on it
+  }
+
+  // Milliseconds to wait for a message: up to 100, less when an emulated link has one due.
+  int wait_ms(Clock::time_point now) {
+    double next = std::numeric_limits<double>::infinity();
+    for (auto& [id, p] : peers_) next = std::min(next, p.queue.flush(router_, clock(now)));
+    double ms = (next - clock(now)) * 1e3;
+    return static_cast<int>(std::clamp(ms, 0.0, 100.0));
+  }
+
+  void log(const std::string& id, const std::string& what) {
     auto it = peers_.find(id);
-    return it != peers_.end() ? it->second.name : "unknown peer";
+    std::fprintf(stderr, "sirad-coordinator: %s: %s\n", it != peers_.end() ? it->second.name.c_str() : "unknown peer",
+                 what.c_str());
+  }
+
+  // To a peer, through its emulated link when the profile shapes it.
+  void send(Peer& p, const Message& m) {
+    std::vector<std::string> frames = proto::encode(m);
+    frames.insert(frames.begin(), p.id);
+    auto now = Clock::now();
+    p.last_sent = now;
+    if (!p.down.shaped()) return proto::send_frames(router_, frames);
+    std::size_t bytes = 0;
+    for (const auto& f : frames) bytes += f.size();
+    p.queue.push(p.down.deliver(clock(now), bytes), std::move(frames));
+    p.queue.flush(router_, clock(now));
   }
   void error(const std::string& id, const std::string& reason) {
     wire::Error e;
     e.set_reason(reason);
+    auto it = peers_.find(id);
+    if (it != peers_.end() && !it->second.dead) return send(it->second, {Command::error, e, {}});
     proto::send(router_, {Command::error, e, {}}, &id);
   }
 
@@ -149,12 +235,11 @@ class Coordinator {
     auto it = peers_.find(id);
     if (it == peers_.end()) fail("{} before HELLO", proto::command_name(m.command));
     Peer& p = it->second;
+    if (p.dead) fail("{} from a node declared dead; say HELLO to rejoin", proto::command_name(m.command));
+    p.last_seen = Clock::now();
     switch (m.command) {
-      case Command::ready:
-        p.ready = true;
-        schedule();
-        break;
-      case Command::report: report(p, id, std::get<wire::Report>(m.header), m.bulk); break;
+      case Command::ready: ready(p, std::get<wire::Ready>(m.header)); break;
+      case Command::report: report(p, std::get<wire::Report>(m.header), m.bulk); break;
       case Command::final_state: final_state(p, std::get<wire::Report>(m.header), m.bulk); break;
       case Command::error:
         if (config_.strict) fail("{}: {}", p.name, std::get<wire::Error>(m.header).reason());
@@ -165,53 +250,89 @@ class Coordinator {
     }
   }
 
+  // A new node, or one that lost its run (it restarted, or the emulation disconnected it): it
+  // joins with a fresh index; a former entry's last state stays in the estimate.
   void hello(const std::string& id, const wire::Hello& h) {
-    if (peers_.count(id)) return;  // an idle node repeats HELLO until it has a run
+    if (auto it = peers_.find(id); it != peers_.end()) {
+      Peer& old = it->second;
+      old.last_seen = Clock::now();
+      // An idle node repeats HELLO until it has a run, and a node between FINAL and the next
+      // run does too: nothing to do for either.
+      if (!old.dead && (!old.ready || old.stopped)) return;
+      if (!old.dead) declare_dead(old, "it said HELLO again: it lost its run");
+      departed_.push_back(std::move(old));
+      peers_.erase(it);
+    }
     Peer& p = peers_[id];
+    p.id = id;
     p.index = aggregate_.nodes();
     p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : h.node_name();
+    if (h.has_device()) p.device = h.device().name();
     aggregate_.add_node();
     wire::Welcome w;
     w.set_node_index(p.index);
-    w.set_heartbeat_ms(1000);
-    w.set_liveness(3);
+    w.set_heartbeat_ms(config_.heartbeat_ms);
+    w.set_liveness(config_.liveness);
     *w.mutable_run() = run_;
-    proto::send(router_, {Command::welcome, w, {}}, &id);
+    if (config_.profile) {
+      emulation::LinkSpec spec = config_.profile->for_node(p.index, p.name);
+      uint64_t seed = config_.seed * 0x9E3779B97F4A7C15ull + p.index;
+      p.down = emulation::LinkModel(spec.down_mbit, spec.latency_ms, spec.jitter_ms, spec.loss, seed);
+      wire::Emulation* e = w.mutable_emulation();
+      e->set_slowdown(config_.profile->slowdown(spec));
+      e->set_latency_ms(spec.latency_ms);
+      e->set_jitter_ms(spec.jitter_ms);
+      e->set_up_mbit(spec.up_mbit);
+      e->set_loss(spec.loss);
+      e->set_disconnect_at_s(spec.disconnect_at_s);
+      e->set_reconnect_after_s(spec.reconnect_after_s);
+      e->set_seed(seed + 1);
+    }
+    send(p, {Command::welcome, w, {}});
     for (std::size_t off = 0; off < scene_bytes_.size() || off == 0; off += proto::kMaxSceneFrameBytes) {
       wire::SceneChunk c;
       c.set_scene_hash(mesh_.hash);
       c.set_total_bytes(scene_bytes_.size());
       c.set_offset(off);
       c.set_last(off + proto::kMaxSceneFrameBytes >= scene_bytes_.size());
-      proto::send(router_, {Command::scene, c, {scene_bytes_.substr(off, proto::kMaxSceneFrameBytes)}}, &id);
+      send(p, {Command::scene, c, {scene_bytes_.substr(off, proto::kMaxSceneFrameBytes)}});
       if (c.last()) break;
     }
   }
 
+  void ready(Peer& p, const wire::Ready& r) {
+    if (p.ready) fail("READY twice");
+    if (r.run_id() != run_.run_id()) fail("READY for run {:x}, not this run", r.run_id());
+    p.ready = true;
+    p.ready_at = Clock::now();
+    schedule();
+  }
+
   // Grants: in async mode every ready node without a grant gets one at once; in sync mode only
-  // when no ready node holds one (the barrier of the exchange period).
+  // when no live ready node holds one (the barrier of the exchange period).
   void schedule() {
     uint32_t ready = 0;
     bool any_holding = false;
     for (const auto& [id, p] : peers_) {
+      if (p.dead) continue;
       ready += p.ready && !p.stopped;
       any_holding = any_holding || (p.ready && p.holds_grant);
     }
-    if (ready < config_.min_nodes) return;
+    if (ready < config_.min_nodes && !ledger_.finished()) return;
     if (config_.mode == Mode::sync && any_holding) return;
     for (auto& [id, p] : peers_)
-      if (p.ready && !p.stopped && !p.holds_grant) give_grant(id, p);
+      if (!p.dead && p.ready && !p.stopped && !p.holds_grant) give_grant(p);
     if (ledger_.finished())
       for (auto& [id, p] : peers_)
-        if (p.ready && !p.stopped && !p.holds_grant) {
+        if (!p.dead && p.ready && !p.stopped && !p.holds_grant) {
           wire::Stop s;
           s.set_run_id(run_.run_id());
-          proto::send(router_, {Command::stop, s, {}}, &id);
+          send(p, {Command::stop, s, {}});
           p.stopped = true;
         }
   }
 
-  void give_grant(const std::string& id, Peer& p) {
+  void give_grant(Peer& p) {
     uint64_t size = config_.exchange_every > 0 ? config_.exchange_every
                                                : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, aggregate_.nodes())));
     auto ranges = ledger_.grant(p.index, size);
@@ -228,18 +349,23 @@ class Coordinator {
       for (uint32_t c : exchange_chunks(p.exchange, config_.fraction, aggregate_.chunks())) g.add_report_chunks(c);
     p.grant_id = g.grant_id();
     p.holds_grant = true;
-    proto::send(router_, {Command::grant, g, {}}, &id);
+    send(p, {Command::grant, g, {}});
   }
 
   void take_chunks(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
+    if (r.run_id() != run_.run_id()) fail("{} for run {:x}, not this run", "state", r.run_id());
     for (int i = 0; i < r.chunks_size(); ++i) {
       if (r.chunks(i) >= aggregate_.chunks()) fail("report names chunk {} of {}", r.chunks(i), aggregate_.chunks());
       aggregate_.set(p.index, r.chunks(i), proto::unpack(bulk[i]), r.counts(i));
       bytes_in_ += bulk[i].size();
     }
+    if (std::isfinite(r.busy_s()) && std::isfinite(r.idle_s())) {
+      p.busy_s = std::max(p.busy_s, r.busy_s());
+      p.idle_s = std::max(p.idle_s, r.idle_s());
+    }
   }
 
-  void report(Peer& p, const std::string& id, const wire::Report& r, const std::vector<std::string>& bulk) {
+  void report(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
     if (!p.holds_grant || r.grant_id() != p.grant_id) fail("report for grant {} it does not hold", r.grant_id());
     for (const auto& d : r.done()) {
       ledger_.done(p.index, {d.first(), d.last()});
@@ -262,7 +388,7 @@ class Coordinator {
         frames.push_back(proto::pack(part.sum));
         bytes_out_ += frames.back().size();
       }
-      proto::send(router_, {Command::update, u, frames}, &id);
+      send(p, {Command::update, u, frames});
       ++p.exchange;
       ++exchanges_;
     }
@@ -282,8 +408,11 @@ class Coordinator {
   std::vector<uint32_t> starts_;
   Aggregate aggregate_;
   std::string scene_bytes_;
+  std::vector<double> weight_;  // per patch, for the error estimate: area if not emitting
   wire::Run run_;
   std::map<std::string, Peer> peers_;
+  std::vector<Peer> departed_;
+  Clock::time_point start_ = Clock::now();
   uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0, crossings_ = 0;
   uint32_t exchanges_ = 0;
 };
@@ -310,7 +439,9 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
 
 std::string node_lines(const RunResult& r) {
   std::string out;
-  for (const auto& n : r.nodes) out += fmt::format("node {}: {} bundles, {} exchanges\n", n.name, n.bundles, n.exchanges);
+  for (const auto& n : r.nodes)
+    out += fmt::format("node {}: {} bundles, {} exchanges, busy {:.2f} s, idle {:.2f} s{}\n", n.name, n.bundles,
+                       n.exchanges, n.busy_s, n.idle_s, n.dead ? ", dead" : "");
   return out;
 }
 

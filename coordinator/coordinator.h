@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@
 #include <zmq.hpp>
 
 #include "coordinator/exchange.h"
+#include "coordinator/profile.h"
 #include "coordinator/status.h"
 #include "core/mesh.h"
 #include "core/output.h"
@@ -36,6 +38,9 @@ struct RunConfig {
   uint32_t chunks = 16;
   uint32_t min_nodes = 1;       // nodes ready before the first grant
   double timeout_s = 0;         // 0: none; else the run fails if it takes longer
+  uint32_t heartbeat_ms = 1000; // HEARTBEAT interval of both sides (PROTOCOL.md section 4)
+  uint32_t liveness = 3;        // a peer silent this many intervals is dead
+  std::optional<emulation::Profile> profile;  // --profile: network and speed emulation
   const std::atomic<bool>* abort = nullptr;  // set: the run fails at once (a local node died)
   bool strict = false;          // a node's ERROR ends the run (the embedded default: its nodes
                                 // are this process's own threads)
@@ -47,6 +52,8 @@ struct NodeReport {
   std::string name;
   uint64_t bundles = 0;
   uint32_t exchanges = 0;
+  double busy_s = 0, idle_s = 0;  // as the node last reported them
+  bool dead = false;              // declared dead (silent for `liveness` heartbeats)
 };
 
 struct RunResult {
@@ -63,12 +70,14 @@ struct RunResult {
 Attributes run_attributes(const RunConfig& config, const RunResult& result, const PatchMesh& mesh,
                           const std::string& scene);
 
-// One line per node: "node NAME: B bundles, E exchanges".
+// One line per node: "node NAME: B bundles, E exchanges, busy Xs, idle Ys[, dead]".
 std::string node_lines(const RunResult& result);
 
 // Serves one run of `mesh` (meshed from config.scene with config.mesh_options) until every
 // bundle is done and every node's final state is in. Malformed or unexpected messages are
-// refused and logged; the run goes on. Throws sirad::Error on the timeout.
+// refused and logged; the run goes on. A node silent for `liveness` heartbeat intervals is
+// declared dead: its outstanding grant returns to the budget and its last accepted state stays
+// in the estimate. Throws sirad::Error on the timeout.
 RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh);
 
 }  // namespace sirad::cluster

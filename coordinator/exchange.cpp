@@ -163,4 +163,34 @@ std::vector<double> Aggregate::estimate(uint32_t chunk) const {
   return out;
 }
 
+double Aggregate::spread_error(const std::vector<double>& weight) const {
+  double var_sum = 0, mean_sum = 0;
+  bool any = false;
+  for (uint32_t c = 0; c < chunks(); ++c) {
+    uint32_t holders = 0;
+    for (const auto& parts : state_) holders += parts[c].count > 0;
+    if (holders < 2) continue;
+    any = true;
+    std::vector<double> g = estimate(c);
+    double total = static_cast<double>(count(c));
+    for (uint32_t j = 0; j < chunk_size(c); ++j) {
+      double w = weight.at(starts_[c] + j);
+      if (w <= 0) continue;
+      for (int k = 0; k < 3; ++k) {
+        std::size_t i = 3 * static_cast<std::size_t>(j) + static_cast<std::size_t>(k);
+        double ss = 0;
+        for (const auto& parts : state_) {
+          const Part& part = parts[c];
+          if (part.count == 0) continue;
+          double d = part.sum[i] / static_cast<double>(part.count) - g[i];
+          ss += static_cast<double>(part.count) * d * d;
+        }
+        var_sum += w * ss / (holders - 1) / total / 3;
+        mean_sum += w * g[i] * g[i] / 3;
+      }
+    }
+  }
+  return any && mean_sum > 0 ? std::sqrt(var_sum / mean_sum) : -1.0;
+}
+
 }  // namespace sirad::cluster

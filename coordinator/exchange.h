@@ -83,6 +83,16 @@ class Aggregate {
   std::vector<double> estimate(uint32_t chunk) const;
   uint64_t count(uint32_t chunk) const;
 
+  // The relative error of the global estimate from the spread of the nodes' own estimates:
+  // with independent chains (the chain rule: an exchange never changes a node's chain) node p's
+  // mean x_p of m_p bundles has variance s^2 / m_p, so per patch and channel
+  //     s^2 = sum_p m_p (x_p - G)^2 / (P - 1),   Var(G) = s^2 / sum_p m_p,
+  // over the P nodes holding a state of the chunk. Returns sqrt(sum_j w_j Var_j / sum_j w_j G_j^2)
+  // over patches (w: one weight per patch, e.g. the area of non-emitting patches, 0 to leave a
+  // patch out; channels averaged), or -1 where no chunk has two nodes' states. Under the
+  // average rule with exchanges the nodes are correlated and this underestimates.
+  double spread_error(const std::vector<double>& weight) const;
+
  private:
   std::vector<uint32_t> starts_;
   std::vector<std::vector<Part>> state_;  // [node][chunk]

@@ -1,14 +1,19 @@
 // sirad: the worker node's loop (proto/PROTOCOL.md sections 3.1 to 3.3).
 #include "node/node.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <optional>
 #include <random>
+#include <set>
+#include <thread>
 
 #include <fmt/format.h>
 
+#include "coordinator/profile.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/mesh.h"
@@ -23,6 +28,19 @@ namespace {
 using proto::Command;
 using proto::Message;
 
+using Clock = std::chrono::steady_clock;
+
+double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+// A run without emulation: real speed, no disconnect.
+wire::Emulation no_emulation() {
+  wire::Emulation e;
+  e.set_slowdown(1);
+  e.set_disconnect_at_s(-1);
+  e.set_reconnect_after_s(-1);
+  return e;
+}
+
 // One run on this node: the mesh, the engine and the solver, and the run's chunks.
 struct RunState {
   wire::Run run;
@@ -35,25 +53,32 @@ struct RunState {
 class Node {
  public:
   Node(zmq::context_t& context, const std::string& endpoint, const NodeOptions& options)
-      : socket_(context, zmq::socket_type::dealer), options_(options) {
-    std::random_device rd;
-    socket_.set(zmq::sockopt::routing_id, fmt::format("node-{:08x}{:08x}", rd(), rd()));
-    socket_.set(zmq::sockopt::linger, 0);
-    socket_.connect(endpoint);
+      : context_(context), endpoint_(endpoint), options_(options) {
+    device_ = describe_device(select_device(options.device));
+    connect();
   }
 
   void serve() {
-    auto last_hello = std::chrono::steady_clock::now();
+    auto last_hello = Clock::now();
     hello();
-    while (!(options_.stop && options_.stop->load())) {
+    while (!stopping()) {
       // Without a run, say HELLO again every second: a coordinator that starts (or restarts)
       // later hears of this node that way.
-      if (!state_ && !pending_ && std::chrono::steady_clock::now() - last_hello > std::chrono::seconds(1)) {
+      if (!state_ && !pending_ && Clock::now() - last_hello > std::chrono::seconds(1)) {
         hello();
-        last_hello = std::chrono::steady_clock::now();
+        last_hello = Clock::now();
       }
-      auto frames = proto::receive(socket_, options_.poll_ms);
-      if (!frames) continue;
+      if (!tick()) {
+        if (!reconnect()) return;
+        last_hello = Clock::now();
+        continue;
+      }
+      auto frames = proto::receive(*socket_, poll_ms());
+      if (!frames) {
+        coordinator_liveness();
+        continue;
+      }
+      last_heard_ = Clock::now();
       Message m;
       try {
         m = proto::decode(*frames);
@@ -67,11 +92,91 @@ class Node {
   }
 
  private:
+  bool stopping() const { return options_.stop && options_.stop->load(); }
+
+  void connect() {
+    std::random_device rd;
+    socket_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
+    socket_->set(zmq::sockopt::routing_id, fmt::format("node-{:08x}{:08x}", rd(), rd()));
+    socket_->set(zmq::sockopt::linger, 0);
+    socket_->connect(endpoint_);
+  }
+
   void hello() {
     wire::Hello h;
     h.set_node_name(options_.name);
-    h.set_sirad_version("0.1.0");
-    proto::send(socket_, {Command::hello, h, {}});
+    h.set_sirad_version(SIRAD_VERSION);
+    wire::Device* d = h.mutable_device();
+    d->set_platform(device_.platform_name);
+    d->set_name(device_.device_name);
+    d->set_is_cpu(device_.is_cpu);
+    d->set_compute_units(device_.compute_units);
+    d->set_opencl_version(device_.version);
+    send({Command::hello, h, {}});
+  }
+
+  // Through the emulated uplink when the run's profile shapes it.
+  void send(const Message& m) {
+    last_sent_ = Clock::now();
+    if (!up_.shaped()) return proto::send(*socket_, m);
+    std::vector<std::string> frames = proto::encode(m);
+    std::size_t bytes = 0;
+    for (const auto& f : frames) bytes += f.size();
+    double now = seconds(last_sent_ - epoch_);
+    queue_.push(up_.deliver(now, bytes), std::move(frames));
+    queue_.flush(*socket_, now);
+  }
+
+  int poll_ms() {
+    double next = queue_.flush(*socket_, seconds(Clock::now() - epoch_));
+    double ms = (next - seconds(Clock::now() - epoch_)) * 1e3;
+    return static_cast<int>(std::clamp(ms, 0.0, static_cast<double>(options_.poll_ms)));
+  }
+
+  // Between messages and between bundles: the emulated link's due messages go out, a HEARTBEAT
+  // if nothing was sent for an interval, and the emulated disconnect. False: disconnected.
+  bool tick() {
+    auto now = Clock::now();
+    queue_.flush(*socket_, seconds(now - epoch_));
+    if (!state_ && !pending_) return true;
+    if (now - last_sent_ >= heartbeat_) send({Command::heartbeat, {}, {}});
+    return !(emulation_.disconnect_at_s() >= 0 && seconds(now - welcomed_) >= emulation_.disconnect_at_s());
+  }
+
+  // The emulated disconnect: the socket goes (with whatever it had queued), and so does the
+  // run. The node comes back as a new peer after reconnect_after_s, or leaves for good.
+  bool reconnect() {
+    double after = emulation_.reconnect_after_s();
+    std::fprintf(stderr, "sirad-node %s: disconnected by the emulation profile%s\n", options_.name.c_str(),
+                 after >= 0 ? fmt::format("; back in {} s", after).c_str() : " for good");
+    disconnected_runs_.insert((state_ ? state_ : pending_)->run.run_id());
+    socket_.reset();
+    queue_.clear();
+    state_.reset();
+    pending_.reset();
+    emulation_ = no_emulation();
+    up_ = {};
+    if (after < 0) return false;
+    auto back = Clock::now() + std::chrono::duration<double>(after);
+    while (Clock::now() < back)
+      if (stopping()) return false;
+      else std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    connect();
+    hello();
+    return true;
+  }
+
+  // A run whose coordinator fell silent for `liveness` intervals is over for this node: it
+  // forgets the run and says HELLO until a coordinator answers.
+  void coordinator_liveness() {
+    if ((!state_ && !pending_) || Clock::now() - last_heard_ <= heartbeat_ * liveness_) return;
+    std::fprintf(stderr, "sirad-node %s: coordinator silent for %.1f s; leaving the run\n", options_.name.c_str(),
+                 seconds(Clock::now() - last_heard_));
+    state_.reset();
+    pending_.reset();
+    queue_.clear();
+    emulation_ = no_emulation();
+    up_ = {};
   }
 
   void handle(const Message& m) {
@@ -81,6 +186,7 @@ class Node {
       case Command::grant: grant(std::get<wire::Grant>(m.header)); break;
       case Command::update: update(std::get<wire::Update>(m.header), m.bulk); break;
       case Command::stop: stop(); break;
+      case Command::heartbeat: break;
       case Command::error:
         std::fprintf(stderr, "sirad-node %s: coordinator: %s\n", options_.name.c_str(),
                      std::get<wire::Error>(m.header).reason().c_str());
@@ -92,7 +198,7 @@ class Node {
   void error(const std::string& reason) {
     wire::Error e;
     e.set_reason(reason);
-    proto::send(socket_, {Command::error, e, {}});
+    send({Command::error, e, {}});
   }
 
   void welcome(const wire::Welcome& w) {
@@ -102,6 +208,18 @@ class Node {
     pending_->run = w.run();
     pending_->index = w.node_index();
     scene_bytes_.clear();
+    heartbeat_ = std::chrono::milliseconds(std::clamp<uint32_t>(w.heartbeat_ms(), 10, 60000));
+    liveness_ = std::clamp<uint32_t>(w.liveness(), 1, 100);
+    welcomed_ = Clock::now();
+    busy_s_ = idle_s_ = 0;
+    emulation_ = w.has_emulation() ? w.emulation() : no_emulation();
+    if (!std::isfinite(emulation_.slowdown()) || emulation_.slowdown() < 1 || emulation_.slowdown() > 1e6) {
+      error(fmt::format("WELCOME: emulated slowdown {} is not in [1, 1e6]", emulation_.slowdown()));
+      emulation_.set_slowdown(1);
+    }
+    if (disconnected_runs_.count(w.run().run_id())) emulation_.set_disconnect_at_s(-1);  // once per run
+    up_ = emulation::LinkModel(emulation_.up_mbit(), emulation_.latency_ms(), emulation_.jitter_ms(),
+                               std::clamp(emulation_.loss(), 0.0, 0.5), emulation_.seed());
   }
 
   // Scene chunks in order; the last one completes the scene: mesh it, check the hash, start.
@@ -125,37 +243,54 @@ class Node {
       so.rule = parse_update_rule(run.rule());
       so.burn_in = run.burn_in();
       so.chain_id = pending_->index;
-      auto t0 = std::chrono::steady_clock::now();
+      auto t0 = Clock::now();
       pending_->solver = std::make_unique<Solver>(pending_->mesh, *pending_->engine, so);
-      double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() /
-                  std::max(1, pending_->solver->burn_in());
+      double ms = seconds(Clock::now() - t0) * 1e3 / std::max(1, pending_->solver->burn_in());
       state_ = std::move(pending_);
       wire::Ready ready;
       ready.set_run_id(state_->run.run_id());
       ready.set_scene_hash(state_->mesh.hash);
-      ready.set_ms_per_bundle(ms);
-      proto::send(socket_, {Command::ready, ready, {}});
+      ready.set_ms_per_bundle(ms * emulation_.slowdown());
+      send({Command::ready, ready, {}});
+      last_heard_ = waiting_since_ = Clock::now();  // setup blocked the loop; start counting now
     } catch (const Error& e) {
       error(e.what());
       pending_.reset();
     }
   }
 
-  // Run the granted bundles, then report the chunks the grant names.
+  // Run the granted bundles (each taking `slowdown` times its real time under emulation), then
+  // report the chunks the grant names.
   void grant(const wire::Grant& g) {
     if (!state_ || g.run_id() != state_->run.run_id()) return error("GRANT for no run of mine");
+    auto start = Clock::now();
+    idle_s_ += seconds(start - waiting_since_);
     wire::Report report;
     report.set_run_id(g.run_id());
     report.set_grant_id(g.grant_id());
     uint64_t crossings = state_->solver->crossings();
     for (const auto& r : g.ranges()) {
-      for (uint64_t k = r.first(); k < r.last(); ++k) state_->solver->step(k);
+      for (uint64_t k = r.first(); k < r.last(); ++k) {
+        auto t0 = Clock::now();
+        state_->solver->step(k);
+        if (!tick()) return;  // disconnected: the loop reconnects
+        auto slow_until = t0 + std::chrono::duration_cast<Clock::duration>((Clock::now() - t0) * emulation_.slowdown());
+        while (Clock::now() < slow_until) {
+          std::this_thread::sleep_for(std::min<Clock::duration>(slow_until - Clock::now(), std::chrono::milliseconds(20)));
+          if (!tick()) return;
+        }
+        if (stopping()) return;
+      }
       *report.add_done() = r;
     }
     report.set_crossings(state_->solver->crossings() - crossings);
+    waiting_since_ = Clock::now();
+    busy_s_ += seconds(waiting_since_ - start);
+    report.set_busy_s(busy_s_);
+    report.set_idle_s(idle_s_);
     Message m{Command::report, {}, chunk_frames(g.report_chunks(), report)};
     m.header = report;
-    proto::send(socket_, m);
+    send(m);
   }
 
   // The node's (sum, count) of the named chunks into the report and its bulk frames.
@@ -186,8 +321,10 @@ class Node {
     for (int i = 0; i < u.chunks_size(); ++i) {
       uint32_t c = u.chunks(i);
       if (c >= static_cast<uint32_t>(starts.size())) return error("UPDATE names an unknown chunk");
-      uint32_t first = starts[c];
+      uint32_t first = starts[c], last = c + 1 < static_cast<uint32_t>(starts.size()) ? starts[c + 1] : state_->run.patches();
       std::vector<double> v = proto::unpack(bulk[i]);
+      if (v.size() != 3 * static_cast<std::size_t>(last - first))
+        return error(fmt::format("UPDATE chunk {}: {} values for {} patches", c, v.size(), last - first));
       std::vector<glm::dvec3> others(v.size() / 3);
       for (std::size_t j = 0; j < others.size(); ++j) others[j] = glm::dvec3(v[3 * j], v[3 * j + 1], v[3 * j + 2]);
       try {
@@ -202,18 +339,41 @@ class Node {
     if (!state_) return;
     wire::Report final_state;
     final_state.set_run_id(state_->run.run_id());
+    final_state.set_busy_s(busy_s_);
+    final_state.set_idle_s(idle_s_);
     std::vector<uint32_t> all(state_->run.chunk_starts_size());
     for (uint32_t c = 0; c < all.size(); ++c) all[c] = c;
     Message m{Command::final_state, {}, chunk_frames(all, final_state)};
     m.header = final_state;
-    proto::send(socket_, m);
+    send(m);
     state_.reset();
+    // The FINAL leaves through the emulated link; the next run brings its own.
+    while (!queue_.empty() && !stopping()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      queue_.flush(*socket_, seconds(Clock::now() - epoch_));
+    }
+    emulation_ = no_emulation();
+    up_ = {};
   }
 
-  zmq::socket_t socket_;
+  zmq::context_t& context_;
+  std::string endpoint_;
   NodeOptions options_;
+  DeviceInfo device_;
+  std::unique_ptr<zmq::socket_t> socket_;
   std::unique_ptr<RunState> pending_, state_;
   std::string scene_bytes_;
+  // Time: the heartbeat, the coordinator's liveness, this run's busy and idle time.
+  Clock::time_point epoch_ = Clock::now(), last_sent_ = Clock::now(), last_heard_ = Clock::now();
+  Clock::time_point welcomed_ = Clock::now(), waiting_since_ = Clock::now();
+  Clock::duration heartbeat_ = std::chrono::seconds(1);
+  uint32_t liveness_ = 3;
+  double busy_s_ = 0, idle_s_ = 0;
+  // The run's emulation (coordinator/profile.h): slowdown, uplink, disconnect.
+  wire::Emulation emulation_ = no_emulation();
+  std::set<uint64_t> disconnected_runs_;
+  emulation::LinkModel up_;
+  proto::DelayQueue queue_;
 };
 
 }  // namespace

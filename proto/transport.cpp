@@ -3,14 +3,32 @@
 
 #include <cerrno>
 #include <cstring>
+#include <limits>
 
 namespace sirad::proto {
 
 void send(zmq::socket_t& socket, const Message& message, const std::string* routing_id) {
   std::vector<std::string> frames = encode(message);
-  if (routing_id) socket.send(zmq::buffer(*routing_id), zmq::send_flags::sndmore);
+  if (routing_id) frames.insert(frames.begin(), *routing_id);
+  send_frames(socket, frames);
+}
+
+void send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames) {
   for (std::size_t i = 0; i < frames.size(); ++i)
     socket.send(zmq::buffer(frames[i]), i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+}
+
+void DelayQueue::push(double due, std::vector<std::string> frames) {
+  if (!queue_.empty()) due = std::max(due, queue_.back().first);
+  queue_.emplace_back(due, std::move(frames));
+}
+
+double DelayQueue::flush(zmq::socket_t& socket, double now) {
+  while (!queue_.empty() && queue_.front().first <= now) {
+    send_frames(socket, queue_.front().second);
+    queue_.pop_front();
+  }
+  return queue_.empty() ? std::numeric_limits<double>::infinity() : queue_.front().first;
 }
 
 std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms) {

@@ -1,5 +1,6 @@
 // sirad: SIRAD/1 messages over ZeroMQ sockets (frames from proto/codec.h, multipart sends).
 #pragma once
+#include <deque>
 #include <optional>
 #include <string>
 #include <vector>
@@ -12,6 +13,24 @@ namespace sirad::proto {
 
 // Sends `message`, preceded by `routing_id` on a ROUTER socket.
 void send(zmq::socket_t& socket, const Message& message, const std::string* routing_id = nullptr);
+
+// Frames as they are (a routing id first on a ROUTER socket), one multipart message.
+void send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames);
+
+// The sending side of an emulated link (coordinator/profile.h): messages wait here until the
+// time the link model says they arrive, then go out in order. Times are seconds on the
+// caller's clock.
+class DelayQueue {
+ public:
+  void push(double due, std::vector<std::string> frames);
+  // Sends every message due by `now`; returns the time of the next one (infinity if none).
+  double flush(zmq::socket_t& socket, double now);
+  bool empty() const { return queue_.empty(); }
+  void clear() { queue_.clear(); }
+
+ private:
+  std::deque<std::pair<double, std::vector<std::string>>> queue_;  // due times never decrease
+};
 
 // Every frame of the next multipart message, or nothing after `timeout_ms` (or when a signal
 // interrupts the wait).
