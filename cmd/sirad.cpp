@@ -49,6 +49,7 @@ struct RenderArgs {
   std::string mode = "async";
   int chunks = 16;
   std::string status_json;
+  std::string profile;
 };
 
 // A progress bar on a terminal, a plain line every 10% otherwise.
@@ -115,7 +116,7 @@ void write_outputs(const RenderArgs& a, const std::string& out, const PatchMesh&
 // The embedded default: the coordinator on this thread, N nodes on their own threads, all over
 // ZeroMQ inproc with the same code as a cluster.
 int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, const PatchMesh& mesh,
-                    UpdateRule rule, const std::string& out) {
+                    UpdateRule rule, const std::string& out, std::optional<emulation::Profile> profile) {
   cluster::RunConfig rc;
   rc.scene = scene;
   rc.mesh_options = mesh_options;
@@ -131,6 +132,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.chunks = static_cast<uint32_t>(a.chunks);
   rc.min_nodes = static_cast<uint32_t>(a.nodes);
   rc.strict = true;
+  rc.profile = std::move(profile);
 
   const std::string endpoint = "inproc://sirad-embedded";
   zmq::context_t context;
@@ -185,6 +187,9 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
 int render(const RenderArgs& a) {
   // Check everything cheap before any work: flags, output place, scene, device.
   if (a.patches && a.max_edge) fail("--patches and --max-edge exclude each other");
+  if (!a.profile.empty() && a.nodes == 0) fail("--profile {}: emulation needs a cluster (--nodes N)", a.profile);
+  std::optional<emulation::Profile> profile;
+  if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   UpdateRule rule = parse_update_rule(a.rule);
   std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
   check_output_name(out);
@@ -199,7 +204,7 @@ int render(const RenderArgs& a) {
   PatchMesh mesh = mesh_scene(scene, mesh_options);
   if (!mesh.camera) mesh.camera = default_camera(scene);
 
-  if (a.nodes > 0) return render_embedded(a, scene, mesh_options, mesh, rule, out);
+  if (a.nodes > 0) return render_embedded(a, scene, mesh_options, mesh, rule, out, std::move(profile));
   auto engine = make_cl_engine(mesh, {.device = a.device});
   SolverOptions so;
   so.seed = a.seed;
@@ -272,6 +277,7 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
   render_cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
   render_cmd->add_option("--status-json", r.status_json, "With --nodes: rewrite this file with the run's status every second");
+  render_cmd->add_option("--profile", r.profile, "With --nodes: network emulation profile (YAML; nodes are named local-0, local-1, ...)");
   render_cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
       ->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_subcommand("devices", "List the OpenCL devices");

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <limits>
 #include <map>
 #include <random>
@@ -30,8 +31,8 @@ struct Peer {
   uint32_t index = 0;   // in the run's aggregate (a node that rejoins gets a new one)
   std::string name, device;
   bool ready = false, stopped = false, final_in = false, dead = false;
-  uint64_t grant_id = 0;
-  bool holds_grant = false;
+  std::deque<uint64_t> grants;  // outstanding grant ids, oldest first
+  uint32_t rotation = 0;        // grants given with report chunks (the rotation of S)
   uint32_t exchange = 0;
   uint64_t bundles = 0;
   double busy_s = 0, idle_s = 0;
@@ -150,7 +151,7 @@ class Coordinator {
       Status::Node n;
       n.name = p->name;
       n.device = p->device;
-      n.state = p->dead ? "dead" : p->final_in ? "done" : !p->ready ? "joining" : p->holds_grant ? "working" : "waiting";
+      n.state = p->dead ? "dead" : p->final_in ? "done" : !p->ready ? "joining" : !p->grants.empty() ? "working" : "waiting";
       n.bundles = p->bundles;
       n.exchanges = p->exchange;
       n.last_seen_s = seconds(now - p->last_seen);
@@ -175,7 +176,7 @@ class Coordinator {
   void keep_alive(Clock::time_point now) {
     auto interval = std::chrono::milliseconds(config_.heartbeat_ms);
     for (auto& [id, p] : peers_) {
-      if (p.dead) continue;
+      if (p.dead || p.final_in) continue;
       if (p.ready && now - p.last_seen > interval * config_.liveness) {
         declare_dead(p, fmt::format("silent for {:.1f} s", seconds(now - p.last_seen)));
         continue;
@@ -189,7 +190,7 @@ class Coordinator {
     uint64_t back = ledger_.outstanding(p.index);
     ledger_.abandon(p.index);
     p.dead = true;
-    p.holds_grant = false;
+    p.grants.clear();
     p.queue.clear();
     std::fprintf(stderr, "sirad-coordinator: %s: declared dead (%s); %llu granted bundles return to the budget\n",
                  p.name.c_str(), why.c_str(), static_cast<unsigned long long>(back));
@@ -308,23 +309,28 @@ class Coordinator {
     schedule();
   }
 
-  // Grants: in async mode every ready node without a grant gets one at once; in sync mode only
-  // when no live ready node holds one (the barrier of the exchange period).
+  // Grants. Async: every live ready node holds two, the one it runs and one queued behind it,
+  // so it never waits for the REPORT -> GRANT round trip; near the end of the budget (less
+  // than two grants per node left) only one, so no node queues work a faster one could take.
+  // Sync: one each, given only when no node holds one (the barrier of the exchange period).
   void schedule() {
     uint32_t ready = 0;
     bool any_holding = false;
     for (const auto& [id, p] : peers_) {
       if (p.dead) continue;
       ready += p.ready && !p.stopped;
-      any_holding = any_holding || (p.ready && p.holds_grant);
+      any_holding = any_holding || (p.ready && !p.grants.empty());
     }
-    if (ready < config_.min_nodes && !ledger_.finished()) return;
+    if (!started_ && ready < config_.min_nodes) return;  // min_nodes gates the first grant only
+    started_ = true;
     if (config_.mode == Mode::sync && any_holding) return;
+    std::size_t depth = config_.mode == Mode::async && ledger_.available() >= 2 * ready * grant_size() ? 2 : 1;
     for (auto& [id, p] : peers_)
-      if (!p.dead && p.ready && !p.stopped && !p.holds_grant) give_grant(p);
-    if (ledger_.finished())
+      while (!p.dead && p.ready && !p.stopped && p.grants.size() < depth && give_grant(p)) {
+      }
+    if (ledger_.finished())  // not before: a dead node's grant may still come back to the budget
       for (auto& [id, p] : peers_)
-        if (!p.dead && p.ready && !p.stopped && !p.holds_grant) {
+        if (!p.dead && p.ready && !p.stopped && p.grants.empty()) {
           wire::Stop s;
           s.set_run_id(run_.run_id());
           send(p, {Command::stop, s, {}});
@@ -332,11 +338,14 @@ class Coordinator {
         }
   }
 
-  void give_grant(Peer& p) {
-    uint64_t size = config_.exchange_every > 0 ? config_.exchange_every
-                                               : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, aggregate_.nodes())));
-    auto ranges = ledger_.grant(p.index, size);
-    if (ranges.empty()) return;
+  uint64_t grant_size() const {
+    return config_.exchange_every > 0 ? config_.exchange_every
+                                      : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, aggregate_.nodes())));
+  }
+
+  bool give_grant(Peer& p) {
+    auto ranges = ledger_.grant(p.index, grant_size());
+    if (ranges.empty()) return false;
     wire::Grant g;
     g.set_run_id(run_.run_id());
     g.set_grant_id(++grants_);
@@ -346,10 +355,10 @@ class Coordinator {
       w->set_last(r.last);
     }
     if (config_.exchange_every > 0)
-      for (uint32_t c : exchange_chunks(p.exchange, config_.fraction, aggregate_.chunks())) g.add_report_chunks(c);
-    p.grant_id = g.grant_id();
-    p.holds_grant = true;
+      for (uint32_t c : exchange_chunks(p.rotation++, config_.fraction, aggregate_.chunks())) g.add_report_chunks(c);
+    p.grants.push_back(g.grant_id());
     send(p, {Command::grant, g, {}});
+    return true;
   }
 
   void take_chunks(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
@@ -366,7 +375,7 @@ class Coordinator {
   }
 
   void report(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
-    if (!p.holds_grant || r.grant_id() != p.grant_id) fail("report for grant {} it does not hold", r.grant_id());
+    if (p.grants.empty() || r.grant_id() != p.grants.front()) fail("report for grant {} it does not hold", r.grant_id());
     for (const auto& d : r.done()) {
       ledger_.done(p.index, {d.first(), d.last()});
       p.bundles += d.last() - d.first();
@@ -374,7 +383,7 @@ class Coordinator {
     take_chunks(p, r, bulk);
     crossings_ += r.crossings();
     if (config_.progress) config_.progress(ledger_.done_count(), config_.bundles);
-    p.holds_grant = false;
+    p.grants.pop_front();
     if (r.chunks_size() > 0) {
       // The exchange: the others' aggregate (star) or the next node's state (ring).
       wire::Update u;
@@ -415,6 +424,7 @@ class Coordinator {
   Clock::time_point start_ = Clock::now();
   uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0, crossings_ = 0;
   uint32_t exchanges_ = 0;
+  bool started_ = false;
 };
 
 }  // namespace

@@ -52,6 +52,12 @@ std::vector<Range> Ledger::grant(uint32_t node, uint64_t count) {
   return out;
 }
 
+uint64_t Ledger::available() const {
+  uint64_t n = 0;
+  for (const Range& f : free_) n += f.size();
+  return n;
+}
+
 void Ledger::done(uint32_t node, Range r) {
   if (r.last <= r.first) fail("ledger: empty or reversed range [{}, {}) from node {}", r.first, r.last, node);
   auto it = granted_.find(node);

@@ -41,6 +41,7 @@ class Ledger {
   uint64_t bundles() const { return bundles_; }
   uint64_t done_count() const { return done_count_; }
   uint64_t outstanding(uint32_t node) const;
+  uint64_t available() const;  // indices not granted to anyone
   bool finished() const { return done_count_ == bundles_; }
 
  private:

@@ -2,7 +2,8 @@
 // outputs of the single-node solver (NAME.exr, NAME.png, NAME.ply).
 //   sirad-coordinator SCENE --listen tcp://*:5555 [--bundles K --patches N --grid R --seed S
 //     --out NAME --exchange-every I|end --exchange-fraction S --topology star|ring
-//     --mode sync|async --min-nodes P --chunks C --endpoint-file FILE --timeout SECONDS]
+//     --mode sync|async --profile FILE --min-nodes P --chunks C --endpoint-file FILE
+//     --timeout SECONDS --heartbeat-ms MS --liveness N --status-json FILE --check-config]
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -15,18 +16,20 @@
 #include "core/bundle.h"
 #include "core/error.h"
 #include "core/results.h"
+#include "proto/transport.h"
 
 using namespace sirad;
 
 int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
   std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
-                          rule = "chain", endpoint_file, status_json;
+                          rule = "chain", endpoint_file, status_json, profile;
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
   double fraction = 1.0, timeout = 0;
-  int min_nodes = 1, chunks = 16, width = 512, height = 512;
+  int min_nodes = 1, chunks = 16, width = 512, height = 512, heartbeat_ms = 1000, liveness = 3;
+  bool check_config = false, quiet = false;
   app.add_option("scene", scene_spec, "Built-in scene (cornell, furnace) or an .obj file")->required();
   app.add_option("--listen", listen, "ZeroMQ endpoint to bind")->capture_default_str();
   app.add_option("--bundles", bundles, "Bundles in the run")->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
@@ -46,6 +49,11 @@ int main(int argc, char** argv) {
   app.add_option("--endpoint-file", endpoint_file, "Write the bound endpoint here (for scripts: tcp://*:0 picks a port)");
   app.add_option("--status-json", status_json, "Rewrite this file with the run's status every second");
   app.add_option("--timeout", timeout, "Fail if the run takes longer (seconds; 0: never)")->check(CLI::NonNegativeNumber);
+  app.add_option("--profile", profile, "Network emulation profile (YAML; see deploy/profiles/)");
+  app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat interval")->check(CLI::Range(10, 60000))->capture_default_str();
+  app.add_option("--liveness", liveness, "Heartbeats a node may miss before it is dead")->check(CLI::Range(1, 100))->capture_default_str();
+  app.add_flag("--check-config", check_config, "Check the flags, scene, profile and output place; run nothing");
+  app.add_flag("-q,--quiet", quiet, "No progress view");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -73,6 +81,16 @@ int main(int argc, char** argv) {
     rc.chunks = static_cast<uint32_t>(chunks);
     rc.min_nodes = static_cast<uint32_t>(min_nodes);
     rc.timeout_s = timeout;
+    rc.heartbeat_ms = static_cast<uint32_t>(heartbeat_ms);
+    rc.liveness = static_cast<uint32_t>(liveness);
+    if (!profile.empty()) rc.profile = emulation::load_profile(profile);
+    proto::check_endpoint("--listen", listen, true);
+    if (check_config) {
+      std::printf("sirad-coordinator: config ok: %s, %zu patches, %lld bundles, exchange every %s, S %g, %s, %s%s%s\n",
+                  scene_spec.c_str(), mesh.size(), static_cast<long long>(bundles), exchange_every.c_str(), fraction,
+                  topology.c_str(), mode.c_str(), profile.empty() ? "" : ", profile ", profile.c_str());
+      return 0;
+    }
     if (!status_json.empty()) rc.status = [&](const cluster::Status& st) { cluster::write_status(status_json, st); };
 
     zmq::context_t context;

@@ -20,7 +20,7 @@ struct LinkSpec {
   double up_mbit = 0;             // node -> coordinator bandwidth, Mbit/s
   double down_mbit = 0;           // coordinator -> node bandwidth, Mbit/s
   double loss = 0;                // packet loss probability in [0, 0.5]
-  double disconnect_at_s = -1;    // seconds after the node joins a run it drops off (< 0: never)
+  double disconnect_at_s = -1;    // seconds after it is ready in a run the node drops off (< 0: never)
   double reconnect_after_s = -1;  // and comes back this much later (< 0: not in this process)
   bool shaped() const { return latency_ms > 0 || jitter_ms > 0 || up_mbit > 0 || down_mbit > 0 || loss > 0; }
   bool operator==(const LinkSpec&) const = default;

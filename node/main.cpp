@@ -1,5 +1,5 @@
 // sirad-node: a worker that serves runs from a coordinator until stopped (SIGINT/SIGTERM).
-//   sirad-node --connect tcp://HOST:5555 [--device D] [--name NAME]
+//   sirad-node --connect tcp://HOST:5555 [--device D] [--name NAME] [--check-config]
 #include <csignal>
 #include <cstdio>
 
@@ -7,7 +7,9 @@
 #include <unistd.h>
 
 #include "core/error.h"
+#include "core/opencl.h"
 #include "node/node.h"
+#include "proto/transport.h"
 
 namespace {
 std::atomic<bool> stop{false};
@@ -23,6 +25,8 @@ int main(int argc, char** argv) {
   app.add_option("--connect", endpoint, "Coordinator endpoint, e.g. tcp://host:5555")->required();
   app.add_option("--device", device, "OpenCL device: P:D or part of its name (env SIRAD_DEVICE)");
   app.add_option("--name", name, "Name shown by the coordinator")->capture_default_str();
+  bool check_config = false;
+  app.add_flag("--check-config", check_config, "Check the flags and the OpenCL device; connect to nothing");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -30,6 +34,18 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     std::fprintf(stderr, "sirad-node: error: %s (see sirad-node --help)\n", e.what());
     return 2;
+  }
+  try {
+    sirad::proto::check_endpoint("--connect", endpoint, false);
+    if (check_config) {
+      sirad::DeviceInfo d = sirad::describe_device(sirad::select_device(device));
+      std::printf("sirad-node: config ok: %s -> %s, device %s / %s\n", name.c_str(), endpoint.c_str(),
+                  d.platform_name.c_str(), d.device_name.c_str());
+      return 0;
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sirad-node: error: %s\n", e.what());
+    return 1;
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

@@ -73,7 +73,9 @@ class Node {
         last_hello = Clock::now();
         continue;
       }
+      auto waiting = Clock::now();
       auto frames = proto::receive(*socket_, poll_ms());
+      if (state_ && granted_) idle_s_ += seconds(Clock::now() - waiting);  // blocked with nothing to run
       if (!frames) {
         coordinator_liveness();
         continue;
@@ -140,7 +142,7 @@ class Node {
     queue_.flush(*socket_, seconds(now - epoch_));
     if (!state_ && !pending_) return true;
     if (now - last_sent_ >= heartbeat_) send({Command::heartbeat, {}, {}});
-    return !(emulation_.disconnect_at_s() >= 0 && seconds(now - welcomed_) >= emulation_.disconnect_at_s());
+    return !(state_ && emulation_.disconnect_at_s() >= 0 && seconds(now - ready_at_) >= emulation_.disconnect_at_s());
   }
 
   // The emulated disconnect: the socket goes (with whatever it had queued), and so does the
@@ -210,8 +212,8 @@ class Node {
     scene_bytes_.clear();
     heartbeat_ = std::chrono::milliseconds(std::clamp<uint32_t>(w.heartbeat_ms(), 10, 60000));
     liveness_ = std::clamp<uint32_t>(w.liveness(), 1, 100);
-    welcomed_ = Clock::now();
     busy_s_ = idle_s_ = 0;
+    granted_ = false;
     emulation_ = w.has_emulation() ? w.emulation() : no_emulation();
     if (!std::isfinite(emulation_.slowdown()) || emulation_.slowdown() < 1 || emulation_.slowdown() > 1e6) {
       error(fmt::format("WELCOME: emulated slowdown {} is not in [1, 1e6]", emulation_.slowdown()));
@@ -252,7 +254,7 @@ class Node {
       ready.set_scene_hash(state_->mesh.hash);
       ready.set_ms_per_bundle(ms * emulation_.slowdown());
       send({Command::ready, ready, {}});
-      last_heard_ = waiting_since_ = Clock::now();  // setup blocked the loop; start counting now
+      last_heard_ = ready_at_ = Clock::now();  // setup blocked the loop; count from now
     } catch (const Error& e) {
       error(e.what());
       pending_.reset();
@@ -264,7 +266,7 @@ class Node {
   void grant(const wire::Grant& g) {
     if (!state_ || g.run_id() != state_->run.run_id()) return error("GRANT for no run of mine");
     auto start = Clock::now();
-    idle_s_ += seconds(start - waiting_since_);
+    granted_ = true;
     wire::Report report;
     report.set_run_id(g.run_id());
     report.set_grant_id(g.grant_id());
@@ -284,8 +286,7 @@ class Node {
       *report.add_done() = r;
     }
     report.set_crossings(state_->solver->crossings() - crossings);
-    waiting_since_ = Clock::now();
-    busy_s_ += seconds(waiting_since_ - start);
+    busy_s_ += seconds(Clock::now() - start);
     report.set_busy_s(busy_s_);
     report.set_idle_s(idle_s_);
     Message m{Command::report, {}, chunk_frames(g.report_chunks(), report)};
@@ -365,10 +366,11 @@ class Node {
   std::string scene_bytes_;
   // Time: the heartbeat, the coordinator's liveness, this run's busy and idle time.
   Clock::time_point epoch_ = Clock::now(), last_sent_ = Clock::now(), last_heard_ = Clock::now();
-  Clock::time_point welcomed_ = Clock::now(), waiting_since_ = Clock::now();
+  Clock::time_point ready_at_ = Clock::now();
   Clock::duration heartbeat_ = std::chrono::seconds(1);
   uint32_t liveness_ = 3;
   double busy_s_ = 0, idle_s_ = 0;
+  bool granted_ = false;  // this run has given a grant (idle: blocked waiting for a message after it)
   // The run's emulation (coordinator/profile.h): slowdown, uplink, disconnect.
   wire::Emulation emulation_ = no_emulation();
   std::set<uint64_t> disconnected_runs_;

@@ -1,11 +1,32 @@
 // sirad: SIRAD/1 over ZeroMQ: multipart send and receive with a timeout.
 #include "proto/transport.h"
 
+#include "core/error.h"
+
 #include <cerrno>
 #include <cstring>
 #include <limits>
 
 namespace sirad::proto {
+
+void check_endpoint(const std::string& flag, const std::string& endpoint, bool bind) {
+  auto scheme_end = endpoint.find("://");
+  if (scheme_end == std::string::npos) fail("{} {}: expected tcp://HOST:PORT, ipc://PATH or inproc://NAME", flag, endpoint);
+  std::string scheme = endpoint.substr(0, scheme_end), rest = endpoint.substr(scheme_end + 3);
+  if (scheme == "ipc" || scheme == "inproc") {
+    if (rest.empty()) fail("{} {}: empty {} name", flag, endpoint, scheme);
+    return;
+  }
+  if (scheme != "tcp") fail("{} {}: unknown transport '{}' (tcp, ipc or inproc)", flag, endpoint, scheme);
+  auto colon = rest.rfind(':');
+  if (colon == std::string::npos || colon == 0) fail("{} {}: expected tcp://HOST:PORT", flag, endpoint);
+  std::string host = rest.substr(0, colon), port = rest.substr(colon + 1);
+  if (host == "*" && !bind) fail("{} {}: '*' is only for binding; name the coordinator's host", flag, endpoint);
+  if (bind && (port == "*" || port == "0")) return;
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+      std::stoi(port) < 1 || std::stoi(port) > 65535)
+    fail("{} {}: port '{}' is not in 1..65535", flag, endpoint, port);
+}
 
 void send(zmq::socket_t& socket, const Message& message, const std::string* routing_id) {
   std::vector<std::string> frames = encode(message);

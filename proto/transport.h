@@ -11,6 +11,11 @@
 
 namespace sirad::proto {
 
+// Checks a ZeroMQ endpoint as the command lines take it: tcp://HOST:PORT (PORT 1..65535; when
+// binding, HOST may be * and PORT * or 0 for one the system picks), ipc://PATH or
+// inproc://NAME. Throws sirad::Error naming `flag` and what is wrong.
+void check_endpoint(const std::string& flag, const std::string& endpoint, bool bind);
+
 // Sends `message`, preceded by `routing_id` on a ROUTER socket.
 void send(zmq::socket_t& socket, const Message& message, const std::string* routing_id = nullptr);
 

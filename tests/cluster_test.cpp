@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "cluster_util.h"
 #include "coordinator/coordinator.h"
 #include "core/metrics.h"
 #include "node/node.h"
@@ -15,47 +16,9 @@
 namespace sirad::cluster {
 namespace {
 
-struct Outcome {
-  RunResult result;
-  PatchMesh mesh;
-};
-
-// Runs `config` with `nodes` node threads connected to a ROUTER bound at `endpoint`.
-Outcome run_cluster(RunConfig config, int nodes, const std::string& endpoint) {
-  Outcome out;
-  out.mesh = mesh_scene(config.scene, config.mesh_options);
-  zmq::context_t context;
-  zmq::socket_t router(context, zmq::socket_type::router);
-  router.set(zmq::sockopt::linger, 0);
-  router.bind(endpoint);
-  std::string connect = router.get(zmq::sockopt::last_endpoint);
-  std::atomic<bool> stop{false};
-  std::vector<std::thread> threads;
-  for (int i = 0; i < nodes; ++i)
-    threads.emplace_back([&, i] { node::serve(context, connect, {.name = fmt::format("n{}", i), .stop = &stop}); });
-  config.min_nodes = static_cast<uint32_t>(nodes);
-  config.strict = true;
-  config.timeout_s = 120;
-  try {
-    out.result = coordinate(router, config, out.mesh);
-  } catch (...) {
-    stop = true;
-    for (auto& t : threads) t.join();
-    throw;
-  }
-  stop = true;
-  for (auto& t : threads) t.join();
-  return out;
-}
-
-RunConfig furnace(uint64_t bundles) {
-  RunConfig c;
-  c.scene = builtin_furnace();
-  c.mesh_options.target_patches = 300;
-  c.bundles = bundles;
-  c.seed = 3;
-  return c;
-}
+using test::furnace;
+using test::Outcome;
+using test::run_cluster;
 
 // The status JSON escapes what a node may call itself.
 TEST(Cluster, StatusJsonEscapesNodeNames) {

@@ -1,0 +1,68 @@
+// sirad tests: a coordinator and node threads over real ZeroMQ sockets, in one process.
+#pragma once
+#include <atomic>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "coordinator/coordinator.h"
+#include "core/scene.h"
+#include "node/node.h"
+
+namespace sirad::cluster::test {
+
+struct Outcome {
+  RunResult result;
+  PatchMesh mesh;
+};
+
+// Runs `config` with `nodes` node threads named n0, n1, ... connected to a ROUTER bound at
+// `endpoint`; the run waits for all of them (min_nodes) and fails after 120 s.
+inline Outcome run_cluster(RunConfig config, int nodes, const std::string& endpoint) {
+  Outcome out;
+  out.mesh = mesh_scene(config.scene, config.mesh_options);
+  zmq::context_t context;
+  zmq::socket_t router(context, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  router.bind(endpoint);
+  std::string connect = router.get(zmq::sockopt::last_endpoint);
+  std::atomic<bool> stop{false};
+  std::vector<std::thread> threads;
+  for (int i = 0; i < nodes; ++i)
+    threads.emplace_back([&, i] { node::serve(context, connect, {.name = fmt::format("n{}", i), .stop = &stop}); });
+  config.min_nodes = static_cast<uint32_t>(nodes);
+  config.strict = true;
+  if (config.timeout_s == 0) config.timeout_s = 120;
+  try {
+    out.result = coordinate(router, config, out.mesh);
+  } catch (...) {
+    stop = true;
+    for (auto& t : threads) t.join();
+    throw;
+  }
+  stop = true;
+  for (auto& t : threads) t.join();
+  return out;
+}
+
+// The built-in furnace (every patch's exact radiosity is 2) at about 300 patches.
+inline RunConfig furnace(uint64_t bundles) {
+  RunConfig c;
+  c.scene = builtin_furnace();
+  c.mesh_options.target_patches = 300;
+  c.bundles = bundles;
+  c.seed = 3;
+  return c;
+}
+
+inline const NodeReport& node_named(const RunResult& r, const std::string& name) {
+  for (const auto& n : r.nodes)
+    if (n.name == name && !n.dead) return n;
+  for (const auto& n : r.nodes)
+    if (n.name == name) return n;
+  throw std::runtime_error(fmt::format("no node {}", name));
+}
+
+}  // namespace sirad::cluster::test

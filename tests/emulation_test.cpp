@@ -1,0 +1,125 @@
+// sirad tests: the cluster under an emulation profile (coordinator/profile.h) over real
+// ZeroMQ sockets: a slowed node in async mode, a node that drops off (liveness), one that comes
+// back, and links whose latency and bandwidth the messages must honour.
+#include <chrono>
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "cluster_util.h"
+#include "core/metrics.h"
+
+namespace sirad::cluster {
+namespace {
+
+using test::furnace;
+using test::node_named;
+using test::Outcome;
+using test::run_cluster;
+
+uint64_t total_bundles(const RunResult& r) {
+  uint64_t total = 0;
+  for (const auto& n : r.nodes) total += n.bundles;
+  return total;
+}
+
+// Async mode, one node of three at a quarter of the speed. Every node works from the first
+// grant to the end, so node i does b_i = r_i T_i bundles at its own rate r_i = b_i / T_i over
+// its working span T_i = busy_i + idle_i; the spans differ only by the last grant (the slow
+// node may finish its last grant of g = 8 bundles after the others stopped), so the slow
+// node's share is K r_s / sum_i r_i within one grant. The fast nodes never wait on it: their idle time (from
+// a REPORT to the next GRANT, answered at once in async mode) stays near zero. The furnace
+// stays unbiased: 4 standard deviations of a 2000-bundle chain average, 0.04 sqrt(1024/2000).
+TEST(Emulation, AsyncSlowNodeTakesProportionallyFewerAndNobodyWaits) {
+  RunConfig c = furnace(2000);
+  c.mesh_options.target_patches = 1200;  // bundles of about a millisecond, grants of 8
+  c.exchange_every = 8;
+  c.mode = Mode::async;
+  c.profile = emulation::parse_profile("nodes:\n  - name: n2\n    speed: 0.25\n", "test");
+  Outcome o = run_cluster(c, 3, "inproc://emulation-slow");
+  ASSERT_EQ(o.result.nodes.size(), 3u);
+  EXPECT_EQ(total_bundles(o.result), 2000u);
+  double rates = 0;
+  for (const auto& n : o.result.nodes) {
+    std::printf("%s: %llu bundles, busy %.3f s, idle %.4f s, %.1f bundles/s of its time\n", n.name.c_str(),
+                static_cast<unsigned long long>(n.bundles), n.busy_s, n.idle_s, n.bundles / (n.busy_s + n.idle_s));
+    rates += n.bundles / (n.busy_s + n.idle_s);
+  }
+  const NodeReport& slow = node_named(o.result, "n2");
+  double share = 2000.0 * (slow.bundles / (slow.busy_s + slow.idle_s)) / rates;
+  std::printf("slow node: %llu bundles, proportional share %.1f\n", static_cast<unsigned long long>(slow.bundles), share);
+  EXPECT_NEAR(static_cast<double>(slow.bundles), share, 8.0 + 1.0);
+  for (const char* fast : {"n0", "n1"}) {
+    const NodeReport& f = node_named(o.result, fast);
+    EXPECT_LT(slow.bundles / slow.busy_s, 0.4 * f.bundles / f.busy_s) << "the slowdown acted";
+    EXPECT_LT(f.idle_s, 0.02 * f.busy_s + 8 / (slow.bundles / (slow.busy_s + slow.idle_s))) << fast << " waited";
+  }
+  EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04 * std::sqrt(1024.0 / 2000.0));
+}
+
+// A node that drops off for good (the profile disconnects it 0.3 s after it is ready): the
+// coordinator hears nothing for 3 heartbeats of 100 ms, declares it dead, returns its grant to
+// the budget, and the run still ends with every bundle index done exactly once (the ledger
+// refuses any other count, and strict mode turns that into a failed run) and unbiased.
+TEST(Emulation, DeadNodeGrantReturnsAndTheRunCompletes) {
+  RunConfig c = furnace(3000);
+  c.exchange_every = 8;
+  c.heartbeat_ms = 100;
+  c.liveness = 3;
+  c.profile = emulation::parse_profile("nodes:\n  - name: n1\n    disconnect_at_s: 0.3\n", "test");
+  Outcome o = run_cluster(c, 3, "inproc://emulation-dead");
+  ASSERT_EQ(o.result.nodes.size(), 3u);
+  const NodeReport& gone = node_named(o.result, "n1");
+  EXPECT_TRUE(gone.dead);
+  EXPECT_GT(gone.bundles, 0u);
+  EXPECT_FALSE(node_named(o.result, "n0").dead);
+  EXPECT_EQ(total_bundles(o.result), 3000u);
+  EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04 * std::sqrt(1024.0 / 3000.0));
+}
+
+// A node that drops off and comes back 0.2 s later rejoins as a new peer with a fresh state;
+// its former entry stays (dead) with its last accepted state, and the run completes (long
+// enough, about 1.5 s, for the new peer to set up and take grants).
+TEST(Emulation, NodeThatReconnectsRejoinsAsANewPeer) {
+  RunConfig c = furnace(8000);
+  c.exchange_every = 8;
+  c.heartbeat_ms = 100;
+  c.profile = emulation::parse_profile(
+      "nodes:\n  - name: n1\n    disconnect_at_s: 0.2\n    reconnect_after_s: 0.2\n", "test");
+  Outcome o = run_cluster(c, 2, "inproc://emulation-rejoin");
+  ASSERT_EQ(o.result.nodes.size(), 3u);
+  int dead = 0, back = 0;
+  for (const auto& n : o.result.nodes)
+    if (n.name == "n1") {
+      (n.dead ? dead : back) += 1;
+      EXPECT_GT(n.bundles, 0u);
+    }
+  EXPECT_EQ(dead, 1);
+  EXPECT_EQ(back, 1);
+  EXPECT_EQ(total_bundles(o.result), 8000u);
+  EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04 * std::sqrt(1024.0 / 8000.0));
+}
+
+// Latency and bandwidth are honoured: in sync mode every exchange round is a REPORT up and an
+// UPDATE and GRANT down, so a node waits at least 2 latency + report bits / up + update bits /
+// down per round; with 8 rounds (K = 256, I = 16, 2 nodes) its idle time is at least 7 of them
+// (the first grant's wait is not counted). A lower bound only: the machine adds to it.
+TEST(Emulation, LinksDelayMessagesByLatencyAndBandwidth) {
+  RunConfig c = furnace(256);
+  c.exchange_every = 16;
+  c.mode = Mode::sync;
+  c.chunks = 4;
+  c.profile = emulation::parse_profile("defaults:\n  latency_ms: 15\n  up_mbit: 2\n  down_mbit: 4\n", "test");
+  Outcome o = run_cluster(c, 2, "inproc://emulation-links");
+  double state_bits = 24.0 * o.mesh.size() * 8;  // S = 1: every patch's 3 doubles each way
+  double round = 2 * 0.015 + state_bits / 2e6 + state_bits / 4e6;
+  for (const auto& n : o.result.nodes) {
+    std::printf("%s: idle %.3f s over 7 rounds of at least %.3f s\n", n.name.c_str(), n.idle_s, round);
+    EXPECT_EQ(n.exchanges, 8u);
+    EXPECT_GE(n.idle_s, 7 * round);
+  }
+  EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04 * std::sqrt(1024.0 / 256.0));
+}
+
+}  // namespace
+}  // namespace sirad::cluster
