@@ -76,7 +76,7 @@ class Coordinator {
     auto last_status = start_;
     while (!done()) {
       auto now = Clock::now();
-      if (config_.status && now - last_status >= std::chrono::seconds(1)) {
+      if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
         last_status = now;
         config_.status(snapshot());
       }

@@ -45,7 +45,8 @@ struct RunConfig {
   bool strict = false;          // a node's ERROR ends the run (the embedded default: its nodes
                                 // are this process's own threads)
   std::function<void(uint64_t done, uint64_t total)> progress;  // called as bundles complete
-  std::function<void(const Status&)> status;  // called about once a second, and at the end
+  std::function<void(const Status&)> status;  // called every status_every_s, and at the end
+  double status_every_s = 1.0;
 };
 
 struct NodeReport {
