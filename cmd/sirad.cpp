@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "coordinator/coordinator.h"
+#include "coordinator/live_view.h"
 #include "core/bundle_cl.h"
 #include "node/node.h"
 #include "core/error.h"
@@ -153,12 +154,9 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
     });
   rc.abort = &failed;
   auto start = std::chrono::steady_clock::now();
-  Progress progress(a.bundles, a.quiet);
-  rc.progress = [&](uint64_t done, uint64_t) {
-    progress.update(static_cast<int64_t>(done), std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  };
-  if (!a.status_json.empty())
-    rc.status = [&](const cluster::Status& st) { cluster::write_status(a.status_json, st); };
+  cluster::StatusReporter reporter(a.quiet, a.status_json);
+  rc.status_every_s = 0.25;
+  rc.status = std::ref(reporter);
   cluster::RunResult result;
   try {
     result = cluster::coordinate(router, rc, mesh);
@@ -172,15 +170,14 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   stop = true;
   for (auto& t : threads) t.join();
+  reporter.finish();
 
   write_outputs(a, out, mesh, result.radiosity, cluster::run_attributes(rc, result, mesh, a.scene));
   std::fputs(cluster::node_lines(result).c_str(), stdout);
-  std::printf("patches %zu, bundles %lld, grid %d, nodes %d, %.2f s, %.1f bundles/s, %.3g line crossings/s, "
-              "exchange traffic %llu B in, %llu B out\n",
+  std::printf("%s\n", cluster::traffic_line(result).c_str());
+  std::printf("patches %zu, bundles %lld, grid %d, nodes %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n",
               mesh.size(), static_cast<long long>(a.bundles), result.grid, a.nodes, seconds,
-              a.bundles / seconds, static_cast<double>(result.crossings) / seconds,
-              static_cast<unsigned long long>(result.exchange_bytes_in),
-              static_cast<unsigned long long>(result.exchange_bytes_out));
+              a.bundles / seconds, static_cast<double>(result.crossings) / seconds);
   return 0;
 }
 

@@ -118,6 +118,7 @@ class Coordinator {
     for (const Peer* p : all_peers()) result.nodes.push_back({p->name, p->bundles, p->exchange, p->busy_s, p->idle_s, p->dead});
     result.exchange_bytes_in = bytes_in_;
     result.exchange_bytes_out = bytes_out_;
+    result.final_bytes = final_bytes_;
     result.exchanges = exchanges_;
     result.crossings = crossings_;
     result.grid = static_cast<int>(run_.grid());
@@ -361,12 +362,12 @@ class Coordinator {
     return true;
   }
 
-  void take_chunks(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
+  void take_chunks(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk, uint64_t& bytes) {
     if (r.run_id() != run_.run_id()) fail("{} for run {:x}, not this run", "state", r.run_id());
     for (int i = 0; i < r.chunks_size(); ++i) {
       if (r.chunks(i) >= aggregate_.chunks()) fail("report names chunk {} of {}", r.chunks(i), aggregate_.chunks());
       aggregate_.set(p.index, r.chunks(i), proto::unpack(bulk[i]), r.counts(i));
-      bytes_in_ += bulk[i].size();
+      bytes += bulk[i].size();
     }
     if (std::isfinite(r.busy_s()) && std::isfinite(r.idle_s())) {
       p.busy_s = std::max(p.busy_s, r.busy_s());
@@ -380,7 +381,7 @@ class Coordinator {
       ledger_.done(p.index, {d.first(), d.last()});
       p.bundles += d.last() - d.first();
     }
-    take_chunks(p, r, bulk);
+    take_chunks(p, r, bulk, bytes_in_);
     crossings_ += r.crossings();
     if (config_.progress) config_.progress(ledger_.done_count(), config_.bundles);
     p.grants.pop_front();
@@ -406,7 +407,7 @@ class Coordinator {
 
   void final_state(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
     if (!p.stopped || p.final_in) fail("FINAL without STOP");
-    take_chunks(p, r, bulk);
+    take_chunks(p, r, bulk, final_bytes_);
     p.final_in = true;
   }
 
@@ -422,7 +423,7 @@ class Coordinator {
   std::map<std::string, Peer> peers_;
   std::vector<Peer> departed_;
   Clock::time_point start_ = Clock::now();
-  uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0, crossings_ = 0;
+  uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0, final_bytes_ = 0, crossings_ = 0;
   uint32_t exchanges_ = 0;
   bool started_ = false;
 };
@@ -445,6 +446,13 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
       {"sirad.topology", std::string(c.topology == Topology::star ? "star" : "ring")},
       {"sirad.mode", std::string(c.mode == Mode::sync ? "sync" : "async")},
   };
+}
+
+std::string traffic_line(const RunResult& r) {
+  uint64_t e = std::max<uint64_t>(r.exchanges, 1);
+  return fmt::format("exchange traffic: {} exchanges, {} B up, {} B down ({} B up, {} B down per exchange); final states {} B",
+                     r.exchanges, r.exchange_bytes_in, r.exchange_bytes_out, r.exchange_bytes_in / e,
+                     r.exchange_bytes_out / e, r.final_bytes);
 }
 
 std::string node_lines(const RunResult& r) {

@@ -61,6 +61,7 @@ struct RunResult {
   std::vector<glm::vec3> radiosity;  // the count-weighted estimate per patch
   std::vector<NodeReport> nodes;
   uint64_t exchange_bytes_in = 0, exchange_bytes_out = 0;  // REPORT and UPDATE bulk
+  uint64_t final_bytes = 0;                                // FINAL bulk (the end states)
   uint32_t exchanges = 0;
   uint64_t crossings = 0;  // line-patch crossings of all counted bundles
   int grid = 0;            // the run's grid (config.grid, or the auto grid of the mesh)
@@ -70,6 +71,10 @@ struct RunResult {
 // R, I, S, seed, and the topology and mode), `scene` naming it as the user did.
 Attributes run_attributes(const RunConfig& config, const RunResult& result, const PatchMesh& mesh,
                           const std::string& scene);
+
+// "exchange traffic: E exchanges, X B up, Y B down (x B up, y B down per exchange); final
+// states Z B" (bulk bytes: 24 per patch of each chunk sent).
+std::string traffic_line(const RunResult& result);
 
 // One line per node: "node NAME: B bundles, E exchanges, busy Xs, idle Ys[, dead]".
 std::string node_lines(const RunResult& result);

@@ -222,4 +222,18 @@ void LiveView::finish(const Status& s) {
   }
 }
 
+void StatusReporter::operator()(const Status& s) {
+  last_ = s;
+  view_.update(s);
+  if (!json_.empty() && (json_at_ < 0 || s.elapsed_s - json_at_ >= 1.0)) {
+    write_status(json_, s);
+    json_at_ = s.elapsed_s;
+  }
+}
+
+void StatusReporter::finish() {
+  view_.finish(last_);
+  if (!json_.empty()) write_status(json_, last_);
+}
+
 }  // namespace sirad::cluster

@@ -44,4 +44,20 @@ class LiveView {
   double printed_s_ = 0;                // plain: elapsed_s at the last line
 };
 
+// What a cluster driver (sirad render --nodes, sirad-coordinator) does with each Status: the
+// live view on stderr and, if asked, --status-json rewritten at most once a second; finish()
+// draws the last frame and writes the file with the last status.
+class StatusReporter {
+ public:
+  StatusReporter(bool quiet, std::string json_path) : view_(stderr, quiet), json_(std::move(json_path)) {}
+  void operator()(const Status& s);
+  void finish();
+
+ private:
+  LiveView view_;
+  std::string json_;
+  double json_at_ = -1;
+  Status last_;
+};
+
 }  // namespace sirad::cluster

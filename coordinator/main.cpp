@@ -12,6 +12,7 @@
 #include <CLI/CLI.hpp>
 
 #include "coordinator/coordinator.h"
+#include "coordinator/live_view.h"
 #include "core/atomic_file.h"
 #include "core/bundle.h"
 #include "core/error.h"
@@ -91,7 +92,9 @@ int main(int argc, char** argv) {
                   topology.c_str(), mode.c_str(), profile.empty() ? "" : ", profile ", profile.c_str());
       return 0;
     }
-    if (!status_json.empty()) rc.status = [&](const cluster::Status& st) { cluster::write_status(status_json, st); };
+    cluster::StatusReporter reporter(quiet, status_json);
+    rc.status_every_s = 0.25;
+    rc.status = std::ref(reporter);
 
     zmq::context_t context;
     zmq::socket_t router(context, zmq::socket_type::router);
@@ -111,6 +114,7 @@ int main(int argc, char** argv) {
     }
     auto start = std::chrono::steady_clock::now();
     cluster::RunResult result = cluster::coordinate(router, rc, mesh);
+    reporter.finish();
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     ResultOptions ro;
     ro.width = width;
@@ -119,10 +123,10 @@ int main(int argc, char** argv) {
     std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
                 std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
     std::fputs(cluster::node_lines(result).c_str(), stdout);
-    std::printf("patches %zu, bundles %lld, nodes %zu, %.2f s, exchange traffic %llu B in, %llu B out\n", mesh.size(),
-                static_cast<long long>(bundles), result.nodes.size(), seconds,
-                static_cast<unsigned long long>(result.exchange_bytes_in),
-                static_cast<unsigned long long>(result.exchange_bytes_out));
+    std::printf("%s\n", cluster::traffic_line(result).c_str());
+    std::printf("patches %zu, bundles %lld, grid %d, nodes %zu, %.2f s, %.1f bundles/s, %.3g line crossings/s\n",
+                mesh.size(), static_cast<long long>(bundles), result.grid, result.nodes.size(), seconds,
+                bundles / seconds, static_cast<double>(result.crossings) / seconds);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad-coordinator: error: %s\n", e.what());
     return 1;
