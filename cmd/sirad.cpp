@@ -232,6 +232,20 @@ int render(const RenderArgs& a) {
   return 0;
 }
 
+// The links a profile gives nodes 0..N-1 (named PREFIX0, PREFIX1, ...), one row each: for
+// people checking a profile and for deploy/netns-cluster.sh (tc rates per node).
+int profile_table(const std::string& path, int nodes, const std::string& prefix) {
+  emulation::Profile p = emulation::load_profile(path);
+  std::printf("index name speed slowdown latency_ms jitter_ms up_mbit down_mbit loss disconnect_at_s reconnect_after_s\n");
+  for (int i = 0; i < nodes; ++i) {
+    std::string name = fmt::format("{}{}", prefix, i);
+    emulation::LinkSpec l = p.for_node(static_cast<uint32_t>(i), name);
+    std::printf("%d %s %g %g %g %g %g %g %g %g %g\n", i, name.c_str(), l.speed, p.slowdown(l), l.latency_ms, l.jitter_ms,
+                l.up_mbit, l.down_mbit, l.loss, l.disconnect_at_s, l.reconnect_after_s);
+  }
+  return 0;
+}
+
 int devices() {
   for (const auto& d : list_devices())
     std::printf("%d:%d  %s / %s  (%s, %u compute units)\n", d.platform, d.device, d.platform_name.c_str(),
@@ -278,6 +292,12 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
       ->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_subcommand("devices", "List the OpenCL devices");
+  std::string profile_path, profile_prefix = "local-";
+  int profile_nodes = 4;
+  auto* profile_cmd = app.add_subcommand("profile", "Check an emulation profile; print the link of each node");
+  profile_cmd->add_option("file", profile_path, "Profile (YAML)")->required();
+  profile_cmd->add_option("--nodes", profile_nodes, "Nodes to list")->check(CLI::Range(1, 4096))->capture_default_str();
+  profile_cmd->add_option("--name-prefix", profile_prefix, "Node names are PREFIX0, PREFIX1, ...")->capture_default_str();
 
   try {
     app.parse(argc, argv);
@@ -290,6 +310,7 @@ int run(int argc, char** argv) {
     return 2;
   }
   if (render_cmd->parsed()) return render(r);
+  if (profile_cmd->parsed()) return profile_table(profile_path, profile_nodes, profile_prefix);
   return devices();
 }
 

@@ -278,6 +278,7 @@ class Coordinator {
     *w.mutable_run() = run_;
     if (config_.profile) {
       emulation::LinkSpec spec = config_.profile->for_node(p.index, p.name);
+      if (!config_.emulate_bandwidth) spec.up_mbit = spec.down_mbit = 0;
       uint64_t seed = config_.seed * 0x9E3779B97F4A7C15ull + p.index;
       p.down = emulation::LinkModel(spec.down_mbit, spec.latency_ms, spec.jitter_ms, spec.loss, seed);
       wire::Emulation* e = w.mutable_emulation();

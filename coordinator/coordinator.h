@@ -41,6 +41,8 @@ struct RunConfig {
   uint32_t heartbeat_ms = 1000; // HEARTBEAT interval of both sides (PROTOCOL.md section 4)
   uint32_t liveness = 3;        // a peer silent this many intervals is dead
   std::optional<emulation::Profile> profile;  // --profile: network and speed emulation
+  bool emulate_bandwidth = true;  // false: the network itself limits bandwidth (tc tbf in the
+                                  // namespace cluster); the profile's other settings still apply
   const std::atomic<bool>* abort = nullptr;  // set: the run fails at once (a local node died)
   bool strict = false;          // a node's ERROR ends the run (the embedded default: its nodes
                                 // are this process's own threads)

@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   uint64_t seed = 1;
   double fraction = 1.0, timeout = 0;
   int min_nodes = 1, chunks = 16, width = 512, height = 512, heartbeat_ms = 1000, liveness = 3;
-  bool check_config = false, quiet = false;
+  bool check_config = false, quiet = false, network_bandwidth = false;
   app.add_option("scene", scene_spec, "Built-in scene (cornell, furnace) or an .obj file")->required();
   app.add_option("--listen", listen, "ZeroMQ endpoint to bind")->capture_default_str();
   app.add_option("--bundles", bundles, "Bundles in the run")->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
@@ -53,6 +53,8 @@ int main(int argc, char** argv) {
   app.add_option("--profile", profile, "Network emulation profile (YAML; see deploy/profiles/)");
   app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat interval")->check(CLI::Range(10, 60000))->capture_default_str();
   app.add_option("--liveness", liveness, "Heartbeats a node may miss before it is dead")->check(CLI::Range(1, 100))->capture_default_str();
+  app.add_flag("--bandwidth-by-network", network_bandwidth,
+               "The network limits bandwidth (tc); do not emulate the profile's up/down rates");
   app.add_flag("--check-config", check_config, "Check the flags, scene, profile and output place; run nothing");
   app.add_flag("-q,--quiet", quiet, "No progress view");
   try {
@@ -85,6 +87,7 @@ int main(int argc, char** argv) {
     rc.heartbeat_ms = static_cast<uint32_t>(heartbeat_ms);
     rc.liveness = static_cast<uint32_t>(liveness);
     if (!profile.empty()) rc.profile = emulation::load_profile(profile);
+    rc.emulate_bandwidth = !network_bandwidth;
     proto::check_endpoint("--listen", listen, true);
     if (check_config) {
       std::printf("sirad-coordinator: config ok: %s, %zu patches, %lld bundles, exchange every %s, S %g, %s, %s%s%s\n",

@@ -1,0 +1,69 @@
+#!/usr/bin/env python3
+"""Checks a docker-compose file without an engine: every service's command must be a valid
+invocation of the built binaries. Runs `docker-compose config` (which validates the file and
+resolves variables and paths), then each service's command with --check-config, the binary
+taken from BUILD_DIR, bind-mount targets mapped to their sources on this machine and named
+volumes to a scratch directory.
+    deploy/check-compose.py BUILD_DIR deploy/docker-compose.yml [PROJECT_DIR]
+PROJECT_DIR (default: the compose file's folder) anchors its relative paths.
+"""
+import os
+import shlex
+import subprocess
+import sys
+import tempfile
+
+import yaml  # python3-yaml, a dependency of Debian's docker-compose
+
+
+def main():
+    if len(sys.argv) not in (3, 4):
+        sys.exit("usage: check-compose.py BUILD_DIR COMPOSE_FILE [PROJECT_DIR]")
+    build, compose = os.path.abspath(sys.argv[1]), sys.argv[2]
+    project = sys.argv[3] if len(sys.argv) == 4 else os.path.dirname(os.path.abspath(compose))
+    resolved = subprocess.run(["docker-compose", "-f", compose, "--project-directory", project, "config"],
+                              check=True, capture_output=True, text=True).stdout
+    services = yaml.safe_load(resolved)["services"]
+    scratch = tempfile.mkdtemp(prefix="sirad-compose-")
+    failed = 0
+    for name, service in services.items():
+        command = service.get("command")
+        if command is None:
+            print(f"{name}: no command", file=sys.stderr)
+            failed += 1
+            continue
+        args = shlex.split(command) if isinstance(command, str) else list(command)
+        mounts = []
+        for volume in service.get("volumes", []):
+            if isinstance(volume, str):
+                parts = volume.split(":")
+                volume = {"type": "bind" if parts[0].startswith(("/", ".")) else "volume",
+                          "source": parts[0], "target": parts[1]}
+            if volume["type"] == "bind":
+                source = volume["source"]
+            else:
+                source = os.path.join(scratch, volume["source"])
+                os.makedirs(source, exist_ok=True)
+            mounts.append((volume["target"].rstrip("/"), source))
+        def local(arg):
+            for target, source in mounts:
+                if arg == target or arg.startswith(target + "/"):
+                    return source + arg[len(target):]
+            return arg
+        binary = os.path.join(build, args[0])
+        if not os.access(binary, os.X_OK):
+            print(f"{name}: {args[0]} is not a sirad binary in {build}", file=sys.stderr)
+            failed += 1
+            continue
+        run = [binary] + [local(a) for a in args[1:]] + ["--check-config"]
+        result = subprocess.run(run, capture_output=True, text=True)
+        out = (result.stdout + result.stderr).strip()
+        print(f"{name}: {out}")
+        if result.returncode != 0:
+            print(f"{name}: command failed: {' '.join(shlex.quote(a) for a in args)}", file=sys.stderr)
+            failed += 1
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()
