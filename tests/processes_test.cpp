@@ -129,4 +129,35 @@ TEST(Processes, CoordinatorAndThreeNodesOverTcp) {
   fs::remove_all(dir);
 }
 
+// The embedded default and the TCP cluster are the same code: with one node, `sirad render
+// --nodes 1` (inproc, one process) and sirad-coordinator + one sirad-node process over loopback
+// TCP run the same bundles in the same order on the same chain, so the PLY files (radiosity
+// per patch, written deterministically) are identical byte for byte.
+TEST(Processes, EmbeddedDefaultEqualsTcpClusterBitForBit) {
+  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_same_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::vector<std::string> run = {"--bundles", "200", "--patches", "400", "--seed", "9", "--exchange-every", "8",
+                                        "--width", "16", "--height", "16"};
+  std::vector<std::string> embedded = {SIRAD_BINARY, "render", "cornell", "--nodes", "1", "-q", "--out",
+                                       (dir / "embedded").string()};
+  embedded.insert(embedded.end(), run.begin(), run.end());
+  Child e(embedded, dir / "embedded.log");
+  ASSERT_EQ(e.wait(120), 0) << slurp(dir / "embedded.log");
+  std::vector<std::string> coord = {SIRAD_COORDINATOR_BINARY, "cornell", "--listen", "tcp://127.0.0.1:*", "-q",
+                                    "--endpoint-file", (dir / "endpoint").string(), "--out", (dir / "tcp").string(),
+                                    "--timeout", "120"};
+  coord.insert(coord.end(), run.begin(), run.end());
+  Child coordinator(coord, dir / "coordinator.log");
+  for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  Child node({SIRAD_NODE_BINARY, "--connect", slurp(dir / "endpoint"), "--name", "tcp-node"}, dir / "node.log");
+  ASSERT_EQ(coordinator.wait(150), 0) << slurp(dir / "coordinator.log");
+  std::string a = slurp(dir / "embedded.ply"), b = slurp(dir / "tcp.ply");
+  ASSERT_GT(a.size(), 1000u);
+  EXPECT_TRUE(a == b) << "the embedded default and the TCP cluster differ";
+  node.terminate();
+  EXPECT_EQ(node.wait(10), 0);
+  fs::remove_all(dir);
+}
+
 }  // namespace
