@@ -51,6 +51,7 @@ struct RenderArgs {
   int chunks = 16;
   std::string status_json;
   std::string profile;
+  double time_limit = 0, target_error = 0;
 };
 
 // A progress bar on a terminal, a plain line every 10% otherwise.
@@ -134,6 +135,8 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.min_nodes = static_cast<uint32_t>(a.nodes);
   rc.strict = true;
   rc.profile = std::move(profile);
+  rc.time_limit_s = a.time_limit;
+  rc.target_error = a.target_error;
 
   const std::string endpoint = "inproc://sirad-embedded";
   zmq::context_t context;
@@ -176,8 +179,9 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   std::fputs(cluster::node_lines(result).c_str(), stdout);
   std::printf("%s\n", cluster::traffic_line(result).c_str());
   std::printf("patches %zu, bundles %lld, grid %d, nodes %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n",
-              mesh.size(), static_cast<long long>(a.bundles), result.grid, a.nodes, seconds,
-              a.bundles / seconds, static_cast<double>(result.crossings) / seconds);
+              mesh.size(), static_cast<long long>(result.bundles), result.grid, a.nodes, seconds,
+              result.bundles / seconds, static_cast<double>(result.crossings) / seconds);
+  if (result.ended_by != "budget") std::printf("ended early: %s\n", result.ended_by.c_str());
   return 0;
 }
 
@@ -185,6 +189,8 @@ int render(const RenderArgs& a) {
   // Check everything cheap before any work: flags, output place, scene, device.
   if (a.patches && a.max_edge) fail("--patches and --max-edge exclude each other");
   if (!a.profile.empty() && a.nodes == 0) fail("--profile {}: emulation needs a cluster (--nodes N)", a.profile);
+  if ((a.time_limit > 0 || a.target_error > 0) && a.nodes == 0)
+    fail("--time-limit and --target-error need a cluster (--nodes N)");
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   UpdateRule rule = parse_update_rule(a.rule);
@@ -289,6 +295,11 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
   render_cmd->add_option("--status-json", r.status_json, "With --nodes: rewrite this file with the run's status every second");
   render_cmd->add_option("--profile", r.profile, "With --nodes: network emulation profile (YAML; nodes are named local-0, local-1, ...)");
+  render_cmd->add_option("--time-limit", r.time_limit, "With --nodes: end the run early after this long (seconds)")
+      ->check(CLI::NonNegativeNumber);
+  render_cmd->add_option("--target-error", r.target_error,
+                         "With --nodes (2+) and --exchange-every: end the run at this relative error estimate")
+      ->check(CLI::Range(0.0, 1.0));
   render_cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
       ->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_subcommand("devices", "List the OpenCL devices");

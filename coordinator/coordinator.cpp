@@ -65,10 +65,16 @@ class Coordinator {
     run_.set_bundles(config.bundles);
     run_.set_target_patches(config.mesh_options.target_patches);
     run_.set_max_edge(config.mesh_options.max_edge);
+    // The error estimate weighs non-emitting patches by area (emitters are mostly E, known
+    // exactly); a scene where every patch emits (the furnace) weighs them all.
+    double lit = 0;
     for (std::size_t j = 0; j < mesh.size(); ++j) {
       glm::vec3 e = mesh.emission(j);
       weight_[j] = e.x + e.y + e.z > 0 ? 0.0 : static_cast<double>(mesh.area[j]);
+      lit += weight_[j];
     }
+    if (lit == 0)
+      for (std::size_t j = 0; j < mesh.size(); ++j) weight_[j] = mesh.area[j];
   }
 
   RunResult run() {
@@ -85,6 +91,7 @@ class Coordinator {
              config_.bundles);
       if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
       keep_alive(now);
+      check_close(now);
       auto frames = proto::receive(router_, wait_ms(now));
       if (!frames || frames->size() < 2) continue;
       std::string id = frames->front();
@@ -122,6 +129,8 @@ class Coordinator {
     result.exchanges = exchanges_;
     result.crossings = crossings_;
     result.grid = static_cast<int>(run_.grid());
+    result.bundles = ledger_.done_count();
+    result.ended_by = ended_by_.empty() ? "budget" : ended_by_;
     return result;
   }
 
@@ -166,7 +175,7 @@ class Coordinator {
   }
 
   bool done() const {
-    if (!ledger_.finished()) return false;
+    if (!ending()) return false;
     for (const auto& [id, p] : peers_)
       if (!p.dead && p.ready && !p.final_in) return false;
     return true;
@@ -328,9 +337,9 @@ class Coordinator {
     if (config_.mode == Mode::sync && any_holding) return;
     std::size_t depth = config_.mode == Mode::async && ledger_.available() >= 2 * ready * grant_size() ? 2 : 1;
     for (auto& [id, p] : peers_)
-      while (!p.dead && p.ready && !p.stopped && p.grants.size() < depth && give_grant(p)) {
+      while (!closing_ && !p.dead && p.ready && !p.stopped && p.grants.size() < depth && give_grant(p)) {
       }
-    if (ledger_.finished())  // not before: a dead node's grant may still come back to the budget
+    if (ending())  // not before: a dead node's grant may still come back to the budget
       for (auto& [id, p] : peers_)
         if (!p.dead && p.ready && !p.stopped && p.grants.empty()) {
           wire::Stop s;
@@ -338,6 +347,31 @@ class Coordinator {
           send(p, {Command::stop, s, {}});
           p.stopped = true;
         }
+  }
+
+  // Every bundle done, or the run closed early and every outstanding grant is in.
+  bool ending() const {
+    if (ledger_.finished()) return true;
+    if (!closing_) return false;
+    for (const auto& [id, p] : peers_)
+      if (!p.dead && !p.grants.empty()) return false;
+    return true;
+  }
+
+  // A time limit or the target error closes the run: no more grants, the outstanding ones finish.
+  void check_close(Clock::time_point now) {
+    if (closing_ || ledger_.finished()) return;
+    if (config_.time_limit_s > 0 && seconds(now - start_) >= config_.time_limit_s) ended_by_ = "time limit";
+    else if (config_.target_error > 0 && exchanges_ > last_error_check_) {
+      last_error_check_ = exchanges_;
+      double e = aggregate_.spread_error(weight_);
+      if (e >= 0 && e <= config_.target_error) ended_by_ = fmt::format("target error ({:.4g} <= {:.4g})", e, config_.target_error);
+    }
+    if (ended_by_.empty()) return;
+    closing_ = true;
+    std::fprintf(stderr, "sirad-coordinator: %s reached after %llu bundles: finishing the outstanding grants\n",
+                 ended_by_.c_str(), static_cast<unsigned long long>(ledger_.done_count()));
+    schedule();
   }
 
   uint64_t grant_size() const {
@@ -427,6 +461,9 @@ class Coordinator {
   uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0, final_bytes_ = 0, crossings_ = 0;
   uint32_t exchanges_ = 0;
   bool started_ = false;
+  bool closing_ = false;        // no more grants (time limit or target error)
+  std::string ended_by_;
+  uint32_t last_error_check_ = 0;
 };
 
 }  // namespace
@@ -437,7 +474,7 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
       {"sirad.scene", scene},
       {"sirad.scene_hash", mesh.hash},
       {"sirad.patches", static_cast<int64_t>(mesh.size())},
-      {"sirad.bundles", static_cast<int64_t>(c.bundles)},
+      {"sirad.bundles", static_cast<int64_t>(r.bundles)},
       {"sirad.grid", static_cast<int64_t>(r.grid)},
       {"sirad.seed", std::to_string(c.seed)},
       {"sirad.rule", std::string(to_string(c.rule))},

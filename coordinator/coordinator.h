@@ -38,6 +38,9 @@ struct RunConfig {
   uint32_t chunks = 16;
   uint32_t min_nodes = 1;       // nodes ready before the first grant
   double timeout_s = 0;         // 0: none; else the run fails if it takes longer
+  double time_limit_s = 0;      // 0: none; else no grants after this long: the run ends early
+  double target_error = 0;      // 0: none; else the run ends early once the error estimate
+                                // (Status::error_estimate) is at or below it
   uint32_t heartbeat_ms = 1000; // HEARTBEAT interval of both sides (PROTOCOL.md section 4)
   uint32_t liveness = 3;        // a peer silent this many intervals is dead
   std::optional<emulation::Profile> profile;  // --profile: network and speed emulation
@@ -67,6 +70,8 @@ struct RunResult {
   uint32_t exchanges = 0;
   uint64_t crossings = 0;  // line-patch crossings of all counted bundles
   int grid = 0;            // the run's grid (config.grid, or the auto grid of the mesh)
+  uint64_t bundles = 0;    // bundles done (config.bundles unless a time limit or target ended it)
+  std::string ended_by;    // "budget", "time limit" or "target error"
 };
 
 // The EXR header attributes of a cluster run (DESIGN.md section 4: scene hash, bundles, nodes,

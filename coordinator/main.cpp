@@ -28,7 +28,7 @@ int main(int argc, char** argv) {
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
-  double fraction = 1.0, timeout = 0;
+  double fraction = 1.0, timeout = 0, time_limit = 0, target_error = 0;
   int min_nodes = 1, chunks = 16, width = 512, height = 512, heartbeat_ms = 1000, liveness = 3;
   bool check_config = false, quiet = false, network_bandwidth = false;
   app.add_option("scene", scene_spec, "Built-in scene (cornell, furnace) or an .obj file")->required();
@@ -50,6 +50,10 @@ int main(int argc, char** argv) {
   app.add_option("--endpoint-file", endpoint_file, "Write the bound endpoint here (for scripts: tcp://*:0 picks a port)");
   app.add_option("--status-json", status_json, "Rewrite this file with the run's status every second");
   app.add_option("--timeout", timeout, "Fail if the run takes longer (seconds; 0: never)")->check(CLI::NonNegativeNumber);
+  app.add_option("--time-limit", time_limit, "End the run early after this long (seconds; 0: never)")->check(CLI::NonNegativeNumber);
+  app.add_option("--target-error", target_error,
+                 "End the run early at this relative error estimate (needs 2+ nodes and --exchange-every)")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--profile", profile, "Network emulation profile (YAML; see deploy/profiles/)");
   app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat interval")->check(CLI::Range(10, 60000))->capture_default_str();
   app.add_option("--liveness", liveness, "Heartbeats a node may miss before it is dead")->check(CLI::Range(1, 100))->capture_default_str();
@@ -84,6 +88,8 @@ int main(int argc, char** argv) {
     rc.chunks = static_cast<uint32_t>(chunks);
     rc.min_nodes = static_cast<uint32_t>(min_nodes);
     rc.timeout_s = timeout;
+    rc.time_limit_s = time_limit;
+    rc.target_error = target_error;
     rc.heartbeat_ms = static_cast<uint32_t>(heartbeat_ms);
     rc.liveness = static_cast<uint32_t>(liveness);
     if (!profile.empty()) rc.profile = emulation::load_profile(profile);
@@ -128,8 +134,9 @@ int main(int argc, char** argv) {
     std::fputs(cluster::node_lines(result).c_str(), stdout);
     std::printf("%s\n", cluster::traffic_line(result).c_str());
     std::printf("patches %zu, bundles %lld, grid %d, nodes %zu, %.2f s, %.1f bundles/s, %.3g line crossings/s\n",
-                mesh.size(), static_cast<long long>(bundles), result.grid, result.nodes.size(), seconds,
-                bundles / seconds, static_cast<double>(result.crossings) / seconds);
+                mesh.size(), static_cast<long long>(result.bundles), result.grid, result.nodes.size(), seconds,
+                result.bundles / seconds, static_cast<double>(result.crossings) / seconds);
+    if (result.ended_by != "budget") std::printf("ended early: %s\n", result.ended_by.c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad-coordinator: error: %s\n", e.what());
     return 1;

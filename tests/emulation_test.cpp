@@ -123,3 +123,48 @@ TEST(Emulation, LinksDelayMessagesByLatencyAndBandwidth) {
 
 }  // namespace
 }  // namespace sirad::cluster
+
+namespace sirad::cluster {
+namespace {
+
+double furnace_rms(const test::Outcome& o) {
+  double s = 0;
+  for (const auto& b : o.result.radiosity) s += (b.x / 2.0 - 1.0) * (b.x / 2.0 - 1.0);
+  return std::sqrt(s / static_cast<double>(o.result.radiosity.size()));
+}
+
+// A target error ends the run early, once the spread of three independent chains says the
+// relative error per patch is at or below it; the furnace's true error is then of that size
+// (within a factor 2: with 3 chains the estimate has 2 degrees of freedom per patch, pooled over
+// 300 patches, so it is far steadier than that; issue 4 calibrates it properly).
+TEST(RunEnds, AtTheTargetError) {
+  RunConfig c = furnace(20000);  // about 10 s if the target never ends it
+  c.exchange_every = 8;
+  c.target_error = 0.03;
+  Outcome o = run_cluster(c, 3, "inproc://ends-target");
+  double rms = furnace_rms(o);
+  std::printf("target 0.03: ended after %llu bundles (%s), true RMS error %.4f\n",
+              static_cast<unsigned long long>(o.result.bundles), o.result.ended_by.c_str(), rms);
+  EXPECT_EQ(o.result.ended_by.rfind("target error", 0), 0u);
+  EXPECT_LT(o.result.bundles, 20000u);
+  EXPECT_EQ(total_bundles(o.result), o.result.bundles);
+  EXPECT_GT(rms, 0.03 / 2);
+  EXPECT_LT(rms, 0.03 * 2);
+}
+
+// A time limit ends the run early too: no grants after it, the outstanding ones finish, every
+// node's final state is in, and the bundles counted are exactly those done.
+TEST(RunEnds, AtTheTimeLimit) {
+  RunConfig c = furnace(1000000);
+  c.exchange_every = 8;
+  c.time_limit_s = 1.0;
+  Outcome o = run_cluster(c, 2, "inproc://ends-time");
+  EXPECT_EQ(o.result.ended_by, "time limit");
+  EXPECT_GT(o.result.bundles, 0u);
+  EXPECT_LT(o.result.bundles, 1000000u);
+  EXPECT_EQ(total_bundles(o.result), o.result.bundles);
+  EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04 * std::sqrt(1024.0 / o.result.bundles));
+}
+
+}  // namespace
+}  // namespace sirad::cluster
