@@ -18,6 +18,12 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <glm/vec3.hpp>
+
+#include "core/metrics.h"
+#include "core/bundle_cl.h"
+#include "core/scene.h"
+#include "core/solver.h"
 
 extern char** environ;
 namespace fs = std::filesystem;
@@ -70,6 +76,51 @@ std::string slurp(const fs::path& p) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+// The per-face radiosity of a PLY written by sirad (after the header: float vertices, then per
+// face: uchar 3, three ints, nine floats: radiosity, reflectance, emission).
+std::vector<glm::vec3> ply_radiosity(const fs::path& path) {
+  std::string ply = slurp(path);
+  auto header_end = ply.find("end_header\n") + 11;
+  auto count_of = [&](const std::string& element) {
+    auto at = ply.find("element " + element + " ");
+    return std::stoull(ply.substr(at + 9 + element.size()));
+  };
+  uint64_t vertices = count_of("vertex"), faces = count_of("face");
+  const char* p = ply.data() + header_end + vertices * 12;
+  std::vector<glm::vec3> out(faces);
+  for (uint64_t f = 0; f < faces; ++f) {
+    std::memcpy(&out[f], p + 1 + 12, 12);
+    p += 1 + 12 + 36;
+  }
+  return out;
+}
+
+// A coordinator process and `nodes` node processes over loopback TCP on a system-chosen port;
+// returns the coordinator's exit status (its log and outputs are in `dir`).
+int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coordinator_args) {
+  std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY};
+  args.insert(args.end(), coordinator_args.begin(), coordinator_args.end());
+  for (std::string a : std::vector<std::string>{"--listen", "tcp://127.0.0.1:*", "--endpoint-file",
+                                                (dir / "endpoint").string(), "--min-nodes", fmt::format("{}", nodes),
+                                                "--timeout", "120", "-q"})
+    args.push_back(a);
+  Child coordinator(args, dir / "coordinator.log");
+  if (!coordinator.started()) return -1;
+  for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::string endpoint = slurp(dir / "endpoint");
+  std::vector<std::unique_ptr<Child>> children;
+  for (int i = 0; i < nodes; ++i)
+    children.push_back(std::make_unique<Child>(
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--name", fmt::format("p{}", i)},
+        dir / fmt::format("node{}.log", i)));
+  int status = coordinator.wait(150);
+  for (auto& n : children) {
+    n->terminate();
+    if (n->wait(10) != 0) status = status == 0 ? -2 : status;
+  }
+  return status;
+}
+
 // Coordinator plus 3 node processes over loopback TCP: the run completes with every bundle
 // done once (the per-node counts add up to K, the ledger refuses repeats), the outputs are
 // written, the nodes stop cleanly on SIGTERM, and the furnace's mean is 2 within 4 standard
@@ -102,23 +153,10 @@ TEST(Processes, CoordinatorAndThreeNodesOverTcp) {
   }
   EXPECT_EQ(total, 512u) << log;
   for (const char* ext : {".exr", ".png", ".ply"}) EXPECT_TRUE(fs::exists(dir / (std::string("furnace") + ext)));
-  // The furnace's mean, from the PLY's per-face radiosity (after the header: float vertices,
-  // then per face: uchar 3, three ints, nine floats).
-  std::string ply = slurp(dir / "furnace.ply");
-  auto header_end = ply.find("end_header\n") + 11;
-  auto count_of = [&](const std::string& element) {
-    auto at = ply.find("element " + element + " ");
-    return std::stoull(ply.substr(at + 9 + element.size()));
-  };
-  uint64_t vertices = count_of("vertex"), faces = count_of("face");
-  const char* p = ply.data() + header_end + vertices * 12;
+  std::vector<glm::vec3> radiosity = ply_radiosity(dir / "furnace.ply");
   double sum = 0.0;
-  for (uint64_t f = 0; f < faces; ++f) {
-    float r;
-    std::memcpy(&r, p + 1 + 12, 4);
-    sum += r;
-    p += 1 + 12 + 36;
-  }
+  for (const auto& r : radiosity) sum += r.x;
+  const auto faces = radiosity.size();
   double mean = sum / static_cast<double>(faces);  // the furnace's patches have nearly equal areas
   std::printf("3 node processes, furnace: mean radiosity %.4f\n", mean);
   EXPECT_NEAR(mean, 2.0, 0.055);
@@ -157,6 +195,57 @@ TEST(Processes, EmbeddedDefaultEqualsTcpClusterBitForBit) {
   EXPECT_TRUE(a == b) << "the embedded default and the TCP cluster differ";
   node.terminate();
   EXPECT_EQ(node.wait(10), 0);
+  fs::remove_all(dir);
+}
+
+// On the Cornell box, 3 node processes over TCP agree with single-node runs of the same total
+// bundles (K = 512, 300 patches). With independent estimates of the same expectation, the
+// squared relative RMS difference D^2 of any two has expectation 2 Var (metrics.h), so the
+// cluster's mean D^2 against 4 single runs matches the single runs' mean D^2 among themselves.
+// Noise: log D^2 of one pair has sd about 0.125 here (solver_test's convergence slope, sd 0.032
+// over a log range of ln 16, measured with 3 pooled pairs), so the log of the ratio of the two
+// pooled means has sd about 0.125 (4 and 6 pairs, correlated through the shared runs): we allow
+// a factor 1.6 (3.8 sd) each way. A bias between cluster and single node adds its square to the
+// cluster's D^2; a cluster that duplicated or dropped bundles has a different variance. The
+// scene mean (area-weighted, red) is checked for bias against the single runs' spread: within
+// 4 sd of one run, sqrt(1 + 1/4) for the mean of 4.
+TEST(Processes, CornellClusterAgreesWithSingleNodeRuns) {
+  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_cornell_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ASSERT_EQ(run_processes(dir, 3, {"cornell", "--bundles", "512", "--patches", "300", "--seed", "99", "--exchange-every",
+                                   "16", "--out", (dir / "cluster").string(), "--width", "16", "--height", "16"}),
+            0)
+      << slurp(dir / "coordinator.log");
+  sirad::PatchMesh mesh = sirad::mesh_scene(sirad::builtin_cornell(), {.target_patches = 300});
+  std::vector<glm::vec3> cluster = ply_radiosity(dir / "cluster.ply");
+  ASSERT_EQ(cluster.size(), mesh.size());
+  auto engine = sirad::make_cl_engine(mesh);
+  std::vector<std::vector<glm::vec3>> single;
+  for (uint64_t seed = 1; seed <= 4; ++seed) {
+    sirad::Solver solver(mesh, *engine, {.seed = seed});
+    for (uint64_t k = 0; k < 512; ++k) solver.step(k);
+    single.push_back(solver.estimate());
+  }
+  auto d2 = [&](const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b) {
+    double d = sirad::relative_rms(mesh, a, b);
+    return d * d;
+  };
+  double among = 0, against = 0, m = 0, mm = 0;
+  for (int i = 0; i < 4; ++i) {
+    against += d2(cluster, single[i]) / 4;
+    for (int j = i + 1; j < 4; ++j) among += d2(single[i], single[j]) / 6;
+    double mean = sirad::area_mean(mesh, single[i]);
+    m += mean / 4;
+    mm += mean * mean / 4;
+  }
+  double sd = std::sqrt((mm - m * m) * 4 / 3);
+  double cluster_mean = sirad::area_mean(mesh, cluster);
+  std::printf("Cornell: D^2 cluster vs single %.4f, single vs single %.4f (ratio %.3f); scene mean %.5f vs %.5f (sd %.2g)\n",
+              against, among, against / among, cluster_mean, m, sd);
+  EXPECT_LT(against / among, 1.6);
+  EXPECT_GT(against / among, 1 / 1.6);
+  EXPECT_LE(std::abs(cluster_mean - m), 4 * sd * std::sqrt(1.25));
   fs::remove_all(dir);
 }
 
