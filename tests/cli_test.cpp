@@ -191,6 +191,22 @@ TEST_F(Cli, NonsensicalFlags) {
   expect_error(sirad("render cornell --nodes 2 --topology mesh"), "--topology");
 }
 
+// Emulation profiles and the run-ending flags: bad ones are one line naming file, line and key.
+TEST_F(Cli, BadProfilesAndEndingFlags) {
+  write("slow.yaml", "defaults:\n  speed: 0\n");
+  expect_error(sirad("render cornell --nodes 2 --profile slow.yaml"), "slow.yaml:2: defaults.speed: 0 is not in");
+  write("typo.yaml", "nodes:\n  - name: a\n    latency: 3\n");
+  expect_error(sirad("render cornell --nodes 2 --profile typo.yaml"), "typo.yaml:3: nodes[0].latency: unknown key");
+  expect_error(sirad("render cornell --nodes 2 --profile none.yaml"), "none.yaml: cannot read the profile");
+  expect_error(sirad("render cornell --profile " SIRAD_SOURCE_DIR "/deploy/profiles/lan-1g.yaml"), "needs a cluster");
+  expect_error(sirad("render cornell --time-limit 3"), "need a cluster");
+  expect_error(sirad("render cornell --nodes 2 --target-error 2"), "--target-error");
+  expect_error(sirad("profile typo.yaml"), "typo.yaml:3");
+  Outcome ok = sirad("profile " SIRAD_SOURCE_DIR "/deploy/profiles/office-mixed.yaml --nodes 4");
+  EXPECT_EQ(ok.status, 0) << ok.err;
+  EXPECT_NE(ok.out.find("3 local-3 0.5 4 0.5 0.2 100 100 0 -1 -1"), std::string::npos) << ok.out;
+}
+
 TEST_F(Cli, DeviceByIndexNameAndEnvironment) {
   const std::string args = "render furnace --patches 60 --bundles 2 --width 8 --height 8 -q";
   expect_error(sirad(args + " --device 7:3"), "7:3");
