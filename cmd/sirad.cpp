@@ -144,8 +144,8 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   router.set(zmq::sockopt::linger, 0);
   router.bind(endpoint);
   std::atomic<bool> stop{false}, failed{false};
-  std::vector<std::thread> threads;
   std::vector<std::string> node_errors(static_cast<std::size_t>(a.nodes));
+  std::vector<std::jthread> threads;  // joined however this function ends (declared last)
   for (int i = 0; i < a.nodes; ++i)
     threads.emplace_back([&, i] {
       try {
@@ -155,6 +155,10 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
         failed = true;
       }
     });
+  struct StopOnExit {  // destroyed before `threads`: however this ends, the nodes are told first
+    std::atomic<bool>& stop;
+    ~StopOnExit() { stop = true; }
+  } stop_on_exit{stop};
   rc.abort = &failed;
   auto start = std::chrono::steady_clock::now();
   cluster::StatusReporter reporter(a.quiet, a.status_json);
@@ -171,11 +175,11 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
     throw;
   }
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  stop = true;
-  for (auto& t : threads) t.join();
+  stop = true;  // the node threads leave within a poll interval, while the outputs are written
   reporter.finish();
 
   write_outputs(a, out, mesh, result.radiosity, cluster::run_attributes(rc, result, mesh, a.scene));
+  for (auto& t : threads) t.join();
   std::fputs(cluster::node_lines(result).c_str(), stdout);
   std::printf("%s\n", cluster::traffic_line(result).c_str());
   std::printf("patches %zu, bundles %lld, grid %d, nodes %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n",
