@@ -215,13 +215,17 @@ class Node {
     busy_s_ = idle_s_ = 0;
     granted_ = false;
     emulation_ = w.has_emulation() ? w.emulation() : no_emulation();
-    if (!std::isfinite(emulation_.slowdown()) || emulation_.slowdown() < 1 || emulation_.slowdown() > 1e6) {
-      error(fmt::format("WELCOME: emulated slowdown {} is not in [1, 1e6]", emulation_.slowdown()));
-      emulation_.set_slowdown(1);
+    const wire::Emulation& e = emulation_;
+    auto in = [](double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; };
+    if (!in(e.slowdown(), 1, 1e6) || !in(e.latency_ms(), 0, 6e4) || !in(e.jitter_ms(), 0, 6e4) ||
+        !in(e.up_mbit(), 0, 1e6) || !in(e.loss(), 0, 0.5) || !std::isfinite(e.disconnect_at_s()) ||
+        !std::isfinite(e.reconnect_after_s())) {
+      error("WELCOME: emulation settings out of range; running unshaped");
+      emulation_ = no_emulation();
     }
     if (disconnected_runs_.count(w.run().run_id())) emulation_.set_disconnect_at_s(-1);  // once per run
-    up_ = emulation::LinkModel(emulation_.up_mbit(), emulation_.latency_ms(), emulation_.jitter_ms(),
-                               std::clamp(emulation_.loss(), 0.0, 0.5), emulation_.seed());
+    up_ = emulation::LinkModel(emulation_.up_mbit(), emulation_.latency_ms(), emulation_.jitter_ms(), emulation_.loss(),
+                               emulation_.seed());
   }
 
   // Scene chunks in order; the last one completes the scene: mesh it, check the hash, start.
