@@ -388,14 +388,14 @@ void bench_bytes(const Scene& scene, std::size_t patches, uint64_t bundles, int 
     ClusterRun run = run_cluster(rc, nodes, device, serial++);
     const auto& r = run.result;
     // Expected: each node's e-th exchange names exchange_chunks(e, S, C), 24 bytes per patch of
-    // those; REPORT bulk in = those plus every node's FINAL (all patches).
+    // those, REPORT and UPDATE alike; every node's FINAL (all patches) is RunResult::final_bytes.
     uint64_t expected = 0;
     for (const auto& node : r.nodes)
       for (uint32_t e = 0; e < node.exchanges; ++e)
         for (uint32_t ch : cluster::exchange_chunks(e, fraction, c)) expected += 24ull * (starts[ch + 1] - starts[ch]);
     uint32_t sent = static_cast<uint32_t>(cluster::exchange_chunks(0, fraction, c).size());
     double ex = std::max<uint32_t>(r.exchanges, 1);
-    double report = static_cast<double>(r.exchange_bytes_in - 24ull * n * r.nodes.size()) / ex;
+    double report = static_cast<double>(r.exchange_bytes_in) / ex;  // FINALs are counted apart
     double update = static_cast<double>(r.exchange_bytes_out) / ex;
     std::string param = fmt::format("S={};patches={};nodes={};I={};C={}", fraction, n, nodes, every, c);
     std::printf("# bytes, S = %g: %u of %u chunks per exchange; expected REPORT = UPDATE = 24 * patches of those "
@@ -406,7 +406,8 @@ void bench_bytes(const Scene& scene, std::size_t patches, uint64_t bundles, int 
     row("exchange_bytes", "inproc", param, "expected", static_cast<double>(expected) / ex, "B");
     row("exchange_bytes", "inproc", param, "nominal", 24.0 * n * sent / c, "B");
     row("exchange_bytes", "inproc", param, "exchanges", r.exchanges, "count");
-    bool ok = r.exchange_bytes_out == expected && r.exchange_bytes_in == expected + 24ull * n * r.nodes.size();
+    bool ok = r.exchange_bytes_out == expected && r.exchange_bytes_in == expected &&
+              r.final_bytes == 24ull * n * r.nodes.size();
     std::printf("# check S = %g: measured %s expected (in %llu B, out %llu B over %u exchanges)\n", fraction,
                 ok ? "equals" : "DIFFERS FROM", static_cast<unsigned long long>(r.exchange_bytes_in),
                 static_cast<unsigned long long>(r.exchange_bytes_out), r.exchanges);
