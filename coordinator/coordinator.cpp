@@ -412,14 +412,19 @@ class Coordinator {
 
   void report(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
     if (p.grants.empty() || r.grant_id() != p.grants.front()) fail("report for grant {} it does not hold", r.grant_id());
-    for (const auto& d : r.done()) {
-      ledger_.done(p.index, {d.first(), d.last()});
-      p.bundles += d.last() - d.first();
+    p.grants.pop_front();  // answered, whatever follows: a refused report must not wedge the run
+    try {
+      for (const auto& d : r.done()) {
+        ledger_.done(p.index, {d.first(), d.last()});
+        p.bundles += d.last() - d.first();
+      }
+      take_chunks(p, r, bulk, bytes_in_);
+    } catch (const Error&) {
+      schedule();  // refused (the caller logs it and answers ERROR); the others go on
+      throw;
     }
-    take_chunks(p, r, bulk, bytes_in_);
     crossings_ += r.crossings();
     if (config_.progress) config_.progress(ledger_.done_count(), config_.bundles);
-    p.grants.pop_front();
     if (r.chunks_size() > 0) {
       // The exchange: the others' aggregate (star) or the next node's state (ring).
       wire::Update u;

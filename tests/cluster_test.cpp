@@ -1,7 +1,9 @@
 // sirad tests: the coordinator and nodes over real ZeroMQ sockets (inproc and loopback TCP), the
 // same code as the embedded default: every bundle once, the furnace unbiased, the exchange
 // policy followed (period I, fraction S, star and ring, sync and async).
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <thread>
 
 #include <fmt/format.h>
@@ -153,6 +155,78 @@ TEST(Cluster, MalformedMessagesAreRefusedWhileARunGoesOn) {
   for (const auto& n : out.result.nodes) total += n.bundles;
   EXPECT_EQ(total, 256u);
   EXPECT_NEAR(area_mean(out.mesh, out.result.radiosity), 2.0, 0.08);
+}
+
+// A node that reports an impossible state (NaN sums) for one grant is refused with ERROR but
+// not wedged: its next grant's REPORT (a plausible state: 2 per patch, the furnace's answer) is
+// accepted. Then it falls silent; it is declared dead after 3 heartbeats of 100 ms, its queued
+// grant comes back, and the honest node finishes the budget, unbiased.
+TEST(Cluster, ANodeReportingNaNIsRefusedAndTheRunGoesOn) {
+  RunConfig c = furnace(512);
+  c.exchange_every = 16;
+  c.heartbeat_ms = 100;
+  c.min_nodes = 2;
+  c.timeout_s = 60;
+  Outcome out;
+  out.mesh = mesh_scene(c.scene, c.mesh_options);
+  zmq::context_t context;
+  zmq::socket_t router(context, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  router.bind("inproc://cluster-liar");
+  std::atomic<bool> stop{false};
+  std::thread node([&] { node::serve(context, "inproc://cluster-liar", {.name = "honest", .stop = &stop}); });
+  std::thread liar([&] {
+    zmq::socket_t s(context, zmq::socket_type::dealer);
+    s.set(zmq::sockopt::linger, 0);
+    s.connect("inproc://cluster-liar");
+    wire::Hello h;
+    h.set_node_name("liar");
+    proto::send(s, {proto::Command::hello, h, {}});
+    wire::Run run;
+    int errors = 0, reports = 0;
+    auto report = [&](const wire::Grant& g, double value) {
+      wire::Report r;
+      r.set_run_id(run.run_id());
+      r.set_grant_id(g.grant_id());
+      *r.mutable_done() = g.ranges();
+      r.add_chunks(0);
+      r.add_counts(16 * static_cast<uint64_t>(reports + 1));
+      std::size_t n = run.chunk_starts_size() > 1 ? run.chunk_starts(1) : run.patches();
+      std::vector<double> sum(3 * n, value * 16 * (reports + 1));
+      proto::send(s, {proto::Command::report, r, {proto::pack(sum)}});
+      ++reports;
+    };
+    for (int i = 0; i < 100 && reports < 2; ++i) {
+      auto f = proto::receive(s, 100);
+      if (!f) continue;
+      proto::Message m = proto::decode(*f);
+      if (m.command == proto::Command::welcome) {
+        run = std::get<wire::Welcome>(m.header).run();
+        wire::Ready r;
+        r.set_run_id(run.run_id());
+        proto::send(s, {proto::Command::ready, r, {}});
+      } else if (m.command == proto::Command::grant) {
+        report(std::get<wire::Grant>(m.header), reports == 0 ? std::nan("") : 2.0);
+      } else if (m.command == proto::Command::error) {
+        ++errors;
+      }
+    }
+    for (int i = 0; i < 5; ++i)  // any ERROR for the second report arrives within this
+      if (auto f = proto::receive(s, 100)) errors += proto::decode(*f).command == proto::Command::error;
+    EXPECT_EQ(reports, 2);
+    EXPECT_EQ(errors, 1) << "the NaN report answers ERROR, the next one is accepted";
+    // Then silence: the coordinator declares it dead and takes its queued grant back.
+  });
+  out.result = coordinate(router, c, out.mesh);
+  stop = true;
+  node.join();
+  liar.join();
+  uint64_t total = 0;
+  for (const auto& n : out.result.nodes) total += n.bundles;
+  EXPECT_EQ(total, 512u);
+  EXPECT_TRUE(std::any_of(out.result.nodes.begin(), out.result.nodes.end(),
+                          [](const NodeReport& n) { return n.name == "liar" && n.dead && n.bundles == 32; }));
+  EXPECT_NEAR(area_mean(out.mesh, out.result.radiosity), 2.0, 0.04 * std::sqrt(1024.0 / 512));
 }
 
 }  // namespace
