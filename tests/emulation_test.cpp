@@ -134,9 +134,12 @@ double furnace_rms(const test::Outcome& o) {
 }
 
 // A target error ends the run early, once the spread of three independent chains says the
-// relative error per patch is at or below it; the furnace's true error is then of that size
-// (within a factor 2: with 3 chains the estimate has 2 degrees of freedom per patch, pooled over
-// 300 patches, so it is far steadier than that; issue 4 calibrates it properly).
+// relative error per patch is at or below it. The estimate is rough: with 3 chains it has 2
+// degrees of freedom per patch, and the furnace's patch errors share each chain's common mode,
+// so few effective ones in all; and the run stops at the estimate's first dip below the target.
+// Measured true errors at the stop: 0.0148 .. 0.0317 for a target of 0.03 (8 runs). We check the true
+// error is under twice the target (the stop is not premature) and over a quarter of it (the
+// estimate is not grossly pessimistic); issue 4 calibrates the estimate properly.
 TEST(RunEnds, AtTheTargetError) {
   RunConfig c = furnace(20000);  // about 10 s if the target never ends it
   c.exchange_every = 8;
@@ -148,7 +151,7 @@ TEST(RunEnds, AtTheTargetError) {
   EXPECT_EQ(o.result.ended_by.rfind("target error", 0), 0u);
   EXPECT_LT(o.result.bundles, 20000u);
   EXPECT_EQ(total_bundles(o.result), o.result.bundles);
-  EXPECT_GT(rms, 0.03 / 2);
+  EXPECT_GT(rms, 0.03 / 4);
   EXPECT_LT(rms, 0.03 * 2);
 }
 
