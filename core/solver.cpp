@@ -25,7 +25,8 @@ int auto_burn_in(const PatchMesh& mesh) {
   return static_cast<int>(std::min(k, 64.0));
 }
 
-Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options)
+Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options,
+               std::vector<glm::dvec3> direct)
     : mesh_(mesh), engine_(engine), options_(options) {
   if (options.grid < 0 || options.grid == 1) fail("--grid must be at least 2 (got {})", options.grid);
   grid_ = options.grid == 0 ? auto_grid(mesh) : options.grid;
@@ -35,8 +36,11 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   sum_.assign(n, glm::dvec3(0.0));
   others_sum_.assign(n, glm::dvec3(0.0));
   others_count_.assign(n, 0);
-  state_.resize(n);
-  for (std::size_t j = 0; j < n; ++j) state_[j] = glm::dvec3(mesh.emission(j));
+  if (!direct.empty() && direct.size() != n) fail("first shot: {} direct values for {} patches", direct.size(), n);
+  first_shot_ = !direct.empty();
+  source_.resize(n);
+  for (std::size_t j = 0; j < n; ++j) source_[j] = glm::dvec3(mesh.emission(j)) + (first_shot_ ? direct[j] : glm::dvec3(0.0));
+  state_ = source_;
   input_.resize(n);
   // Burn-in: advance the chain from E without counting, on its own stream of bundles.
   for (int k = 0; k < burn_in_; ++k) {
@@ -46,7 +50,9 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
 }
 
 void Solver::run_bundle(uint64_t index, Stream stream) {
-  for (std::size_t j = 0; j < state_.size(); ++j) input_[j] = glm::vec4(glm::vec3(state_[j]), 0.0f);
+  // With a first shot the bundles transport Y = B - E: the emission is already in D.
+  for (std::size_t j = 0; j < state_.size(); ++j)
+    input_[j] = glm::vec4(glm::vec3(first_shot_ ? state_[j] - glm::dvec3(mesh_.emission(j)) : state_[j]), 0.0f);
   SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream);
   engine_.run(b, input_, result_);
   crossings_ += result_.crossings;
@@ -55,8 +61,7 @@ void Solver::run_bundle(uint64_t index, Stream stream) {
 std::vector<glm::dvec3> Solver::transport(const BundleResult& r) const {
   std::vector<glm::dvec3> out(mesh_.size());
   for (std::size_t j = 0; j < out.size(); ++j)
-    out[j] = glm::dvec3(mesh_.emission(j)) +
-             glm::dvec3(mesh_.reflectance(j)) * (two_delta_ / mesh_.area[j]) * glm::dvec3(r.gathered[j]);
+    out[j] = source_[j] + glm::dvec3(mesh_.reflectance(j)) * (two_delta_ / mesh_.area[j]) * glm::dvec3(r.gathered[j]);
   return out;
 }
 
@@ -93,7 +98,7 @@ void Solver::absorb(std::size_t first, std::span<const glm::dvec3> others, uint6
 std::vector<glm::vec3> Solver::estimate() const {
   std::vector<glm::vec3> out(mesh_.size());
   for (std::size_t j = 0; j < out.size(); ++j)
-    out[j] = count_ == 0 ? mesh_.emission(j) : glm::vec3(sum_[j] / static_cast<double>(count_));
+    out[j] = count_ == 0 ? glm::vec3(source_[j]) : glm::vec3(sum_[j] / static_cast<double>(count_));
   return out;
 }
 

@@ -36,12 +36,18 @@ int auto_burn_in(const PatchMesh& mesh);
 
 class Solver {
  public:
-  Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options);
+  // `direct`, if given (one value per patch), is the first shot's estimate of the direct light
+  // D = rho F E (core/shot.h): the bundles then carry only the indirect part Y = B - E, each
+  // estimate is E + D + rho (2 delta / A) gathered(Y), and everything the solver reports
+  // (estimate, sum, state) stays in units of B.
+  Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options,
+         std::vector<glm::dvec3> direct = {});
 
   // Runs counted bundle `index` of the run and adds its estimate to the average.
   void step(uint64_t index);
 
   uint64_t bundles() const { return count_; }
+  bool first_shot() const { return first_shot_; }
   uint64_t crossings() const { return crossings_; }
   int grid() const { return grid_; }
   int burn_in() const { return burn_in_; }
@@ -62,7 +68,7 @@ class Solver {
   // chain it is kept (for the cluster's error estimate) and the chain itself is untouched.
   void absorb(std::size_t first, std::span<const glm::dvec3> others, uint64_t others_count);
 
-  // E + rho (2 delta / A) gathered: one transport of the radiance that produced `gathered`.
+  // E (+ D) + rho (2 delta / A) gathered: one transport of the radiance that produced `gathered`.
   std::vector<glm::dvec3> transport(const BundleResult& gathered) const;
 
  private:
@@ -76,6 +82,8 @@ class Solver {
   double two_delta_;
   void update_average_state();
 
+  bool first_shot_ = false;
+  std::vector<glm::dvec3> source_;         // E, or E + D with a first shot
   std::vector<glm::dvec3> sum_, state_;
   std::vector<glm::dvec3> others_sum_;     // O_p per patch
   std::vector<uint64_t> others_count_;     // M_p per patch
