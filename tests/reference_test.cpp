@@ -193,5 +193,270 @@ TEST(ReferenceStandardError, MatchesSpreadOverSeeds) {
   EXPECT_LT(ratio, 1.25);
 }
 
+// The bundle solver agrees with the reference. Measure: the area-weighted mean relative
+// difference over the non-emitting patches, all channels, d = sum A (a - r) / sum A r.
+//
+// (1) The bundle transport applied to the reference: if one random transport T* is unbiased
+// for the reference's model, E[E + T* B] = E + T B for any input B, and the reference solves
+// B_ref = E + T B_ref up to its own error e, so E[E + T* B_ref] - B_ref = -(I - T) e, whose
+// aggregate is below the reference's (A_i (T e)_i sums to sum_j A_j e_j g_j with
+// g_j = sum_i rho_i F_ji in [0, rho_max]). This isolates the kernel from the chain's variance
+// (which multiplies it by about (1 + rho) / (1 - rho)) and lets directions be stratified: G
+// replicates, each an m x m stratified set of directions (equal-area map of the sphere, own
+// jitter), replicate g taking the reference's batch solution B_g as input. The replicates are
+// independent (own directions, own reference batch), so d_g = aggregate(E + T*_g B_g - B_g)
+// has mean d and SE = sd(d_g) / sqrt(G), with both the bundles' and the reference's noise in it.
+//
+// (2) The full solver (make_cl_engine + Solver, chain rule, own seeds) against the pooled
+// reference: SE combines the runs' spread, sd(d_s) / sqrt(runs), with the reference's from its
+// batches (the same aggregate over each batch solution, sd / sqrt(R)). This one cannot reach
+// SE < 0.5% / 3 in a test's time: the chain's aggregate has a relative sd of about 4% per run of
+// 1024 bundles on Cornell (measured: uniform independent directions, no first shot, so the light's
+// projected area |cos| alone gives a 58% sd per bundle), i.e. ~650k bundles for 0.17%. Its
+// bundle count scales with SIRAD_REFERENCE_BUNDLES (default 1024 per run) for long runs.
+//
+// Pass: |d| < 3 SE (a 0.3% false-alarm rate if both are unbiased); for (1) also SE < 0.5% / 3,
+// so that a 0.5% bias would be caught.
+// Over the non-emitting patches (over all of them where every patch emits: the furnace).
+template <typename F>
+dvec3 aggregate(const PatchMesh& mesh, F value) {
+  bool all = true;
+  for (std::size_t j = 0; j < mesh.size() && all; ++j) all = emits(mesh, j);
+  dvec3 sum(0.0);
+  for (std::size_t j = 0; j < mesh.size(); ++j)
+    if (all || !emits(mesh, j)) sum += static_cast<double>(mesh.area[j]) * dvec3(value(j));
+  return sum;
+}
+
+struct Compared {
+  PatchMesh mesh;
+  ReferenceSolution ref;
+  dvec3 r;       // aggregate of the reference per channel
+  double den;    // its sum over channels
+};
+
+Compared compared(const Scene& scene, std::size_t patches, const ReferenceOptions& ro) {
+  Compared c{mesh_scene(scene, {.target_patches = patches}), {}, dvec3(0.0), 0.0};
+  c.ref = solve_reference(c.mesh, ro);
+  c.r = aggregate(c.mesh, [&](std::size_t j) { return c.ref.radiosity[j]; });
+  c.den = c.r.x + c.r.y + c.r.z;
+  return c;
+}
+
+std::pair<double, double> mean_sd(const std::vector<double>& v) {
+  double m = 0.0, q = 0.0;
+  for (double x : v) m += x / static_cast<double>(v.size());
+  for (double x : v) q += (x - m) * (x - m) / static_cast<double>(v.size() - 1);
+  return {m, std::sqrt(q)};
+}
+
+void check_transport(const char* name, const Scene& scene, std::size_t patches, int m) {
+  if (const char* env = std::getenv("SIRAD_REFERENCE_STRATA")) m = std::stoi(env);  // longer runs
+  Compared c = compared(scene, patches, {.rays_per_patch = 2048, .light_samples = 256, .batches = 8, .seed = 21});
+  const PatchMesh& mesh = c.mesh;
+  auto engine = make_cl_engine(mesh);
+  const int grid = auto_grid(mesh);
+  const double two_delta = 2.0 * cell_area(mesh, grid);
+  std::vector<double> d;
+  dvec3 channel(0.0);
+  BundleResult result;
+  std::vector<glm::vec4> input(mesh.size());
+  const int G = c.ref.batches;
+  for (int g = 0; g < G; ++g) {
+    const auto& B = c.ref.batch_radiosity[static_cast<std::size_t>(g)];
+    for (std::size_t j = 0; j < mesh.size(); ++j) input[j] = glm::vec4(glm::vec3(B[j]), 0.0f);
+    std::vector<dvec3> sum(mesh.size(), dvec3(0.0));
+    for (int k = 0; k < m * m; ++k) {
+      // Stratum (k / m, k % m) of the equal-area map z = 1 - 2s, phi = 2 pi t, jittered.
+      uint64_t index = static_cast<uint64_t>(g) * static_cast<uint64_t>(m * m) + static_cast<uint64_t>(k);
+      SiradBundle b = make_bundle(mesh, grid, 77, index);
+      BundleDraw jitter = draw_bundle(78, index);
+      double s = (k / m + jitter.jitter_x) / m, t = (k % m + jitter.jitter_y) / m;
+      double z = 1.0 - 2.0 * s, rr = std::sqrt(std::max(0.0, 1.0 - z * z)), phi = 2.0 * std::numbers::pi * t;
+      dvec3 w(rr * std::cos(phi), rr * std::sin(phi), z);
+      double sign = std::copysign(1.0, w.z), a = -1.0 / (sign + w.z), bb = w.x * w.y * a;
+      dvec3 u(1.0 + sign * w.x * w.x * a, sign * bb, -sign * w.x), v(bb, sign + w.y * w.y * a, -w.y);
+      for (int q = 0; q < 3; ++q) {
+        b.u[q] = static_cast<float>(u[q]);
+        b.v[q] = static_cast<float>(v[q]);
+        b.w[q] = static_cast<float>(w[q]);
+      }
+      engine->run(b, input, result);
+      for (std::size_t j = 0; j < mesh.size(); ++j) sum[j] += dvec3(result.gathered[j]);
+    }
+    dvec3 x = aggregate(mesh, [&](std::size_t j) {
+      return dvec3(mesh.emission(j)) +
+             dvec3(mesh.reflectance(j)) * (two_delta / mesh.area[j]) * sum[j] / static_cast<double>(m * m);
+    });
+    dvec3 y = aggregate(mesh, [&](std::size_t j) { return B[j]; });
+    d.push_back((x.x + x.y + x.z - y.x - y.y - y.z) / c.den);
+    channel += (x / y - 1.0) / static_cast<double>(G);
+  }
+  auto [md, sd] = mean_sd(d);
+  const double se = sd / std::sqrt(static_cast<double>(G));
+  std::printf("%s transport (%zu patches, grid %d, %d x %d stratified directions x %d): E + T* B_ref vs B_ref: "
+              "%+.4f%% (r %+.3f%% g %+.3f%% b %+.3f%%), SE %.4f%%, d / SE = %+.2f; reference %.1f s, "
+              "mean relative SE %.3f%%\n",
+              name, mesh.size(), grid, m, m, G, 100 * md, 100 * channel.x, 100 * channel.y, 100 * channel.z, 100 * se,
+              md / se, c.ref.seconds, 100 * mean_relative_se(mesh, c.ref));
+  EXPECT_LT(se, 0.005 / 3) << name << ": the comparison could not see a 0.5% bias";
+  EXPECT_LT(std::abs(md), 3 * se) << name << ": the bundle transport and the reference disagree beyond their noise";
+}
+
+void check_solver(const char* name, const Scene& scene, std::size_t patches, int runs) {
+  const char* env = std::getenv("SIRAD_REFERENCE_BUNDLES");
+  const uint64_t bundles = env ? std::stoull(env) : 1024;
+  Compared c = compared(scene, patches, {.rays_per_patch = 2048, .light_samples = 256, .batches = 8, .seed = 22});
+  const PatchMesh& mesh = c.mesh;
+  std::vector<double> ref_d;
+  for (const auto& b : c.ref.batch_radiosity) {
+    dvec3 v = aggregate(mesh, [&](std::size_t j) { return b[j]; });
+    ref_d.push_back((v.x + v.y + v.z) / c.den - 1.0);
+  }
+  const double se_ref = mean_sd(ref_d).second / std::sqrt(static_cast<double>(ref_d.size()));
+  auto engine = make_cl_engine(mesh);
+  std::vector<double> d;
+  std::vector<dvec3> pooled(mesh.size(), dvec3(0.0));
+  dvec3 channel(0.0);
+  for (int k = 0; k < runs; ++k) {
+    Solver s = test::solve(mesh, *engine, {.seed = 7000 + static_cast<uint64_t>(k), .chain_id = static_cast<uint64_t>(k)}, bundles);
+    auto est = s.estimate();
+    for (std::size_t j = 0; j < mesh.size(); ++j) pooled[j] += dvec3(est[j]) / static_cast<double>(runs);
+    dvec3 a = aggregate(mesh, [&](std::size_t j) { return est[j]; });
+    d.push_back((a.x + a.y + a.z) / c.den - 1.0);
+    channel += (a / c.r - 1.0) / static_cast<double>(runs);
+  }
+  auto [md, sd] = mean_sd(d);
+  const double se_bundle = sd / std::sqrt(static_cast<double>(runs));
+  const double se = std::hypot(se_bundle, se_ref);
+  std::vector<glm::vec3> pooled_f(pooled.begin(), pooled.end());
+  ReferenceError rms = relative_rms_vs_reference(mesh, pooled_f, c.ref.radiosity, c.ref.radiosity_se);
+  std::printf("%s solver (%zu patches): bundle - reference %+.4f%% (r %+.3f%% g %+.3f%% b %+.3f%%), SE %.4f%% "
+              "(bundle %.4f%% over %d runs x %llu bundles, reference %.4f%%), d / SE = %+.2f; per-patch relative RMS "
+              "of the pooled runs %.4f (corrected %.4f, reference share %.4f)\n",
+              name, mesh.size(), 100 * md, 100 * channel.x, 100 * channel.y, 100 * channel.z, 100 * se, 100 * se_bundle,
+              runs, static_cast<unsigned long long>(bundles), 100 * se_ref, md / se, rms.raw, rms.corrected, rms.ref_share);
+  EXPECT_LT(std::abs(md), 3 * se) << name << ": the bundle solver and the reference disagree beyond their noise";
+}
+
+TEST(ReferenceAgreement, BundleTransportFurnace) { check_transport("furnace", builtin_furnace(), 1200, 16); }
+TEST(ReferenceAgreement, BundleTransportCornell) { check_transport("cornell", builtin_cornell(), 1200, 16); }
+TEST(ReferenceAgreement, BundleTransportBrightRoom) { check_transport("bright-room", builtin_bright_room(), 1200, 16); }
+TEST(ReferenceAgreement, BundleTransportThreeLights) { check_transport("three-lights", builtin_three_lights(), 1500, 16); }
+TEST(ReferenceAgreement, BundleSolverCornell) { check_solver("cornell", builtin_cornell(), 1200, 6); }
+TEST(ReferenceAgreement, BundleSolverBrightRoom) { check_solver("bright-room", builtin_bright_room(), 1200, 6); }
+TEST(ReferenceAgreement, BundleSolverThreeLights) { check_solver("three-lights", builtin_three_lights(), 1500, 6); }
+
+// The command line: `sirad reference` writes the three images and NAME.ref.csv, which
+// round-trips exactly (shortest round-trip decimal form; the solve is deterministic whatever
+// the thread count); bad flags, a bad scene and a corrupted file give one clear line.
+class ReferenceCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("sirad_ref_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  struct Outcome {
+    int status;
+    std::string out, err;
+  };
+  Outcome sirad(const std::string& args) {
+    std::string out = (dir_ / "stdout.txt").string(), err = (dir_ / "stderr.txt").string();
+    std::string cmd = "cd '" + dir_.string() + "' && '" + SIRAD_BINARY + "' " + args + " >'" + out + "' 2>'" + err + "' </dev/null";
+    int raw = std::system(cmd.c_str());
+    Outcome r{WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw), slurp(out), slurp(err)};
+    fs::remove(out);
+    fs::remove(err);
+    return r;
+  }
+  static std::string slurp(const fs::path& path) {
+    std::ifstream in(path);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  }
+  static void expect_one_line_error(const Outcome& r, const std::string& needle) {
+    EXPECT_NE(r.status, 0);
+    EXPECT_TRUE(r.out.empty()) << r.out;
+    ASSERT_FALSE(r.err.empty());
+    EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "not one line: " << r.err;
+    EXPECT_EQ(r.err.rfind("sirad: error: ", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+  }
+  fs::path dir_;
+};
+
+TEST_F(ReferenceCli, WritesOutputsAndTheFileRoundTrips) {
+  Outcome r = sirad("reference cornell --patches 200 --rays 64 --light-samples 16 --batches 4 --seed 9 --threads 1 --out ref -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* ext : {".exr", ".png", ".ply", ".ref.csv"}) EXPECT_TRUE(fs::exists(dir_ / (std::string("ref") + ext))) << ext;
+  EXPECT_NE(r.out.find("mean relative SE"), std::string::npos) << r.out;
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 200});
+  ReferenceSolution read = read_reference((dir_ / "ref.ref.csv").string(), mesh);
+  ReferenceSolution solved = solve_reference(mesh, {.rays_per_patch = 64, .light_samples = 16, .batches = 4, .seed = 9, .threads = 2});
+  ASSERT_EQ(read.radiosity.size(), mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    ASSERT_EQ(read.radiosity[j], solved.radiosity[j]) << "patch " << j;
+    ASSERT_EQ(read.radiosity_se[j], solved.radiosity_se[j]) << "patch " << j;
+    ASSERT_EQ(read.direct[j], solved.direct[j]) << "patch " << j;
+    ASSERT_EQ(read.direct_se[j], solved.direct_se[j]) << "patch " << j;
+  }
+  // Another mesh of the same scene is refused (its hash differs).
+  PatchMesh other = mesh_scene(builtin_cornell(), {.target_patches = 300});
+  try {
+    read_reference((dir_ / "ref.ref.csv").string(), other);
+    ADD_FAILURE() << "a file for another mesh was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("ref.ref.csv:2: computed for mesh"), std::string::npos) << e.what();
+  }
+  // Corruptions, each refused with the file and line named.
+  std::string good = slurp(dir_ / "ref.ref.csv");
+  std::vector<std::string> lines;
+  std::istringstream in(good);
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  auto join = [](const std::vector<std::string>& ls) {
+    std::string t;
+    for (const auto& l : ls) t += l + "\n";
+    return t;
+  };
+  auto refused = [&](const std::string& text, const std::string& needle) {
+    const fs::path bad = dir_ / "bad.ref.csv";
+    std::ofstream(bad) << text;
+    try {
+      read_reference(bad.string(), mesh);
+      ADD_FAILURE() << "accepted a file that should fail with " << needle;
+    } catch (const Error& e) {
+      std::string what = e.what();
+      EXPECT_NE(what.find(needle), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+  };
+  auto with_line = [&](std::size_t i, const std::string& l) {
+    auto ls = lines;
+    ls[i] = l;
+    return join(ls);
+  };
+  refused(join({lines.begin(), lines.begin() + 50}), "bad.ref.csv:51: file ends early");
+  refused(with_line(10, "7,nan,1,1,0,0,0,0,0,0,0,0,0"), "bad.ref.csv:11: field 2 is not finite");
+  refused(with_line(10, "7,1,1,1,-1,0,0,0,0,0,0,0,0"), "bad.ref.csv:11: field 5 (a standard error) is negative");
+  refused(with_line(10, "7,1,1"), "bad.ref.csv:11: expected 13 comma-separated fields");
+  refused(with_line(10, "8,1,1,1,0,0,0,0,0,0,0,0,0"), "bad.ref.csv:11: patch 8 where 7 was expected");
+  refused(with_line(1, "# mesh_hash 00000000000000000000000000000000 patches 200"), "bad.ref.csv:2: computed for mesh");
+  refused(with_line(0, "hello"), "bad.ref.csv:1: not a sirad reference file");
+  refused(good + "1,2,3\n", "unexpected text after the last patch");
+}
+
+TEST_F(ReferenceCli, BadInputIsOneLine) {
+  expect_one_line_error(sirad("reference cornell --rays 0"), "--rays");
+  expect_one_line_error(sirad("reference cornell --bogus 3"), "--bogus");
+  expect_one_line_error(sirad("reference cornell --batches 1"), "--batches");
+  expect_one_line_error(sirad("reference cornell --rays 4 --batches 8"), "--rays 4 is below --batches 8");
+  expect_one_line_error(sirad("reference cornell --patches 100 --max-edge 10"), "exclude each other");
+  expect_one_line_error(sirad("reference no_such_scene.obj"), "no_such_scene.obj");
+  expect_one_line_error(sirad("reference scene.gltf"), "unsupported scene format");
+  for (const auto& e : fs::directory_iterator(dir_)) ADD_FAILURE() << "left behind: " << e.path();
+}
+
 }  // namespace
 }  // namespace sirad
