@@ -38,6 +38,8 @@ struct RenderArgs {
   std::string device;
   std::string rule = "chain";
   std::optional<int> burn_in;
+  double shots_per_bundle = kDefaultShotsPerBundle;
+  int shot_resolution = 0;
   int width = 512, height = 512;
   float exposure = 0.0f;
   bool flat = false;
@@ -128,6 +130,8 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.grid = a.grid.value_or(0);
   rc.rule = rule;
   rc.burn_in = a.burn_in.value_or(-1);
+  rc.shots_per_bundle = a.shots_per_bundle;
+  rc.shot_resolution = a.shot_resolution;
   rc.exchange_every = cluster::parse_exchange_every(a.exchange_every);
   rc.fraction = a.exchange_fraction;
   rc.topology = cluster::parse_topology(a.topology);
@@ -199,6 +203,7 @@ int render(const RenderArgs& a) {
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   UpdateRule rule = parse_update_rule(a.rule);
+  check_first_shot(a.shots_per_bundle, a.shot_resolution);
   std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
   check_output_name(out);
 
@@ -219,13 +224,17 @@ int render(const RenderArgs& a) {
   so.grid = a.grid.value_or(0);
   so.rule = rule;
   so.burn_in = a.burn_in.value_or(-1);
+  so.shots_per_bundle = a.shots_per_bundle;
+  so.shot_resolution = a.shot_resolution;
+  std::unique_ptr<ShotEngine> shots;
+  if (so.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
   if (!a.quiet)
-    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule) on %s\n", a.scene.c_str(),
-                 mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
-                 to_string(rule), engine->description().c_str());
+    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule), %g shots per bundle, on %s\n",
+                 a.scene.c_str(), mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
+                 to_string(rule), so.shots_per_bundle, engine->description().c_str());
 
   auto start = std::chrono::steady_clock::now();
-  Solver solver(mesh, *engine, so);
+  Solver solver(mesh, *engine, so, shots.get());
   Progress progress(a.bundles, a.quiet);
   for (int64_t k = 0; k < a.bundles; ++k) {
     solver.step(static_cast<uint64_t>(k));
@@ -235,6 +244,9 @@ int render(const RenderArgs& a) {
 
   Attributes attrs = run_attributes(a, mesh, solver.grid(), rule);
   attrs.emplace_back("sirad.burn_in", static_cast<int64_t>(solver.burn_in()));
+  attrs.emplace_back("sirad.shots_per_bundle", so.shots_per_bundle);
+  attrs.emplace_back("sirad.shot_resolution", static_cast<int64_t>(solver.shot_resolution()));
+  attrs.emplace_back("sirad.shots", static_cast<int64_t>(solver.shots_rendered()));
   attrs.emplace_back("sirad.device", engine->description());
   write_outputs(a, out, mesh, solver.estimate(), attrs);
   std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n", mesh.size(),
@@ -361,6 +373,11 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"chain", "average"}));
   render_cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
       ->check(CLI::Range(0, 1 << 20));
+  render_cmd->add_option("--shots-per-bundle", r.shots_per_bundle,
+                         "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
+      ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
+  render_cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
+      ->check(CLI::Range(0, 8192))->capture_default_str();
   render_cmd->add_option("--width", r.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
   render_cmd->add_option("--height", r.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
   render_cmd->add_option("--exposure", r.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));

@@ -56,6 +56,9 @@ class Coordinator {
     run_.set_grid(static_cast<uint32_t>(config.grid == 0 ? auto_grid(mesh) : config.grid));
     run_.set_rule(to_string(config.rule));
     run_.set_burn_in(config.burn_in);
+    check_first_shot(config.shots_per_bundle, config.shot_resolution);
+    run_.set_shots_per_bundle(config.shots_per_bundle);
+    run_.set_shot_resolution(static_cast<uint32_t>(config.shot_resolution));
     for (std::size_t c = 0; c + 1 < starts_.size(); ++c) run_.add_chunk_starts(starts_[c]);
     run_.set_patches(static_cast<uint32_t>(mesh.size()));
     run_.set_exchange_every(config.exchange_every);
@@ -483,6 +486,7 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
       {"sirad.grid", static_cast<int64_t>(r.grid)},
       {"sirad.seed", std::to_string(c.seed)},
       {"sirad.rule", std::string(to_string(c.rule))},
+      {"sirad.shots_per_bundle", c.shots_per_bundle},
       {"sirad.nodes", static_cast<int64_t>(r.nodes.size())},
       {"sirad.exchange_every", c.exchange_every == 0 ? std::string("end") : std::to_string(c.exchange_every)},
       {"sirad.exchange_fraction", c.fraction},

@@ -22,7 +22,7 @@ namespace sirad {
 
 // Streams of Philox draws: counted bundles, the burn-in of a chain and the first shot's
 // samples (core/shot.h) never share one.
-enum class Stream : uint32_t { bundles = 0, burn_in = 1, shots = 2 };
+enum class Stream : uint32_t { bundles = 0, burn_in = 1, shots = 2, burn_in_shots = 3 };
 
 // The direction and jitter of bundle `index` of a run with `seed` (double precision).
 struct BundleDraw {

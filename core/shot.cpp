@@ -17,14 +17,14 @@ namespace {
 double unit_open(uint32_t r) { return (static_cast<double>(r) + 0.5) * 0x1p-32; }
 
 // Eight uniforms in (0, 1) for shot `index`: Philox keyed by the run seed, on the counter
-// (index, Stream::shots, word) for words 0 and 1.
-std::array<double, 8> shot_uniforms(uint64_t seed, uint64_t index) {
+// (index, stream, word) for words 0 and 1.
+std::array<double, 8> shot_uniforms(uint64_t seed, uint64_t index, Stream stream) {
   r123::Philox4x32 philox;
   r123::Philox4x32::key_type key = {{static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32)}};
   std::array<double, 8> u{};
   for (uint32_t word = 0; word < 2; ++word) {
     r123::Philox4x32::ctr_type ctr = {{static_cast<uint32_t>(index), static_cast<uint32_t>(index >> 32),
-                                       static_cast<uint32_t>(Stream::shots), word}};
+                                       static_cast<uint32_t>(stream), word}};
     auto r = philox(ctr, key);
     for (int k = 0; k < 4; ++k) u[4 * word + k] = unit_open(r[k]);
   }
@@ -54,9 +54,9 @@ EmitterTable emitter_table(const PatchMesh& mesh) {
   return t;
 }
 
-ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index) {
+ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index, Stream stream) {
   if (table.empty()) fail("first shot: the scene has no emitting patch");
-  auto u = shot_uniforms(seed, index);
+  auto u = shot_uniforms(seed, index, stream);
   ShotDraw d;
   d.emitter = static_cast<std::size_t>(std::upper_bound(table.cdf.begin(), table.cdf.end(), u[0]) - table.cdf.begin());
   d.emitter = std::min(d.emitter, table.patch.size() - 1);
@@ -162,7 +162,7 @@ void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const Sho
 }
 
 ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, uint64_t seed,
-                   uint64_t first, uint64_t count) {
+                   uint64_t first, uint64_t count, Stream stream) {
   ShotSums sums;
   sums.direct.assign(mesh.size(), glm::dvec3(0.0));
   EmitterTable table = emitter_table(mesh);
@@ -172,7 +172,7 @@ ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, ui
   }
   std::vector<uint32_t> image;
   for (uint64_t k = first; k < first + count; ++k) {
-    ShotDraw draw = draw_shot(mesh, table, seed, k);
+    ShotDraw draw = draw_shot(mesh, table, seed, k, stream);
     SiradShot shot = make_shot(mesh, draw, resolution);
     engine.render(shot, image);
     accumulate_shot(mesh, table, draw, shot, image, shot_weights(shot), sums.direct);

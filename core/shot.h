@@ -45,7 +45,8 @@ struct ShotDraw {
   glm::dvec3 axes[5][3];    // per face a, b, c (c: where it looks)
   double jitter_x = 0.5, jitter_y = 0.5;  // of the pixel lattice, in (0, 1)
 };
-ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index);
+ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index,
+                   Stream stream = Stream::shots);
 SiradShot make_shot(const PatchMesh& mesh, const ShotDraw& draw, int resolution);
 
 // Pixel samples of a shot's image (face 0: H x H, faces 1..4: H/2 x H) and the index of face
@@ -82,7 +83,7 @@ struct ShotSums {
   uint64_t shots = 0;
 };
 ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, uint64_t seed,
-                   uint64_t first, uint64_t count);
+                   uint64_t first, uint64_t count, Stream stream = Stream::shots);
 
 // Adds one rendered shot's estimates to `direct` (per patch).
 void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const ShotDraw& draw,
