@@ -2,7 +2,11 @@
 // of the C++ reference, measured in the same run, on the Cornell box; then the relative RMS
 // difference between two independent runs against bundles. Prints CSV on stdout.
 //   sirad_bench_bundle [--patches N] [--grids 256,512,1024] [--bundles K] [--reference-bundles K]
-//                      [--error-bundles K] [--device D]
+//                      [--error-bundles K] [--auto-patches 5000,20000] [--device D]
+// --grids none skips the fixed grids; --reference-bundles 0 skips the reference.
+// --auto-patches: for each size, the Cornell box at that size and its auto grid (auto_grid, as
+// `sirad render cornell --patches N` uses): the engine alone (engine_auto) and one whole
+// Solver::step on it (solver_auto: host work per bundle included), medians over --bundles.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -48,12 +52,26 @@ std::pair<double, double> time_engine(const PatchMesh& mesh, BundleEngine& engin
   return {median(ms), crossings / total};
 }
 
+// Median milliseconds of one Solver::step (chain rule, no burn-in), after one warm-up step.
+double time_solver(const PatchMesh& mesh, BundleEngine& engine, int bundles) {
+  Solver solver(mesh, engine, {.seed = 1, .burn_in = 0});
+  solver.step(0);
+  std::vector<double> ms;
+  for (int k = 1; k <= bundles; ++k) {
+    auto t0 = std::chrono::steady_clock::now();
+    solver.step(static_cast<uint64_t>(k));
+    ms.push_back(1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  return median(ms);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   try {
     std::size_t patches = 20000;
     std::vector<int> grids = {256, 512, 1024};
+    std::vector<std::size_t> auto_patches;
     int bundles = 30, ref_bundles = 3, error_bundles = 1024;
     std::string device;
     for (int i = 1; i + 1 < argc; i += 2) {
@@ -66,7 +84,11 @@ int main(int argc, char** argv) {
       else if (k == "--grids") {
         grids.clear();
         std::stringstream ss(v);
-        for (std::string g; std::getline(ss, g, ',');) grids.push_back(std::stoi(g));
+        if (v != "none")
+          for (std::string g; std::getline(ss, g, ',');) grids.push_back(std::stoi(g));
+      } else if (k == "--auto-patches") {
+        std::stringstream ss(v);
+        for (std::string g; std::getline(ss, g, ',');) auto_patches.push_back(std::stoul(g));
       } else fail("unknown flag {}", k);
     }
     PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = patches});
@@ -77,8 +99,19 @@ int main(int argc, char** argv) {
     for (int grid : grids) {
       auto [ms, cps] = time_engine(mesh, *cl, grid, bundles);
       std::printf("opencl,%d,%zu,%.3f,%.4g\n", grid, mesh.size(), ms, cps);
-      auto [rms, rcps] = time_engine(mesh, *ref, grid, ref_bundles);
-      std::printf("reference,%d,%zu,%.3f,%.4g\n", grid, mesh.size(), rms, rcps);
+      if (ref_bundles > 0) {
+        auto [rms, rcps] = time_engine(mesh, *ref, grid, ref_bundles);
+        std::printf("reference,%d,%zu,%.3f,%.4g\n", grid, mesh.size(), rms, rcps);
+      }
+      std::fflush(stdout);
+    }
+    for (std::size_t target : auto_patches) {
+      PatchMesh m = mesh_scene(builtin_cornell(), {.target_patches = target});
+      auto engine = make_cl_engine(m, {.device = device});
+      int grid = auto_grid(m);
+      auto [ms, cps] = time_engine(m, *engine, grid, bundles);
+      std::printf("engine_auto,%d,%zu,%.3f,%.4g\n", grid, m.size(), ms, cps);
+      std::printf("solver_auto,%d,%zu,%.3f,\n", grid, m.size(), time_solver(m, *engine, bundles));
       std::fflush(stdout);
     }
     if (error_bundles > 0) {
