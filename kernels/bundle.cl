@@ -2,13 +2,15 @@
  *
  * The host prepends kernels/bundle_types.h. Per bundle it enqueues:
  *   project_patches  (runs of patches)  patches -> grid plane, CCW order, depth plane
- *   transfer_band    (one work-item per band of grid rows, written CPU-style), row by row:
- *        1. collect: rasterise every patch that reaches the row, once, appending one
+ *   transfer_band    (one work-item per band of grid rows, written CPU-style), in blocks of
+ *                    rows (as many as fit a budget of lines), block by block:
+ *        1. collect: rasterise every patch that reaches the block, row by row, appending one
  *           crossing (line, depth, patch) per covered line;
  *        2. sort the crossings by line (counting sort) and each line's list by depth;
  *        3. let every crossing gather its front neighbour on its line, summing per patch;
  *        4. write the band partials: per patch reaching the band, its sum and hits.
- *   combine          (runs of patches)  each patch adds its band partials in band order.
+ *   combine          (runs of patches)  each patch adds its band partials in band order
+ *                                       (one walk per band through its partial list).
  * Coverage of a line by a patch is decided by one predicate, `covers`: edge functions
  * evaluated with the edge's endpoints in canonical order (so two patches sharing an edge
  * compute exactly opposite values), a tie rule that gives a line through a shared edge to
@@ -228,16 +230,19 @@ __kernel void project_patches(__global const float4* vertices, __global const ui
   }
 }
 
-/* One band of grid rows, row by row (see the banner). Scratch per band:
+/* One band of grid rows, in blocks of rows_per_block rows (see the banner). Scratch per band:
  *   band_list, acc, acc_hits, out_patch: b->partial_capacity entries (the patches that reach
  *     the band, in patch order; their sums; compacted at the end into the band partials);
- *   e_x, e_sort, s_sort: b->capacity crossings of one row: line and crossing_key as
- *     collected, and the keys sorted by line; line_count: grid counters (zero between rows).
- * band_stats[4 band + 0..3] = the most crossings in one row, partials written, patches that
+ *   e_x, e_sort, s_sort: b->capacity crossings of one block: line (within the block, row
+ *     major) and crossing_key as collected, and the keys sorted by line; line_count:
+ *     rows_per_block * grid counters (zero between blocks).
+ * band_stats[4 band + 0..3] = the most crossings in one block, partials written, patches that
  * reach the band, crossings in the band; the first and third are reported even when they do
- * not fit, so the host can grow the scratch and run the bundle again. */
+ * not fit, so the host can grow the scratch and run the bundle again.
+ * Each patch's sum adds its lines in row-major order whatever the block height: a patch
+ * crosses a line at most once and lines are gathered in order. */
 __kernel void transfer_band(__global const SiradProjected* restrict projected,
-                            __global const int2* restrict rows, uint patch_count,
+                            __global const int2* restrict rows, uint patch_count, int rows_per_block,
                             __constant SiradBundle* b, __global const float4* restrict radiance,
                             __global uint* restrict band_list, __global uint* restrict e_x,
                             __global ulong* restrict e_sort, __global ulong* restrict s_sort,
@@ -256,7 +261,7 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   e_x += (size_t)band * cap;
   e_sort += (size_t)band * cap;
   s_sort += (size_t)band * cap;
-  __global uint* count = line_count + (size_t)band * grid;
+  __global uint* count = line_count + (size_t)band * rows_per_block * grid;
   __global uint* stats = band_stats + 4 * band;
 
   /* 1. The patches that reach the band, in patch order. */
@@ -276,44 +281,50 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
     acc[q] = (float4)(0.0f);
     acc_hits[q] = 0;
   }
-  for (int x = 0; x < grid; ++x) count[x] = 0;
+  for (int i = 0; i < rows_per_block * grid; ++i) count[i] = 0;
 
   const float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
-  uint row_max = 0, total = 0;
-  for (int y = r0; y < r1; ++y) {
-    /* 2. Collect the row's crossings (key: position in the band list, front bit), counting
-     * per line, and the range of lines touched. */
+  uint block_max = 0, total = 0;
+  for (int y0 = r0; y0 < r1; y0 += rows_per_block) {
+    const int y1 = min(y0 + rows_per_block, r1);
+    /* 2. Collect the block's crossings (line within the block; key: position in the band
+     * list, front bit), patch by patch and row by row, counting per line, and the range of
+     * lines touched. */
     uint m = 0;
-    int xa = grid, xb = -1;
+    int la = rows_per_block * grid, lb = -1;
     for (uint q = 0; q < patches; ++q) {
       uint j = band_list[q];
       int2 r = rows[j];
-      if (r.x > y || r.y < y) continue;
+      if (r.x >= y1 || r.y < y0) continue;
       SiradProjected p = projected[j];
       uint front_pos = (p.flags & SIRAD_FRONT_POS) ? 1u : 0u;
-      FOR_EACH_COVERED(&p, y, grid, x) {
-        if (m < cap) {
-          e_x[m] = (uint)x;
-          e_sort[m] = crossing_key(depth_at(&p, x, y), front_pos, q);
-          count[x] += 1;
-          xa = min(xa, x);
-          xb = max(xb, x);
+      const int ya = max(r.x, y0), yb = min(r.y, y1 - 1);
+      for (int y = ya; y <= yb; ++y) {
+        const int base = (y - y0) * grid;
+        FOR_EACH_COVERED(&p, y, grid, x) {
+          if (m < cap) {
+            e_x[m] = (uint)(base + x);
+            e_sort[m] = crossing_key(depth_at(&p, x, y), front_pos, q);
+            count[base + x] += 1;
+            la = min(la, base + x);
+            lb = max(lb, base + x);
+          }
+          ++m;
         }
-        ++m;
       }
     }
     total += m;
-    row_max = max(row_max, m);
+    block_max = max(block_max, m);
     if (m > cap) {
-      for (int x = xa; x <= xb; ++x) count[x] = 0;
-      continue; /* keep counting: the host needs the largest row */
+      for (int l = la; l <= lb; ++l) count[l] = 0;
+      continue; /* keep counting: the host needs the largest block */
     }
 
-    /* 3. Counting sort by line; afterwards count[x] ends line x's list. */
+    /* 3. Counting sort by line; afterwards count[l] ends line l's list. */
     uint running = 0;
-    for (int x = xa; x <= xb; ++x) {
-      uint c = count[x];
-      count[x] = running;
+    for (int l = la; l <= lb; ++l) {
+      uint c = count[l];
+      count[l] = running;
       running += c;
     }
     for (uint i = 0; i < m; ++i) {
@@ -325,9 +336,9 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
      * crossing towards the side its normal points to, if that one faces back; else the
      * background). */
     uint start = 0;
-    for (int x = xa; x <= xb; ++x) {
-      uint end = count[x], n = end - start;
-      count[x] = 0;
+    for (int l = la; l <= lb; ++l) {
+      uint end = count[l], n = end - start;
+      count[l] = 0;
       if (n == 0) continue;
       sort_line(s_sort + start, n);
       order_coincident(s_sort + start, n, b->depth_tie);
@@ -345,9 +356,9 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
       start = end;
     }
   }
-  stats[0] = row_max;
+  stats[0] = block_max;
   stats[3] = total;
-  if (row_max > cap) return;
+  if (block_max > cap) return;
 
   /* 5. Band partials: the patches with crossings here, in patch order. */
   uint partials = 0;
@@ -361,39 +372,51 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   stats[1] = partials;
 }
 
-/* Each patch adds its band partials, in band order (binary search in each band's list,
- * which is in patch order). gathered[j] = sum over the lines crossing j of what they bring
- * (rgb), hits[j] = the number of those lines. Work-item i takes patches
- * [i * per_item, (i + 1) * per_item). Nothing is written when a band overflowed. */
-__kernel void combine(__global const int2* rows, uint patch_count, uint per_item,
-                      __constant SiradBundle* b, __global const uint* partial_patch,
-                      __global const float4* partial_sum, __global const uint* partial_hits,
-                      __global const uint* band_stats, __global float4* gathered,
-                      __global uint* hits) {
+/* Each patch adds its band partials, in band order. gathered[j] = sum over the lines crossing
+ * j of what they bring (rgb), hits[j] = the number of those lines. Work-item i takes patches
+ * [i * per_item, (i + 1) * per_item): it zeroes them, then walks the partial list (in patch
+ * order) of each band its patches reach, from its first entry in the range (one binary search
+ * per band) to the range's end, adding as it goes: every patch's sum is 0 + its partials in
+ * band order.
+ * Nothing is written when a band overflowed. */
+__kernel void combine(__global const int2* restrict rows, uint patch_count, uint per_item,
+                      __constant SiradBundle* b,
+                      __global const uint* restrict partial_patch,
+                      __global const float4* restrict partial_sum, __global const uint* restrict partial_hits,
+                      __global const uint* restrict band_stats, __global float4* restrict gathered,
+                      __global uint* restrict hits) {
   for (int k = 0; k < b->bands; ++k)
     if (band_stats[4 * k] > b->capacity || band_stats[4 * k + 2] > b->partial_capacity) return;
   uint first = get_global_id(0) * per_item;
   uint last = min(first + per_item, patch_count);
+  if (first >= last) return;
+  int ylo = 0x7fffffff, yhi = -1;
   for (uint j = first; j < last; ++j) {
-    float4 sum = (float4)(0.0f);
-    uint n = 0;
+    gathered[j] = (float4)(0.0f);
+    hits[j] = 0;
     int2 r = rows[j];
     if (r.x <= r.y) {
-      for (int band = r.x / b->rows_per_band; band <= r.y / b->rows_per_band; ++band) {
-        uint base = (uint)band * b->partial_capacity;
-        uint lo = 0, hi = band_stats[4 * band + 1];
-        while (lo < hi) {
-          uint mid = (lo + hi) / 2;
-          if (partial_patch[base + mid] < j) lo = mid + 1;
-          else hi = mid;
-        }
-        if (lo < band_stats[4 * band + 1] && partial_patch[base + lo] == j) {
-          sum += partial_sum[base + lo];
-          n += partial_hits[base + lo];
-        }
-      }
+      ylo = min(ylo, r.x);
+      yhi = max(yhi, r.y);
     }
-    gathered[j] = sum;
-    hits[j] = n;
+  }
+  if (yhi < 0) return;
+  for (int band = ylo / b->rows_per_band; band <= yhi / b->rows_per_band; ++band) {
+    uint base = (uint)band * b->partial_capacity;
+    uint count = band_stats[4 * band + 1];
+    __global const uint* pp = partial_patch + base;
+    if (count == 0 || pp[count - 1] < first || pp[0] >= last) continue;
+    uint lo = 0, hi = count;
+    while (lo < hi) {
+      uint mid = (lo + hi) / 2;
+      if (pp[mid] < first) lo = mid + 1;
+      else hi = mid;
+    }
+    for (uint k = lo; k < count; ++k) {
+      uint j = pp[k];
+      if (j >= last) break;
+      gathered[j] += partial_sum[base + k];
+      hits[j] += partial_hits[base + k];
+    }
   }
 }
