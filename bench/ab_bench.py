@@ -6,7 +6,8 @@ ms per bundle; CPU ms per bundle, all threads): the median of each,
 the median of the per-round ratios B/A with its min and max, and the load average before and
 after. Machines shared with other work are noisy: only ratios from one interleaved run mean much.
 
-  bench/ab_bench.py --a OLD_BENCH --b NEW_BENCH [--rounds 7] -- [bench flags...]
+  bench/ab_bench.py --a OLD_BENCH --b NEW_BENCH [--a-env K=V,..] [--b-env K=V,..] [--rounds 7]
+                    -- [bench flags...]
 """
 import argparse
 import os
@@ -15,8 +16,9 @@ import subprocess
 import sys
 
 
-def run(binary, args):
-    out = subprocess.run([binary] + args, check=True, capture_output=True, text=True).stdout
+def run(binary, args, env):
+    out = subprocess.run([binary] + args, check=True, capture_output=True, text=True,
+                         env=dict(os.environ, **env)).stdout
     rows = {}
     for line in out.splitlines():
         f = line.split(",")
@@ -33,22 +35,26 @@ def main():
     p = argparse.ArgumentParser()
     p.add_argument("--a", required=True)
     p.add_argument("--b", required=True)
+    p.add_argument("--a-env", default="", help="K=V,K=V: environment of A's runs")
+    p.add_argument("--b-env", default="", help="K=V,K=V: environment of B's runs")
     p.add_argument("--rounds", type=int, default=7)
     p.add_argument("rest", nargs=argparse.REMAINDER)
     o = p.parse_args()
     args = o.rest[1:] if o.rest[:1] == ["--"] else o.rest
+    a_env = dict(kv.split("=", 1) for kv in o.a_env.split(",") if kv)
+    b_env = dict(kv.split("=", 1) for kv in o.b_env.split(",") if kv)
     load0 = os.getloadavg()
     a_runs, b_runs = [], []
     for r in range(o.rounds):
         if r % 2 == 0:
-            a_runs.append(run(o.a, args))
-            b_runs.append(run(o.b, args))
+            a_runs.append(run(o.a, args, a_env))
+            b_runs.append(run(o.b, args, b_env))
         else:
-            b_runs.append(run(o.b, args))
-            a_runs.append(run(o.a, args))
+            b_runs.append(run(o.b, args, b_env))
+            a_runs.append(run(o.a, args, a_env))
         print(f"round {r + 1}/{o.rounds} done", file=sys.stderr)
     load1 = os.getloadavg()
-    print(f"# A = {o.a}\n# B = {o.b}\n# args: {' '.join(args)}; {o.rounds} interleaved rounds")
+    print(f"# A = {o.a} {o.a_env}\n# B = {o.b} {o.b_env}\n# args: {' '.join(args)}; {o.rounds} interleaved rounds")
     print(f"# load average (1, 5, 15 min) before {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}, "
           f"after {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
     print("row,grid,patches,measure,A_median,B_median,B_over_A_paired_median,ratio_min,ratio_max")

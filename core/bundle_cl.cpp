@@ -24,6 +24,8 @@ class ClEngine final : public BundleEngine {
     std::string build = "-cl-std=CL1.2";
     cl_device_fp_config fp = device_.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>();
     if (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) build += " -cl-fp32-correctly-rounded-divide-sqrt";
+    // Experiments only (kernel variants selected by -D flags): appended to the build options.
+    if (const char* extra = std::getenv("SIRAD_CL_OPTIONS")) build += std::string(" ") + extra;
     cl::Program program = build_program(context_, device_, {"kernels/bundle_types.h", "kernels/bundle.cl"}, build);
     project_ = cl::Kernel(program, "project_patches");
     transfer_ = cl::Kernel(program, "transfer_band");
@@ -33,6 +35,7 @@ class ClEngine final : public BundleEngine {
     if (block_lines_ <= 0)
       if (const char* env = std::getenv("SIRAD_BLOCK_LINES")) block_lines_ = std::atoi(env);
     if (block_lines_ <= 0) block_lines_ = 8192;
+    if (const char* env = std::getenv("SIRAD_PROJECT_LOCAL")) project_local_ = std::atoi(env);
     bands_ = options.bands;
     if (bands_ <= 0)
       if (const char* env = std::getenv("SIRAD_BANDS")) bands_ = std::atoi(env);
@@ -99,6 +102,7 @@ class ClEngine final : public BundleEngine {
     partial_patch_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
     partial_sum_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(glm::vec4));
     partial_hits_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
+    band_radiance_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(glm::vec4));
     band_stats_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 4 * static_cast<std::size_t>(bands) * sizeof(cl_uint));
     grid_ = grid;
     allocated_bands_ = bands;
@@ -139,18 +143,22 @@ class ClEngine final : public BundleEngine {
     project_.setArg(0, vertices_);
     project_.setArg(1, patches_);
     project_.setArg(2, n);
-    project_.setArg(3, per_item_);
+    project_.setArg(3, project_local_ ? cl_uint(1) : per_item_);
     project_.setArg(4, params_);
     project_.setArg(5, projected_);
     project_.setArg(6, rows_);
-    queue_.enqueueNDRangeKernel(project_, cl::NullRange, patch_global, one_per_group, nullptr, &events_[0]);
+    if (project_local_)
+      queue_.enqueueNDRangeKernel(project_, cl::NullRange, cl::NDRange((n_ + project_local_ - 1) / project_local_ * project_local_),
+                                  cl::NDRange(project_local_), nullptr, &events_[0]);
+    else
+      queue_.enqueueNDRangeKernel(project_, cl::NullRange, patch_global, one_per_group, nullptr, &events_[0]);
 
     int arg = 0;
     for (const cl::Buffer* buf : {&projected_, &rows_}) transfer_.setArg(arg++, *buf);
     transfer_.setArg(arg++, n);
     transfer_.setArg(arg++, static_cast<cl_int>(block_rows));
     for (const cl::Buffer* buf : {&params_, &radiance_, &band_list_, &e_x_, &e_sort_, &s_sort_,
-                                  &line_count_, &partial_patch_, &partial_sum_, &partial_hits_, &band_stats_})
+                                  &line_count_, &partial_patch_, &partial_sum_, &partial_hits_, &band_radiance_, &band_stats_})
       transfer_.setArg(arg++, *buf);
     queue_.enqueueNDRangeKernel(transfer_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(params_host_.bands)),
                                 one_per_group, nullptr, &events_[1]);
@@ -204,9 +212,10 @@ class ClEngine final : public BundleEngine {
   int block_lines_ = 0;
   std::size_t patch_items_ = 1;
   cl_uint per_item_ = 1;
+  std::size_t project_local_ = 0;
   cl::Buffer vertices_, patches_, params_, projected_, rows_, radiance_, gathered_, hits_;
   cl::Buffer band_list_, e_x_, e_sort_, s_sort_, line_count_;
-  cl::Buffer partial_patch_, partial_sum_, partial_hits_, band_stats_;
+  cl::Buffer partial_patch_, partial_sum_, partial_hits_, band_radiance_, band_stats_;
   int grid_ = 0, allocated_bands_ = 0, allocated_block_rows_ = 0;
   uint64_t allocated_capacity_ = 0, allocated_partials_ = 0;
   SiradBundle params_host_{};

@@ -231,8 +231,9 @@ __kernel void project_patches(__global const float4* vertices, __global const ui
 }
 
 /* One band of grid rows, in blocks of rows_per_block rows (see the banner). Scratch per band:
- *   band_list, acc, acc_hits, out_patch: b->partial_capacity entries (the patches that reach
- *     the band, in patch order; their sums; compacted at the end into the band partials);
+ *   band_list, band_radiance, acc, acc_hits, out_patch: b->partial_capacity entries (the
+ *     patches that reach the band, in patch order; their radiance; their sums; compacted at
+ *     the end into the band partials);
  *   e_x, e_sort, s_sort: b->capacity crossings of one block: line (within the block, row
  *     major) and crossing_key as collected, and the keys sorted by line; line_count:
  *     rows_per_block * grid counters (zero between blocks).
@@ -248,7 +249,7 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
                             __global ulong* restrict e_sort, __global ulong* restrict s_sort,
                             __global uint* restrict line_count, __global uint* restrict out_patch,
                             __global float4* restrict acc, __global uint* restrict acc_hits,
-                            __global uint* restrict band_stats) {
+                            __global float4* restrict band_radiance, __global uint* restrict band_stats) {
   int band = get_global_id(0);
   if (band >= b->bands) return;
   const int grid = b->grid;
@@ -258,6 +259,7 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   out_patch += (size_t)band * lcap;
   acc += (size_t)band * lcap;
   acc_hits += (size_t)band * lcap;
+  band_radiance += (size_t)band * lcap;
   e_x += (size_t)band * cap;
   e_sort += (size_t)band * cap;
   s_sort += (size_t)band * cap;
@@ -280,6 +282,7 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   for (uint q = 0; q < patches; ++q) {
     acc[q] = (float4)(0.0f);
     acc_hits[q] = 0;
+    band_radiance[q] = radiance[band_list[q]];
   }
   for (int i = 0; i < rows_per_block * grid; ++i) count[i] = 0;
 
@@ -346,9 +349,9 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
         ulong key = s_sort[k];
         float4 seen = background;
         if (KEY_FRONT(key)) {
-          if (k + 1 < end && KEY_FRONT(s_sort[k + 1]) == 0u) seen = radiance[band_list[KEY_SLOT(s_sort[k + 1])]];
+          if (k + 1 < end && KEY_FRONT(s_sort[k + 1]) == 0u) seen = band_radiance[KEY_SLOT(s_sort[k + 1])];
         } else if (k > start && KEY_FRONT(s_sort[k - 1])) {
-          seen = radiance[band_list[KEY_SLOT(s_sort[k - 1])]];
+          seen = band_radiance[KEY_SLOT(s_sort[k - 1])];
         }
         acc[KEY_SLOT(key)] += seen;
         acc_hits[KEY_SLOT(key)] += 1;
