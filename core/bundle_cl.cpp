@@ -35,11 +35,13 @@ class ClEngine final : public BundleEngine {
     if (block_lines_ <= 0)
       if (const char* env = std::getenv("SIRAD_BLOCK_LINES")) block_lines_ = std::atoi(env);
     if (block_lines_ <= 0) block_lines_ = 8192;
-    if (const char* env = std::getenv("SIRAD_PROJECT_LOCAL")) project_local_ = std::atoi(env);
     bands_ = options.bands;
     if (bands_ <= 0)
       if (const char* env = std::getenv("SIRAD_BANDS")) bands_ = std::atoi(env);
-    if (bands_ <= 0) bands_ = info_.is_cpu ? static_cast<int>(8 * info_.compute_units) : 1 << 30;
+    // Bands on a CPU: 4 per compute unit (measured against 1, 2 and 8 per unit on 2 cores; see
+    // bench/RESULTS.md "Kernel tuning"): enough to balance the threads, few enough that
+    // patches spanning two bands and the per-band scan of all patches stay cheap.
+    if (bands_ <= 0) bands_ = info_.is_cpu ? static_cast<int>(4 * info_.compute_units) : 1 << 30;
     // Runs of patches per work-item: whole runs on a CPU (no divergent lanes), one elsewhere.
     patch_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(n_, 1), 16 * info_.compute_units)
                                 : std::max<std::size_t>(n_, 1);
@@ -143,15 +145,11 @@ class ClEngine final : public BundleEngine {
     project_.setArg(0, vertices_);
     project_.setArg(1, patches_);
     project_.setArg(2, n);
-    project_.setArg(3, project_local_ ? cl_uint(1) : per_item_);
+    project_.setArg(3, per_item_);
     project_.setArg(4, params_);
     project_.setArg(5, projected_);
     project_.setArg(6, rows_);
-    if (project_local_)
-      queue_.enqueueNDRangeKernel(project_, cl::NullRange, cl::NDRange((n_ + project_local_ - 1) / project_local_ * project_local_),
-                                  cl::NDRange(project_local_), nullptr, &events_[0]);
-    else
-      queue_.enqueueNDRangeKernel(project_, cl::NullRange, patch_global, one_per_group, nullptr, &events_[0]);
+    queue_.enqueueNDRangeKernel(project_, cl::NullRange, patch_global, one_per_group, nullptr, &events_[0]);
 
     int arg = 0;
     for (const cl::Buffer* buf : {&projected_, &rows_}) transfer_.setArg(arg++, *buf);
@@ -212,7 +210,6 @@ class ClEngine final : public BundleEngine {
   int block_lines_ = 0;
   std::size_t patch_items_ = 1;
   cl_uint per_item_ = 1;
-  std::size_t project_local_ = 0;
   cl::Buffer vertices_, patches_, params_, projected_, rows_, radiance_, gathered_, hits_;
   cl::Buffer band_list_, e_x_, e_sort_, s_sort_, line_count_;
   cl::Buffer partial_patch_, partial_sum_, partial_hits_, band_radiance_, band_stats_;
