@@ -44,6 +44,7 @@ SIRAD_INLINE float edge_value(const SiradProjected* p, int k, float px, float py
  * directions; the neighbour sees the opposite direction). */
 SIRAD_INLINE bool covers(const SiradProjected* p, int px, int py) {
   float fx = (float)px, fy = (float)py;
+#pragma unroll
   for (int k = 0; k < 3; ++k) {
     float e = edge_value(p, k, fx, fy);
     if (!(e > 0.0f || (e == 0.0f && (p->flags & (1u << k))))) return false;
@@ -56,6 +57,7 @@ SIRAD_INLINE bool covers(const SiradProjected* p, int px, int py) {
 SIRAD_INLINE void row_span(const SiradProjected* p, int py, float* lo_out, float* hi_out) {
   float fy = (float)py;
   float lo = p->xmin, hi = p->xmax;
+#pragma unroll
   for (int k = 0; k < 3; ++k) {
     if (p->ea[k] == 0.0f) {
       /* A horizontal edge decides the whole row, as `covers` would for every cell of it. */
@@ -68,8 +70,9 @@ SIRAD_INLINE void row_span(const SiradProjected* p, int py, float* lo_out, float
       continue;
     }
     float xc = p->ex[k] + p->slope[k] * (fy - p->ey[k]);
-    if (p->ea[k] > 0.0f) lo = fmax(lo, xc);
-    else hi = fmin(hi, xc);
+    /* As fmax / fmin (a NaN xc leaves the bound), without their NaN handling. */
+    if (p->ea[k] > 0.0f) lo = xc > lo ? xc : lo;
+    else hi = xc < hi ? xc : hi;
   }
   *lo_out = lo;
   *hi_out = hi;
@@ -81,13 +84,26 @@ SIRAD_INLINE void row_span(const SiradProjected* p, int py, float* lo_out, float
  * outside is not. Only the lines within SIRAD_SPAN_EPS of an end need the exact test. */
 #define SIRAD_SPAN_EPS (1.0f / 32.0f)
 
+/* (int)ceil(max(v, 0)) and, for the lines up to v, (int)floor(min(v, hi)) or any value
+ * below 0 when that is negative, by truncation (the library's ceil and floor are not
+ * inlined as single instructions by every compiler). v is not NaN. */
+SIRAD_INLINE int first_line(float v) {
+  if (!(v > 0.0f)) return 0;
+  int t = (int)v;
+  return (float)t < v ? t + 1 : t;
+}
+SIRAD_INLINE int last_line(float v, float hi) {
+  v = v < hi ? v : hi;
+  return v >= 0.0f ? (int)v : -1;
+}
+
 /* Visits the lines of row y that cross patch p, as `covers` decides. Every pass walks rows
  * through this one macro, so they agree bit for bit. */
 #define FOR_EACH_COVERED(p, y, grid, x)                                                    \
   float x##_lo, x##_hi;                                                                    \
   row_span(p, y, &x##_lo, &x##_hi);                                                        \
-  int x##_first = (int)ceil(fmax(x##_lo - SIRAD_SPAN_EPS, 0.0f));                          \
-  int x##_last = (int)floor(fmin(x##_hi + SIRAD_SPAN_EPS, (float)(grid - 1)));             \
+  int x##_first = first_line(x##_lo - SIRAD_SPAN_EPS);                                     \
+  int x##_last = last_line(x##_hi + SIRAD_SPAN_EPS, (float)(grid - 1));                    \
   for (int x = x##_first; x <= x##_last; ++x)                                              \
     if (((float)x >= x##_lo + SIRAD_SPAN_EPS && (float)x <= x##_hi - SIRAD_SPAN_EPS) ||   \
         covers(p, x, y))
