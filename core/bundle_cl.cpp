@@ -27,7 +27,10 @@ class ClEngine final : public BundleEngine {
     // Experiments only (kernel variants selected by -D flags): appended to the build options.
     if (const char* extra = std::getenv("SIRAD_CL_OPTIONS")) build += std::string(" ") + extra;
     cl::Program program = build_program(context_, device_, {"kernels/bundle_types.h", "kernels/bundle.cl"}, build);
-    project_ = cl::Kernel(program, "project_patches");
+    // On a CPU, eight patches per step in float8 lanes; elsewhere one patch per work-item.
+    bool project8 = info_.is_cpu;
+    if (const char* env = std::getenv("SIRAD_PROJECT8")) project8 = std::atoi(env) != 0;
+    project_ = cl::Kernel(program, project8 ? "project_patches8" : "project_patches");
     transfer_ = cl::Kernel(program, "transfer_band");
     combine_ = cl::Kernel(program, "combine");
 
