@@ -342,7 +342,9 @@ void check_solver(const char* name, const Scene& scene, std::size_t patches, int
               name, mesh.size(), shots_per_bundle, 100 * md, 100 * channel.x, 100 * channel.y, 100 * channel.z, 100 * se, 100 * se_bundle,
               runs, static_cast<unsigned long long>(bundles), 100 * se_ref, md / se, rms.raw, rms.corrected, rms.ref_share);
   EXPECT_LT(std::abs(md), 3 * se) << name << ": the bundle solver and the reference disagree beyond their noise";
-  if (demand_power) EXPECT_LT(se, 0.005 / 3) << name << ": the comparison could not see a 0.5% bias";
+  if (demand_power) {
+    EXPECT_LT(se, 0.005 / 3) << name << ": the comparison could not see a 0.5% bias";
+  }
 }
 
 // Strata per replicate from measured SEs: at 16 x 16 the SE was 0.04% (furnace), 0.22% (Cornell),
