@@ -25,7 +25,7 @@ namespace sirad {
 enum class UpdateRule { chain, average };
 
 // The command lines' default first shot: shots per bundle (see SolverOptions).
-inline constexpr double kDefaultShotsPerBundle = 1.0;
+inline constexpr double kDefaultShotsPerBundle = 0.25;
 UpdateRule parse_update_rule(const std::string& name);  // "chain" | "average"
 const char* to_string(UpdateRule rule);
 
