@@ -36,6 +36,7 @@ struct RenderArgs {
   std::string out;
   std::string device;
   std::string rule = "chain";
+  std::string directions = "random";
   std::optional<int> burn_in;
   int width = 512, height = 512;
   float exposure = 0.0f;
@@ -97,6 +98,7 @@ Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, 
       {"sirad.grid", static_cast<int64_t>(grid)},
       {"sirad.seed", std::to_string(a.seed)},
       {"sirad.rule", std::string(to_string(rule))},
+      {"sirad.directions", a.directions},
       {"sirad.nodes", static_cast<int64_t>(std::max(a.nodes, 1))},
       {"sirad.exchange_every", a.exchange_every},
       {"sirad.exchange_fraction", a.exchange_fraction},
@@ -126,6 +128,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.seed = a.seed;
   rc.grid = a.grid.value_or(0);
   rc.rule = rule;
+  rc.directions = parse_directions(a.directions);
   rc.burn_in = a.burn_in.value_or(-1);
   rc.exchange_every = cluster::parse_exchange_every(a.exchange_every);
   rc.fraction = a.exchange_fraction;
@@ -198,6 +201,8 @@ int render(const RenderArgs& a) {
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   UpdateRule rule = parse_update_rule(a.rule);
+  if (parse_directions(a.directions) == Directions::stratified && rule != UpdateRule::chain)
+    fail("--directions stratified needs --rule chain (under average it biases the estimate)");
   std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
   check_output_name(out);
 
@@ -217,6 +222,7 @@ int render(const RenderArgs& a) {
   so.seed = a.seed;
   so.grid = a.grid.value_or(0);
   so.rule = rule;
+  so.directions = parse_directions(a.directions);
   so.burn_in = a.burn_in.value_or(-1);
   if (!a.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule) on %s\n", a.scene.c_str(),
@@ -282,6 +288,9 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");
   render_cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
       ->check(CLI::IsMember({"chain", "average"}));
+  render_cmd->add_option("--directions", r.directions,
+                         "Bundle directions: random (default) or stratified (chain rule only)")
+      ->check(CLI::IsMember({"random", "stratified"}))->capture_default_str();
   render_cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
       ->check(CLI::Range(0, 1 << 20));
   render_cmd->add_option("--width", r.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();

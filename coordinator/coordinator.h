@@ -31,6 +31,7 @@ struct RunConfig {
   int grid = 0;           // the run's grid (0: auto from the mesh)
   UpdateRule rule = UpdateRule::chain;
   int burn_in = -1;
+  Directions directions = Directions::random;  // stratified: chain rule only
   uint32_t exchange_every = 0;  // I; 0: states only at the end
   double fraction = 1.0;        // S
   Topology topology = Topology::star;

@@ -24,7 +24,7 @@ using namespace sirad;
 int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
   std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
-                          rule = "chain", endpoint_file, status_json, profile;
+                          rule = "chain", directions = "random", endpoint_file, status_json, profile;
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
@@ -39,6 +39,8 @@ int main(int argc, char** argv) {
   app.add_option("--seed", seed, "Run seed")->capture_default_str();
   app.add_option("--out", out, "Output name (default: scene name)");
   app.add_option("--rule", rule, "chain or average")->check(CLI::IsMember({"chain", "average"}))->capture_default_str();
+  app.add_option("--directions", directions, "Bundle directions: random or stratified (chain rule only)")
+      ->check(CLI::IsMember({"random", "stratified"}))->capture_default_str();
   app.add_option("--exchange-every", exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
   app.add_option("--exchange-fraction", fraction, "Fraction S of chunks per exchange")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   app.add_option("--topology", topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
@@ -81,6 +83,9 @@ int main(int argc, char** argv) {
     rc.seed = seed;
     rc.grid = grid.value_or(0);
     rc.rule = parse_update_rule(rule);
+    rc.directions = parse_directions(directions);
+    if (rc.directions == Directions::stratified && rc.rule != UpdateRule::chain)
+      fail("--directions stratified needs --rule chain");
     rc.exchange_every = cluster::parse_exchange_every(exchange_every);
     rc.fraction = fraction;
     rc.topology = cluster::parse_topology(topology);

@@ -248,6 +248,7 @@ class Node {
       so.grid = static_cast<int>(run.grid());
       so.rule = parse_update_rule(run.rule());
       so.burn_in = run.burn_in();
+      so.directions = run.directions().empty() ? Directions::random : parse_directions(run.directions());
       so.chain_id = pending_->index;
       auto t0 = Clock::now();
       pending_->solver = std::make_unique<Solver>(pending_->mesh, *pending_->engine, so);
