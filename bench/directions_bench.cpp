@@ -4,7 +4,7 @@
 // seeds 1000..), at the checkpoint bundle counts, for --seeds paired seeds (the random and the
 // stratified run of a pair share the seed). Also the bias check: the area mean of every run at
 // the last checkpoint, per mode. Prints CSV on stdout, a summary on stderr.
-//   sirad_bench_directions [--patches N] [--seeds S] [--checkpoints 64,256,1024,4096]
+//   sirad_bench_directions [--patches N] [--seeds S] [--first-seed F] [--checkpoints 64,256,1024,4096]
 //                          [--truth-runs R] [--truth-bundles B] [--device D]
 //                          [--interleave G] [--side n]   (override the plan: K = n^2)
 // The truth's own error inflates the measured error: E|x - t|^2 = Var(x) + Var(t); the summary
@@ -28,7 +28,7 @@ using namespace sirad;
 int main(int argc, char** argv) {
   try {
     std::size_t patches = 1000;
-    int seeds = 6, truth_runs = 4;
+    int seeds = 6, truth_runs = 4, first_seed = 1;
     uint64_t truth_bundles = 16384;
     std::vector<uint64_t> checkpoints = {64, 256, 1024, 4096};
     std::string device;
@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
       std::string k = argv[i], v = argv[i + 1];
       if (k == "--patches") patches = std::stoul(v);
       else if (k == "--seeds") seeds = std::stoi(v);
+      else if (k == "--first-seed") first_seed = std::stoi(v);
       else if (k == "--truth-runs") truth_runs = std::stoi(v);
       else if (k == "--truth-bundles") truth_bundles = std::stoull(v);
       else if (k == "--device") device = v;
@@ -108,7 +109,7 @@ int main(int argc, char** argv) {
     for (int sd = 0; sd < seeds; ++sd) {
       for (int mode = 0; mode < 2; ++mode) {
         Directions d = mode == 0 ? Directions::random : Directions::stratified;
-        Solver s(mesh, *engine, {.seed = 1 + static_cast<uint64_t>(sd), .directions = d, .interleave = interleave,
+        Solver s(mesh, *engine, {.seed = static_cast<uint64_t>(first_seed + sd), .directions = d, .interleave = interleave,
                                  .strata_side = side});
         std::size_t next = 0;
         for (uint64_t k = 0; next < checkpoints.size(); ++k) {
@@ -117,7 +118,7 @@ int main(int argc, char** argv) {
             auto est = s.estimate();
             double e = relative_rms(mesh, est, truth), m = area_mean(mesh, est);
             err[mode][next].push_back(e);
-            std::printf("%zu,%s,%d,%llu,%.6f,%.6f\n", mesh.size(), to_string(d), sd + 1,
+            std::printf("%zu,%s,%d,%llu,%.6f,%.6f\n", mesh.size(), to_string(d), first_seed + sd,
                         static_cast<unsigned long long>(checkpoints[next]), e, m);
             std::fflush(stdout);
             if (next + 1 == checkpoints.size()) means[mode].push_back(m);

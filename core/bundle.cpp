@@ -42,19 +42,26 @@ const char* to_string(Directions directions) {
 // and ||X|| <= rho_max^(G-1) in the max-norm (row sums of rho F are at most rho_max). C is the
 // covariance, across strata, of what a patch gathers from one direction and of what one
 // direction carries into the scene (through X, which smears it towards the dominant mode);
-// relative to B it is of order the transports' relative variance, ~0.3 in the furnace (|cos|
-// has relative variance 1/3). So the relative bias of the estimate is about
-//     c rho_max^G / (K - 1) (1 + rho_max^G + ...),    c ~ 0.3 .. 1,
-// and products holding three members of a block are smaller by another rho_max^G. With
-// rho_max^G <= 1e-3 (the G below) and K = 16 that is below 1e-4 c: far below the 0.1 % the
-// design asks, and 50x below what the tests can resolve (0.5 %).
-// What G costs: bundles closer than G are independent, so stratification cannot help before a
-// sequence has drawn a block (M >= G K bundles; 448 for the Cornell box, rho_max = 0.78, G =
-// 28). That is no accident of this scheme: a linear term (1/M) sum f(w_m) gains only through
-// negative covariances between bundles, and any covariance at a lag below the chain's memory
-// biases its products. Within a block the order is a uniform random permutation, so a part of
-// a block is a random subset of its strata (sampling without replacement): still unbiased,
-// little gain.
+// relative to B it is of order the transports' relative variance (|cos| alone has 1/3). So the
+// relative bias of the estimate is at most about
+//     c rho_max^G / (K - 1) (1 + rho_max^G + ...),    c ~ 0.3,
+// and products holding three members of a block are smaller by another rho_max^G. Measured on
+// the furnace (rho = 0.5, 16 runs x 1024 bundles, tests/directions_test.cpp): with G = 1 (no
+// interleave: consecutive steps from one block) the bias is -0.75 % for K = 16 and -1.05 % for
+// K = 9, i.e. c ~ 0.2; with G = 2, K = 9 it is already -0.02 % +- 0.08 %, far below
+// rho c / (K - 1): the transports between the pair average over all directions, so C only
+// sees the smooth, low-variance part of what a direction carries. With rho_max^G <= 1e-3 (the
+// G below) and K = 256 the bound is below 1e-5: far below the 0.1 % the design asks, and 500x
+// below what the tests can resolve (0.5 %).
+// What G costs: bundles closer than G are independent, so a sequence holds M / G of the first
+// M bundles. That is no accident of this scheme: a linear term (1/M) sum f(w_m) gains only
+// through negative covariances between bundles, and any covariance at a lag below the chain's
+// memory biases its products. Within a block the order is a uniform random permutation, so the
+// first j members of a block are a random subset of its strata (sampling without replacement):
+// the between-strata part of their variance shrinks by (K - j) / (K - 1), full gain at j = K.
+// Measured on the Cornell box (bench/RESULTS.md): no gain at 1024 bundles, about 0.8x the
+// random error at 4096 to 16384 bundles with K = 144 .. 576 (K = 16: none; the light is much
+// smaller than a stratum).
 // The cluster: a node's chain follows its grants, not the global index. The coordinator rounds
 // grants up to a multiple of G, so ranges start at multiples of G and two same-sequence
 // bundles on either side of a jump are still >= G chain steps apart (only the ledger's short
@@ -74,7 +81,7 @@ Sampling sampling_plan(const PatchMesh& mesh, Directions directions) {
   if (rho_max >= 1.0f) g = 256.0;
   else if (rho_max > 0.0f) g = std::ceil(std::log(1e-3) / std::log(static_cast<double>(rho_max)));
   s.interleave = static_cast<uint32_t>(std::clamp(g, 1.0, 256.0));
-  s.side = 4;
+  s.side = 16;
   return s;
 }
 

@@ -42,11 +42,11 @@ const char* to_string(Directions directions);
 struct Sampling {
   Directions directions = Directions::random;
   uint32_t interleave = 1;  // G (stratified): sequences interleaved by index mod G, 1..256
-  uint32_t side = 4;        // n (stratified): K = n * n strata per block, 1..64
+  uint32_t side = 16;       // n (stratified): K = n * n strata per block, 1..64
 };
 
 // The sampling of a run on `mesh`: for stratified, G = the smallest G with rho_max^G <= 1e-3
-// (1 for a scene that reflects nothing, at most 256) and n = 4 (K = 16).
+// (1 for a scene that reflects nothing, at most 256) and n = 16 (K = 256).
 Sampling sampling_plan(const PatchMesh& mesh, Directions directions);
 
 // The direction and jitter of bundle `index` of a run with `seed` (double precision): a pure

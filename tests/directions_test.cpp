@@ -150,13 +150,13 @@ TEST(Directions, StratifiedMomentsMatchTheSphere) {
   EXPECT_NEAR(jxy, 0.25, 4.5 * std::sqrt(7.0 / 144.0 / n));
 }
 
-// The plan: G from the scene's largest reflectance (rho_max^G <= 1e-3), K = 16; random: G = 1.
+// The plan: G from the scene's largest reflectance (rho_max^G <= 1e-3), K = 256; random: G = 1.
 TEST(Directions, PlanFollowsTheReflectance) {
   PatchMesh cornell = mesh_scene(builtin_cornell(), {.target_patches = 64});
   PatchMesh furnace = mesh_scene(builtin_furnace(), {.target_patches = 48});
   EXPECT_EQ(sampling_plan(cornell, Directions::stratified).interleave, 28u);  // 0.78^28 = 9.6e-4
   EXPECT_EQ(sampling_plan(furnace, Directions::stratified).interleave, 10u);  // 0.5^10 = 9.8e-4
-  EXPECT_EQ(sampling_plan(furnace, Directions::stratified).side, 4u);
+  EXPECT_EQ(sampling_plan(furnace, Directions::stratified).side, 16u);
   EXPECT_EQ(sampling_plan(furnace, Directions::random).interleave, 1u);
 }
 
@@ -205,43 +205,60 @@ FurnaceRuns furnace_runs(const PatchMesh& mesh, BundleEngine& engine, SolverOpti
 }
 
 // Furnace (E = 1, rho = 0.5, B = 2), 192 patches, chain rule, 16 paired seeds x 1024 bundles.
-// Bias. Stratified sampling's bias is c rho^G / (K - 1) (core/bundle.cpp): with the plan's
-// G = 10, K = 16, about 1e-5 here. The pooled area mean's noise: one run's sd after 1024
-// bundles is 0.0097 with random directions (solver_test.cpp, 60 seeds; it measured 0.005 ..
-// 0.009 over 8 stratified seeds here), so 16 runs give sd 0.0024 and we hold the pooled mean
-// to 4 sd = 0.0097 (0.5 %) of 2.
-// Power: the same statistic for stratified sampling without interleaving (G = 1) and K = 4,
-// where consecutive chain steps come from one block, must fall outside the band: the model
-// predicts -2 c rho / (K - 1) ~ -0.1 with c ~ 0.3 (measured: G = 1, K = 16 gave -0.019, 8 runs,
-// i.e. c = 0.29; K = 4 gives five times that).
+// Bias. Stratified sampling's bias is about 0.2 rho^G / (K - 1) (core/bundle.cpp): with the
+// plan's G = 10 about 1e-5 for K = 256 and 1e-5 for K = 16 too. The pooled area mean's noise:
+// one run's sd after 1024 bundles is 0.0097 with random directions (solver_test.cpp, 60 seeds;
+// 0.006 .. 0.009 measured here with either sampling), so 16 runs give sd 0.0024 and we hold the
+// pooled mean to 4 sd = 0.0097 (0.5 %) of 2, for the plan (K = 256) and for K = 16.
+// Power: the same statistic for stratified sampling without interleaving (G = 1) and K = 9,
+// where consecutive chain steps come from one block, must fall outside the band: measured
+// -0.021 (c ~ 0.17 in the bias model; 9 sd of the pooled mean away from 2, 4.5 outside the band).
 // Error. Stratification removes most of the spread of |n . w| between strata, the direction
-// noise of every wall. Measured (8 seeds, this mesh, 1024 bundles): relative RMS error per
-// patch 0.0113 random, 0.0090 stratified (ratio 0.79). The full error is dominated by the
-// common-mode error of the area mean (1 to 2 runs in 8 decide it), so the test compares the
-// error around each run's own mean, pooled over the 16 seeds: measured ratio RATIO_LOCAL; we
-// require < BOUND_LOCAL.
+// noise of every wall. The full error is dominated by the common-mode error of the area mean
+// (its square has a relative sd of 0.76 over random runs: 1 or 2 runs in 16 decide it), so the
+// test compares the error around each run's own area mean, pooled over the 16 seeds, with
+// K = 16 (G K = 160: 6 full blocks per sequence in 1024 bundles). Measured: ratio 0.73
+// (relative RMS 0.0105 random, 0.0077 stratified; the full error 0.0110 against 0.0088). Its sd,
+// from the spread of the squared errors over runs (relative sd 0.76 and 0.34, so 0.19 and 0.085
+// for the means of 16), is about 0.1 x 0.73 = 0.08: we require < 1, 3.4 sd above the measured
+// ratio. (The plan's K = 256 has only partial blocks at 1024 bundles: ratio 0.87.)
 TEST(StratifiedSolver, FurnaceChainUnbiasedAndLessNoisy) {
   PatchMesh mesh = mesh_scene(builtin_furnace(), {.target_patches = 192});
   auto engine = make_cl_engine(mesh);
   const int runs = 16;
   FurnaceRuns rnd = furnace_runs(mesh, *engine, {}, runs, 1024);
   FurnaceRuns str = furnace_runs(mesh, *engine, {.directions = Directions::stratified}, runs, 1024);
+  FurnaceRuns k16 = furnace_runs(mesh, *engine, {.directions = Directions::stratified, .strata_side = 4}, runs, 1024);
   FurnaceRuns bad = furnace_runs(mesh, *engine, {.directions = Directions::stratified, .interleave = 1, .strata_side = 3},
                                  runs, 1024);
-
   std::printf("furnace, %d runs x 1024 bundles: pooled area mean random %.5f (sd %.4f), stratified %.5f (sd %.4f), "
-              "stratified G = 1 K = 4 %.5f (sd %.4f)\n",
-              runs, rnd.mean, rnd.sd, str.mean, str.sd, bad.mean, bad.sd);
-  std::printf("relative RMS error per patch: random %.5f, stratified %.5f (ratio %.3f); around the run's mean: "
-              "%.5f, %.5f (ratio %.3f)\n",
-              std::sqrt(rnd.err2), std::sqrt(str.err2), std::sqrt(str.err2 / rnd.err2), std::sqrt(rnd.local2),
-              std::sqrt(str.local2), std::sqrt(str.local2 / rnd.local2));
-  std::printf("sd over runs of local^2 / its mean: random %.3f, stratified %.3f\n", rnd.local2_sd / rnd.local2,
-              str.local2_sd / str.local2);
+              "K = 16 %.5f (sd %.4f), G = 1 K = 9 %.5f (sd %.4f)\n",
+              runs, rnd.mean, rnd.sd, str.mean, str.sd, k16.mean, k16.sd, bad.mean, bad.sd);
+  std::printf("relative RMS error per patch: random %.5f, stratified K = 16 %.5f (ratio %.3f); around the run's mean: "
+              "%.5f, %.5f (ratio %.3f; plan's K = 256: %.3f)\n",
+              std::sqrt(rnd.err2), std::sqrt(k16.err2), std::sqrt(k16.err2 / rnd.err2), std::sqrt(rnd.local2),
+              std::sqrt(k16.local2), std::sqrt(k16.local2 / rnd.local2), std::sqrt(str.local2 / rnd.local2));
+  std::printf("sd over runs of local^2 / its mean: random %.3f, stratified K = 16 %.3f\n", rnd.local2_sd / rnd.local2,
+              k16.local2_sd / k16.local2);
   EXPECT_NEAR(str.mean, 2.0, 0.0097) << "stratified directions bias the chain";
+  EXPECT_NEAR(k16.mean, 2.0, 0.0097) << "stratified directions (K = 16) bias the chain";
   EXPECT_NEAR(rnd.mean, 2.0, 0.0097);
   EXPECT_LT(bad.mean, 2.0 - 0.0097) << "the test cannot see the bias of dependent consecutive steps";
-  EXPECT_LT(std::sqrt(str.local2 / rnd.local2), 1.0) << "stratification does not reduce the error";
+  EXPECT_LT(std::sqrt(k16.local2 / rnd.local2), 1.0) << "stratification does not reduce the error";
+}
+
+// A measurement, not run by default (--gtest_also_run_disabled_tests): the furnace's pooled
+// area mean over many seeds for random and stratified (plan) directions, to resolve a bias
+// near 0.1 %.
+TEST(StratifiedSolver, DISABLED_FurnaceBiasManySeeds) {
+  PatchMesh mesh = mesh_scene(builtin_furnace(), {.target_patches = 192});
+  auto engine = make_cl_engine(mesh);
+  const int runs = 96;
+  for (Directions d : {Directions::random, Directions::stratified}) {
+    FurnaceRuns f = furnace_runs(mesh, *engine, {.directions = d}, runs, 1024);
+    std::printf("furnace %s, %d runs x 1024 bundles: pooled area mean %.5f +- %.5f\n", to_string(d), runs, f.mean,
+                f.sd / std::sqrt(runs));
+  }
 }
 
 // Cornell box, 300 patches, chain rule: stratified and random directions agree. Statistic: the
@@ -252,7 +269,7 @@ TEST(StratifiedSolver, FurnaceChainUnbiasedAndLessNoisy) {
 // the bundles, about 5 minutes here; the long runs of bench/RESULTS.md check that level: both
 // modes agree with a 262,144-bundle truth within 0.3 %.) The power to see the bias of
 // dependent chain steps is shown on the furnace above; here the same control (G = 1, K = 9)
-// measured -2.0 %, inside this band, so it is printed, not asserted.
+// measured -2.0 %, inside this band, so it is not part of the test.
 double cornell_pooled_mean(const PatchMesh& mesh, BundleEngine& engine, SolverOptions o, int runs, uint64_t bundles) {
   double pooled = 0.0;
   for (int r = 0; r < runs; ++r) {
@@ -269,11 +286,8 @@ TEST(StratifiedSolver, CornellAgreesWithRandomDirections) {
   const int runs = 8;
   double rnd = cornell_pooled_mean(mesh, *engine, {}, runs, 2048);
   double str = cornell_pooled_mean(mesh, *engine, {.directions = Directions::stratified}, runs, 2048);
-  double bad = cornell_pooled_mean(mesh, *engine,
-                                   {.directions = Directions::stratified, .interleave = 1, .strata_side = 3}, runs, 2048);
-  std::printf("cornell, %d runs x 2048 bundles: pooled area mean random %.5f, stratified %.5f (%+.2f %%), "
-              "stratified G = 1 K = 9 %.5f (%+.2f %%)\n",
-              runs, rnd, str, 100.0 * (str / rnd - 1.0), bad, 100.0 * (bad / rnd - 1.0));
+  std::printf("cornell, %d runs x 2048 bundles: pooled area mean random %.5f, stratified %.5f (%+.2f %%)\n", runs, rnd,
+              str, 100.0 * (str / rnd - 1.0));
   EXPECT_NEAR(str / rnd, 1.0, 0.028);
 }
 
