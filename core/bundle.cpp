@@ -59,9 +59,9 @@ const char* to_string(Directions directions) {
 // memory biases its products. Within a block the order is a uniform random permutation, so the
 // first j members of a block are a random subset of its strata (sampling without replacement):
 // the between-strata part of their variance shrinks by (K - j) / (K - 1), full gain at j = K.
-// Measured on the Cornell box (bench/RESULTS.md): no gain at 1024 bundles, about 0.8x the
-// random error at 4096 to 16384 bundles with K = 144 .. 576 (K = 16: none; the light is much
-// smaller than a stratum).
+// Measured on the Cornell box (bench/RESULTS.md): no gain at 1024 bundles, 0.9x the random
+// error at 4096 and 0.8x at 16384 bundles with K = 256 (K = 16: none; the light is much
+// smaller than a stratum). The draw costs ~3 us at K = 256 (two permutations from Philox).
 // The cluster: a node's chain follows its grants, not the global index. The coordinator rounds
 // grants up to a multiple of G, so ranges start at multiples of G and two same-sequence
 // bundles on either side of a jump are still >= G chain steps apart (only the ledger's short
