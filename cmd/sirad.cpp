@@ -225,9 +225,9 @@ int render(const RenderArgs& a) {
   so.directions = parse_directions(a.directions);
   so.burn_in = a.burn_in.value_or(-1);
   if (!a.quiet)
-    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule) on %s\n", a.scene.c_str(),
+    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule, %s directions) on %s\n", a.scene.c_str(),
                  mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
-                 to_string(rule), engine->description().c_str());
+                 to_string(rule), a.directions.c_str(), engine->description().c_str());
 
   auto start = std::chrono::steady_clock::now();
   Solver solver(mesh, *engine, so);
