@@ -2,9 +2,16 @@
 // of the C++ reference, measured in the same run, on the Cornell box; then the relative RMS
 // difference between two independent runs against bundles. Prints CSV on stdout.
 //   sirad_bench_bundle [--patches N] [--grids 256,512,1024] [--bundles K] [--reference-bundles K]
-//                      [--error-bundles K] [--device D]
+//                      [--error-bundles K] [--auto-patches 5000,20000] [--device D]
+// --grids none skips the fixed grids; --reference-bundles 0 skips the reference.
+// --auto-patches: for each size, the Cornell box at that size and its auto grid (auto_grid, as
+// `sirad render cornell --patches N` uses): the engine alone (engine_auto) and one whole
+// Solver::step on it (solver_auto: host work per bundle included), medians over --bundles.
+// Columns: median and least wall ms per bundle, crossings per second, and the process's CPU ms
+// per bundle (all threads; on a busy machine the steadier measure of work done).
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <cstdio>
 #include <cmath>
 #include <cstring>
@@ -28,14 +35,28 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-// Median milliseconds per bundle over `bundles` bundles (after one warm-up), and crossings/s.
-std::pair<double, double> time_engine(const PatchMesh& mesh, BundleEngine& engine, int grid, int bundles) {
+// CPU time of the whole process (host thread and the OpenCL runtime's threads), seconds: less
+// sensitive than wall time to other work on a shared machine (it misses idle waits).
+double cpu_seconds() {
+  timespec t;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+struct Timing {
+  double median_ms = 0, min_ms = 0, cpu_ms = 0;  // per bundle; cpu_ms: the mean
+  double crossings_per_s = 0;
+};
+
+// Per bundle over `bundles` bundles (after one warm-up): median and least wall ms, mean CPU
+// ms, and crossings per second of wall time.
+Timing time_engine(const PatchMesh& mesh, BundleEngine& engine, int grid, int bundles) {
   std::vector<glm::vec4> radiance(mesh.size(), glm::vec4(1.0f));
   BundleResult r;
   engine.run(make_bundle(mesh, grid, 1, 1000000), radiance, r);
   std::vector<double> ms;
   uint64_t crossings = 0;
-  double total = 0;
+  double total = 0, cpu0 = cpu_seconds();
   for (int k = 0; k < bundles; ++k) {
     SiradBundle b = make_bundle(mesh, grid, 1, static_cast<uint64_t>(k));
     auto t0 = std::chrono::steady_clock::now();
@@ -45,7 +66,28 @@ std::pair<double, double> time_engine(const PatchMesh& mesh, BundleEngine& engin
     total += s;
     crossings += r.crossings;
   }
-  return {median(ms), crossings / total};
+  double cpu = cpu_seconds() - cpu0;
+  return {median(ms), *std::min_element(ms.begin(), ms.end()), 1e3 * cpu / bundles, crossings / total};
+}
+
+// One Solver::step (chain rule, no burn-in) after one warm-up step, as time_engine.
+Timing time_solver(const PatchMesh& mesh, BundleEngine& engine, int bundles) {
+  Solver solver(mesh, engine, {.seed = 1, .burn_in = 0});
+  solver.step(0);
+  std::vector<double> ms;
+  double cpu0 = cpu_seconds();
+  for (int k = 1; k <= bundles; ++k) {
+    auto t0 = std::chrono::steady_clock::now();
+    solver.step(static_cast<uint64_t>(k));
+    ms.push_back(1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  double cpu = cpu_seconds() - cpu0;
+  return {median(ms), *std::min_element(ms.begin(), ms.end()), 1e3 * cpu / bundles, 0};
+}
+
+void print_row(const char* engine, int grid, std::size_t patches, const Timing& t) {
+  std::printf("%s,%d,%zu,%.3f,%.4g,%.3f,%.3f\n", engine, grid, patches, t.median_ms, t.crossings_per_s, t.min_ms,
+              t.cpu_ms);
 }
 
 }  // namespace
@@ -54,6 +96,7 @@ int main(int argc, char** argv) {
   try {
     std::size_t patches = 20000;
     std::vector<int> grids = {256, 512, 1024};
+    std::vector<std::size_t> auto_patches;
     int bundles = 30, ref_bundles = 3, error_bundles = 1024;
     std::string device;
     for (int i = 1; i + 1 < argc; i += 2) {
@@ -66,19 +109,29 @@ int main(int argc, char** argv) {
       else if (k == "--grids") {
         grids.clear();
         std::stringstream ss(v);
-        for (std::string g; std::getline(ss, g, ',');) grids.push_back(std::stoi(g));
+        if (v != "none")
+          for (std::string g; std::getline(ss, g, ',');) grids.push_back(std::stoi(g));
+      } else if (k == "--auto-patches") {
+        std::stringstream ss(v);
+        for (std::string g; std::getline(ss, g, ',');) auto_patches.push_back(std::stoul(g));
       } else fail("unknown flag {}", k);
     }
     PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = patches});
     auto cl = make_cl_engine(mesh, {.device = device});
     auto ref = make_reference_engine(mesh);
     std::printf("# device: %s; cornell, %zu patches\n", cl->description().c_str(), mesh.size());
-    std::printf("engine,grid,patches,ms_per_bundle_median,crossings_per_s\n");
+    std::printf("engine,grid,patches,ms_per_bundle_median,crossings_per_s,ms_per_bundle_min,cpu_ms_per_bundle\n");
     for (int grid : grids) {
-      auto [ms, cps] = time_engine(mesh, *cl, grid, bundles);
-      std::printf("opencl,%d,%zu,%.3f,%.4g\n", grid, mesh.size(), ms, cps);
-      auto [rms, rcps] = time_engine(mesh, *ref, grid, ref_bundles);
-      std::printf("reference,%d,%zu,%.3f,%.4g\n", grid, mesh.size(), rms, rcps);
+      print_row("opencl", grid, mesh.size(), time_engine(mesh, *cl, grid, bundles));
+      if (ref_bundles > 0) print_row("reference", grid, mesh.size(), time_engine(mesh, *ref, grid, ref_bundles));
+      std::fflush(stdout);
+    }
+    for (std::size_t target : auto_patches) {
+      PatchMesh m = mesh_scene(builtin_cornell(), {.target_patches = target});
+      auto engine = make_cl_engine(m, {.device = device});
+      int grid = auto_grid(m);
+      print_row("engine_auto", grid, m.size(), time_engine(m, *engine, grid, bundles));
+      print_row("solver_auto", grid, m.size(), time_solver(m, *engine, bundles));
       std::fflush(stdout);
     }
     if (error_bundles > 0) {

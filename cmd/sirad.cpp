@@ -19,6 +19,7 @@
 #include "node/node.h"
 #include "core/error.h"
 #include "core/mesh.h"
+#include "core/reference.h"
 #include "core/results.h"
 #include "core/scene.h"
 #include "core/solver.h"
@@ -38,6 +39,8 @@ struct RenderArgs {
   std::string rule = "chain";
   std::string directions = "random";
   std::optional<int> burn_in;
+  double shots_per_bundle = kDefaultShotsPerBundle;
+  int shot_resolution = 0;
   int width = 512, height = 512;
   float exposure = 0.0f;
   bool flat = false;
@@ -130,6 +133,8 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.rule = rule;
   rc.directions = parse_directions(a.directions);
   rc.burn_in = a.burn_in.value_or(-1);
+  rc.shots_per_bundle = a.shots_per_bundle;
+  rc.shot_resolution = a.shot_resolution;
   rc.exchange_every = cluster::parse_exchange_every(a.exchange_every);
   rc.fraction = a.exchange_fraction;
   rc.topology = cluster::parse_topology(a.topology);
@@ -203,6 +208,7 @@ int render(const RenderArgs& a) {
   UpdateRule rule = parse_update_rule(a.rule);
   if (parse_directions(a.directions) == Directions::stratified && rule != UpdateRule::chain)
     fail("--directions stratified needs --rule chain (under average it biases the estimate)");
+  check_first_shot(a.shots_per_bundle, a.shot_resolution);
   std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
   check_output_name(out);
 
@@ -224,13 +230,17 @@ int render(const RenderArgs& a) {
   so.rule = rule;
   so.directions = parse_directions(a.directions);
   so.burn_in = a.burn_in.value_or(-1);
+  so.shots_per_bundle = a.shots_per_bundle;
+  so.shot_resolution = a.shot_resolution;
+  std::unique_ptr<ShotEngine> shots;
+  if (so.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
   if (!a.quiet)
-    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule, %s directions) on %s\n", a.scene.c_str(),
-                 mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
-                 to_string(rule), a.directions.c_str(), engine->description().c_str());
+    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule, %s directions), %g shots per bundle, on %s\n",
+                 a.scene.c_str(), mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
+                 to_string(rule), a.directions.c_str(), so.shots_per_bundle, engine->description().c_str());
 
   auto start = std::chrono::steady_clock::now();
-  Solver solver(mesh, *engine, so);
+  Solver solver(mesh, *engine, so, shots.get());
   Progress progress(a.bundles, a.quiet);
   for (int64_t k = 0; k < a.bundles; ++k) {
     solver.step(static_cast<uint64_t>(k));
@@ -240,6 +250,9 @@ int render(const RenderArgs& a) {
 
   Attributes attrs = run_attributes(a, mesh, solver.grid(), rule);
   attrs.emplace_back("sirad.burn_in", static_cast<int64_t>(solver.burn_in()));
+  attrs.emplace_back("sirad.shots_per_bundle", so.shots_per_bundle);
+  attrs.emplace_back("sirad.shot_resolution", static_cast<int64_t>(solver.shot_resolution()));
+  attrs.emplace_back("sirad.shots", static_cast<int64_t>(solver.shots_rendered()));
   attrs.emplace_back("sirad.device", engine->description());
   write_outputs(a, out, mesh, solver.estimate(), attrs);
   std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n", mesh.size(),
@@ -262,6 +275,82 @@ int profile_table(const std::string& path, int nodes, const std::string& prefix)
   return 0;
 }
 
+// `sirad reference SCENE`: the independent reference solver (core/reference.h). Writes NAME.exr,
+// .png, .ply like `render`, plus NAME.ref.csv (per-patch B, D and their standard errors).
+struct ReferenceArgs {
+  std::string scene;
+  std::optional<int64_t> patches;
+  std::optional<double> max_edge;
+  ReferenceOptions options;
+  std::string out;
+  bool quiet = false;
+};
+
+CLI::App* add_reference_command(CLI::App& app, ReferenceArgs& r) {
+  auto* cmd = app.add_subcommand("reference", "Independent reference solution (Embree rays, exact direct light); "
+                                              "write NAME.exr, .png, .ply and NAME.ref.csv");
+  cmd->add_option("scene", r.scene, "Built-in scene (cornell, furnace, bright-room, three-lights) or an .obj file")->required();
+  cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
+  cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(CLI::PositiveNumber);
+  cmd->add_option("--rays", r.options.rays_per_patch, "Cosine-distributed rays per patch (all batches)")
+      ->check(CLI::Range(1, 1 << 24))->capture_default_str();
+  cmd->add_option("--light-samples", r.options.light_samples,
+                  "Direct-light points per patch (all batches), each with one shadow ray per emitter triangle")
+      ->check(CLI::Range(1, 1 << 24))->capture_default_str();
+  cmd->add_option("--batches", r.options.batches, "Independent batches for the standard error")
+      ->check(CLI::Range(2, 1024))->capture_default_str();
+  cmd->add_option("--seed", r.options.seed, "Seed")->capture_default_str();
+  cmd->add_option("--threads", r.options.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
+  cmd->add_option("--out", r.out, "Output name: NAME.exr, .png, .ply, .ref.csv (default: scene name)");
+  cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
+  return cmd;
+}
+
+int reference(const ReferenceArgs& r) {
+  if (r.patches && r.max_edge) fail("--patches and --max-edge exclude each other");
+  if (r.options.rays_per_patch < r.options.batches)
+    fail("--rays {} is below --batches {}", r.options.rays_per_patch, r.options.batches);
+  if (r.options.light_samples < r.options.batches)
+    fail("--light-samples {} is below --batches {}", r.options.light_samples, r.options.batches);
+  std::string out = r.out.empty() ? std::filesystem::path(r.scene).stem().string() : r.out;
+  check_output_name(out);
+  Scene scene = load_scene(r.scene);
+  MeshOptions mesh_options;
+  if (r.patches) mesh_options.target_patches = static_cast<std::size_t>(*r.patches);
+  else if (r.max_edge) mesh_options.max_edge = *r.max_edge;
+  else mesh_options.target_patches = 10000;
+  PatchMesh mesh = mesh_scene(scene, mesh_options);
+  if (!mesh.camera) mesh.camera = default_camera(scene);
+  if (!r.quiet)
+    std::fprintf(stderr, "sirad: %s: %zu patches, reference with %d rays and %d light samples per patch, %d batches\n",
+                 r.scene.c_str(), mesh.size(), r.options.rays_per_patch, r.options.light_samples, r.options.batches);
+  ReferenceSolution s = solve_reference(mesh, r.options);
+  std::vector<glm::vec3> radiosity(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) radiosity[j] = glm::vec3(s.radiosity[j]);
+  RenderArgs a;
+  a.scene = r.scene;
+  Attributes attrs = {
+      {"sirad.version", std::string(SIRAD_VERSION)},
+      {"sirad.scene", r.scene},
+      {"sirad.scene_hash", mesh.hash},
+      {"sirad.patches", static_cast<int64_t>(mesh.size())},
+      {"sirad.solver", std::string("reference")},
+      {"sirad.rays_per_patch", static_cast<int64_t>(r.options.rays_per_patch)},
+      {"sirad.light_samples", static_cast<int64_t>(r.options.light_samples)},
+      {"sirad.batches", static_cast<int64_t>(r.options.batches)},
+      {"sirad.seed", std::to_string(r.options.seed)},
+  };
+  write_outputs(a, out, mesh, radiosity, attrs);
+  const std::string csv = out + ".ref.csv";
+  write_reference(csv, mesh, s, r.options);
+  std::printf("wrote %s\n", std::filesystem::absolute(csv).c_str());
+  std::printf("patches %zu, rays %llu, %.2f s, %.3g rays/s, %d sweeps%s, mean relative SE %.3g%%\n", mesh.size(),
+              static_cast<unsigned long long>(s.rays), s.seconds, static_cast<double>(s.rays) / s.seconds, s.iterations,
+              s.converged ? "" : " (not converged: iteration cap)", 100.0 * mean_relative_se(mesh, s));
+  return 0;
+}
+
 int devices() {
   for (const auto& d : list_devices())
     std::printf("%d:%d  %s / %s  (%s, %u compute units)\n", d.platform, d.device, d.platform_name.c_str(),
@@ -274,7 +363,7 @@ int run(int argc, char** argv) {
   app.require_subcommand(1);
   RenderArgs r;
   auto* render_cmd = app.add_subcommand("render", "Solve a scene on one OpenCL device; write NAME.exr, .png, .ply");
-  render_cmd->add_option("scene", r.scene, "Built-in scene (cornell, furnace) or an .obj file")->required();
+  render_cmd->add_option("scene", r.scene, "Built-in scene (cornell, furnace, bright-room, three-lights) or an .obj file")->required();
   render_cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
   render_cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")
@@ -293,6 +382,11 @@ int run(int argc, char** argv) {
       ->check(CLI::IsMember({"random", "stratified"}))->capture_default_str();
   render_cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
       ->check(CLI::Range(0, 1 << 20));
+  render_cmd->add_option("--shots-per-bundle", r.shots_per_bundle,
+                         "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
+      ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
+  render_cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
+      ->check(CLI::Range(0, 8192))->capture_default_str();
   render_cmd->add_option("--width", r.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
   render_cmd->add_option("--height", r.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
   render_cmd->add_option("--exposure", r.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
@@ -315,6 +409,8 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   render_cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
       ->check(CLI::Range(1, 4096))->capture_default_str();
+  ReferenceArgs ref_args;
+  auto* reference_cmd = add_reference_command(app, ref_args);
   app.add_subcommand("devices", "List the OpenCL devices");
   std::string profile_path, profile_prefix = "local-";
   int profile_nodes = 4;
@@ -334,6 +430,7 @@ int run(int argc, char** argv) {
     return 2;
   }
   if (render_cmd->parsed()) return render(r);
+  if (reference_cmd->parsed()) return reference(ref_args);
   if (profile_cmd->parsed()) return profile_table(profile_path, profile_nodes, profile_prefix);
   return devices();
 }

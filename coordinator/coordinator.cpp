@@ -60,6 +60,9 @@ class Coordinator {
     if (config.directions == Directions::stratified && config.rule != UpdateRule::chain)
       fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
     interleave_ = sampling_plan(mesh, config.directions).interleave;
+    check_first_shot(config.shots_per_bundle, config.shot_resolution);
+    run_.set_shots_per_bundle(config.shots_per_bundle);
+    run_.set_shot_resolution(static_cast<uint32_t>(config.shot_resolution));
     for (std::size_t c = 0; c + 1 < starts_.size(); ++c) run_.add_chunk_starts(starts_[c]);
     run_.set_patches(static_cast<uint32_t>(mesh.size()));
     run_.set_exchange_every(config.exchange_every);
@@ -493,6 +496,7 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
       {"sirad.seed", std::to_string(c.seed)},
       {"sirad.rule", std::string(to_string(c.rule))},
       {"sirad.directions", std::string(to_string(c.directions))},
+      {"sirad.shots_per_bundle", c.shots_per_bundle},
       {"sirad.nodes", static_cast<int64_t>(r.nodes.size())},
       {"sirad.exchange_every", c.exchange_every == 0 ? std::string("end") : std::to_string(c.exchange_every)},
       {"sirad.exchange_fraction", c.fraction},

@@ -28,7 +28,8 @@ int main(int argc, char** argv) {
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
-  double fraction = 1.0, timeout = 0, time_limit = 0, target_error = 0;
+  double fraction = 1.0, timeout = 0, time_limit = 0, target_error = 0, shots_per_bundle = kDefaultShotsPerBundle;
+  int shot_resolution = 0;
   int min_nodes = 1, chunks = 16, width = 512, height = 512, heartbeat_ms = 1000, liveness = 3;
   bool check_config = false, quiet = false, network_bandwidth = false;
   app.add_option("scene", scene_spec, "Built-in scene (cornell, furnace) or an .obj file")->required();
@@ -41,6 +42,10 @@ int main(int argc, char** argv) {
   app.add_option("--rule", rule, "chain or average")->check(CLI::IsMember({"chain", "average"}))->capture_default_str();
   app.add_option("--directions", directions, "Bundle directions: random or stratified (chain rule only)")
       ->check(CLI::IsMember({"random", "stratified"}))->capture_default_str();
+  app.add_option("--shots-per-bundle", shots_per_bundle, "First shot: hemicube shots from the emitters per bundle (0: off)")
+      ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
+  app.add_option("--shot-resolution", shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
+      ->check(CLI::Range(0, 8192))->capture_default_str();
   app.add_option("--exchange-every", exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
   app.add_option("--exchange-fraction", fraction, "Fraction S of chunks per exchange")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   app.add_option("--topology", topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
@@ -86,6 +91,9 @@ int main(int argc, char** argv) {
     rc.directions = parse_directions(directions);
     if (rc.directions == Directions::stratified && rc.rule != UpdateRule::chain)
       fail("--directions stratified needs --rule chain");
+    check_first_shot(shots_per_bundle, shot_resolution);
+    rc.shots_per_bundle = shots_per_bundle;
+    rc.shot_resolution = shot_resolution;
     rc.exchange_every = cluster::parse_exchange_every(exchange_every);
     rc.fraction = fraction;
     rc.topology = cluster::parse_topology(topology);

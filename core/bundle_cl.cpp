@@ -24,15 +24,27 @@ class ClEngine final : public BundleEngine {
     std::string build = "-cl-std=CL1.2";
     cl_device_fp_config fp = device_.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>();
     if (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) build += " -cl-fp32-correctly-rounded-divide-sqrt";
+    // Experiments only (kernel variants selected by -D flags): appended to the build options.
+    if (const char* extra = std::getenv("SIRAD_CL_OPTIONS")) build += std::string(" ") + extra;
     cl::Program program = build_program(context_, device_, {"kernels/bundle_types.h", "kernels/bundle.cl"}, build);
-    project_ = cl::Kernel(program, "project_patches");
+    // On a CPU, eight patches per step in float8 lanes; elsewhere one patch per work-item.
+    bool project8 = info_.is_cpu;
+    if (const char* env = std::getenv("SIRAD_PROJECT8")) project8 = std::atoi(env) != 0;
+    project_ = cl::Kernel(program, project8 ? "project_patches8" : "project_patches");
     transfer_ = cl::Kernel(program, "transfer_band");
     combine_ = cl::Kernel(program, "combine");
 
+    block_lines_ = options.block_lines;
+    if (block_lines_ <= 0)
+      if (const char* env = std::getenv("SIRAD_BLOCK_LINES")) block_lines_ = std::atoi(env);
+    if (block_lines_ <= 0) block_lines_ = 8192;
     bands_ = options.bands;
     if (bands_ <= 0)
       if (const char* env = std::getenv("SIRAD_BANDS")) bands_ = std::atoi(env);
-    if (bands_ <= 0) bands_ = info_.is_cpu ? static_cast<int>(8 * info_.compute_units) : 1 << 30;
+    // Bands on a CPU: 4 per compute unit (measured against 1, 2 and 8 per unit on 2 cores; see
+    // bench/RESULTS.md "Kernel tuning"): enough to balance the threads, few enough that
+    // patches spanning two bands and the per-band scan of all patches stay cheap.
+    if (bands_ <= 0) bands_ = info_.is_cpu ? static_cast<int>(4 * info_.compute_units) : 1 << 30;
     // Runs of patches per work-item: whole runs on a CPU (no divergent lanes), one elsewhere.
     patch_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(n_, 1), 16 * info_.compute_units)
                                 : std::max<std::size_t>(n_, 1);
@@ -75,25 +87,31 @@ class ClEngine final : public BundleEngine {
   }
 
  private:
-  // Scratch for `bands` bands: row_capacity_ crossings of one row, list_capacity_ patches.
-  void allocate(int grid, int bands) {
+  // Scratch for `bands` bands: row_capacity_ crossings of one block of rows, list_capacity_
+  // patches, line counters for one block.
+  void allocate(int grid, int bands, int rows_per_block) {
     uint64_t cap = std::max<uint64_t>(row_capacity_, 1);
     uint64_t lcap = std::min<uint64_t>(std::max<uint64_t>(list_capacity_, 1), std::max<std::size_t>(n_, 1));
     if (cap > 0xffffffffu / static_cast<uint64_t>(bands) || lcap > 0x7fffffffu / static_cast<uint64_t>(bands))
       fail("bundle scratch of {} crossings and {} patches per band x {} bands is beyond 32-bit indexing", cap, lcap, bands);
-    if (grid == grid_ && bands == allocated_bands_ && cap == allocated_capacity_ && lcap == allocated_partials_) return;
+    if (grid == grid_ && bands == allocated_bands_ && rows_per_block == allocated_block_rows_ &&
+        cap == allocated_capacity_ && lcap == allocated_partials_)
+      return;
     std::size_t entries = static_cast<std::size_t>(cap) * bands, listed = static_cast<std::size_t>(lcap) * bands;
     band_list_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
     e_x_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_uint));
     e_sort_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_ulong));
     s_sort_ = cl::Buffer(context_, CL_MEM_READ_WRITE, entries * sizeof(cl_ulong));
-    line_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(bands) * grid * sizeof(cl_uint));
+    line_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE,
+                             static_cast<std::size_t>(bands) * rows_per_block * grid * sizeof(cl_uint));
     partial_patch_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
     partial_sum_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(glm::vec4));
     partial_hits_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(cl_uint));
+    band_radiance_ = cl::Buffer(context_, CL_MEM_READ_WRITE, listed * sizeof(glm::vec4));
     band_stats_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 4 * static_cast<std::size_t>(bands) * sizeof(cl_uint));
     grid_ = grid;
     allocated_bands_ = bands;
+    allocated_block_rows_ = rows_per_block;
     allocated_capacity_ = cap;
     allocated_partials_ = lcap;
   }
@@ -110,11 +128,13 @@ class ClEngine final : public BundleEngine {
     int bands = std::min(bands_, bundle.grid);
     params_host_.rows_per_band = (bundle.grid + bands - 1) / bands;
     params_host_.bands = (bundle.grid + params_host_.rows_per_band - 1) / params_host_.rows_per_band;
-    // First guesses: a row holds at most a few times an even share of the bound on all
+    // Rows per block of the band pass: as many as fit the budget of lines, at most a band.
+    int block_rows = std::clamp(block_lines_ / bundle.grid, 1, params_host_.rows_per_band);
+    // First guesses: a block holds at most a few times an even share of the bound on all
     // crossings; a band is reached by a few times its share of the patches.
-    if (row_capacity_ == 0) row_capacity_ = 4 * capacity_bound(mesh_, bundle.grid) / bundle.grid + 1024;
+    if (row_capacity_ == 0) row_capacity_ = 4 * capacity_bound(mesh_, bundle.grid) * block_rows / bundle.grid + 1024;
     if (list_capacity_ == 0) list_capacity_ = 4 * n_ / params_host_.bands + 4096;
-    allocate(bundle.grid, params_host_.bands);
+    allocate(bundle.grid, params_host_.bands, block_rows);
     params_host_.capacity = static_cast<sirad_u32>(allocated_capacity_);
     params_host_.partial_capacity = static_cast<sirad_u32>(allocated_partials_);
 
@@ -137,8 +157,9 @@ class ClEngine final : public BundleEngine {
     int arg = 0;
     for (const cl::Buffer* buf : {&projected_, &rows_}) transfer_.setArg(arg++, *buf);
     transfer_.setArg(arg++, n);
+    transfer_.setArg(arg++, static_cast<cl_int>(block_rows));
     for (const cl::Buffer* buf : {&params_, &radiance_, &band_list_, &e_x_, &e_sort_, &s_sort_,
-                                  &line_count_, &partial_patch_, &partial_sum_, &partial_hits_, &band_stats_})
+                                  &line_count_, &partial_patch_, &partial_sum_, &partial_hits_, &band_radiance_, &band_stats_})
       transfer_.setArg(arg++, *buf);
     queue_.enqueueNDRangeKernel(transfer_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(params_host_.bands)),
                                 one_per_group, nullptr, &events_[1]);
@@ -189,12 +210,13 @@ class ClEngine final : public BundleEngine {
   cl::CommandQueue queue_;
   cl::Kernel project_, transfer_, combine_;
   int bands_ = 0;
+  int block_lines_ = 0;
   std::size_t patch_items_ = 1;
   cl_uint per_item_ = 1;
   cl::Buffer vertices_, patches_, params_, projected_, rows_, radiance_, gathered_, hits_;
   cl::Buffer band_list_, e_x_, e_sort_, s_sort_, line_count_;
-  cl::Buffer partial_patch_, partial_sum_, partial_hits_, band_stats_;
-  int grid_ = 0, allocated_bands_ = 0;
+  cl::Buffer partial_patch_, partial_sum_, partial_hits_, band_radiance_, band_stats_;
+  int grid_ = 0, allocated_bands_ = 0, allocated_block_rows_ = 0;
   uint64_t allocated_capacity_ = 0, allocated_partials_ = 0;
   SiradBundle params_host_{};
   bool profile_ = false;

@@ -435,12 +435,14 @@ Scene parse_obj(const std::string& name, const std::string& obj_text,
 Scene load_scene(const std::string& spec, const ImportOptions& options) {
   if (spec == "cornell") return builtin_cornell();
   if (spec == "furnace") return builtin_furnace();
+  if (spec == "bright-room") return builtin_bright_room();
+  if (spec == "three-lights") return builtin_three_lights();
   const fs::path path(spec);
   std::string extension = path.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (extension != ".obj")
-    fail("{}: unsupported scene format (supported: .obj, built-ins: cornell, furnace)", spec);
+    fail("{}: unsupported scene format (supported: .obj, built-ins: cornell, furnace, bright-room, three-lights)", spec);
   return guarded(spec, [&] {
     const std::string text = read_file(path, spec);
     const fs::path dir = path.parent_path();
@@ -459,6 +461,18 @@ Scene builtin_cornell() {
   scene.name = "cornell";
   return scene;
 }
+
+// An embedded OBJ with its MTL, named like a built-in in messages.
+Scene builtin_from(const char* name, const char* obj_file, const char* mtl_file) {
+  const std::string obj(resource(std::string("scenes/") + obj_file));
+  const std::string mtl(resource(std::string("scenes/") + mtl_file));
+  Scene scene = parse_obj(name, obj, {{mtl_file, mtl}});
+  scene.name = name;
+  return scene;
+}
+
+Scene builtin_bright_room() { return builtin_from("bright-room", "bright_room.obj", "bright_room.mtl"); }
+Scene builtin_three_lights() { return builtin_from("three-lights", "three_lights.obj", "three_lights.mtl"); }
 
 Scene builtin_furnace() {
   Scene scene;
@@ -485,7 +499,7 @@ Scene builtin_furnace() {
   return scene;
 }
 
-std::vector<std::string> builtin_scene_names() { return {"cornell", "furnace"}; }
+std::vector<std::string> builtin_scene_names() { return {"cornell", "furnace", "bright-room", "three-lights"}; }
 
 Camera default_camera(const Scene& scene) {
   Camera camera;

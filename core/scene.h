@@ -48,7 +48,7 @@ struct ImportOptions {
   bool skip_degenerate = false;
 };
 
-// Loads `spec`: a built-in name ("cornell", "furnace") or a path to an .obj file (its .mtl
+// Loads `spec`: a built-in name ("cornell", "furnace", "bright-room", "three-lights") or a path to an .obj file (its .mtl
 // files resolved next to it). Validates everything: finite coordinates, indices in range,
 // known materials, reflectance in [0, 1], finite non-negative emission, at least one
 // triangle and at least one emitter. Throws sirad::Error naming file and line.
@@ -64,6 +64,10 @@ Scene parse_obj(const std::string& name, const std::string& obj_text,
 // rho = 0.5, so B = 2 exactly everywhere.
 Scene builtin_cornell();
 Scene builtin_furnace();
+// `bright-room`: a closed room with rho 0.85-0.9 and one ceiling light (scenes/bright_room.obj).
+// `three-lights`: an open-front room with three lights of 1, 0.1, 0.01 m^2 (scenes/three_lights.obj).
+Scene builtin_bright_room();
+Scene builtin_three_lights();
 std::vector<std::string> builtin_scene_names();
 
 // A camera that frames the scene's bounding box, for scenes that carry none.

@@ -25,8 +25,28 @@ int auto_burn_in(const PatchMesh& mesh) {
   return static_cast<int>(std::min(k, 64.0));
 }
 
-Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options)
+ShotRange shots_of_step(double x, uint64_t index) {
+  if (!(x > 0.0)) return {};
+  auto at = [x](uint64_t k) { return static_cast<uint64_t>(std::floor(static_cast<double>(k) * x)); };
+  uint64_t a = at(index), b = at(index + 1);
+  return {a, std::max<uint64_t>(b - a, 1)};
+}
+
+void check_first_shot(double x, int resolution) {
+  if (!(x >= 0.0) || x > 1024.0) fail("--shots-per-bundle must be in [0, 1024] (got {})", x);
+  if (resolution != 0 && (resolution < 4 || resolution % 2 != 0 || resolution > 8192))
+    fail("--shot-resolution must be 0 (auto) or even in [4, 8192] (got {})", resolution);
+}
+
+Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options, ShotEngine* shots)
     : mesh_(mesh), engine_(engine), options_(options) {
+  check_first_shot(options.shots_per_bundle, options.shot_resolution);
+  if (options.shots_per_bundle > 0.0) {
+    if (shots == nullptr) fail("first shot: no shot engine given");
+    // A scene that emits nothing has no direct light to shoot: D = 0 and the plain iteration.
+    if (!emitter_table(mesh).empty()) shots_ = shots;
+    shot_resolution_ = options.shot_resolution ? options.shot_resolution : auto_shot_resolution(mesh);
+  }
   if (options.grid < 0 || options.grid == 1) fail("--grid must be at least 2 (got {})", options.grid);
   grid_ = options.grid == 0 ? auto_grid(mesh) : options.grid;
   burn_in_ = options.rule == UpdateRule::average ? 0 : (options.burn_in < 0 ? auto_burn_in(mesh) : options.burn_in);
@@ -40,18 +60,35 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   sum_.assign(n, glm::dvec3(0.0));
   others_sum_.assign(n, glm::dvec3(0.0));
   others_count_.assign(n, 0);
-  state_.resize(n);
-  for (std::size_t j = 0; j < n; ++j) state_[j] = glm::dvec3(mesh.emission(j));
+  source_.resize(n);
+  for (std::size_t j = 0; j < n; ++j) source_[j] = glm::dvec3(mesh.emission(j));
+  state_ = source_;
   input_.resize(n);
   // Burn-in: advance the chain from E without counting, on its own stream of bundles.
   for (int k = 0; k < burn_in_; ++k) {
-    run_bundle((options.chain_id << 32) | static_cast<uint64_t>(k), Stream::burn_in);
+    uint64_t index = (options.chain_id << 32) | static_cast<uint64_t>(k);
+    update_source(index, Stream::burn_in_shots);
+    run_bundle(index, Stream::burn_in);
     state_ = transport(result_);
   }
 }
 
+void Solver::update_source(uint64_t index, Stream stream) {
+  if (shots_ == nullptr) return;
+  ShotRange range = shots_of_step(options_.shots_per_bundle, index);
+  if (stream == cached_stream_ && range.first == cached_.first && range.count == cached_.count) return;
+  ShotSums sums = run_shots(mesh_, *shots_, shot_resolution_, options_.seed, range.first, range.count, stream);
+  shots_rendered_ += sums.shots;
+  for (std::size_t j = 0; j < source_.size(); ++j)
+    source_[j] = glm::dvec3(mesh_.emission(j)) + sums.direct[j] / static_cast<double>(sums.shots);
+  cached_stream_ = stream;
+  cached_ = range;
+}
+
 void Solver::run_bundle(uint64_t index, Stream stream) {
-  for (std::size_t j = 0; j < state_.size(); ++j) input_[j] = glm::vec4(glm::vec3(state_[j]), 0.0f);
+  // With a first shot the bundles transport Y = B - E: the emission is already in D.
+  for (std::size_t j = 0; j < state_.size(); ++j)
+    input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - glm::dvec3(mesh_.emission(j)) : state_[j]), 0.0f);
   SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream, sampling_);
   engine_.run(b, input_, result_);
   crossings_ += result_.crossings;
@@ -60,12 +97,12 @@ void Solver::run_bundle(uint64_t index, Stream stream) {
 std::vector<glm::dvec3> Solver::transport(const BundleResult& r) const {
   std::vector<glm::dvec3> out(mesh_.size());
   for (std::size_t j = 0; j < out.size(); ++j)
-    out[j] = glm::dvec3(mesh_.emission(j)) +
-             glm::dvec3(mesh_.reflectance(j)) * (two_delta_ / mesh_.area[j]) * glm::dvec3(r.gathered[j]);
+    out[j] = source_[j] + glm::dvec3(mesh_.reflectance(j)) * (two_delta_ / mesh_.area[j]) * glm::dvec3(r.gathered[j]);
   return out;
 }
 
 void Solver::step(uint64_t index) {
+  update_source(index, Stream::shots);
   run_bundle(index, Stream::bundles);
   std::vector<glm::dvec3> estimate = transport(result_);
   ++count_;

@@ -15,10 +15,14 @@
 
 #include "core/bundle.h"
 #include "core/mesh.h"
+#include "core/shot.h"
 
 namespace sirad {
 
 enum class UpdateRule { chain, average };
+
+// The command lines' default first shot: shots per bundle (see SolverOptions).
+inline constexpr double kDefaultShotsPerBundle = 1.0;
 UpdateRule parse_update_rule(const std::string& name);  // "chain" | "average"
 const char* to_string(UpdateRule rule);
 
@@ -30,7 +34,20 @@ struct SolverOptions {
   uint64_t chain_id = 0;   // keeps the burn-in bundles of different chains apart
   Directions directions = Directions::random;  // stratified: chain rule only (core/bundle.h)
   uint32_t interleave = 0, strata_side = 0;      // stratified G and n; 0: sampling_plan's
+  // First shot (core/shot.h): shots per bundle (0: off). Step k uses the shots
+  // [floor(k X), floor((k + 1) X)) of the run, or shot floor(k X) when that range is empty.
+  double shots_per_bundle = 0.0;
+  int shot_resolution = 0;  // hemicube side H; 0: auto_shot_resolution(mesh)
 };
+
+// The shots step `index` of `stream` uses under `shots_per_bundle` X: [first, first + count).
+struct ShotRange {
+  uint64_t first = 0, count = 0;
+};
+ShotRange shots_of_step(double shots_per_bundle, uint64_t index);
+// Throws sirad::Error naming the flag for shots per bundle outside [0, 1024] or a resolution
+// that is neither 0 (auto) nor even in [4, 8192].
+void check_first_shot(double shots_per_bundle, int shot_resolution);
 
 // Burn-in that brings the chain's start-up bias below 1e-3 of its initial value:
 // the smallest k with rho_max^k < 1e-3, capped at 64 (0 for a scene that reflects nothing).
@@ -38,12 +55,21 @@ int auto_burn_in(const PatchMesh& mesh);
 
 class Solver {
  public:
-  Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options);
+  // With options.shots_per_bundle > 0 every step also renders its first-shot samples on
+  // `shots` and becomes  L'(m) = E + D_m + T*_m (L'(m-1) - E):  the bundles carry only the
+  // indirect part Y = B - E, and D_m, an unbiased estimate of the direct light D = rho F E
+  // independent of the transport, replaces its noisy part. Everything the solver reports
+  // (estimate, sum, state) stays in units of B.
+  Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options,
+         ShotEngine* shots = nullptr);
 
   // Runs counted bundle `index` of the run and adds its estimate to the average.
   void step(uint64_t index);
 
   uint64_t bundles() const { return count_; }
+  bool first_shot() const { return shots_ != nullptr; }
+  int shot_resolution() const { return shot_resolution_; }
+  uint64_t shots_rendered() const { return shots_rendered_; }
   uint64_t crossings() const { return crossings_; }
   int grid() const { return grid_; }
   int burn_in() const { return burn_in_; }
@@ -65,7 +91,7 @@ class Solver {
   // chain it is kept (for the cluster's error estimate) and the chain itself is untouched.
   void absorb(std::size_t first, std::span<const glm::dvec3> others, uint64_t others_count);
 
-  // E + rho (2 delta / A) gathered: one transport of the radiance that produced `gathered`.
+  // E (+ D) + rho (2 delta / A) gathered: one transport of the radiance that produced `gathered`.
   std::vector<glm::dvec3> transport(const BundleResult& gathered) const;
 
  private:
@@ -80,6 +106,13 @@ class Solver {
   double two_delta_;
   void update_average_state();
 
+  void update_source(uint64_t index, Stream stream);
+  ShotEngine* shots_ = nullptr;
+  int shot_resolution_ = 0;
+  uint64_t shots_rendered_ = 0;
+  Stream cached_stream_ = Stream::shots;
+  ShotRange cached_{0, 0};
+  std::vector<glm::dvec3> source_;         // E, or E + D_m of the step with a first shot
   std::vector<glm::dvec3> sum_, state_;
   std::vector<glm::dvec3> others_sum_;     // O_p per patch
   std::vector<uint64_t> others_count_;     // M_p per patch

@@ -14,6 +14,8 @@ packages=(
   # scene import, command line, logging, configuration, wire schema
   libtinyobjloader-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
   libprotobuf-dev protobuf-compiler
+  # ray casting for the independent reference solver (sirad reference)
+  libembree-dev
   # tests and benchmarks; docker-compose only validates deploy/docker-compose.yml (no engine);
   # iproute2 (ip, tc) runs the namespace cluster
   libgtest-dev libgmock-dev libbenchmark-dev docker-compose iproute2

@@ -2,13 +2,15 @@
  *
  * The host prepends kernels/bundle_types.h. Per bundle it enqueues:
  *   project_patches  (runs of patches)  patches -> grid plane, CCW order, depth plane
- *   transfer_band    (one work-item per band of grid rows, written CPU-style), row by row:
- *        1. collect: rasterise every patch that reaches the row, once, appending one
+ *   transfer_band    (one work-item per band of grid rows, written CPU-style), in blocks of
+ *                    rows (as many as fit a budget of lines), block by block:
+ *        1. collect: rasterise every patch that reaches the block, row by row, appending one
  *           crossing (line, depth, patch) per covered line;
  *        2. sort the crossings by line (counting sort) and each line's list by depth;
  *        3. let every crossing gather its front neighbour on its line, summing per patch;
  *        4. write the band partials: per patch reaching the band, its sum and hits.
- *   combine          (runs of patches)  each patch adds its band partials in band order.
+ *   combine          (runs of patches)  each patch adds its band partials in band order
+ *                                       (one walk per band through its partial list).
  * Coverage of a line by a patch is decided by one predicate, `covers`: edge functions
  * evaluated with the edge's endpoints in canonical order (so two patches sharing an edge
  * compute exactly opposite values), a tie rule that gives a line through a shared edge to
@@ -42,6 +44,7 @@ SIRAD_INLINE float edge_value(const SiradProjected* p, int k, float px, float py
  * directions; the neighbour sees the opposite direction). */
 SIRAD_INLINE bool covers(const SiradProjected* p, int px, int py) {
   float fx = (float)px, fy = (float)py;
+#pragma unroll
   for (int k = 0; k < 3; ++k) {
     float e = edge_value(p, k, fx, fy);
     if (!(e > 0.0f || (e == 0.0f && (p->flags & (1u << k))))) return false;
@@ -54,6 +57,7 @@ SIRAD_INLINE bool covers(const SiradProjected* p, int px, int py) {
 SIRAD_INLINE void row_span(const SiradProjected* p, int py, float* lo_out, float* hi_out) {
   float fy = (float)py;
   float lo = p->xmin, hi = p->xmax;
+#pragma unroll
   for (int k = 0; k < 3; ++k) {
     if (p->ea[k] == 0.0f) {
       /* A horizontal edge decides the whole row, as `covers` would for every cell of it. */
@@ -66,8 +70,9 @@ SIRAD_INLINE void row_span(const SiradProjected* p, int py, float* lo_out, float
       continue;
     }
     float xc = p->ex[k] + p->slope[k] * (fy - p->ey[k]);
-    if (p->ea[k] > 0.0f) lo = fmax(lo, xc);
-    else hi = fmin(hi, xc);
+    /* As fmax / fmin (a NaN xc leaves the bound), without their NaN handling. */
+    if (p->ea[k] > 0.0f) lo = xc > lo ? xc : lo;
+    else hi = xc < hi ? xc : hi;
   }
   *lo_out = lo;
   *hi_out = hi;
@@ -79,13 +84,26 @@ SIRAD_INLINE void row_span(const SiradProjected* p, int py, float* lo_out, float
  * outside is not. Only the lines within SIRAD_SPAN_EPS of an end need the exact test. */
 #define SIRAD_SPAN_EPS (1.0f / 32.0f)
 
+/* (int)ceil(max(v, 0)) and, for the lines up to v, (int)floor(min(v, hi)) or any value
+ * below 0 when that is negative, by truncation (the library's ceil and floor are not
+ * inlined as single instructions by every compiler). v is not NaN. */
+SIRAD_INLINE int first_line(float v) {
+  if (!(v > 0.0f)) return 0;
+  int t = (int)v;
+  return (float)t < v ? t + 1 : t;
+}
+SIRAD_INLINE int last_line(float v, float hi) {
+  v = v < hi ? v : hi;
+  return v >= 0.0f ? (int)v : -1;
+}
+
 /* Visits the lines of row y that cross patch p, as `covers` decides. Every pass walks rows
  * through this one macro, so they agree bit for bit. */
 #define FOR_EACH_COVERED(p, y, grid, x)                                                    \
   float x##_lo, x##_hi;                                                                    \
   row_span(p, y, &x##_lo, &x##_hi);                                                        \
-  int x##_first = (int)ceil(fmax(x##_lo - SIRAD_SPAN_EPS, 0.0f));                          \
-  int x##_last = (int)floor(fmin(x##_hi + SIRAD_SPAN_EPS, (float)(grid - 1)));             \
+  int x##_first = first_line(x##_lo - SIRAD_SPAN_EPS);                                     \
+  int x##_last = last_line(x##_hi + SIRAD_SPAN_EPS, (float)(grid - 1));                    \
   for (int x = x##_first; x <= x##_last; ++x)                                              \
     if (((float)x >= x##_lo + SIRAD_SPAN_EPS && (float)x <= x##_hi - SIRAD_SPAN_EPS) ||   \
         covers(p, x, y))
@@ -228,22 +246,125 @@ __kernel void project_patches(__global const float4* vertices, __global const ui
   }
 }
 
-/* One band of grid rows, row by row (see the banner). Scratch per band:
- *   band_list, acc, acc_hits, out_patch: b->partial_capacity entries (the patches that reach
- *     the band, in patch order; their sums; compacted at the end into the band partials);
- *   e_x, e_sort, s_sort: b->capacity crossings of one row: line and crossing_key as
- *     collected, and the keys sorted by line; line_count: grid counters (zero between rows).
- * band_stats[4 band + 0..3] = the most crossings in one row, partials written, patches that
+/* project_patches for CPUs, eight patches at a time in float8 lanes (explicit SIMD: PoCL does
+ * not vectorise across work-items here). Lane for lane the same operations in the same
+ * order as project_patches, so the same bits. Work-item i takes patches
+ * [i * per_item, (i + 1) * per_item). */
+SIRAD_INLINE void set_edge8(float8 ax, float8 ay, float8 bx, float8 by, float* ex, float* ey,
+                            float* ea, float* eb, float* slope, int8* flags, int k) {
+  int8 swap = (bx < ax) | ((bx == ax) & (by < ay));
+  float8 px = select(ax, bx, swap), py = select(ay, by, swap);
+  float8 dxc = select(bx, ax, swap) - px, dyc = select(by, ay, swap) - py;
+  float8 sign = select((float8)(1.0f), (float8)(-1.0f), swap);
+  float8 b_ = sign * dxc;
+  float8 a_ = -(sign * dyc);
+  vstore8(px, 0, ex);
+  vstore8(py, 0, ey);
+  vstore8(b_, 0, eb);
+  vstore8(a_, 0, ea);
+  vstore8(select((float8)(0.0f), -b_ / a_, a_ != 0.0f), 0, slope);
+  float8 dx = bx - ax, dy = by - ay;
+  int8 own = (dy < 0.0f) | ((dy == 0.0f) & (dx > 0.0f));
+  *flags |= own & (int8)(1 << k);
+}
+
+__kernel void project_patches8(__global const float4* restrict vertices, __global const uint4* restrict patches,
+                               uint patch_count, uint per_item, __constant SiradBundle* b,
+                               __global SiradProjected* restrict projected, __global int2* restrict rows) {
+  uint first = (uint)get_global_id(0) * per_item;
+  uint last = min(first + per_item, patch_count);
+  for (uint j0 = first; j0 < last; j0 += 8) {
+    uint lanes = min(8u, last - j0);
+    float q[9][8];
+    for (uint l = 0; l < 8; ++l) {
+      uint4 idx = patches[j0 + min(l, lanes - 1)];
+      float4 v0 = vertices[idx.x], v1 = vertices[idx.y], v2 = vertices[idx.z];
+      q[0][l] = v0.x; q[1][l] = v0.y; q[2][l] = v0.z;
+      q[3][l] = v1.x; q[4][l] = v1.y; q[5][l] = v1.z;
+      q[6][l] = v2.x; q[7][l] = v2.y; q[8][l] = v2.z;
+    }
+#define SIRAD_PROJECT8(o, X, Y, Z)                                                               \
+    float8 X, Y, Z;                                                                              \
+    {                                                                                            \
+      float8 qx = vload8(0, q[o]), qy = vload8(0, q[o + 1]), qz = vload8(0, q[o + 2]);           \
+      X = (qx * b->u[0] + qy * b->u[1] + qz * b->u[2]) * b->scale + b->offset_x;                 \
+      Y = (qx * b->v[0] + qy * b->v[1] + qz * b->v[2]) * b->scale + b->offset_y;                 \
+      Z = qx * b->w[0] + qy * b->w[1] + qz * b->w[2];                                            \
+    }
+    SIRAD_PROJECT8(0, X0, Y0, Z0)
+    SIRAD_PROJECT8(3, X1, Y1, Z1)
+    SIRAD_PROJECT8(6, X2, Y2, Z2)
+#undef SIRAD_PROJECT8
+    float8 area2 = (X1 - X0) * (Y2 - Y0) - (Y1 - Y0) * (X2 - X0);
+    int8 fp = area2 > 0.0f;
+    float8 x1 = select(X2, X1, fp), y1 = select(Y2, Y1, fp), z1 = select(Z2, Z1, fp);
+    float8 x2 = select(X1, X2, fp), y2 = select(Y1, Y2, fp), z2 = select(Z1, Z2, fp);
+    float ex[3][8], ey[3][8], ea[3][8], eb[3][8], sl[3][8];
+    int8 flags = fp & (int8)(SIRAD_FRONT_POS);
+    set_edge8(X0, Y0, x1, y1, ex[0], ey[0], ea[0], eb[0], sl[0], &flags, 0);
+    set_edge8(x1, y1, x2, y2, ex[1], ey[1], ea[1], eb[1], sl[1], &flags, 1);
+    set_edge8(x2, y2, X0, Y0, ex[2], ey[2], ea[2], eb[2], sl[2], &flags, 2);
+    float8 a = fabs(area2);
+    int8 vis = a > 0.0f;
+    float8 ylo = fmin(Y0, fmin(y1, y2)), yhi = fmax(Y0, fmax(y1, y2));
+    float o[7][8];
+    int ri[3][8];
+    vstore8(fmin(X0, fmin(x1, x2)), 0, o[0]);
+    vstore8(fmax(X0, fmax(x1, x2)), 0, o[1]);
+    vstore8(select((float8)(0.0f), Z0, vis), 0, o[2]);
+    vstore8(select((float8)(0.0f), ((z1 - Z0) * (y2 - Y0) - (z2 - Z0) * (y1 - Y0)) / a, vis), 0, o[3]);
+    vstore8(select((float8)(0.0f), ((z2 - Z0) * (x1 - X0) - (z1 - Z0) * (x2 - X0)) / a, vis), 0, o[4]);
+    vstore8(X0, 0, o[5]);
+    vstore8(Y0, 0, o[6]);
+    vstore8(select((int8)(0x7fffffff), convert_int8(ceil(fmax(ylo, 0.0f))), vis), 0, ri[0]);
+    vstore8(select((int8)(-0x7fffffff), convert_int8(floor(fmin(yhi, (float)(b->grid - 1)))), vis), 0, ri[1]);
+    vstore8(flags, 0, ri[2]);
+    for (uint l = 0; l < lanes; ++l) {
+      SiradProjected p;
+      for (int k = 0; k < 3; ++k) {
+        p.ex[k] = ex[k][l];
+        p.ey[k] = ey[k][l];
+        p.ea[k] = ea[k][l];
+        p.eb[k] = eb[k][l];
+        p.slope[k] = sl[k][l];
+      }
+      p.xmin = o[0][l];
+      p.xmax = o[1][l];
+      p.z0 = o[2][l];
+      p.dzdx = o[3][l];
+      p.dzdy = o[4][l];
+      p.x0 = o[5][l];
+      p.y0 = o[6][l];
+      p.rows[0] = ri[0][l];
+      p.rows[1] = ri[1][l];
+      p.flags = (uint)ri[2][l];
+      p.pad = 0u;
+      projected[j0 + l] = p;
+      rows[j0 + l] = (int2)(p.rows[0], p.rows[1]);
+    }
+  }
+}
+
+/* One band of grid rows, in blocks of rows_per_block rows (see the banner). Scratch per band:
+ *   band_list, band_radiance, acc, acc_hits, out_patch: b->partial_capacity entries (the
+ *     patches that reach the band, in patch order; their radiance; their sums; compacted at
+ *     the end into the band partials);
+ *   e_x, e_sort, s_sort: b->capacity crossings of one block: line (within the block, row
+ *     major) and crossing_key as collected, and the keys sorted by line; line_count:
+ *     rows_per_block * grid counters (zero between blocks).
+ * band_stats[4 band + 0..3] = the most crossings in one block, partials written, patches that
  * reach the band, crossings in the band; the first and third are reported even when they do
- * not fit, so the host can grow the scratch and run the bundle again. */
+ * not fit, so the host can grow the scratch and run the bundle again.
+ * Each patch's sum adds its lines in row-major order whatever the block height: a patch
+ * crosses a line at most once and lines are gathered in order. */
 __kernel void transfer_band(__global const SiradProjected* restrict projected,
-                            __global const int2* restrict rows, uint patch_count,
+                            __global const int2* restrict rows, uint patch_count, int rows_per_block,
                             __constant SiradBundle* b, __global const float4* restrict radiance,
                             __global uint* restrict band_list, __global uint* restrict e_x,
                             __global ulong* restrict e_sort, __global ulong* restrict s_sort,
                             __global uint* restrict line_count, __global uint* restrict out_patch,
                             __global float4* restrict acc, __global uint* restrict acc_hits,
-                            __global uint* restrict band_stats) {
+                            __global float4* restrict band_radiance, __global uint* restrict band_stats) {
   int band = get_global_id(0);
   if (band >= b->bands) return;
   const int grid = b->grid;
@@ -253,10 +374,11 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   out_patch += (size_t)band * lcap;
   acc += (size_t)band * lcap;
   acc_hits += (size_t)band * lcap;
+  band_radiance += (size_t)band * lcap;
   e_x += (size_t)band * cap;
   e_sort += (size_t)band * cap;
   s_sort += (size_t)band * cap;
-  __global uint* count = line_count + (size_t)band * grid;
+  __global uint* count = line_count + (size_t)band * rows_per_block * grid;
   __global uint* stats = band_stats + 4 * band;
 
   /* 1. The patches that reach the band, in patch order. */
@@ -275,45 +397,52 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   for (uint q = 0; q < patches; ++q) {
     acc[q] = (float4)(0.0f);
     acc_hits[q] = 0;
+    band_radiance[q] = radiance[band_list[q]];
   }
-  for (int x = 0; x < grid; ++x) count[x] = 0;
+  for (int i = 0; i < rows_per_block * grid; ++i) count[i] = 0;
 
   const float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
-  uint row_max = 0, total = 0;
-  for (int y = r0; y < r1; ++y) {
-    /* 2. Collect the row's crossings (key: position in the band list, front bit), counting
-     * per line, and the range of lines touched. */
+  uint block_max = 0, total = 0;
+  for (int y0 = r0; y0 < r1; y0 += rows_per_block) {
+    const int y1 = min(y0 + rows_per_block, r1);
+    /* 2. Collect the block's crossings (line within the block; key: position in the band
+     * list, front bit), patch by patch and row by row, counting per line, and the range of
+     * lines touched. */
     uint m = 0;
-    int xa = grid, xb = -1;
+    int la = rows_per_block * grid, lb = -1;
     for (uint q = 0; q < patches; ++q) {
       uint j = band_list[q];
       int2 r = rows[j];
-      if (r.x > y || r.y < y) continue;
+      if (r.x >= y1 || r.y < y0) continue;
       SiradProjected p = projected[j];
       uint front_pos = (p.flags & SIRAD_FRONT_POS) ? 1u : 0u;
-      FOR_EACH_COVERED(&p, y, grid, x) {
-        if (m < cap) {
-          e_x[m] = (uint)x;
-          e_sort[m] = crossing_key(depth_at(&p, x, y), front_pos, q);
-          count[x] += 1;
-          xa = min(xa, x);
-          xb = max(xb, x);
+      const int ya = max(r.x, y0), yb = min(r.y, y1 - 1);
+      for (int y = ya; y <= yb; ++y) {
+        const int base = (y - y0) * grid;
+        FOR_EACH_COVERED(&p, y, grid, x) {
+          if (m < cap) {
+            e_x[m] = (uint)(base + x);
+            e_sort[m] = crossing_key(depth_at(&p, x, y), front_pos, q);
+            count[base + x] += 1;
+            la = min(la, base + x);
+            lb = max(lb, base + x);
+          }
+          ++m;
         }
-        ++m;
       }
     }
     total += m;
-    row_max = max(row_max, m);
+    block_max = max(block_max, m);
     if (m > cap) {
-      for (int x = xa; x <= xb; ++x) count[x] = 0;
-      continue; /* keep counting: the host needs the largest row */
+      for (int l = la; l <= lb; ++l) count[l] = 0;
+      continue; /* keep counting: the host needs the largest block */
     }
 
-    /* 3. Counting sort by line; afterwards count[x] ends line x's list. */
+    /* 3. Counting sort by line; afterwards count[l] ends line l's list. */
     uint running = 0;
-    for (int x = xa; x <= xb; ++x) {
-      uint c = count[x];
-      count[x] = running;
+    for (int l = la; l <= lb; ++l) {
+      uint c = count[l];
+      count[l] = running;
       running += c;
     }
     for (uint i = 0; i < m; ++i) {
@@ -325,9 +454,9 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
      * crossing towards the side its normal points to, if that one faces back; else the
      * background). */
     uint start = 0;
-    for (int x = xa; x <= xb; ++x) {
-      uint end = count[x], n = end - start;
-      count[x] = 0;
+    for (int l = la; l <= lb; ++l) {
+      uint end = count[l], n = end - start;
+      count[l] = 0;
       if (n == 0) continue;
       sort_line(s_sort + start, n);
       order_coincident(s_sort + start, n, b->depth_tie);
@@ -335,9 +464,9 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
         ulong key = s_sort[k];
         float4 seen = background;
         if (KEY_FRONT(key)) {
-          if (k + 1 < end && KEY_FRONT(s_sort[k + 1]) == 0u) seen = radiance[band_list[KEY_SLOT(s_sort[k + 1])]];
+          if (k + 1 < end && KEY_FRONT(s_sort[k + 1]) == 0u) seen = band_radiance[KEY_SLOT(s_sort[k + 1])];
         } else if (k > start && KEY_FRONT(s_sort[k - 1])) {
-          seen = radiance[band_list[KEY_SLOT(s_sort[k - 1])]];
+          seen = band_radiance[KEY_SLOT(s_sort[k - 1])];
         }
         acc[KEY_SLOT(key)] += seen;
         acc_hits[KEY_SLOT(key)] += 1;
@@ -345,9 +474,9 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
       start = end;
     }
   }
-  stats[0] = row_max;
+  stats[0] = block_max;
   stats[3] = total;
-  if (row_max > cap) return;
+  if (block_max > cap) return;
 
   /* 5. Band partials: the patches with crossings here, in patch order. */
   uint partials = 0;
@@ -361,39 +490,51 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
   stats[1] = partials;
 }
 
-/* Each patch adds its band partials, in band order (binary search in each band's list,
- * which is in patch order). gathered[j] = sum over the lines crossing j of what they bring
- * (rgb), hits[j] = the number of those lines. Work-item i takes patches
- * [i * per_item, (i + 1) * per_item). Nothing is written when a band overflowed. */
-__kernel void combine(__global const int2* rows, uint patch_count, uint per_item,
-                      __constant SiradBundle* b, __global const uint* partial_patch,
-                      __global const float4* partial_sum, __global const uint* partial_hits,
-                      __global const uint* band_stats, __global float4* gathered,
-                      __global uint* hits) {
+/* Each patch adds its band partials, in band order. gathered[j] = sum over the lines crossing
+ * j of what they bring (rgb), hits[j] = the number of those lines. Work-item i takes patches
+ * [i * per_item, (i + 1) * per_item): it zeroes them, then walks the partial list (in patch
+ * order) of each band its patches reach, from its first entry in the range (one binary search
+ * per band) to the range's end, adding as it goes: every patch's sum is 0 + its partials in
+ * band order.
+ * Nothing is written when a band overflowed. */
+__kernel void combine(__global const int2* restrict rows, uint patch_count, uint per_item,
+                      __constant SiradBundle* b,
+                      __global const uint* restrict partial_patch,
+                      __global const float4* restrict partial_sum, __global const uint* restrict partial_hits,
+                      __global const uint* restrict band_stats, __global float4* restrict gathered,
+                      __global uint* restrict hits) {
   for (int k = 0; k < b->bands; ++k)
     if (band_stats[4 * k] > b->capacity || band_stats[4 * k + 2] > b->partial_capacity) return;
   uint first = get_global_id(0) * per_item;
   uint last = min(first + per_item, patch_count);
+  if (first >= last) return;
+  int ylo = 0x7fffffff, yhi = -1;
   for (uint j = first; j < last; ++j) {
-    float4 sum = (float4)(0.0f);
-    uint n = 0;
+    gathered[j] = (float4)(0.0f);
+    hits[j] = 0;
     int2 r = rows[j];
     if (r.x <= r.y) {
-      for (int band = r.x / b->rows_per_band; band <= r.y / b->rows_per_band; ++band) {
-        uint base = (uint)band * b->partial_capacity;
-        uint lo = 0, hi = band_stats[4 * band + 1];
-        while (lo < hi) {
-          uint mid = (lo + hi) / 2;
-          if (partial_patch[base + mid] < j) lo = mid + 1;
-          else hi = mid;
-        }
-        if (lo < band_stats[4 * band + 1] && partial_patch[base + lo] == j) {
-          sum += partial_sum[base + lo];
-          n += partial_hits[base + lo];
-        }
-      }
+      ylo = min(ylo, r.x);
+      yhi = max(yhi, r.y);
     }
-    gathered[j] = sum;
-    hits[j] = n;
+  }
+  if (yhi < 0) return;
+  for (int band = ylo / b->rows_per_band; band <= yhi / b->rows_per_band; ++band) {
+    uint base = (uint)band * b->partial_capacity;
+    uint count = band_stats[4 * band + 1];
+    __global const uint* pp = partial_patch + base;
+    if (count == 0 || pp[count - 1] < first || pp[0] >= last) continue;
+    uint lo = 0, hi = count;
+    while (lo < hi) {
+      uint mid = (lo + hi) / 2;
+      if (pp[mid] < first) lo = mid + 1;
+      else hi = mid;
+    }
+    for (uint k = lo; k < count; ++k) {
+      uint j = pp[k];
+      if (j >= last) break;
+      gathered[j] += partial_sum[base + k];
+      hits[j] += partial_hits[base + k];
+    }
   }
 }

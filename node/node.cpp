@@ -47,6 +47,7 @@ struct RunState {
   uint32_t index = 0;
   PatchMesh mesh;
   std::unique_ptr<BundleEngine> engine;
+  std::unique_ptr<ShotEngine> shots;  // the first shot's, when the run has one
   std::unique_ptr<Solver> solver;
 };
 
@@ -250,8 +251,11 @@ class Node {
       so.burn_in = run.burn_in();
       so.directions = run.directions().empty() ? Directions::random : parse_directions(run.directions());
       so.chain_id = pending_->index;
+      so.shots_per_bundle = run.shots_per_bundle();
+      so.shot_resolution = static_cast<int>(run.shot_resolution());
+      if (so.shots_per_bundle > 0) pending_->shots = make_cl_shot_engine(pending_->mesh, options_.device);
       auto t0 = Clock::now();
-      pending_->solver = std::make_unique<Solver>(pending_->mesh, *pending_->engine, so);
+      pending_->solver = std::make_unique<Solver>(pending_->mesh, *pending_->engine, so, pending_->shots.get());
       double ms = seconds(Clock::now() - t0) * 1e3 / std::max(1, pending_->solver->burn_in());
       state_ = std::move(pending_);
       wire::Ready ready;

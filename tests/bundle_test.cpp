@@ -126,6 +126,32 @@ TEST(BundleKernel, ScratchGrowthAndBandingDoNotChangeResults) {
 }
 
 
+// The band pass collects crossings in blocks of rows (as many as fit a budget of lines): the
+// block height changes neither the crossings nor any sum, bit for bit (each patch still sums
+// its lines in row-major order), at grids where the blocks are one row, several rows and
+// whole bands, with band heights that do and do not divide by the block height.
+TEST(BundleKernel, RowBlocksDoNotChangeResults) {
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 1500});
+  auto rows = make_cl_engine(mesh, {.bands = 5, .block_lines = 1});
+  auto blocks = make_cl_engine(mesh, {.bands = 5, .block_lines = 700});
+  auto whole = make_cl_engine(mesh, {.bands = 5, .block_lines = 1 << 20});
+  auto radiance = patch_radiance(mesh);
+  for (int grid : {64, 150, 301}) {
+    SiradBundle b = make_bundle(mesh, grid, 11, static_cast<uint64_t>(grid));
+    BundleResult r, k, w;
+    rows->run(b, radiance, r);
+    blocks->run(b, radiance, k);
+    whole->run(b, radiance, w);
+    ASSERT_EQ(r.crossings, k.crossings);
+    ASSERT_EQ(r.crossings, w.crossings);
+    EXPECT_EQ(r.hits, k.hits);
+    EXPECT_EQ(r.hits, w.hits);
+    EXPECT_EQ(0, std::memcmp(r.gathered.data(), k.gathered.data(), r.gathered.size() * sizeof(glm::vec4))) << grid;
+    EXPECT_EQ(0, std::memcmp(r.gathered.data(), w.gathered.data(), r.gathered.size() * sizeof(glm::vec4))) << grid;
+  }
+}
+
+
 // A thin two-sided wall made of two coincident one-sided faces, alone in empty space: every
 // line through it meets the back-facing pair, and each face must look outwards, into the
 // background (0). Depths of the two faces come from different vertices and diagonals, so

@@ -148,7 +148,9 @@ TEST(SceneBuiltin, FurnaceIsAClosedInwardCube) {
 TEST(SceneBuiltin, LoadSceneByName) {
   EXPECT_EQ(load_scene("cornell").triangles.size(), 38u);
   EXPECT_EQ(load_scene("furnace").triangles.size(), 12u);
-  EXPECT_EQ(builtin_scene_names(), (std::vector<std::string>{"cornell", "furnace"}));
+  EXPECT_GT(load_scene("bright-room").triangles.size(), 0u);
+  EXPECT_GT(load_scene("three-lights").triangles.size(), 0u);
+  EXPECT_EQ(builtin_scene_names(), (std::vector<std::string>{"cornell", "furnace", "bright-room", "three-lights"}));
 }
 
 TEST(SceneFile, LoadsObjWithMtlCameraAndLines) {
@@ -217,7 +219,7 @@ TEST(SceneErrors, FilesThatAreNotScenes) {
   expect_parts(error_of([&] { load_scene(garbage); }), {"garbage.obj:1: binary data"});
   expect_parts(
       error_of([&] { load_scene(dir.path("model.glb")); }),
-      {"model.glb: unsupported scene format (supported: .obj, built-ins: cornell, furnace)"});
+      {"model.glb: unsupported scene format (supported: .obj, built-ins: cornell, furnace, bright-room, three-lights)"});
   expect_parts(error_of([&] { load_scene("cornel"); }), {"cornel: unsupported scene format"});
 }
 

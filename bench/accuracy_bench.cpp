@@ -1,0 +1,133 @@
+// sirad bench: accuracy per second (issue 4). Runs the solver in one or more configurations
+// against a reference solution (`sirad reference`, core/reference.h) and prints, as CSV, the
+// relative RMS error per non-emitting patch (area-weighted, the reference's own variance
+// subtracted: core/metrics.h relative_rms_vs_reference) at checkpoints of growing bundle counts,
+// with the solver's wall time up to there (error evaluation not counted). The summary lines
+// give the time to 2 % and to 1 % of each configuration (the first checkpoint at or below).
+//
+//   sirad_bench_accuracy --scene cornell --patches 20000 --reference cornell-20000.ref.csv
+//       --config naive --config shot:1 --config shot:0.5:128 --max-seconds 60
+//
+// A configuration is `naive` (no first shot) or `shot:X[:H]` (X shots per bundle, hemicube
+// side H, 0 or absent: auto). The reference file is computed (and written) when missing.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "core/bundle_cl.h"
+#include "core/error.h"
+#include "core/metrics.h"
+#include "core/reference.h"
+#include "core/scene.h"
+#include "core/shot.h"
+#include "core/solver.h"
+
+using namespace sirad;
+
+namespace {
+
+struct Config {
+  std::string name;
+  double shots_per_bundle = 0.0;
+  int resolution = 0;
+};
+
+Config parse_config(const std::string& text) {
+  if (text == "naive") return {text, 0.0, 0};
+  if (text.rfind("shot:", 0) != 0) fail("--config {}: expected naive or shot:X[:H]", text);
+  Config c{text, 0.0, 0};
+  std::string rest = text.substr(5);
+  std::size_t colon = rest.find(':');
+  try {
+    c.shots_per_bundle = std::stod(rest.substr(0, colon));
+    if (colon != std::string::npos) c.resolution = std::stoi(rest.substr(colon + 1));
+  } catch (const std::exception&) {
+    fail("--config {}: expected naive or shot:X[:H]", text);
+  }
+  check_first_shot(c.shots_per_bundle, c.resolution);
+  return c;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"sirad_bench_accuracy: error against a reference over time (CSV)"};
+  std::string scene_spec = "cornell", reference_path;
+  int64_t patches = 20000;
+  std::vector<std::string> configs;
+  double max_seconds = 60.0;
+  uint64_t seed = 1;
+  int grid = 0;
+  app.add_option("--scene", scene_spec)->capture_default_str();
+  app.add_option("--patches", patches)->capture_default_str();
+  app.add_option("--reference", reference_path, "NAME.ref.csv (computed with 8192 rays per patch if missing)");
+  app.add_option("--config", configs, "naive or shot:X[:H] (repeatable)");
+  app.add_option("--max-seconds", max_seconds, "Solver time per configuration")->capture_default_str();
+  app.add_option("--seed", seed)->capture_default_str();
+  app.add_option("--grid", grid, "Lines per side (0: auto)")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (configs.empty()) configs = {"naive", "shot:1"};
+    std::vector<Config> parsed;
+    for (const auto& c : configs) parsed.push_back(parse_config(c));
+    PatchMesh mesh = mesh_scene(load_scene(scene_spec), {.target_patches = static_cast<std::size_t>(patches)});
+    if (reference_path.empty()) reference_path = fmt::format("{}-{}.ref.csv", std::filesystem::path(scene_spec).stem().string(), patches);
+    ReferenceSolution ref;
+    if (std::filesystem::exists(reference_path)) {
+      ref = read_reference(reference_path, mesh);
+    } else {
+      ReferenceOptions ro;
+      ro.rays_per_patch = 8192;
+      std::fprintf(stderr, "computing the reference (%zu patches, %d rays per patch)...\n", mesh.size(), ro.rays_per_patch);
+      ref = solve_reference(mesh, ro);
+      write_reference(reference_path, mesh, ref, ro);
+    }
+    std::fprintf(stderr, "reference: mean relative SE %.4f\n", mean_relative_se(mesh, ref));
+
+    auto engine = make_cl_engine(mesh);
+    auto shots = make_cl_shot_engine(mesh);
+    std::printf("config,patches,seed,bundles,shots,seconds,error_raw,error\n");
+    std::vector<std::string> summary;
+    for (const Config& c : parsed) {
+      SolverOptions so;
+      so.seed = seed;
+      so.grid = grid;
+      so.shots_per_bundle = c.shots_per_bundle;
+      so.shot_resolution = c.resolution;
+      double solver_s = 0.0;
+      auto t0 = std::chrono::steady_clock::now();
+      Solver solver(mesh, *engine, so, shots.get());
+      solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      double to2 = -1, to1 = -1;
+      uint64_t next = 4;
+      for (uint64_t k = 0; solver_s < max_seconds; ++k) {
+        t0 = std::chrono::steady_clock::now();
+        solver.step(k);
+        solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        if (k + 1 < next) continue;
+        next = std::max(next + 1, static_cast<uint64_t>(next * 1.15));
+        ReferenceError e = relative_rms_vs_reference(mesh, solver.estimate(), ref.radiosity, ref.radiosity_se);
+        std::printf("%s,%zu,%llu,%llu,%llu,%.3f,%.5f,%.5f\n", c.name.c_str(), mesh.size(),
+                    static_cast<unsigned long long>(seed), static_cast<unsigned long long>(k + 1),
+                    static_cast<unsigned long long>(solver.shots_rendered()), solver_s, e.raw, e.corrected);
+        std::fflush(stdout);
+        if (to2 < 0 && e.corrected <= 0.02) to2 = solver_s;
+        if (to1 < 0 && e.corrected <= 0.01) to1 = solver_s;
+        if (to1 >= 0) break;
+      }
+      summary.push_back(fmt::format("# {}: {} patches, H {}, time to 2 %: {}, to 1 %: {}", c.name, mesh.size(),
+                                    solver.shot_resolution(), to2 < 0 ? "not reached" : fmt::format("{:.2f} s", to2),
+                                    to1 < 0 ? "not reached" : fmt::format("{:.2f} s", to1)));
+    }
+    for (const auto& s : summary) std::printf("%s\n", s.c_str());
+  } catch (const Error& e) {
+    std::fprintf(stderr, "sirad_bench_accuracy: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

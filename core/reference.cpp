@@ -1,0 +1,551 @@
+// sirad: the independent reference solver (see reference.h): Embree 3 ray casting, the exact
+// point-to-polygon form factor for direct light with visibility as a control variate, batches
+// for the standard error, Gauss-Seidel for the linear system.
+//
+// Bias. Each batch solution is a nonlinear function of its estimated matrix F_b; rows of F_b
+// come from independent rays of different patches, so a product F_ij F_jk ... over a light path
+// is unbiased unless the path uses the same row entry twice (i -> j -> ... -> i -> j), where
+// E[F_ij^2] = F_ij^2 + Var(F_ij), Var(F_ij) ~ F_ij / n_b (n_b rays per patch and batch). The
+// shortest such path contributes rho^3 F_ij F_ji F_ij B_j, so the relative bias is at most about
+// rho^3 max_j F_ji / n_b: below 1e-3 * F_ji at n_b = 256, i.e. far below the standard error
+// (which is O(1 / sqrt(n_b R))). The direct part is linear in its samples: unbiased. Hence the
+// mean of the batch solutions is used as the estimate (its spread is exactly what the standard
+// error describes); its O(R / n) bias is negligible.
+#include "core/reference.h"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <atomic>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <sstream>
+#include <thread>
+
+#include <glm/geometric.hpp>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+
+namespace sirad {
+namespace {
+
+using glm::dvec3;
+
+// splitmix64 as a stream: passes BigCrush, tiny state, keyed per (seed, patch, batch, purpose)
+// so results do not depend on the thread count.
+struct Rng {
+  uint64_t s;
+  static uint64_t mix(uint64_t z) {
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+  }
+  Rng(uint64_t seed, uint64_t a, uint64_t b, uint64_t c)
+      : s(mix(mix(mix(seed ^ 0x5eed5eed5eedULL) ^ a) + b * 0x9e3779b97f4a7c15ULL) ^ (c << 56)) {}
+  uint64_t next() { return mix(s += 0x9e3779b97f4a7c15ULL); }
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+};
+
+// n stratified points in the unit square: an m x m jittered grid (m = floor(sqrt n)), the rest
+// uniform, in random order (so that pairing two such sets is a random permutation).
+void stratified_square(int n, Rng& rng, std::vector<std::array<double, 2>>& out) {
+  out.resize(static_cast<std::size_t>(n));
+  int m = static_cast<int>(std::sqrt(static_cast<double>(n)));
+  while ((m + 1) * (m + 1) <= n) ++m;
+  int k = 0;
+  for (int a = 0; a < m; ++a)
+    for (int b = 0; b < m; ++b) out[static_cast<std::size_t>(k++)] = {(a + rng.uniform()) / m, (b + rng.uniform()) / m};
+  for (; k < n; ++k) out[static_cast<std::size_t>(k)] = {rng.uniform(), rng.uniform()};
+  for (int i = n - 1; i > 0; --i) std::swap(out[static_cast<std::size_t>(i)], out[rng.next() % static_cast<uint64_t>(i + 1)]);
+}
+
+// Area-preserving map of the unit square onto the triangle (continuous, so strata stay strata).
+dvec3 on_triangle(const dvec3& a, const dvec3& b, const dvec3& c, double s, double t) {
+  double r = std::sqrt(s);
+  return a * (1.0 - r) + b * (r * (1.0 - t)) + c * (r * t);
+}
+
+// Cosine-distributed direction about n (Malley: concentric disk, lifted to the hemisphere).
+dvec3 cosine_direction(const dvec3& n, double s, double t) {
+  double a = 2.0 * s - 1.0, b = 2.0 * t - 1.0, r, phi;
+  if (a == 0.0 && b == 0.0) {
+    r = 0.0;
+    phi = 0.0;
+  } else if (std::abs(a) > std::abs(b)) {
+    r = a;
+    phi = (std::numbers::pi / 4.0) * (b / a);
+  } else {
+    r = b;
+    phi = (std::numbers::pi / 2.0) - (std::numbers::pi / 4.0) * (a / b);
+  }
+  double x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0, 1.0 - x * x - y * y));
+  // Duff et al., "Building an orthonormal basis, revisited".
+  double sign = std::copysign(1.0, n.z), e = -1.0 / (sign + n.z), f = n.x * n.y * e;
+  dvec3 u(1.0 + sign * n.x * n.x * e, sign * f, -sign * n.x), v(f, sign + n.y * n.y * e, -n.y);
+  return u * x + v * y + n * z;
+}
+
+// The form factor from a point x with unit normal n to the part of the polygon p[0..count)
+// in front of x's tangent plane (n . (y - x) > 0): Lambert's contour formula,
+//   F = (1 / 2 pi) |sum_k theta_k n . g_k|,
+// theta_k the angle p_k, p_k+1 subtend at x and g_k the unit normal of the plane through x and
+// that edge. The polygon is first clipped against the tangent plane (Sutherland-Hodgman); the
+// clipped polygon lies in the closed upper hemisphere, where the integrand cos(theta_x) >= 0,
+// so the absolute value of the signed sum is the form factor whatever the winding.
+double polygon_form_factor(const dvec3& x, const dvec3& n, const dvec3* p, int count) {
+  dvec3 clipped[8];
+  int m = 0;
+  for (int k = 0; k < count; ++k) {
+    const dvec3 &a = p[k], &b = p[(k + 1) % count];
+    double ha = glm::dot(n, a - x), hb = glm::dot(n, b - x);
+    if (ha > 0.0) clipped[m++] = a - x;
+    if ((ha > 0.0) != (hb > 0.0)) {
+      dvec3 q = a + (b - a) * (ha / (ha - hb)) - x;
+      q -= n * glm::dot(n, q);  // exactly in the plane despite rounding
+      clipped[m++] = q;
+    }
+  }
+  if (m < 3) return 0.0;
+  double sum = 0.0;
+  for (int k = 0; k < m; ++k) {
+    dvec3 a = clipped[k], b = clipped[(k + 1) % m];
+    double la = glm::length(a), lb = glm::length(b);
+    if (la <= 0.0 || lb <= 0.0) continue;
+    a /= la;
+    b /= lb;
+    dvec3 c = glm::cross(a, b);
+    double lc = glm::length(c);
+    if (lc <= 0.0) continue;
+    sum += std::atan2(lc, glm::dot(a, b)) * glm::dot(n, c) / lc;
+  }
+  return std::abs(sum) / (2.0 * std::numbers::pi);
+}
+
+// An emitting input triangle (all its patches share its material), rebuilt from its patches.
+struct Emitter {
+  dvec3 p[3];
+  dvec3 normal;
+  double area;
+  dvec3 emission;
+};
+
+// The emitters, one per emitting source triangle: its corners are the extreme points of its
+// patches' vertices (regular subdivision keeps them). If a rebuilt triangle does not match its
+// patches (area or normal), each patch is its own emitter, which is always right, only slower.
+std::vector<Emitter> find_emitters(const PatchMesh& mesh) {
+  std::map<uint32_t, std::vector<uint32_t>> groups;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    glm::vec3 e = mesh.emission(j);
+    if (e.x > 0 || e.y > 0 || e.z > 0) groups[mesh.source_triangle[j]].push_back(static_cast<uint32_t>(j));
+  }
+  std::vector<Emitter> out;
+  auto vertex = [&](uint32_t v) { return dvec3(mesh.vertices[v]); };
+  auto patch_emitter = [&](uint32_t j) {
+    Emitter e;
+    for (int k = 0; k < 3; ++k) e.p[k] = vertex(mesh.patches[j][k]);
+    e.normal = dvec3(mesh.normal[j]);
+    e.area = mesh.area[j];
+    e.emission = dvec3(mesh.emission(j));
+    return e;
+  };
+  for (const auto& [tri, members] : groups) {
+    std::vector<dvec3> pts;
+    double area = 0.0;
+    bool same = true;
+    for (uint32_t j : members) {
+      for (int k = 0; k < 3; ++k) pts.push_back(vertex(mesh.patches[j][k]));
+      area += mesh.area[j];
+      same = same && mesh.material[j] == mesh.material[members[0]];
+    }
+    dvec3 centre(0.0);
+    for (const dvec3& q : pts) centre += q / static_cast<double>(pts.size());
+    auto farthest = [&](const dvec3& from) {
+      std::size_t best = 0;
+      for (std::size_t k = 1; k < pts.size(); ++k)
+        if (glm::length(pts[k] - from) > glm::length(pts[best] - from)) best = k;
+      return pts[best];
+    };
+    dvec3 a = farthest(centre), b = farthest(a), c = a;
+    double best = -1.0;
+    for (const dvec3& q : pts) {
+      double s = glm::length(glm::cross(b - a, q - a));
+      if (s > best) best = s, c = q;
+    }
+    Emitter e = patch_emitter(members[0]);
+    dvec3 cr = glm::cross(b - a, c - a);
+    double tri_area = 0.5 * glm::length(cr);
+    bool ok = same && tri_area > 0.0 && std::abs(tri_area - area) <= 1e-4 * area &&
+              std::abs(glm::dot(cr / (2.0 * tri_area), e.normal)) > 0.9999;
+    if (!ok) {
+      for (uint32_t j : members) out.push_back(patch_emitter(j));
+      continue;
+    }
+    if (glm::dot(cr, e.normal) < 0.0) std::swap(b, c);
+    e.p[0] = a;
+    e.p[1] = b;
+    e.p[2] = c;
+    e.normal = glm::normalize(glm::cross(b - a, c - a));
+    e.area = tri_area;
+    out.push_back(e);
+  }
+  return out;
+}
+
+// Embree scene of all patches (one triangle geometry, primID = patch index), robust mode so
+// that rays do not slip between adjacent triangles.
+class RayScene {
+ public:
+  explicit RayScene(const PatchMesh& mesh) {
+    device_ = rtcNewDevice(nullptr);
+    if (!device_) fail("reference: cannot create an Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
+    scene_ = rtcNewScene(device_);
+    rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
+    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), mesh.vertices.size()));
+    auto* ix = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                              3 * sizeof(unsigned), mesh.size()));
+    if (!v || !ix) fail("reference: Embree could not allocate the scene buffers");
+    for (std::size_t k = 0; k < mesh.vertices.size(); ++k)
+      for (int c = 0; c < 3; ++c) v[3 * k + c] = mesh.vertices[k][c];
+    for (std::size_t j = 0; j < mesh.size(); ++j)
+      for (int c = 0; c < 3; ++c) ix[3 * j + c] = mesh.patches[j][c];
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene_, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(scene_);
+    if (rtcGetDeviceError(device_) != RTC_ERROR_NONE) fail("reference: Embree failed to build the scene");
+  }
+  ~RayScene() {
+    rtcReleaseScene(scene_);
+    rtcReleaseDevice(device_);
+  }
+  RayScene(const RayScene&) = delete;
+  RayScene& operator=(const RayScene&) = delete;
+
+  // The nearest patch along org + t dir, t > 0, or -1.
+  int64_t nearest(const dvec3& org, const dvec3& dir) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh;
+    set_ray(rh.ray, org, dir, std::numeric_limits<float>::infinity());
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene_, &ctx, &rh);
+    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : static_cast<int64_t>(rh.hit.primID);
+  }
+  // Whether anything lies on the segment org + t (to - org), 0 <= t < 1.
+  bool blocked(const dvec3& org, const dvec3& to) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRay r;
+    set_ray(r, org, to - org, 1.0f);
+    rtcOccluded1(scene_, &ctx, &r);
+    return r.tfar < 0.0f;
+  }
+
+ private:
+  static void set_ray(RTCRay& r, const dvec3& org, const dvec3& dir, float tfar) {
+    r.org_x = static_cast<float>(org.x);
+    r.org_y = static_cast<float>(org.y);
+    r.org_z = static_cast<float>(org.z);
+    r.tnear = 0.0f;
+    r.dir_x = static_cast<float>(dir.x);
+    r.dir_y = static_cast<float>(dir.y);
+    r.dir_z = static_cast<float>(dir.z);
+    r.time = 0.0f;
+    r.tfar = tfar;
+    r.mask = 0xffffffffu;
+    r.id = 0;
+    r.flags = 0;
+  }
+  RTCDevice device_;
+  RTCScene scene_;
+};
+
+// One batch's system: sparse rows of F (patch, weight), the background weight, the direct part.
+struct Row {
+  std::vector<std::pair<uint32_t, float>> entries;
+  float background = 0.0f;
+};
+
+constexpr uint32_t kBackground = 0xffffffffu;
+
+}  // namespace
+
+ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions& o) {
+  if (o.batches < 1) fail("reference: batches must be at least 1 (got {})", o.batches);
+  if (o.rays_per_patch < o.batches) fail("reference: rays per patch ({}) below the batch count ({})", o.rays_per_patch, o.batches);
+  if (o.light_samples < o.batches) fail("reference: light samples ({}) below the batch count ({})", o.light_samples, o.batches);
+  if (o.threads < 0) fail("reference: threads must be >= 0 (got {})", o.threads);
+  if (mesh.size() == 0) fail("reference: empty mesh");
+  auto start = std::chrono::steady_clock::now();
+
+  const std::size_t n = mesh.size();
+  const int R = o.batches;
+  const int rays_b = o.rays_per_patch / R, points_b = o.light_samples / R;
+  const std::vector<Emitter> emitters = find_emitters(mesh);
+  RayScene rays(mesh);
+  // Ray origins leave the surface along its normal by eps: a few hundred float ulps of the
+  // scene's coordinates, so a ray never re-hits its own patch or the back-to-back twin of a
+  // thin wall, and far below any patch size (its effect on a form factor is O(eps / distance)).
+  const double eps = 1e-5 * (static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center)));
+
+  std::vector<std::vector<Row>> rows(static_cast<std::size_t>(R), std::vector<Row>(n));
+  std::vector<std::vector<dvec3>> direct(static_cast<std::size_t>(R), std::vector<dvec3>(n, dvec3(0.0)));
+  std::atomic<uint64_t> cast{0};
+  std::atomic<std::size_t> next{0};
+  constexpr std::size_t kBlock = 16;
+
+  auto work = [&] {
+    std::vector<std::array<double, 2>> pts, dirs, ys;
+    std::vector<uint32_t> hits;
+    uint64_t local = 0;
+    for (;;) {
+      std::size_t first = next.fetch_add(kBlock);
+      if (first >= n) break;
+      for (std::size_t i = first; i < std::min(n, first + kBlock); ++i) {
+        const auto& tri = mesh.patches[i];
+        dvec3 a(mesh.vertices[tri[0]]), b(mesh.vertices[tri[1]]), c(mesh.vertices[tri[2]]);
+        dvec3 nx(mesh.normal[i]);
+        dvec3 rho(mesh.reflectance(i));
+        for (int bt = 0; bt < R; ++bt) {
+          // Indirect: cosine-distributed rays from stratified points; the hit counts / n_b are
+          // the row of F (emitters included: they carry their reflected part Y here).
+          Rng rng(o.seed, i, static_cast<uint64_t>(bt), 1);
+          stratified_square(rays_b, rng, pts);
+          stratified_square(rays_b, rng, dirs);
+          hits.clear();
+          for (int k = 0; k < rays_b; ++k) {
+            dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
+            dvec3 d = cosine_direction(nx, dirs[static_cast<std::size_t>(k)][0], dirs[static_cast<std::size_t>(k)][1]);
+            int64_t j = rays.nearest(x + nx * eps, d);
+            bool front = j >= 0 && glm::dot(dvec3(mesh.normal[static_cast<std::size_t>(j)]), d) < 0.0;
+            hits.push_back(front ? static_cast<uint32_t>(j) : kBackground);
+          }
+          local += static_cast<uint64_t>(rays_b);
+          std::sort(hits.begin(), hits.end());
+          Row& row = rows[static_cast<std::size_t>(bt)][i];
+          row.entries.clear();
+          const float w = 1.0f / static_cast<float>(rays_b);
+          for (std::size_t k = 0; k < hits.size();) {
+            std::size_t e = k;
+            while (e < hits.size() && hits[e] == hits[k]) ++e;
+            float weight = w * static_cast<float>(e - k);
+            if (hits[k] == kBackground) row.background = weight;
+            else row.entries.emplace_back(hits[k], weight);
+            k = e;
+          }
+          // Direct: exact unoccluded form factor to each emitter triangle minus the visibility
+          // control variate A_L K(x, y) (1 - V(x, y)), y stratified on L, one per point and L:
+          // E[A_L K (1 - V)] = F_analytic - F_visible, so the estimate is unbiased, and exact
+          // wherever nothing occludes.
+          if (rho == dvec3(0.0) || emitters.empty()) continue;
+          Rng lrng(o.seed, i, static_cast<uint64_t>(bt), 2);
+          stratified_square(points_b, lrng, pts);
+          dvec3 sum(0.0);
+          for (std::size_t l = 0; l < emitters.size(); ++l) {
+            const Emitter& L = emitters[l];
+            if (glm::dot(L.normal, (a + b + c) / 3.0 - L.p[0]) <= 0.0 && glm::dot(L.normal, a - L.p[0]) <= 0.0 &&
+                glm::dot(L.normal, b - L.p[0]) <= 0.0 && glm::dot(L.normal, c - L.p[0]) <= 0.0)
+              continue;  // the patch is wholly behind L: L shows it only its back
+            stratified_square(points_b, lrng, ys);
+            double f = 0.0;
+            for (int k = 0; k < points_b; ++k) {
+              dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
+              if (glm::dot(L.normal, x - L.p[0]) <= 0.0) continue;  // behind L (or in its plane)
+              double fa = polygon_form_factor(x, nx, L.p, 3);
+              if (fa <= 0.0) continue;
+              dvec3 y = on_triangle(L.p[0], L.p[1], L.p[2], ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
+              dvec3 r = y - x;
+              double r2 = glm::dot(r, r), cx = glm::dot(nx, r), cy = -glm::dot(L.normal, r);
+              double corr = 0.0;
+              if (cx > 0.0 && cy > 0.0 && r2 > 0.0) {
+                ++local;
+                if (rays.blocked(x + nx * eps, y + L.normal * eps))
+                  corr = L.area * cx * cy / (std::numbers::pi * r2 * r2);
+              }
+              f += fa - corr;
+            }
+            sum += L.emission * (f / points_b);
+          }
+          direct[static_cast<std::size_t>(bt)][i] = rho * sum;
+        }
+      }
+    }
+    cast += local;
+  };
+  int threads = o.threads > 0 ? o.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  {
+    std::vector<std::jthread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+  }
+
+  // Solve each batch: Y = D + rho (F Y + F_bg background), Gauss-Seidel until the largest
+  // change is below 1e-12 of the largest value (the contraction is at most rho_max < 1 per sweep
+  // in a closed scene; with rho = 1 somewhere the system may not converge: capped).
+  ReferenceSolution s;
+  s.batches = R;
+  s.batch_radiosity.assign(static_cast<std::size_t>(R), std::vector<dvec3>(n));
+  std::vector<int> iterations(static_cast<std::size_t>(R), 0);
+  std::vector<char> converged(static_cast<std::size_t>(R), 1);
+  constexpr int kMaxSweeps = 20000;
+  std::atomic<int> next_batch{0};
+  auto solve = [&] {
+    for (int bt; (bt = next_batch.fetch_add(1)) < R;) {
+      const auto& F = rows[static_cast<std::size_t>(bt)];
+      const auto& D = direct[static_cast<std::size_t>(bt)];
+      std::vector<dvec3> y = D;
+      dvec3 bg(mesh.background);
+      int sweep = 0;
+      for (; sweep < kMaxSweeps; ++sweep) {
+        double change = 0.0, top = 1e-300;
+        for (std::size_t i = 0; i < n; ++i) {
+          dvec3 g = bg * static_cast<double>(F[i].background);
+          for (const auto& [j, w] : F[i].entries) g += y[j] * static_cast<double>(w);
+          dvec3 v = D[i] + dvec3(mesh.reflectance(i)) * g;
+          dvec3 dv = glm::abs(v - y[i]);
+          change = std::max({change, dv.x, dv.y, dv.z});
+          top = std::max({top, v.x, v.y, v.z});
+          y[i] = v;
+        }
+        if (change <= 1e-12 * top) break;
+      }
+      iterations[static_cast<std::size_t>(bt)] = sweep + 1;
+      if (sweep == kMaxSweeps) converged[static_cast<std::size_t>(bt)] = 0;
+      auto& out = s.batch_radiosity[static_cast<std::size_t>(bt)];
+      for (std::size_t i = 0; i < n; ++i) out[i] = dvec3(mesh.emission(i)) + y[i];
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    for (int t = 1; t < std::min(threads, R); ++t) pool.emplace_back(solve);
+    solve();
+  }
+
+  auto mean_se = [&](auto value, std::vector<dvec3>& mean, std::vector<dvec3>& se) {
+    mean.assign(n, dvec3(0.0));
+    se.assign(n, dvec3(0.0));
+    for (std::size_t i = 0; i < n; ++i) {
+      dvec3 m(0.0), q(0.0);
+      for (int bt = 0; bt < R; ++bt) m += value(bt, i);
+      m /= static_cast<double>(R);
+      for (int bt = 0; bt < R; ++bt) {
+        dvec3 d = value(bt, i) - m;
+        q += d * d;
+      }
+      mean[i] = m;
+      se[i] = R > 1 ? glm::sqrt(q / static_cast<double>(R - 1) / static_cast<double>(R)) : dvec3(0.0);
+    }
+  };
+  mean_se([&](int bt, std::size_t i) { return s.batch_radiosity[static_cast<std::size_t>(bt)][i]; }, s.radiosity, s.radiosity_se);
+  mean_se([&](int bt, std::size_t i) { return direct[static_cast<std::size_t>(bt)][i]; }, s.direct, s.direct_se);
+  s.iterations = *std::max_element(iterations.begin(), iterations.end());
+  s.converged = std::all_of(converged.begin(), converged.end(), [](char c) { return c != 0; });
+  s.rays = cast.load();
+  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return s;
+}
+
+double mean_relative_se(const PatchMesh& mesh, const ReferenceSolution& s) {
+  double num = 0.0, den = 0.0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    glm::vec3 e = mesh.emission(j);
+    if (e.x > 0 || e.y > 0 || e.z > 0) continue;
+    num += mesh.area[j] * glm::length(s.radiosity_se[j]);
+    den += mesh.area[j] * glm::length(s.radiosity[j]);
+  }
+  return den > 0.0 ? num / den : 0.0;
+}
+
+namespace {
+constexpr const char* kMagic = "# sirad reference v1";
+constexpr const char* kColumns = "patch,B_r,B_g,B_b,Bse_r,Bse_g,Bse_b,D_r,D_g,D_b,Dse_r,Dse_g,Dse_b";
+}  // namespace
+
+void write_reference(const std::string& path, const PatchMesh& mesh, const ReferenceSolution& s,
+                     const ReferenceOptions& o) {
+  AtomicFile file(path);
+  std::string text = fmt::format("{}\n# mesh_hash {} patches {} rays_per_patch {} light_samples {} batches {} seed {}\n{}\n",
+                                 kMagic, mesh.hash, mesh.size(), o.rays_per_patch, o.light_samples, o.batches, o.seed,
+                                 kColumns);
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    text += fmt::format("{}", j);
+    for (const auto* v : {&s.radiosity[j], &s.radiosity_se[j], &s.direct[j], &s.direct_se[j]})
+      text += fmt::format(",{},{},{}", v->x, v->y, v->z);  // shortest round-trip form
+    text += '\n';
+    if (text.size() > (1u << 20)) {
+      file.write(text.data(), text.size());
+      text.clear();
+    }
+  }
+  file.write(text.data(), text.size());
+  file.commit();
+}
+
+ReferenceSolution read_reference(const std::string& path, const PatchMesh& mesh) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("{}: cannot open: {}", path, std::strerror(errno));
+  std::string line;
+  std::size_t number = 0;
+  auto next_line = [&](const char* what) {
+    if (!std::getline(in, line)) fail("{}:{}: file ends early (expected {})", path, number + 1, what);
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+  };
+  next_line("the header");
+  if (line != kMagic) fail("{}:{}: not a sirad reference file (expected '{}')", path, number, kMagic);
+  next_line("the mesh hash line");
+  std::istringstream hs(line);
+  std::string hash_key, hash, patches_key;
+  std::size_t patches = 0;
+  if (!(hs >> std::ws) || hs.get() != '#' || !(hs >> hash_key >> hash >> patches_key >> patches) || hash_key != "mesh_hash" ||
+      patches_key != "patches")
+    fail("{}:{}: malformed header (expected '# mesh_hash HASH patches N ...')", path, number);
+  if (hash != mesh.hash) fail("{}:{}: computed for mesh {}, not this mesh ({})", path, number, hash, mesh.hash);
+  if (patches != mesh.size()) fail("{}:{}: {} patches, the mesh has {}", path, number, patches, mesh.size());
+  next_line("the column names");
+  if (line != kColumns) fail("{}:{}: unexpected columns (expected '{}')", path, number, kColumns);
+  ReferenceSolution s;
+  const std::size_t n = mesh.size();
+  s.radiosity.resize(n);
+  s.radiosity_se.resize(n);
+  s.direct.resize(n);
+  s.direct_se.resize(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    next_line("a patch line");
+    double v[13];
+    const char* p = line.data();
+    const char* end = line.data() + line.size();
+    for (int k = 0; k < 13; ++k) {
+      if (k > 0) {
+        if (p == end || *p != ',') fail("{}:{}: expected 13 comma-separated fields", path, number);
+        ++p;
+      }
+      auto [q, ec] = std::from_chars(p, end, v[k]);
+      if (ec != std::errc() || q == p) fail("{}:{}: field {} is not a number", path, number, k + 1);
+      if (!std::isfinite(v[k])) fail("{}:{}: field {} is not finite", path, number, k + 1);
+      p = q;
+    }
+    if (p != end) fail("{}:{}: trailing text after 13 fields", path, number);
+    if (v[0] != static_cast<double>(j)) fail("{}:{}: patch {} where {} was expected", path, number, v[0], j);
+    for (int k : {4, 5, 6, 10, 11, 12})  // standard errors (an estimate itself may dip below 0)
+      if (v[k] < 0.0) fail("{}:{}: field {} (a standard error) is negative", path, number, k + 1);
+    s.radiosity[j] = dvec3(v[1], v[2], v[3]);
+    s.radiosity_se[j] = dvec3(v[4], v[5], v[6]);
+    s.direct[j] = dvec3(v[7], v[8], v[9]);
+    s.direct_se[j] = dvec3(v[10], v[11], v[12]);
+  }
+  if (std::getline(in, line) && !line.empty()) fail("{}:{}: unexpected text after the last patch", path, number + 1);
+  return s;
+}
+
+}  // namespace sirad

@@ -1,0 +1,97 @@
+// sirad: the first shot (DESIGN.md section 1, lever 1): the direct light D = rho F E computed
+// by shooting from the emitters, so that the stochastic iteration only carries the indirect
+// part, Y = D + rho F Y, B = E + Y.
+//
+// Shot k of a run is fixed by (seed, k): Philox picks an emitter patch L with probability
+// p_L proportional to its power A_L (E_r + E_g + E_b), a uniform point y on it, a rotation of
+// the hemicube about its normal and a jitter of the pixel lattice. An engine renders the
+// hemicube from y (which patch each pixel sample sees, front faces only); the host adds, per
+// receiving patch j,
+//     D_j += rho_j E_L A_L / (p_L A_j) * sum over j's pixel samples of dF,
+//     dF = max(0, d.n) h^2 / (pi |d|^4)   (d: the sample's direction on its face, h = 2 / H),
+// an unbiased estimate of rho_j sum_L F_jL E_L by reciprocity (A_j F_jL = integral over L of
+// the point-to-patch form factor F(y -> j)), because the jittered samples make sum dF an
+// unbiased estimate of F(y -> j) and y is uniform on L.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/bundle.h"
+#include "core/mesh.h"
+#include "kernels/shot_types.h"
+
+static_assert(sizeof(SiradShot) == 4 * 58, "SiradShot layout must match shot_types.h");
+
+namespace sirad {
+
+// The emitters of a mesh and the probability of shooting from each.
+struct EmitterTable {
+  std::vector<uint32_t> patch;   // emitting patches
+  std::vector<double> cdf;       // cumulative p_L, cdf.back() == 1
+  std::vector<double> p;         // p_L
+  bool empty() const { return patch.empty(); }
+};
+EmitterTable emitter_table(const PatchMesh& mesh);
+
+// One shot's draw (double precision) and its view as engines render it.
+struct ShotDraw {
+  std::size_t emitter = 0;  // index into EmitterTable::patch
+  glm::dvec3 eye{0.0};      // world point on the emitter
+  glm::dvec3 axes[5][3];    // per face a, b, c (c: where it looks)
+  double jitter_x = 0.5, jitter_y = 0.5;  // of the pixel lattice, in (0, 1)
+};
+ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index,
+                   Stream stream = Stream::shots);
+SiradShot make_shot(const PatchMesh& mesh, const ShotDraw& draw, int resolution);
+
+// Pixel samples of a shot's image (face 0: H x H, faces 1..4: H/2 x H) and the index of face
+// f's row y, column x in it.
+std::size_t shot_pixels(int resolution);
+std::size_t shot_pixel(int resolution, int face, int y, int x);
+
+// Renders shots: which patch each pixel sample sees (SIRAD_NO_PATCH: none, or a back face).
+class ShotEngine {
+ public:
+  virtual ~ShotEngine() = default;
+  virtual void render(const SiradShot& shot, std::vector<uint32_t>& image) = 0;
+  virtual std::string description() const = 0;
+};
+
+// The plain C++ reference: a ray per pixel sample against every patch (double precision,
+// Moller-Trumbore), written for tests. `ambiguous` (optional) marks the samples whose ray
+// passes within `edge_eps` (in pixel units) of an edge of a patch it might hit, or whose two
+// nearest hits are within the depth tie: where two exact methods may differ.
+std::unique_ptr<ShotEngine> make_reference_shot_engine(const PatchMesh& mesh);
+void reference_shot_ambiguity(const PatchMesh& mesh, const SiradShot& shot, double edge_eps,
+                              std::vector<uint8_t>& ambiguous);
+
+// The OpenCL engine (kernels/shot.cl) on the device `device` names (see select_device).
+std::unique_ptr<ShotEngine> make_cl_shot_engine(const PatchMesh& mesh, const std::string& device = {});
+
+// The per-pixel form-factor weights dF of a shot (double), in image order.
+std::vector<double> shot_weights(const SiradShot& shot);
+
+// Shots [first, first + count) of a run: the sum over them of each patch's estimate of D
+// (divide by the number of shots for the estimate). Emission-free meshes give zeros.
+struct ShotSums {
+  std::vector<glm::dvec3> direct;  // per patch, summed over the shots
+  uint64_t shots = 0;
+};
+ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, uint64_t seed,
+                   uint64_t first, uint64_t count, Stream stream = Stream::shots);
+
+// Adds one rendered shot's estimates to `direct` (per patch).
+void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const ShotDraw& draw,
+                     const SiradShot& shot, std::span<const uint32_t> image,
+                     std::span<const double> weights, std::vector<glm::dvec3>& direct);
+
+// A hemicube resolution for the mesh: about 4 pixel samples on face 0 for the median patch
+// seen face-on from the scene's bounding radius, even, clamped to [32, 512].
+int auto_shot_resolution(const PatchMesh& mesh);
+
+}  // namespace sirad

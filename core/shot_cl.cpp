@@ -1,0 +1,128 @@
+// sirad: the first shot's view on an OpenCL device (kernels/shot.cl): buffers, two launches and
+// the read-back of the image per shot.
+#include <algorithm>
+
+#include "core/error.h"
+#include "core/opencl.h"
+#include "core/shot.h"
+
+namespace sirad {
+
+namespace {
+
+class ClShotEngine final : public ShotEngine {
+ public:
+  ClShotEngine(const PatchMesh& mesh, const std::string& device) : n_(mesh.size()) {
+    device_ = select_device(device);
+    info_ = describe_device(device_);
+    context_ = cl::Context(device_);
+    queue_ = cl::CommandQueue(context_, device_);
+    std::string build = "-cl-std=CL1.2";
+    if (device_.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>() & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT)
+      build += " -cl-fp32-correctly-rounded-divide-sqrt";
+    cl::Program program = build_program(
+        context_, device_, {"kernels/bundle_types.h", "kernels/shot_types.h", "kernels/bundle.cl", "kernels/shot.cl"}, build);
+    project_ = cl::Kernel(program, "project_shot");
+    raster_ = cl::Kernel(program, "raster_shot");
+    patch_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(n_, 1), 16 * info_.compute_units)
+                                : std::max<std::size_t>(n_, 1);
+    per_item_ = static_cast<cl_uint>((n_ + patch_items_ - 1) / patch_items_);
+    std::vector<glm::vec4> verts = centred_vertices(mesh);
+    std::vector<cl_uint4> tris(n_);
+    for (std::size_t j = 0; j < n_; ++j) tris[j] = {{mesh.patches[j][0], mesh.patches[j][1], mesh.patches[j][2], 0u}};
+    vertices_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, std::max<std::size_t>(verts.size(), 1) * sizeof(glm::vec4), verts.data());
+    patches_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, std::max<std::size_t>(n_, 1) * sizeof(cl_uint4), tris.data());
+    params_ = cl::Buffer(context_, CL_MEM_READ_ONLY, sizeof(SiradShot));
+    projected_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(10 * n_, 1) * sizeof(SiradProjected));
+    rows_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(10 * n_, 1) * sizeof(cl_int2));
+  }
+
+  std::string description() const override { return fmt::format("{} / {}", info_.platform_name, info_.device_name); }
+
+  void render(const SiradShot& shot, std::vector<uint32_t>& image) override {
+    try {
+      for (int attempt = 0;; ++attempt) {
+        uint64_t needed = render_cl(shot, image);
+        if (needed == 0) return;
+        if (attempt == 2) fail("shot scratch did not grow ({} triangles in a band)", needed);
+        capacity_ = needed + needed / 4 + 1024;
+      }
+    } catch (const cl::Error& e) {
+      fail("OpenCL on {}: {}", description(), describe_cl_error(e));
+    }
+  }
+
+ private:
+  // Renders one shot; returns the triangles of the fullest band if they did not fit, else 0.
+  uint64_t render_cl(const SiradShot& shot, std::vector<uint32_t>& image) {
+    const int H = shot.resolution;
+    params_host_ = shot;
+    // Bands: on a CPU a few per compute unit over the 3 H rows, each within one face.
+    int target = info_.is_cpu ? static_cast<int>(8 * info_.compute_units) : 3 * H;
+    int rpb = std::max(1, (3 * H + target - 1) / target);
+    rpb = std::min(rpb, H / 2);
+    params_host_.rows_per_band = rpb;
+    params_host_.bands_top = (H + rpb - 1) / rpb;
+    params_host_.bands_side = (H / 2 + rpb - 1) / rpb;
+    const int bands = params_host_.bands_top + 4 * params_host_.bands_side;
+    if (capacity_ == 0) capacity_ = 4 * 2 * n_ / std::max(1, bands / 5) + 4096;
+    capacity_ = std::min<uint64_t>(capacity_, 2 * std::max<std::size_t>(n_, 1));
+    if (capacity_ > 0xffffffffu / static_cast<uint64_t>(bands)) fail("shot scratch of {} triangles x {} bands is beyond 32-bit indexing", capacity_, bands);
+    params_host_.capacity = static_cast<sirad_u32>(capacity_);
+    if (H != allocated_resolution_ || bands != allocated_bands_ || capacity_ != allocated_capacity_) {
+      band_list_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(capacity_) * bands * sizeof(cl_uint));
+      zbuf_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(H) * bands * sizeof(cl_float));
+      zwin_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(H) * bands * sizeof(cl_uint));
+      image_ = cl::Buffer(context_, CL_MEM_WRITE_ONLY, shot_pixels(H) * sizeof(cl_uint));
+      stats_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(bands) * sizeof(cl_uint));
+      allocated_resolution_ = H;
+      allocated_bands_ = bands;
+      allocated_capacity_ = capacity_;
+    }
+    cl_uint n = static_cast<cl_uint>(n_);
+    queue_.enqueueWriteBuffer(params_, CL_FALSE, 0, sizeof(SiradShot), &params_host_);
+    cl::NDRange one_per_group = info_.is_cpu ? cl::NDRange(1) : cl::NullRange;
+    int arg = 0;
+    for (const cl::Buffer* b : {&vertices_, &patches_}) project_.setArg(arg++, *b);
+    project_.setArg(arg++, n);
+    project_.setArg(arg++, per_item_);
+    for (const cl::Buffer* b : {&params_, &projected_, &rows_}) project_.setArg(arg++, *b);
+    queue_.enqueueNDRangeKernel(project_, cl::NullRange, cl::NDRange(patch_items_), one_per_group);
+    arg = 0;
+    for (const cl::Buffer* b : {&projected_, &rows_}) raster_.setArg(arg++, *b);
+    raster_.setArg(arg++, n);
+    for (const cl::Buffer* b : {&params_, &band_list_, &zbuf_, &zwin_, &image_, &stats_}) raster_.setArg(arg++, *b);
+    queue_.enqueueNDRangeKernel(raster_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(bands)), one_per_group);
+    std::vector<cl_uint> stats(static_cast<std::size_t>(bands));
+    image.resize(shot_pixels(H));
+    queue_.enqueueReadBuffer(image_, CL_FALSE, 0, image.size() * sizeof(cl_uint), image.data());
+    queue_.enqueueReadBuffer(stats_, CL_TRUE, 0, stats.size() * sizeof(cl_uint), stats.data());
+    uint64_t most = *std::max_element(stats.begin(), stats.end());
+    return most > capacity_ ? most : 0;
+  }
+
+  std::size_t n_;
+  cl::Device device_;
+  DeviceInfo info_;
+  cl::Context context_;
+  cl::CommandQueue queue_;
+  cl::Kernel project_, raster_;
+  std::size_t patch_items_ = 1;
+  cl_uint per_item_ = 1;
+  cl::Buffer vertices_, patches_, params_, projected_, rows_, band_list_, zbuf_, zwin_, image_, stats_;
+  SiradShot params_host_{};
+  uint64_t capacity_ = 0, allocated_capacity_ = 0;
+  int allocated_resolution_ = 0, allocated_bands_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<ShotEngine> make_cl_shot_engine(const PatchMesh& mesh, const std::string& device) {
+  try {
+    return std::make_unique<ClShotEngine>(mesh, device);
+  } catch (const cl::Error& e) {
+    fail("OpenCL: setting up the first shot for {} patches failed: {}", mesh.size(), describe_cl_error(e));
+  }
+}
+
+}  // namespace sirad
