@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "core/reference.h"
 #include "core/shot.h"
 #include "test_util.h"
 
@@ -164,6 +165,73 @@ f 5 6 7 8
   EXPECT_LT(se, 0.005 * exact);
   EXPECT_NEAR(mean, exact, 4.0 * se);
 }
+
+}  // namespace
+}  // namespace sirad
+
+namespace sirad {
+namespace {
+
+// The first shot alone against the independent reference's direct component D (core/reference.h:
+// exact unoccluded form factors, ray-cast visibility), on scenes with shadows and lights of
+// different sizes. Shots are split into G batches; the aggregate (area-weighted over the
+// non-emitting patches, all channels) of each batch is independent, so its mean has standard
+// error sd / sqrt(G); the reference's SE of the aggregate is at most the area-weighted sum of its
+// per-patch SEs (perfect correlation), which is added in quadrature. Pass: |d| < 3 SE, and SE
+// below 0.5 % / 3 so that a 0.5 % bias would show. Per patch and channel, z = (D - D_ref) / SE
+// with SE^2 = var / G + se_ref^2 (var: the spread of the batch means): for unbiased estimates z
+// is close to Student's t with G - 1 = 19 degrees of freedom, P(|z| > 4) = 0.08 %; heavy tails
+// (rare shots from a small bright lamp onto its neighbours) make it rarer still, since an
+// outlier inflates the estimate and its SE together. Pass: at most 1 % beyond 4. A bias of two
+// SEs on every patch would put about 5 % there, a missing shadow far more. (Sums of squares over
+// patches are not used: a few tiny patches next to the brightest lamp dominate them.)
+void check_direct(const char* name, const Scene& scene, std::size_t patches, int resolution, int per_batch) {
+  PatchMesh mesh = mesh_scene(scene, {.target_patches = patches});
+  ReferenceSolution ref = solve_reference(mesh, {.rays_per_patch = 64, .light_samples = 4096, .batches = 8, .seed = 5});
+  auto cl = make_cl_shot_engine(mesh);
+  const int G = 20;
+  std::vector<std::vector<glm::dvec3>> batch;
+  for (int g = 0; g < G; ++g) {
+    ShotSums s = run_shots(mesh, *cl, resolution, 31, static_cast<uint64_t>(g * per_batch), static_cast<uint64_t>(per_batch));
+    for (auto& v : s.direct) v /= static_cast<double>(s.shots);
+    batch.push_back(std::move(s.direct));
+  }
+  auto aggregate = [&](const std::vector<glm::dvec3>& v) {
+    double sum = 0.0;
+    for (std::size_t j = 0; j < mesh.size(); ++j)
+      if (mesh.emission(j) == glm::vec3(0.0f)) sum += mesh.area[j] * (v[j].x + v[j].y + v[j].z);
+    return sum;
+  };
+  double ref_agg = aggregate(ref.direct), ref_se_agg = aggregate(ref.direct_se);
+  double m = 0.0, q = 0.0;
+  for (const auto& b : batch) m += aggregate(b) / G;
+  for (const auto& b : batch) q += (aggregate(b) - m) * (aggregate(b) - m) / (G - 1);
+  double d = m / ref_agg - 1.0, se = std::hypot(std::sqrt(q / G), ref_se_agg) / ref_agg;
+  int counted = 0, beyond = 0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    if (mesh.emission(j) != glm::vec3(0.0f) || ref.direct[j].x + ref.direct[j].y + ref.direct[j].z <= 0.0) continue;
+    for (int c = 0; c < 3; ++c) {
+      double mean = 0.0, var = 0.0;
+      for (const auto& b : batch) mean += b[j][c] / G;
+      for (const auto& b : batch) var += (b[j][c] - mean) * (b[j][c] - mean) / (G - 1);
+      double s2 = var / G + ref.direct_se[j][c] * ref.direct_se[j][c];
+      if (!(s2 > 0.0)) continue;
+      beyond += std::abs(mean - ref.direct[j][c]) > 4.0 * std::sqrt(s2);
+      ++counted;
+    }
+  }
+  double outside = static_cast<double>(beyond) / std::max(counted, 1);
+  fmt::print("{} direct ({} patches, H {}, {} shots): first shot - reference {:+.3f}% +- {:.3f}% (shots {:.3f}%, "
+             "reference {:.3f}%), d / SE {:+.2f}; per patch |z| > 4: {:.3f}% of {} values\n",
+             name, mesh.size(), resolution, G * per_batch, 100 * d, 100 * se, 100 * std::sqrt(q / G) / ref_agg,
+             100 * ref_se_agg / ref_agg, d / se, 100 * outside, counted);
+  EXPECT_LT(se, 0.005 / 3) << name;
+  EXPECT_LT(std::abs(d), 3 * se) << name;
+  EXPECT_LE(outside, 0.01) << name;
+}
+
+TEST(FirstShot, MatchesReferenceDirectCornell) { check_direct("cornell", builtin_cornell(), 1200, 48, 52); }
+TEST(FirstShot, MatchesReferenceDirectThreeLights) { check_direct("three-lights", builtin_three_lights(), 1000, 32, 512); }
 
 }  // namespace
 }  // namespace sirad
