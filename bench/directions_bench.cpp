@@ -7,20 +7,27 @@
 //   sirad_bench_directions [--patches N] [--seeds S] [--first-seed F] [--checkpoints 64,256,1024,4096]
 //                          [--truth-runs R] [--truth-bundles B] [--device D]
 //                          [--interleave G] [--side n]   (override the plan: K = n^2)
+//                          [--shots-per-bundle X]       (first shot in the compared runs, not the truth)
+//                          [--reference NAME.ref.csv]   (truth from `sirad reference`; its SE as its error)
 // The truth's own error inflates the measured error: E|x - t|^2 = Var(x) + Var(t); the summary
 // reports the truth's error estimated from its runs' spread and the errors with it subtracted
 // in quadrature.
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <glm/geometric.hpp>
 
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/metrics.h"
+#include "core/reference.h"
 #include "core/scene.h"
+#include "core/shot.h"
 #include "core/solver.h"
 
 using namespace sirad;
@@ -34,6 +41,8 @@ int main(int argc, char** argv) {
     std::string device;
     uint32_t interleave = 0, side = 0;
     std::string truth_file;
+    double shots = 0.0;
+    std::string reference;
     for (int i = 1; i + 1 < argc; i += 2) {
       std::string k = argv[i], v = argv[i + 1];
       if (k == "--patches") patches = std::stoul(v);
@@ -45,6 +54,8 @@ int main(int argc, char** argv) {
       else if (k == "--interleave") interleave = static_cast<uint32_t>(std::stoul(v));
       else if (k == "--side") side = static_cast<uint32_t>(std::stoul(v));
       else if (k == "--truth-file") truth_file = v;
+      else if (k == "--shots-per-bundle") shots = std::stod(v);
+      else if (k == "--reference") reference = v;
       else if (k == "--checkpoints") {
         checkpoints.clear();
         std::stringstream ss(v);
@@ -53,6 +64,8 @@ int main(int argc, char** argv) {
     }
     PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = patches});
     auto engine = make_cl_engine(mesh, {.device = device});
+    std::unique_ptr<ShotEngine> shot_engine;
+    if (shots > 0) shot_engine = make_cl_shot_engine(mesh, device);
     Sampling plan = sampling_plan(mesh, Directions::stratified);
     if (interleave) plan.interleave = interleave;
     if (side) plan.side = side;
@@ -71,6 +84,20 @@ int main(int argc, char** argv) {
         truth_runs = 0;
         std::fprintf(stderr, "truth from %s, its own relative RMS error ~%.4f\n", truth_file.c_str(), truth_err);
       }
+    }
+    if (!reference.empty()) {
+      ReferenceSolution ref = read_reference(reference, mesh);
+      double se2 = 0, b2 = 0;
+      for (std::size_t j = 0; j < mesh.size(); ++j) {
+        truth[j] = glm::vec3(ref.radiosity[j]);
+        glm::vec3 e = mesh.emission(j);
+        if (e.x + e.y + e.z > 0) continue;
+        se2 += mesh.area[j] * glm::dot(ref.radiosity_se[j], ref.radiosity_se[j]);
+        b2 += mesh.area[j] * glm::dot(ref.radiosity[j], ref.radiosity[j]);
+      }
+      truth_err = std::sqrt(se2 / b2);
+      truth_runs = 0;
+      std::fprintf(stderr, "truth from %s, its own relative RMS error ~%.4f\n", reference.c_str(), truth_err);
     }
     std::vector<glm::dvec3> total(mesh.size(), glm::dvec3(0.0));
     std::vector<std::vector<glm::vec3>> truths;
@@ -109,8 +136,10 @@ int main(int argc, char** argv) {
     for (int sd = 0; sd < seeds; ++sd) {
       for (int mode = 0; mode < 2; ++mode) {
         Directions d = mode == 0 ? Directions::random : Directions::stratified;
-        Solver s(mesh, *engine, {.seed = static_cast<uint64_t>(first_seed + sd), .directions = d, .interleave = interleave,
-                                 .strata_side = side});
+        SolverOptions so{.seed = static_cast<uint64_t>(first_seed + sd), .directions = d, .interleave = interleave,
+                         .strata_side = side};
+        so.shots_per_bundle = shots;
+        Solver s(mesh, *engine, so, shot_engine.get());
         std::size_t next = 0;
         for (uint64_t k = 0; next < checkpoints.size(); ++k) {
           s.step(k);
