@@ -8,8 +8,10 @@
 //   sirad_bench_accuracy --scene cornell --patches 20000 --reference cornell-20000.ref.csv
 //       --config naive --config shot:1 --config shot:0.5:128 --max-seconds 60
 //
-// A configuration is `naive` (no first shot) or `shot:X[:H]` (X shots per bundle, hemicube
-// side H, 0 or absent: auto). The reference file is computed (and written) when missing.
+// A configuration is `naive` (no first shot), `shot:X[:H]` (X shots per bundle, hemicube side H,
+// 0 or absent: auto), or `direct[:H]`: the first shot alone against the reference's direct part
+// D (what its error costs in time, apart from the bundles). The reference file is computed (and
+// written) when missing.
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -35,10 +37,21 @@ struct Config {
   std::string name;
   double shots_per_bundle = 0.0;
   int resolution = 0;
+  bool direct_only = false;
 };
 
 Config parse_config(const std::string& text) {
   if (text == "naive") return {text, 0.0, 0};
+  if (text == "direct" || text.rfind("direct:", 0) == 0) {
+    Config c{text, 0.0, 0, true};
+    try {
+      if (text.size() > 7) c.resolution = std::stoi(text.substr(7));
+    } catch (const std::exception&) {
+      fail("--config {}: expected direct[:H]", text);
+    }
+    check_first_shot(0.0, c.resolution);
+    return c;
+  }
   if (text.rfind("shot:", 0) != 0) fail("--config {}: expected naive or shot:X[:H]", text);
   Config c{text, 0.0, 0};
   std::string rest = text.substr(5);
@@ -94,6 +107,38 @@ int main(int argc, char** argv) {
     std::printf("config,patches,seed,bundles,shots,seconds,error_raw,error\n");
     std::vector<std::string> summary;
     for (const Config& c : parsed) {
+      if (c.direct_only) {
+        // Shots only: D estimated from shots 0..k-1 against the reference's D.
+        const int H = c.resolution ? c.resolution : auto_shot_resolution(mesh);
+        ShotSums sums{std::vector<glm::dvec3>(mesh.size(), glm::dvec3(0.0)), 0};
+        EmitterTable table = emitter_table(mesh);
+        std::vector<uint32_t> image;
+        double s = 0.0, to2 = -1, to1 = -1;
+        uint64_t next = 4;
+        for (uint64_t k = 0; s < max_seconds; ++k) {
+          auto t0 = std::chrono::steady_clock::now();
+          ShotDraw draw = draw_shot(mesh, table, seed, k);
+          SiradShot shot = make_shot(mesh, draw, H);
+          shots->render(shot, image);
+          accumulate_shot(mesh, table, draw, shot, image, shot_weights(shot), sums.direct);
+          s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          if (k + 1 < next) continue;
+          next = std::max(next + 1, static_cast<uint64_t>(next * 1.15));
+          std::vector<glm::vec3> d(mesh.size());
+          for (std::size_t j = 0; j < d.size(); ++j) d[j] = glm::vec3(sums.direct[j] / static_cast<double>(k + 1));
+          ReferenceError e = relative_rms_vs_reference(mesh, d, ref.direct, ref.direct_se);
+          std::printf("%s,%zu,%llu,0,%llu,%.3f,%.5f,%.5f\n", c.name.c_str(), mesh.size(), static_cast<unsigned long long>(seed),
+                      static_cast<unsigned long long>(k + 1), s, e.raw, e.corrected);
+          std::fflush(stdout);
+          if (to2 < 0 && e.corrected <= 0.02) to2 = s;
+          if (to1 < 0 && e.corrected <= 0.01) to1 = s;
+          if (to1 >= 0) break;
+        }
+        summary.push_back(fmt::format("# {} (D alone): {} patches, H {}, time to 2 %: {}, to 1 %: {}", c.name, mesh.size(), H,
+                                      to2 < 0 ? "not reached" : fmt::format("{:.2f} s", to2),
+                                      to1 < 0 ? "not reached" : fmt::format("{:.2f} s", to1)));
+        continue;
+      }
       SolverOptions so;
       so.seed = seed;
       so.grid = grid;

@@ -91,13 +91,13 @@ class Progress {
 
 // The header attributes of a single-node run (cluster runs: cluster::run_attributes), then the
 // outputs and their paths on stdout.
-Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, UpdateRule rule) {
+Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, UpdateRule rule, int64_t bundles) {
   return {
       {"sirad.version", std::string(SIRAD_VERSION)},
       {"sirad.scene", a.scene},
       {"sirad.scene_hash", mesh.hash},
       {"sirad.patches", static_cast<int64_t>(mesh.size())},
-      {"sirad.bundles", static_cast<int64_t>(a.bundles)},
+      {"sirad.bundles", bundles},
       {"sirad.grid", static_cast<int64_t>(grid)},
       {"sirad.seed", std::to_string(a.seed)},
       {"sirad.rule", std::string(to_string(rule))},
@@ -201,8 +201,6 @@ int render(const RenderArgs& a) {
   // Check everything cheap before any work: flags, output place, scene, device.
   if (a.patches && a.max_edge) fail("--patches and --max-edge exclude each other");
   if (!a.profile.empty() && a.nodes == 0) fail("--profile {}: emulation needs a cluster (--nodes N)", a.profile);
-  if ((a.time_limit > 0 || a.target_error > 0) && a.nodes == 0)
-    fail("--time-limit and --target-error need a cluster (--nodes N)");
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   UpdateRule rule = parse_update_rule(a.rule);
@@ -232,6 +230,7 @@ int render(const RenderArgs& a) {
   so.burn_in = a.burn_in.value_or(-1);
   so.shots_per_bundle = a.shots_per_bundle;
   so.shot_resolution = a.shot_resolution;
+  so.track_error = true;
   std::unique_ptr<ShotEngine> shots;
   if (so.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
   if (!a.quiet)
@@ -242,22 +241,42 @@ int render(const RenderArgs& a) {
   auto start = std::chrono::steady_clock::now();
   Solver solver(mesh, *engine, so, shots.get());
   Progress progress(a.bundles, a.quiet);
+  // --target-error: the batch-means estimate (core/error_estimate.h), checked every 16 bundles
+  // once it rests on 8 batches or more; --time-limit: wall time. --bundles stays the cap.
+  std::string ended_by = "budget";
+  int64_t done = 0;
   for (int64_t k = 0; k < a.bundles; ++k) {
     solver.step(static_cast<uint64_t>(k));
-    progress.update(k + 1, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    done = k + 1;
+    double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    progress.update(done, elapsed);
+    if (a.time_limit > 0 && elapsed >= a.time_limit && done < a.bundles) {
+      ended_by = "time limit";
+      break;
+    }
+    if (a.target_error > 0 && done % 16 == 0 && solver.batch_count() >= 8) {
+      double e = solver.error_estimate();
+      if (e >= 0 && e <= a.target_error) {
+        ended_by = fmt::format("target error (estimate {:.4f})", e);
+        break;
+      }
+    }
   }
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  double error = solver.error_estimate();
 
-  Attributes attrs = run_attributes(a, mesh, solver.grid(), rule);
+  Attributes attrs = run_attributes(a, mesh, solver.grid(), rule, done);
   attrs.emplace_back("sirad.burn_in", static_cast<int64_t>(solver.burn_in()));
   attrs.emplace_back("sirad.shots_per_bundle", so.shots_per_bundle);
   attrs.emplace_back("sirad.shot_resolution", static_cast<int64_t>(solver.shot_resolution()));
   attrs.emplace_back("sirad.shots", static_cast<int64_t>(solver.shots_rendered()));
+  if (error >= 0) attrs.emplace_back("sirad.error_estimate", error);
   attrs.emplace_back("sirad.device", engine->description());
   write_outputs(a, out, mesh, solver.estimate(), attrs);
-  std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n", mesh.size(),
-              static_cast<long long>(a.bundles), solver.grid(), seconds, a.bundles / seconds,
-              static_cast<double>(solver.crossings()) / seconds);
+  std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s, error estimate %s\n",
+              mesh.size(), static_cast<long long>(done), solver.grid(), seconds, done / seconds,
+              static_cast<double>(solver.crossings()) / seconds, error >= 0 ? fmt::format("{:.4f}", error).c_str() : "n/a");
+  if (ended_by != "budget") std::printf("ended early: %s\n", ended_by.c_str());
   return 0;
 }
 
@@ -402,10 +421,10 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
   render_cmd->add_option("--status-json", r.status_json, "With --nodes: rewrite this file with the run's status every second");
   render_cmd->add_option("--profile", r.profile, "With --nodes: network emulation profile (YAML; nodes are named local-0, local-1, ...)");
-  render_cmd->add_option("--time-limit", r.time_limit, "With --nodes: end the run early after this long (seconds)")
+  render_cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")
       ->check(CLI::NonNegativeNumber);
   render_cmd->add_option("--target-error", r.target_error,
-                         "With --nodes (2+) and --exchange-every: end the run at this relative error estimate")
+                         "End the run at this relative error estimate (one node: batch means; --nodes 2+ with --exchange-every: the nodes' spread)")
       ->check(CLI::Range(0.0, 1.0));
   render_cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
       ->check(CLI::Range(1, 4096))->capture_default_str();

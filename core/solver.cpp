@@ -60,6 +60,7 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   sum_.assign(n, glm::dvec3(0.0));
   others_sum_.assign(n, glm::dvec3(0.0));
   others_count_.assign(n, 0);
+  if (options.track_error) batches_ = std::make_unique<BatchMeans>(n);
   source_.resize(n);
   for (std::size_t j = 0; j < n; ++j) source_[j] = glm::dvec3(mesh.emission(j));
   state_ = source_;
@@ -107,6 +108,7 @@ void Solver::step(uint64_t index) {
   std::vector<glm::dvec3> estimate = transport(result_);
   ++count_;
   for (std::size_t j = 0; j < estimate.size(); ++j) sum_[j] += estimate[j];
+  if (batches_) batches_->add(estimate);
   if (options_.rule == UpdateRule::chain) {
     state_ = std::move(estimate);
   } else {

@@ -13,7 +13,10 @@
 
 #include <glm/vec3.hpp>
 
+#include <memory>
+
 #include "core/bundle.h"
+#include "core/error_estimate.h"
 #include "core/mesh.h"
 #include "core/shot.h"
 
@@ -38,6 +41,7 @@ struct SolverOptions {
   // [floor(k X), floor((k + 1) X)) of the run, or shot floor(k X) when that range is empty.
   double shots_per_bundle = 0.0;
   int shot_resolution = 0;  // hemicube side H; 0: auto_shot_resolution(mesh)
+  bool track_error = false; // keep batch means of the estimates (error_estimate())
 };
 
 // The shots step `index` of `stream` uses under `shots_per_bundle` X: [first, first + count).
@@ -70,6 +74,10 @@ class Solver {
   bool first_shot() const { return shots_ != nullptr; }
   int shot_resolution() const { return shot_resolution_; }
   uint64_t shots_rendered() const { return shots_rendered_; }
+  // With options.track_error: the estimated relative RMS error of estimate() per non-emitting
+  // patch (core/error_estimate.h), or a negative value while there are too few bundles.
+  double error_estimate() const { return batches_ ? batches_->relative_error(mesh_) : -1.0; }
+  int batch_count() const { return batches_ ? batches_->full_batches() : 0; }
   uint64_t crossings() const { return crossings_; }
   int grid() const { return grid_; }
   int burn_in() const { return burn_in_; }
@@ -108,6 +116,7 @@ class Solver {
 
   void update_source(uint64_t index, Stream stream);
   ShotEngine* shots_ = nullptr;
+  std::unique_ptr<BatchMeans> batches_;
   int shot_resolution_ = 0;
   uint64_t shots_rendered_ = 0;
   Stream cached_stream_ = Stream::shots;

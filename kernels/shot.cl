@@ -100,7 +100,15 @@ __kernel void project_shot(__global const float4* vertices, __global const uint4
         q[k] = shot_face_point(s, f, v[k]);
         inside += q[k].z >= near_z ? 1 : 0;
       }
-      if (inside == 0) {
+      /* Entirely beyond one side of the face's pyramid |x| <= z, |y| <= z (a half-space through
+       * the eye, convex, so the whole triangle is there), or below the horizon on a side face
+       * (only y > 0 is rendered there): no pixel sample can see it. */
+      bool outside = (q[0].x > q[0].z && q[1].x > q[1].z && q[2].x > q[2].z) ||
+                     (q[0].x < -q[0].z && q[1].x < -q[1].z && q[2].x < -q[2].z) ||
+                     (q[0].y > q[0].z && q[1].y > q[1].z && q[2].y > q[2].z) ||
+                     (f == 0 ? (q[0].y < -q[0].z && q[1].y < -q[1].z && q[2].y < -q[2].z)
+                             : (q[0].y < 0.0f && q[1].y < 0.0f && q[2].y < 0.0f));
+      if (inside == 0 || outside) {
         shot_empty(projected + slot, rows + slot);
         shot_empty(projected + slot + 1, rows + slot + 1);
         continue;

@@ -576,7 +576,9 @@ TEST_F(OutputExr, RoundTrip) {
   EXPECT_EQ(std::memcmp(pixels.data(), image.pixels.data(), pixels.size() * sizeof(glm::vec3)), 0);
 
   if (tool_available("exrinfo")) {
-    EXPECT_EQ(std::system(fmt::format("exrinfo -s '{}' >/dev/null", path).c_str()), 0);
+    // Its output, not its exit status: Debian's exrinfo 3.1 returns a random status on about
+    // one run in six for any file.
+    EXPECT_EQ(std::system(fmt::format("exrinfo -s '{}' 2>&1 | grep -q \"channels: 3 channels\"", path).c_str()), 0);
   }
   if (tool_available("exrheader")) {
     EXPECT_EQ(std::system(fmt::format("exrheader '{}' >/dev/null", path).c_str()), 0);

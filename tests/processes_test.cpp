@@ -213,8 +213,10 @@ TEST(Processes, CornellClusterAgreesWithSingleNodeRuns) {
   fs::path dir = fs::temp_directory_path() / fmt::format("sirad_cornell_{}", ::getpid());
   fs::remove_all(dir);
   fs::create_directories(dir);
+  // The plain estimator on both sides (the single runs below have no first shot).
   ASSERT_EQ(run_processes(dir, 3, {"cornell", "--bundles", "512", "--patches", "300", "--seed", "99", "--exchange-every",
-                                   "16", "--out", (dir / "cluster").string(), "--width", "16", "--height", "16"}),
+                                   "16", "--shots-per-bundle", "0", "--out", (dir / "cluster").string(), "--width", "16",
+                                   "--height", "16"}),
             0)
       << slurp(dir / "coordinator.log");
   sirad::PatchMesh mesh = sirad::mesh_scene(sirad::builtin_cornell(), {.target_patches = 300});

@@ -1,0 +1,90 @@
+// sirad tests: the run's own error estimate (core/error_estimate.h) — batch means with doubling
+// batches, and its calibration against the measured error of real runs (the reference solver).
+#include <cmath>
+#include <random>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "core/error_estimate.h"
+#include "core/reference.h"
+#include "core/shot.h"
+#include "test_util.h"
+
+namespace sirad {
+namespace {
+
+TEST(BatchMeans, DoublesItsBatchesAndKeepsHalfToAllSlotsFull) {
+  BatchMeans b(3, 8);
+  std::vector<glm::dvec3> v(3, glm::dvec3(1.0));
+  for (int k = 1; k <= 1000; ++k) {
+    b.add(v);
+    EXPECT_LE(b.full_batches(), 8);
+    if (k >= 8) {
+      EXPECT_GE(b.full_batches(), 4) << k;
+    }
+    EXPECT_EQ(static_cast<uint64_t>(b.full_batches()) * b.batch_size() <= static_cast<uint64_t>(k), true);
+  }
+  EXPECT_EQ(b.batch_size(), 128u);  // 1000 = 7 full batches of 128 and 104 in the eighth
+  EXPECT_EQ(b.full_batches(), 7);
+  EXPECT_THROW(BatchMeans(3, 5), Error);
+}
+
+TEST(BatchMeans, EstimatesTheErrorOfIndependentValues) {
+  // Every patch gets values 1 + N(0, s^2), i.i.d.: the error of the mean of m values is s / sqrt(m)
+  // per channel, so the relative error (all channels, all patches alike) is s / sqrt(m). With
+  // 200 patches x 3 channels the estimate's own relative spread is about 1 / sqrt(2 * 600 * 15)
+  // = 0.7 % (16 to 32 batches): 5 % is far outside chance, and a wrong factor (batch size,
+  // sqrt(G)) would be far outside 5 %.
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 200});
+  for (auto& m : mesh.materials) m.emission = glm::vec3(0.0f);  // every patch counts
+  BatchMeans b(mesh.size());
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  std::vector<glm::dvec3> v(mesh.size());
+  const int m = 3000;
+  for (int k = 0; k < m; ++k) {
+    for (auto& x : v) x = glm::dvec3(1.0 + noise(rng), 1.0 + noise(rng), 1.0 + noise(rng));
+    b.add(v);
+  }
+  double expected = 0.3 / std::sqrt(static_cast<double>(b.full_batches()) * static_cast<double>(b.batch_size()));
+  double got = b.relative_error(mesh);
+  fmt::print("batch means: {} batches of {}, estimate {:.5f}, exact {:.5f}\n", b.full_batches(), b.batch_size(), got, expected);
+  EXPECT_NEAR(got / expected, 1.0, 0.05);
+}
+
+// The solver's estimate against the error it really has: Cornell with the first shot, the
+// measured relative RMS error per non-emitting patch against the reference with the
+// reference's own variance subtracted (relative_rms_vs_reference). The issue asks for a
+// factor of 1.5 either way. Both sides scatter: a run's errors are correlated across patches (one
+// bundle's direction brightens or darkens whole walls together), so the measured error of one run
+// has few effective degrees of freedom and scatters by some 10-20 % around its expectation; the
+// estimate's batches see the same correlated modes. Checked at 256 and 1024 bundles, with one
+// and a quarter shot per bundle (measured ratios 0.93 .. 1.30).
+TEST(ErrorEstimate, IsCalibratedAgainstTheReference) {
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 1200});
+  ReferenceSolution ref = solve_reference(mesh, {.rays_per_patch = 4096, .light_samples = 1024, .batches = 8, .seed = 3});
+  auto engine = make_cl_engine(mesh);
+  auto shots = make_cl_shot_engine(mesh);
+  for (double x : {1.0, 0.25}) {
+    SolverOptions so{.seed = 17};
+    so.shots_per_bundle = x;
+    so.track_error = true;
+    Solver solver(mesh, *engine, so, shots.get());
+    for (uint64_t k = 0; k < 1024; ++k) {
+      solver.step(k);
+      if (k + 1 == 256 || k + 1 == 1024) {
+        ReferenceError measured = relative_rms_vs_reference(mesh, solver.estimate(), ref.radiosity, ref.radiosity_se);
+        double estimate = solver.error_estimate();
+        fmt::print("shots per bundle {}, {} bundles: estimate {:.4f}, measured {:.4f} (raw {:.4f}), ratio {:.2f}\n", x, k + 1,
+                   estimate, measured.corrected, measured.raw, estimate / measured.corrected);
+        EXPECT_GT(estimate / measured.corrected, 1.0 / 1.5);
+        EXPECT_LT(estimate / measured.corrected, 1.5);
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace sirad
