@@ -37,6 +37,7 @@ struct RenderArgs {
   std::string out;
   std::string device;
   std::string rule = "chain";
+  std::string directions = "random";
   std::optional<int> burn_in;
   double shots_per_bundle = kDefaultShotsPerBundle;
   int shot_resolution = 0;
@@ -100,6 +101,7 @@ Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, 
       {"sirad.grid", static_cast<int64_t>(grid)},
       {"sirad.seed", std::to_string(a.seed)},
       {"sirad.rule", std::string(to_string(rule))},
+      {"sirad.directions", a.directions},
       {"sirad.nodes", static_cast<int64_t>(std::max(a.nodes, 1))},
       {"sirad.exchange_every", a.exchange_every},
       {"sirad.exchange_fraction", a.exchange_fraction},
@@ -129,6 +131,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.seed = a.seed;
   rc.grid = a.grid.value_or(0);
   rc.rule = rule;
+  rc.directions = parse_directions(a.directions);
   rc.burn_in = a.burn_in.value_or(-1);
   rc.shots_per_bundle = a.shots_per_bundle;
   rc.shot_resolution = a.shot_resolution;
@@ -201,6 +204,8 @@ int render(const RenderArgs& a) {
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   UpdateRule rule = parse_update_rule(a.rule);
+  if (parse_directions(a.directions) == Directions::stratified && rule != UpdateRule::chain)
+    fail("--directions stratified needs --rule chain (under average it biases the estimate)");
   check_first_shot(a.shots_per_bundle, a.shot_resolution);
   std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
   check_output_name(out);
@@ -221,6 +226,7 @@ int render(const RenderArgs& a) {
   so.seed = a.seed;
   so.grid = a.grid.value_or(0);
   so.rule = rule;
+  so.directions = parse_directions(a.directions);
   so.burn_in = a.burn_in.value_or(-1);
   so.shots_per_bundle = a.shots_per_bundle;
   so.shot_resolution = a.shot_resolution;
@@ -228,9 +234,9 @@ int render(const RenderArgs& a) {
   std::unique_ptr<ShotEngine> shots;
   if (so.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
   if (!a.quiet)
-    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule), %g shots per bundle, on %s\n",
+    std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule, %s directions), %g shots per bundle, on %s\n",
                  a.scene.c_str(), mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
-                 to_string(rule), so.shots_per_bundle, engine->description().c_str());
+                 to_string(rule), a.directions.c_str(), so.shots_per_bundle, engine->description().c_str());
 
   auto start = std::chrono::steady_clock::now();
   Solver solver(mesh, *engine, so, shots.get());
@@ -390,6 +396,9 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");
   render_cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
       ->check(CLI::IsMember({"chain", "average"}));
+  render_cmd->add_option("--directions", r.directions,
+                         "Bundle directions: random (default) or stratified (chain rule only)")
+      ->check(CLI::IsMember({"random", "stratified"}))->capture_default_str();
   render_cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
       ->check(CLI::Range(0, 1 << 20));
   render_cmd->add_option("--shots-per-bundle", r.shots_per_bundle,

@@ -56,6 +56,10 @@ class Coordinator {
     run_.set_grid(static_cast<uint32_t>(config.grid == 0 ? auto_grid(mesh) : config.grid));
     run_.set_rule(to_string(config.rule));
     run_.set_burn_in(config.burn_in);
+    run_.set_directions(to_string(config.directions));
+    if (config.directions == Directions::stratified && config.rule != UpdateRule::chain)
+      fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
+    interleave_ = sampling_plan(mesh, config.directions).interleave;
     check_first_shot(config.shots_per_bundle, config.shot_resolution);
     run_.set_shots_per_bundle(config.shots_per_bundle);
     run_.set_shot_resolution(static_cast<uint32_t>(config.shot_resolution));
@@ -378,8 +382,12 @@ class Coordinator {
   }
 
   uint64_t grant_size() const {
-    return config_.exchange_every > 0 ? config_.exchange_every
-                                      : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, aggregate_.nodes())));
+    uint64_t n = config_.exchange_every > 0 ? config_.exchange_every
+                                            : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, aggregate_.nodes())));
+    // Stratified directions: whole multiples of the interleave G, so ranges start at multiples
+    // of G (the ledger hands out its free ranges from the front) and a node's chain runs
+    // same-sequence bundles >= G steps apart even across grants (core/bundle.cpp).
+    return (n + interleave_ - 1) / interleave_ * interleave_;
   }
 
   bool give_grant(Peer& p) {
@@ -472,6 +480,7 @@ class Coordinator {
   bool closing_ = false;        // no more grants (time limit or target error)
   std::string ended_by_;
   uint32_t last_error_check_ = 0;
+  uint64_t interleave_ = 1;  // grants are multiples of it (stratified directions)
 };
 
 }  // namespace
@@ -486,6 +495,7 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
       {"sirad.grid", static_cast<int64_t>(r.grid)},
       {"sirad.seed", std::to_string(c.seed)},
       {"sirad.rule", std::string(to_string(c.rule))},
+      {"sirad.directions", std::string(to_string(c.directions))},
       {"sirad.shots_per_bundle", c.shots_per_bundle},
       {"sirad.nodes", static_cast<int64_t>(r.nodes.size())},
       {"sirad.exchange_every", c.exchange_every == 0 ? std::string("end") : std::to_string(c.exchange_every)},

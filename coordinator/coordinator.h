@@ -31,6 +31,7 @@ struct RunConfig {
   int grid = 0;           // the run's grid (0: auto from the mesh)
   UpdateRule rule = UpdateRule::chain;
   int burn_in = -1;
+  Directions directions = Directions::random;  // stratified: chain rule only
   double shots_per_bundle = 0;  // first shot: shots rendered per bundle (0: off)
   int shot_resolution = 0;      // hemicube side (0: auto)
   uint32_t exchange_every = 0;  // I; 0: states only at the end

@@ -17,19 +17,168 @@ namespace {
 double unit_open(uint32_t r) { return (static_cast<double>(r) + 0.5) * 0x1p-32; }
 }  // namespace
 
-BundleDraw draw_bundle(uint64_t seed, uint64_t index, Stream stream) {
+Directions parse_directions(const std::string& name) {
+  if (name == "random") return Directions::random;
+  if (name == "stratified") return Directions::stratified;
+  fail("unknown directions '{}' (expected random or stratified)", name);
+}
+
+const char* to_string(Directions directions) {
+  return directions == Directions::random ? "random" : "stratified";
+}
+
+// Stratified sampling and the chain's bias (DESIGN.md section 1: "visited in a random order").
+//
+// The chain rule L'(m) = E + T*_m L'(m-1) unrolls to L'(m) = sum_q T*_m ... T*_(m-q+1) E, and
+// its expectation is B's series sum_q T^q E only if every product's factors are independent.
+// Under stratified sampling T*_m and T*_m' are dependent only when m = m' (mod G) and both lie
+// in one block of their sequence, so the first product that can fail to factorise holds T*_m
+// and T*_(m-G): G - 1 independent transports X (expectation T^(G-1)) lie between them.
+// For two members a != b of one block, the (direction, jitter) strata are a uniformly random
+// ordered pair of distinct strata and the draws inside them independent, so for any functions
+// f, g of a bundle: E[f(a) g(b)] - E[f] E[g] = -Cov_S(f_S, g_S) / (K - 1), f_S the mean of f
+// over stratum S (Cov_S over the K equally likely strata). Hence
+//     E[T*_m X T*_(m-G)] - T X T = -C / (K - 1),  C = mean_S(T_S X T_S) - T X T,
+// and ||X|| <= rho_max^(G-1) in the max-norm (row sums of rho F are at most rho_max). C is the
+// covariance, across strata, of what a patch gathers from one direction and of what one
+// direction carries into the scene (through X, which smears it towards the dominant mode);
+// relative to B it is of order the transports' relative variance (|cos| alone has 1/3). So the
+// relative bias of the estimate is at most about
+//     c rho_max^G / (K - 1) (1 + rho_max^G + ...),    c ~ 0.3,
+// and products holding three members of a block are smaller by another rho_max^G. Measured on
+// the furnace (rho = 0.5, 16 runs x 1024 bundles, tests/directions_test.cpp): with G = 1 (no
+// interleave: consecutive steps from one block) the bias is -0.75 % for K = 16 and -1.05 % for
+// K = 9, i.e. c ~ 0.2; with G = 2, K = 9 it is already -0.02 % +- 0.08 %, far below
+// rho c / (K - 1): the transports between the pair average over all directions, so C only
+// sees the smooth, low-variance part of what a direction carries. With rho_max^G <= 1e-3 (the
+// G below) and K = 256 the bound is below 1e-5: far below the 0.1 % the design asks, and 500x
+// below what the tests can resolve (0.5 %).
+// What G costs: bundles closer than G are independent, so a sequence holds M / G of the first
+// M bundles. That is no accident of this scheme: a linear term (1/M) sum f(w_m) gains only
+// through negative covariances between bundles, and any covariance at a lag below the chain's
+// memory biases its products. Within a block the order is a uniform random permutation, so the
+// first j members of a block are a random subset of its strata (sampling without replacement):
+// the between-strata part of their variance shrinks by (K - j) / (K - 1), full gain at j = K.
+// Measured on the Cornell box (bench/RESULTS.md): no gain at 1024 bundles, 0.9x the random
+// error at 4096 and 0.8x at 16384 bundles with K = 256 (K = 16: none; the light is much
+// smaller than a stratum). The draw costs ~3 us at K = 256 (two permutations from Philox).
+// The cluster: a node's chain follows its grants, not the global index. The coordinator rounds
+// grants up to a multiple of G, so ranges start at multiples of G and two same-sequence
+// bundles on either side of a jump are still >= G chain steps apart (only the ledger's short
+// tail, when the budget is not a multiple of G, can break this once: a bias of order
+// c rho_max^r / ((K - 1) (1 - rho_max) M), r < G, negligible).
+// The average rule: its input L(m-1) holds every earlier estimate with weight 1/(m-1), so the
+// block partners of T*_m (up to K - 1 of them, G apart) bias E[T*_m L(m-1)] by O(c / m)
+// undamped, which its slow memory turns into an error of the same order as its own
+// m^-(1 - rho) bias. The solver refuses stratified directions under the average rule.
+Sampling sampling_plan(const PatchMesh& mesh, Directions directions) {
+  Sampling s;
+  s.directions = directions;
+  if (directions == Directions::random) return s;
+  float rho_max = 0.0f;
+  for (const auto& m : mesh.materials) rho_max = std::max({rho_max, m.reflectance.x, m.reflectance.y, m.reflectance.z});
+  double g = 1.0;
+  if (rho_max >= 1.0f) g = 256.0;
+  else if (rho_max > 0.0f) g = std::ceil(std::log(1e-3) / std::log(static_cast<double>(rho_max)));
+  s.interleave = static_cast<uint32_t>(std::clamp(g, 1.0, 256.0));
+  s.side = 16;
+  return s;
+}
+
+namespace {
+
+// Philox counters (key: the run seed): bundle draws use {index, stream, 0}; the tags below
+// keep the other draws on counters no bundle draw uses.
+constexpr uint32_t kSignTag = 0x20000000u;  // word 2 of a bundle's second draw (its sign)
+constexpr uint32_t kOrderTag = 0x40000000u;  // word 2 of a block's order draws
+
+r123::Philox4x32::ctr_type philox_draw(uint64_t seed, uint32_t w0, uint32_t w1, uint32_t w2, uint32_t w3) {
   r123::Philox4x32 philox;
-  r123::Philox4x32::ctr_type ctr = {{static_cast<uint32_t>(index),
-                                     static_cast<uint32_t>(index >> 32),
-                                     static_cast<uint32_t>(stream), 0u}};
-  r123::Philox4x32::key_type key = {{static_cast<uint32_t>(seed),
-                                     static_cast<uint32_t>(seed >> 32)}};
-  auto r = philox(ctr, key);
-  // Uniform on the sphere: z uniform in (-1, 1), azimuth uniform (Archimedes).
-  double z = 1.0 - 2.0 * unit_open(r[0]);
-  double phi = 2.0 * std::numbers::pi * unit_open(r[1]);
-  double s = std::sqrt(std::max(0.0, 1.0 - z * z));
-  return {glm::dvec3(s * std::cos(phi), s * std::sin(phi), z), unit_open(r[2]), unit_open(r[3])};
+  r123::Philox4x32::ctr_type ctr = {{w0, w1, w2, w3}};
+  r123::Philox4x32::key_type key = {{static_cast<uint32_t>(seed), static_cast<uint32_t>(seed >> 32)}};
+  return philox(ctr, key);
+}
+
+void check_sampling(const Sampling& s) {
+  if (s.interleave < 1 || s.interleave > 256 || s.side < 1 || s.side > 64)
+    fail("stratified sampling: interleave {} (1..256) or side {} (1..64) out of range", s.interleave, s.side);
+}
+
+// Concentric map of [0, 1)^2 onto the unit disk (Shirley & Chiu 1997; area-preserving up to
+// the factor pi / 4), then the Lambert lift onto the upper hemisphere: z = 1 - r^2 (uniform
+// when r^2 is), (x, y) scaled by sqrt(2 - r^2). Equal-area strata stay compact.
+glm::dvec3 square_to_hemisphere(double u, double v) {
+  double a = 2.0 * u - 1.0, b = 2.0 * v - 1.0;
+  double r, phi;
+  if (a == 0.0 && b == 0.0) return {0.0, 0.0, 1.0};
+  if (a * a > b * b) {
+    r = a;
+    phi = (std::numbers::pi / 4.0) * (b / a);
+  } else {
+    r = b;
+    phi = std::numbers::pi / 2.0 - (std::numbers::pi / 4.0) * (a / b);
+  }
+  double x = r * std::cos(phi), y = r * std::sin(phi), r2 = r * r;
+  double scale = std::sqrt(std::max(0.0, 2.0 - r2));
+  return {x * scale, y * scale, 1.0 - r2};
+}
+
+}  // namespace
+
+StratumOf stratum_of(uint64_t seed, uint64_t index, Stream stream, const Sampling& sampling) {
+  StratumOf out;
+  if (sampling.directions == Directions::random || stream != Stream::bundles) return out;
+  check_sampling(sampling);
+  const uint32_t g = sampling.interleave, k = sampling.side * sampling.side;
+  out.sequence = index % g;
+  uint64_t t = index / g;
+  out.block = t / k;
+  const uint32_t position = static_cast<uint32_t>(t % k);
+  // Two uniform random permutations of the K strata (Fisher-Yates; j = floor(r (i + 1) / 2^32)
+  // is uniform on 0..i up to (i + 1) / 2^32 < 1e-6), keyed by (seed, stream, sequence, block).
+  std::vector<uint32_t> order(2 * k);
+  std::vector<uint32_t> r(2 * k);
+  const uint32_t w2 = kOrderTag | (static_cast<uint32_t>(stream) << 16) | static_cast<uint32_t>(out.sequence);
+  for (uint32_t c = 0; 4 * c < 2 * k; ++c) {
+    auto d = philox_draw(seed, static_cast<uint32_t>(out.block), static_cast<uint32_t>(out.block >> 32), w2, 1u + c);
+    for (uint32_t q = 0; q < 4 && 4 * c + q < 2 * k; ++q) r[4 * c + q] = d[q];
+  }
+  for (uint32_t p = 0; p < 2; ++p) {
+    uint32_t* o = order.data() + p * k;
+    for (uint32_t i = 0; i < k; ++i) o[i] = i;
+    for (uint32_t i = k - 1; i > 0; --i) {
+      uint32_t j = static_cast<uint32_t>((static_cast<uint64_t>(r[p * k + i]) * (i + 1)) >> 32);
+      std::swap(o[i], o[j]);
+    }
+  }
+  out.direction = order[position];
+  out.jitter = order[k + position];
+  return out;
+}
+
+BundleDraw draw_bundle(uint64_t seed, uint64_t index, Stream stream, const Sampling& sampling) {
+  auto r = philox_draw(seed, static_cast<uint32_t>(index), static_cast<uint32_t>(index >> 32),
+                       static_cast<uint32_t>(stream), 0u);
+  if (sampling.directions == Directions::random || stream != Stream::bundles) {
+    // Uniform on the sphere: z uniform in (-1, 1), azimuth uniform (Archimedes).
+    double z = 1.0 - 2.0 * unit_open(r[0]);
+    double phi = 2.0 * std::numbers::pi * unit_open(r[1]);
+    double s = std::sqrt(std::max(0.0, 1.0 - z * z));
+    return {glm::dvec3(s * std::cos(phi), s * std::sin(phi), z), unit_open(r[2]), unit_open(r[3])};
+  }
+  // Stratified: uniform inside the bundle's direction stratum (a cell of the n x n grid on the
+  // square, mapped onto the hemisphere) and jitter stratum (a cell of the n x n grid on the
+  // lattice cell), with a random sign: uniform on the sphere and in the cell marginally.
+  StratumOf st = stratum_of(seed, index, stream, sampling);
+  const double n = sampling.side;
+  const uint32_t side = sampling.side;
+  glm::dvec3 w = square_to_hemisphere((st.direction % side + unit_open(r[0])) / n,
+                                      (st.direction / side + unit_open(r[1])) / n);
+  auto sign = philox_draw(seed, static_cast<uint32_t>(index), static_cast<uint32_t>(index >> 32),
+                          kSignTag | static_cast<uint32_t>(stream), 0u);
+  if (sign[0] & 1u) w = -w;
+  w /= glm::length(w);
+  return {w, (st.jitter % side + unit_open(r[2])) / n, (st.jitter / side + unit_open(r[3])) / n};
 }
 
 double cell_area(const PatchMesh& mesh, int grid) {
@@ -38,9 +187,9 @@ double cell_area(const PatchMesh& mesh, int grid) {
 }
 
 SiradBundle make_bundle(const PatchMesh& mesh, int grid, uint64_t seed, uint64_t index,
-                        Stream stream) {
+                        Stream stream, const Sampling& sampling) {
   if (grid < 2) fail("grid must be at least 2 lines per side (got {})", grid);
-  BundleDraw d = draw_bundle(seed, index, stream);
+  BundleDraw d = draw_bundle(seed, index, stream, sampling);
   const glm::dvec3 w = d.direction;
   // Right-handed orthonormal frame (u, v, w), u x v = w (Duff et al. 2017).
   double sign = std::copysign(1.0, w.z);

@@ -24,17 +24,54 @@ namespace sirad {
 // samples (core/shot.h) never share one.
 enum class Stream : uint32_t { bundles = 0, burn_in = 1, shots = 2, burn_in_shots = 3 };
 
-// The direction and jitter of bundle `index` of a run with `seed` (double precision).
+// How a run draws its bundles' directions and jitters (DESIGN.md section 1, lever 2).
+//   random      every bundle independent: direction uniform on the sphere, jitter uniform.
+//   stratified  the counted bundles form G interleaved sequences (index k belongs to sequence
+//               k mod G); sequence s visits, in blocks of K = n x n consecutive members, the K
+//               equal-area strata of the hemisphere (concentric square-to-disk map, then the
+//               Lambert lift) in a random order keyed by (seed, stream, s, block), each bundle
+//               uniform inside its stratum with a random sign (w and -w are the same lines);
+//               the jitter is stratified the same way over the cell with an independent order.
+//               Every bundle's direction is uniform on the sphere and its jitter uniform in the
+//               cell, so each transport stays unbiased; bundles of one (sequence, block) are
+//               dependent, and those are >= G apart in index. Burn-in bundles stay random.
+// Bias analysis and the choice of G and K: core/bundle.cpp, above sampling_plan.
+enum class Directions { random, stratified };
+Directions parse_directions(const std::string& name);  // "random" | "stratified"
+const char* to_string(Directions directions);
+
+struct Sampling {
+  Directions directions = Directions::random;
+  uint32_t interleave = 1;  // G (stratified): sequences interleaved by index mod G, 1..256
+  uint32_t side = 16;       // n (stratified): K = n * n strata per block, 1..64
+};
+
+// The sampling of a run on `mesh`: for stratified, G = the smallest G with rho_max^G <= 1e-3
+// (1 for a scene that reflects nothing, at most 256) and n = 16 (K = 256).
+Sampling sampling_plan(const PatchMesh& mesh, Directions directions);
+
+// The direction and jitter of bundle `index` of a run with `seed` (double precision): a pure
+// function of (seed, index, stream, sampling), whichever node draws it.
 struct BundleDraw {
   glm::dvec3 direction;  // uniform on the unit sphere
   double jitter_x, jitter_y;  // uniform in (0, 1)
 };
-BundleDraw draw_bundle(uint64_t seed, uint64_t index, Stream stream = Stream::bundles);
+BundleDraw draw_bundle(uint64_t seed, uint64_t index, Stream stream = Stream::bundles,
+                       const Sampling& sampling = {});
+
+// The strata of a stratified bundle (for tests): its position in the block's order visits
+// direction stratum `direction` and jitter stratum `jitter` (both in [0, K)); the block is
+// (sequence, block). Random sampling: all zero.
+struct StratumOf {
+  uint32_t direction = 0, jitter = 0;
+  uint64_t sequence = 0, block = 0;
+};
+StratumOf stratum_of(uint64_t seed, uint64_t index, Stream stream, const Sampling& sampling);
 
 // The bundle parameters for `mesh` with an R x R grid. Banding and scratch capacities are the
 // engine's: make_bundle leaves one band of all rows and capacities 0.
 SiradBundle make_bundle(const PatchMesh& mesh, int grid, uint64_t seed, uint64_t index,
-                        Stream stream = Stream::bundles);
+                        Stream stream = Stream::bundles, const Sampling& sampling = {});
 
 // World area of the cell each line stands for: (2 r / (R - 1))^2.
 double cell_area(const PatchMesh& mesh, int grid);

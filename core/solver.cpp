@@ -50,6 +50,11 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   if (options.grid < 0 || options.grid == 1) fail("--grid must be at least 2 (got {})", options.grid);
   grid_ = options.grid == 0 ? auto_grid(mesh) : options.grid;
   burn_in_ = options.rule == UpdateRule::average ? 0 : (options.burn_in < 0 ? auto_burn_in(mesh) : options.burn_in);
+  if (options.directions == Directions::stratified && options.rule != UpdateRule::chain)
+    fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
+  sampling_ = sampling_plan(mesh, options.directions);
+  if (options.interleave) sampling_.interleave = options.interleave;
+  if (options.strata_side) sampling_.side = options.strata_side;
   two_delta_ = 2.0 * cell_area(mesh, grid_);
   const std::size_t n = mesh.size();
   sum_.assign(n, glm::dvec3(0.0));
@@ -85,7 +90,7 @@ void Solver::run_bundle(uint64_t index, Stream stream) {
   // With a first shot the bundles transport Y = B - E: the emission is already in D.
   for (std::size_t j = 0; j < state_.size(); ++j)
     input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - glm::dvec3(mesh_.emission(j)) : state_[j]), 0.0f);
-  SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream);
+  SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream, sampling_);
   engine_.run(b, input_, result_);
   crossings_ += result_.crossings;
 }

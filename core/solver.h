@@ -35,6 +35,8 @@ struct SolverOptions {
   UpdateRule rule = UpdateRule::chain;
   int burn_in = -1;        // chain only: bundles run before counting; -1: auto
   uint64_t chain_id = 0;   // keeps the burn-in bundles of different chains apart
+  Directions directions = Directions::random;  // stratified: chain rule only (core/bundle.h)
+  uint32_t interleave = 0, strata_side = 0;      // stratified G and n; 0: sampling_plan's
   // First shot (core/shot.h): shots per bundle (0: off). Step k uses the shots
   // [floor(k X), floor((k + 1) X)) of the run, or shot floor(k X) when that range is empty.
   double shots_per_bundle = 0.0;
@@ -79,6 +81,7 @@ class Solver {
   uint64_t crossings() const { return crossings_; }
   int grid() const { return grid_; }
   int burn_in() const { return burn_in_; }
+  const Sampling& sampling() const { return sampling_; }
   const SolverOptions& options() const { return options_; }
 
   // The average of the per-bundle estimates, L(m) (the emission before any bundle).
@@ -107,6 +110,7 @@ class Solver {
   SolverOptions options_;
   int grid_;
   int burn_in_;
+  Sampling sampling_;
   double two_delta_;
   void update_average_state();
 

@@ -249,6 +249,7 @@ class Node {
       so.grid = static_cast<int>(run.grid());
       so.rule = parse_update_rule(run.rule());
       so.burn_in = run.burn_in();
+      so.directions = run.directions().empty() ? Directions::random : parse_directions(run.directions());
       so.chain_id = pending_->index;
       so.shots_per_bundle = run.shots_per_bundle();
       so.shot_resolution = static_cast<int>(run.shot_resolution());

@@ -156,6 +156,23 @@ TEST_F(Cli, EmbeddedClusterRendersWithTwoNodes) {
   fs::remove(dir_ / "status.json");
 }
 
+// --directions: recorded in the EXR header, single node and embedded cluster; stratified needs
+// the chain rule.
+TEST_F(Cli, DirectionsAreRecordedAndStratifiedNeedsTheChainRule) {
+  for (const char* nodes : {"", " --nodes 2 --exchange-every 28"}) {
+    Outcome r = sirad(std::string("render cornell --patches 300 --bundles 56 --width 16 --height 16 --directions stratified") +
+                      nodes);
+    ASSERT_EQ(r.status, 0) << r.err;
+    Imf::InputFile exr((dir_ / "cornell.exr").string().c_str());
+    auto* d = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.directions");
+    ASSERT_NE(d, nullptr) << nodes;
+    EXPECT_EQ(d->value(), "stratified") << nodes;
+    for (const char* ext : {".exr", ".png", ".ply"}) fs::remove(dir_ / (std::string("cornell") + ext));
+  }
+  expect_error(sirad("render cornell --bundles 4 --directions stratified --rule average"), "--directions");
+  expect_error(sirad("render cornell --bundles 4 --directions sobol"), "--directions");
+}
+
 TEST_F(Cli, SameSeedGivesBitwiseIdenticalFiles) {
   ASSERT_EQ(sirad("render cornell --patches 300 --bundles 12 --width 48 --height 48 --out a").status, 0);
   ASSERT_EQ(sirad("render cornell --patches 300 --bundles 12 --width 48 --height 48 --out b").status, 0);

@@ -11,6 +11,7 @@
 
 #include "cluster_util.h"
 #include "coordinator/coordinator.h"
+#include "core/error.h"
 #include "core/metrics.h"
 #include "node/node.h"
 #include "proto/transport.h"
@@ -57,6 +58,39 @@ TEST(Cluster, ThreeNodesOverTcpRunEveryBundleOnceAndStayUnbiased) {
   double mean = area_mean(o.mesh, o.result.radiosity);
   std::printf("3 nodes over TCP, furnace: mean %.5f\n", mean);
   EXPECT_NEAR(mean, 2.0, 0.04);
+}
+
+// Stratified directions over 3 nodes (core/bundle.h): the Run message carries them, the furnace
+// stays unbiased (same bound as above: stratification lowers the noise, see directions_test),
+// and grants are whole multiples of the interleave G = 10 (rho = 0.5): I = 32 becomes 40, so
+// every node's count is a multiple of 10 except the one that ran the ledger's tail
+// (1024 = 102 * 10 + 4).
+TEST(Cluster, StratifiedDirectionsReachTheNodesAndGrantsAreWholeInterleaves) {
+  RunConfig c = furnace(1024);
+  c.exchange_every = 32;
+  c.directions = Directions::stratified;
+  Outcome o = run_cluster(c, 3, "inproc://stratified");
+  int off = 0;
+  uint64_t total = 0;
+  for (const auto& n : o.result.nodes) {
+    total += n.bundles;
+    if (n.bundles % 10 != 0) {
+      ++off;
+      EXPECT_EQ(n.bundles % 10, 4u) << n.name;
+    }
+  }
+  EXPECT_EQ(total, 1024u);
+  EXPECT_LE(off, 1);
+  double mean = area_mean(o.mesh, o.result.radiosity);
+  std::printf("3 nodes, stratified directions, furnace: mean %.5f\n", mean);
+  EXPECT_NEAR(mean, 2.0, 0.04);
+  auto attrs = run_attributes(c, o.result, o.mesh, "furnace");
+  bool found = false;
+  for (const auto& [k, v] : attrs)
+    if (k == "sirad.directions") found = std::get<std::string>(v) == "stratified";
+  EXPECT_TRUE(found);
+  c.rule = UpdateRule::average;
+  EXPECT_THROW(run_cluster(c, 1, "inproc://stratified-average"), Error);
 }
 
 // Sync mode follows the period: with I = 16 and K = 256 over 2 nodes each node exchanges
