@@ -9,7 +9,7 @@
 //       --config naive --config shot:1 --config shot:0.5:128 --max-seconds 60
 //
 // A configuration is `naive` (no first shot), `shot:X[:H]` (X shots per bundle, hemicube side H,
-// 0 or absent: auto), or `direct[:H]`: the first shot alone against the reference's direct part
+// 0 or absent: auto), either with `/stratified` for stratified directions, or `direct[:H]`: the first shot alone against the reference's direct part
 // D (what its error costs in time, apart from the bundles). The reference file is computed (and
 // written) when missing.
 #include <chrono>
@@ -38,9 +38,22 @@ struct Config {
   double shots_per_bundle = 0.0;
   int resolution = 0;
   bool direct_only = false;
+  Directions directions = Directions::random;
 };
 
+Config parse_one(const std::string& text);
+
+// `CONFIG[/stratified]`: the configuration with stratified bundle directions.
 Config parse_config(const std::string& text) {
+  std::size_t slash = text.find('/');
+  if (slash == std::string::npos) return parse_one(text);
+  Config c = parse_one(text.substr(0, slash));
+  c.directions = parse_directions(text.substr(slash + 1));
+  c.name = text;
+  return c;
+}
+
+Config parse_one(const std::string& text) {
   if (text == "naive") return {text, 0.0, 0};
   if (text == "direct" || text.rfind("direct:", 0) == 0) {
     Config c{text, 0.0, 0, true};
@@ -144,6 +157,7 @@ int main(int argc, char** argv) {
       so.grid = grid;
       so.shots_per_bundle = c.shots_per_bundle;
       so.shot_resolution = c.resolution;
+      so.directions = c.directions;
       double solver_s = 0.0;
       auto t0 = std::chrono::steady_clock::now();
       Solver solver(mesh, *engine, so, shots.get());
