@@ -405,7 +405,7 @@ int run(int argc, char** argv) {
                          "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
       ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
   render_cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
-      ->check(CLI::Range(0, 8192))->capture_default_str();
+      ->check(CLI::Range(0, 2048))->capture_default_str();
   render_cmd->add_option("--width", r.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
   render_cmd->add_option("--height", r.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
   render_cmd->add_option("--exposure", r.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));

@@ -45,7 +45,7 @@ int main(int argc, char** argv) {
   app.add_option("--shots-per-bundle", shots_per_bundle, "First shot: hemicube shots from the emitters per bundle (0: off)")
       ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
   app.add_option("--shot-resolution", shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
-      ->check(CLI::Range(0, 8192))->capture_default_str();
+      ->check(CLI::Range(0, 2048))->capture_default_str();
   app.add_option("--exchange-every", exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
   app.add_option("--exchange-fraction", fraction, "Fraction S of chunks per exchange")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   app.add_option("--topology", topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();

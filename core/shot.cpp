@@ -89,8 +89,8 @@ ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t se
 }
 
 SiradShot make_shot(const PatchMesh& mesh, const ShotDraw& draw, int resolution) {
-  if (resolution < 4 || resolution % 2 != 0 || resolution > 8192)
-    fail("shot resolution must be even and in [4, 8192] (got {})", resolution);
+  if (resolution < 4 || resolution % 2 != 0 || resolution > 2048)
+    fail("shot resolution must be even and in [4, 2048] (got {})", resolution);
   SiradShot s{};
   glm::dvec3 eye = draw.eye - glm::dvec3(mesh.bound_center);
   for (int k = 0; k < 3; ++k) s.eye[k] = static_cast<float>(eye[k]);

@@ -34,8 +34,8 @@ ShotRange shots_of_step(double x, uint64_t index) {
 
 void check_first_shot(double x, int resolution) {
   if (!(x >= 0.0) || x > 1024.0) fail("--shots-per-bundle must be in [0, 1024] (got {})", x);
-  if (resolution != 0 && (resolution < 4 || resolution % 2 != 0 || resolution > 8192))
-    fail("--shot-resolution must be 0 (auto) or even in [4, 8192] (got {})", resolution);
+  if (resolution != 0 && (resolution < 4 || resolution % 2 != 0 || resolution > 2048))
+    fail("--shot-resolution must be 0 (auto) or even in [4, 2048] (got {})", resolution);
 }
 
 Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options, ShotEngine* shots)
