@@ -235,3 +235,39 @@ TEST(FirstShot, MatchesReferenceDirectThreeLights) { check_direct("three-lights"
 
 }  // namespace
 }  // namespace sirad
+
+namespace sirad {
+namespace {
+
+TEST(FirstShot, ErrorFallsWithItsOwnSampleCount) {
+  // The first shot's D from N and from 4N shots against the reference's D (its own variance
+  // subtracted): for an unbiased estimator with finite variance the relative RMS error falls as
+  // 1 / sqrt(N), a ratio of 2. One run's error is a sum over ~1200 patches x 3 channels of
+  // squared errors, but they are correlated through the shared light samples (a shot lights half
+  // the room), so one realisation scatters widely (a single pair gave 3.0): the mean squared
+  // error over 6 disjoint replicas of each size is compared, ratio within [1.5, 2.7]; a bias
+  // would flatten it towards 1.
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 1200});
+  ReferenceSolution ref = solve_reference(mesh, {.rays_per_patch = 64, .light_samples = 4096, .batches = 8, .seed = 8});
+  auto cl = make_cl_shot_engine(mesh);
+  uint64_t next = 0;
+  auto error_of = [&](uint64_t shots) {
+    double sum2 = 0.0;
+    for (int r = 0; r < 6; ++r) {
+      ShotSums s = run_shots(mesh, *cl, 48, 77, next, shots);
+      next += shots;
+      std::vector<glm::vec3> d(mesh.size());
+      for (std::size_t j = 0; j < d.size(); ++j) d[j] = glm::vec3(s.direct[j] / static_cast<double>(s.shots));
+      double e = relative_rms_vs_reference(mesh, d, ref.direct, ref.direct_se).corrected;
+      sum2 += e * e / 6.0;
+    }
+    return std::sqrt(sum2);
+  };
+  double e1 = error_of(64), e4 = error_of(256);
+  fmt::print("first shot alone: error {:.4f} at 64 shots, {:.4f} at 256 (ratio {:.2f})\n", e1, e4, e1 / e4);
+  EXPECT_GT(e1 / e4, 1.5);
+  EXPECT_LT(e1 / e4, 2.7);
+}
+
+}  // namespace
+}  // namespace sirad
