@@ -36,6 +36,7 @@ struct Peer {
   uint32_t exchange = 0;
   uint64_t bundles = 0;
   double busy_s = 0, idle_s = 0;
+  double error = -1;            // its last reported error estimate (<= 0: none)
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   emulation::LinkModel down;  // the emulated coordinator -> node link
   proto::DelayQueue queue;    // messages on that link
@@ -160,7 +161,7 @@ class Coordinator {
     s.bundles_done = ledger_.done_count();
     s.bundles = config_.bundles;
     s.elapsed_s = seconds(now - start_);
-    s.error_estimate = aggregate_.spread_error(weight_);
+    s.error_estimate = error_estimate();
     s.exchanges = exchanges_;
     s.bytes_in = bytes_in_;
     s.bytes_out = bytes_out_;
@@ -369,9 +370,9 @@ class Coordinator {
   void check_close(Clock::time_point now) {
     if (closing_ || ledger_.finished()) return;
     if (config_.time_limit_s > 0 && seconds(now - start_) >= config_.time_limit_s) ended_by_ = "time limit";
-    else if (config_.target_error > 0 && exchanges_ > last_error_check_) {
-      last_error_check_ = exchanges_;
-      double e = aggregate_.spread_error(weight_);
+    else if (config_.target_error > 0 && reports_ > last_error_check_) {
+      last_error_check_ = reports_;
+      double e = error_estimate();
       if (e >= 0 && e <= config_.target_error) ended_by_ = fmt::format("target error ({:.4g} <= {:.4g})", e, config_.target_error);
     }
     if (ended_by_.empty()) return;
@@ -421,9 +422,33 @@ class Coordinator {
     }
   }
 
+  // The run's error estimate. Under the chain rule the nodes are independent chains and the
+  // result is their count-weighted mean, so its relative error is sqrt(sum_p (m_p / M)^2 e_p^2)
+  // from each node's own batch-means estimate e_p (every node with bundles must have one);
+  // otherwise (the average rule couples the nodes, or a node has too few bundles yet) the
+  // spread of the node states (Aggregate::spread_error).
+  double error_estimate() const {
+    if (config_.rule == UpdateRule::chain) {
+      double total = 0, sum = 0;
+      bool all = true;
+      for (const Peer* p : all_peers()) {
+        if (p->bundles == 0) continue;
+        if (!(p->error > 0)) all = false;
+        total += static_cast<double>(p->bundles);
+        sum += static_cast<double>(p->bundles) * static_cast<double>(p->bundles) * p->error * p->error;
+      }
+      if (all && total > 0) return std::sqrt(sum) / total;
+    }
+    return aggregate_.spread_error(weight_);
+  }
+
   void report(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
     if (p.grants.empty() || r.grant_id() != p.grants.front()) fail("report for grant {} it does not hold", r.grant_id());
     p.grants.pop_front();  // answered, whatever follows: a refused report must not wedge the run
+    if (!std::isfinite(r.error_estimate()) || r.error_estimate() > 1e6) {
+      schedule();
+      fail("REPORT error estimate {} is not a finite relative error", r.error_estimate());
+    }
     try {
       for (const auto& d : r.done()) {
         ledger_.done(p.index, {d.first(), d.last()});
@@ -435,6 +460,8 @@ class Coordinator {
       throw;
     }
     crossings_ += r.crossings();
+    if (r.error_estimate() > 0) p.error = r.error_estimate();
+    ++reports_;
     if (config_.progress) config_.progress(ledger_.done_count(), config_.bundles);
     if (r.chunks_size() > 0) {
       // The exchange: the others' aggregate (star) or the next node's state (ring).
@@ -476,10 +503,11 @@ class Coordinator {
   Clock::time_point start_ = Clock::now();
   uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0, final_bytes_ = 0, crossings_ = 0;
   uint32_t exchanges_ = 0;
+  uint64_t reports_ = 0;
   bool started_ = false;
   bool closing_ = false;        // no more grants (time limit or target error)
   std::string ended_by_;
-  uint32_t last_error_check_ = 0;
+  uint64_t last_error_check_ = 0;
   uint64_t interleave_ = 1;  // grants are multiples of it (stratified directions)
 };
 

@@ -251,6 +251,7 @@ class Node {
       so.burn_in = run.burn_in();
       so.directions = run.directions().empty() ? Directions::random : parse_directions(run.directions());
       so.chain_id = pending_->index;
+      so.track_error = so.rule == UpdateRule::chain;  // its batch means go out with each REPORT
       so.shots_per_bundle = run.shots_per_bundle();
       so.shot_resolution = static_cast<int>(run.shot_resolution());
       if (so.shots_per_bundle > 0) pending_->shots = make_cl_shot_engine(pending_->mesh, options_.device);
@@ -298,6 +299,8 @@ class Node {
     busy_s_ += seconds(Clock::now() - start);
     report.set_busy_s(busy_s_);
     report.set_idle_s(idle_s_);
+    // Only once the batch means rest on 8 batches: fewer make an estimate that dips by chance.
+    if (state_->solver->batch_count() >= 8) report.set_error_estimate(state_->solver->error_estimate());
     Message m{Command::report, {}, chunk_frames(g.report_chunks(), report)};
     m.header = report;
     send(m);
