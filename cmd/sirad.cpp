@@ -230,7 +230,7 @@ int render(const RenderArgs& a) {
   so.burn_in = a.burn_in.value_or(-1);
   so.shots_per_bundle = a.shots_per_bundle;
   so.shot_resolution = a.shot_resolution;
-  so.track_error = true;
+  so.track_error = a.target_error > 0 || mesh.size() <= kTrackErrorMaxPatches;
   std::unique_ptr<ShotEngine> shots;
   if (so.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
   if (!a.quiet)

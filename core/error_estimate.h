@@ -15,6 +15,10 @@
 
 namespace sirad {
 
+// Batch means keep 32 sums per patch (768 bytes each): solvers track them by default only up to
+// this many patches (a run that asks for a target error tracks them at any size).
+inline constexpr std::size_t kTrackErrorMaxPatches = 100000;
+
 class BatchMeans {
  public:
   // `slots`: K, even, >= 4.

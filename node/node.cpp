@@ -251,7 +251,8 @@ class Node {
       so.burn_in = run.burn_in();
       so.directions = run.directions().empty() ? Directions::random : parse_directions(run.directions());
       so.chain_id = pending_->index;
-      so.track_error = so.rule == UpdateRule::chain;  // its batch means go out with each REPORT
+      // Its batch means go out with each REPORT (chain rule; memory-bounded: error_estimate.h).
+      so.track_error = so.rule == UpdateRule::chain && pending_->mesh.size() <= kTrackErrorMaxPatches;
       so.shots_per_bundle = run.shots_per_bundle();
       so.shot_resolution = static_cast<int>(run.shot_resolution());
       if (so.shots_per_bundle > 0) pending_->shots = make_cl_shot_engine(pending_->mesh, options_.device);
