@@ -445,15 +445,14 @@ class Coordinator {
   void report(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
     if (p.grants.empty() || r.grant_id() != p.grants.front()) fail("report for grant {} it does not hold", r.grant_id());
     p.grants.pop_front();  // answered, whatever follows: a refused report must not wedge the run
-    if (!std::isfinite(r.error_estimate()) || r.error_estimate() > 1e6) {
-      schedule();
-      fail("REPORT error estimate {} is not a finite relative error", r.error_estimate());
-    }
     try {
       for (const auto& d : r.done()) {
         ledger_.done(p.index, {d.first(), d.last()});
         p.bundles += d.last() - d.first();
       }
+      // Refused like a bad chunk: the indices count as done (the ledger moves on), the data not.
+      if (!std::isfinite(r.error_estimate()) || r.error_estimate() > 1e6)
+        fail("REPORT error estimate {} is not a finite relative error", r.error_estimate());
       take_chunks(p, r, bulk, bytes_in_);
     } catch (const Error&) {
       schedule();  // refused (the caller logs it and answers ERROR); the others go on

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
 #include <thread>
 
 #include <fmt/format.h>
@@ -218,9 +219,10 @@ TEST(Cluster, ANodeReportingNaNIsRefusedAndTheRunGoesOn) {
     proto::send(s, {proto::Command::hello, h, {}});
     wire::Run run;
     int errors = 0, reports = 0;
-    auto report = [&](const wire::Grant& g, double value) {
+    auto report = [&](const wire::Grant& g, double value, double error_estimate) {
       wire::Report r;
       r.set_run_id(run.run_id());
+      r.set_error_estimate(error_estimate);
       r.set_grant_id(g.grant_id());
       *r.mutable_done() = g.ranges();
       r.add_chunks(0);
@@ -230,7 +232,7 @@ TEST(Cluster, ANodeReportingNaNIsRefusedAndTheRunGoesOn) {
       proto::send(s, {proto::Command::report, r, {proto::pack(sum)}});
       ++reports;
     };
-    for (int i = 0; i < 100 && reports < 2; ++i) {
+    for (int i = 0; i < 100 && reports < 3; ++i) {
       auto f = proto::receive(s, 100);
       if (!f) continue;
       proto::Message m = proto::decode(*f);
@@ -240,15 +242,17 @@ TEST(Cluster, ANodeReportingNaNIsRefusedAndTheRunGoesOn) {
         r.set_run_id(run.run_id());
         proto::send(s, {proto::Command::ready, r, {}});
       } else if (m.command == proto::Command::grant) {
-        report(std::get<wire::Grant>(m.header), reports == 0 ? std::nan("") : 2.0);
+        // A NaN sum, then a good report, then one with an infinite error estimate.
+        report(std::get<wire::Grant>(m.header), reports == 0 ? std::nan("") : 2.0,
+               reports == 2 ? std::numeric_limits<double>::infinity() : 0.01);
       } else if (m.command == proto::Command::error) {
         ++errors;
       }
     }
     for (int i = 0; i < 5; ++i)  // any ERROR for the second report arrives within this
       if (auto f = proto::receive(s, 100)) errors += proto::decode(*f).command == proto::Command::error;
-    EXPECT_EQ(reports, 2);
-    EXPECT_EQ(errors, 1) << "the NaN report answers ERROR, the next one is accepted";
+    EXPECT_EQ(reports, 3);
+    EXPECT_EQ(errors, 2) << "the NaN report and the infinite error estimate answer ERROR, the one between is accepted";
     // Then silence: the coordinator declares it dead and takes its queued grant back.
   });
   out.result = coordinate(router, c, out.mesh);
@@ -259,7 +263,7 @@ TEST(Cluster, ANodeReportingNaNIsRefusedAndTheRunGoesOn) {
   for (const auto& n : out.result.nodes) total += n.bundles;
   EXPECT_EQ(total, 512u);
   EXPECT_TRUE(std::any_of(out.result.nodes.begin(), out.result.nodes.end(),
-                          [](const NodeReport& n) { return n.name == "liar" && n.dead && n.bundles == 32; }));
+                          [](const NodeReport& n) { return n.name == "liar" && n.dead && n.bundles == 48; }));
   EXPECT_NEAR(area_mean(out.mesh, out.result.radiosity), 2.0, 0.04 * std::sqrt(1024.0 / 512));
 }
 
