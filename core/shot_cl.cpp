@@ -25,17 +25,23 @@ class ClShotEngine final : public ShotEngine {
       build += " -cl-fp32-correctly-rounded-divide-sqrt";
     cl::Program program = build_program(
         context_, device_, {"kernels/bundle_types.h", "kernels/shot_types.h", "kernels/bundle.cl", "kernels/shot.cl"}, build);
+    vertex_kernel_ = cl::Kernel(program, "shot_vertices");
     project_ = cl::Kernel(program, "project_shot");
     raster_ = cl::Kernel(program, "raster_shot");
     patch_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(n_, 1), 16 * info_.compute_units)
                                 : std::max<std::size_t>(n_, 1);
     per_item_ = static_cast<cl_uint>((n_ + patch_items_ - 1) / patch_items_);
     std::vector<glm::vec4> verts = centred_vertices(mesh);
+    nv_ = verts.size();
+    vertex_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(nv_, 1), 16 * info_.compute_units)
+                                 : std::max<std::size_t>(nv_, 1);
+    per_vertex_item_ = static_cast<cl_uint>((nv_ + vertex_items_ - 1) / vertex_items_);
     std::vector<cl_uint4> tris(n_);
     for (std::size_t j = 0; j < n_; ++j) tris[j] = {{mesh.patches[j][0], mesh.patches[j][1], mesh.patches[j][2], 0u}};
     vertices_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, std::max<std::size_t>(verts.size(), 1) * sizeof(glm::vec4), verts.data());
     patches_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, std::max<std::size_t>(n_, 1) * sizeof(cl_uint4), tris.data());
     params_ = cl::Buffer(context_, CL_MEM_READ_ONLY, sizeof(SiradShot));
+    face_coords_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(5 * nv_, 1) * sizeof(glm::vec4));
     projected_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(10 * n_, 1) * sizeof(SiradProjected));
     rows_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(10 * n_, 1) * sizeof(cl_int2));
   }
@@ -85,8 +91,14 @@ class ClShotEngine final : public ShotEngine {
     cl_uint n = static_cast<cl_uint>(n_);
     queue_.enqueueWriteBuffer(params_, CL_FALSE, 0, sizeof(SiradShot), &params_host_);
     cl::NDRange one_per_group = info_.is_cpu ? cl::NDRange(1) : cl::NullRange;
+    vertex_kernel_.setArg(0, vertices_);
+    vertex_kernel_.setArg(1, static_cast<cl_uint>(nv_));
+    vertex_kernel_.setArg(2, per_vertex_item_);
+    vertex_kernel_.setArg(3, params_);
+    vertex_kernel_.setArg(4, face_coords_);
+    queue_.enqueueNDRangeKernel(vertex_kernel_, cl::NullRange, cl::NDRange(vertex_items_), one_per_group);
     int arg = 0;
-    for (const cl::Buffer* b : {&vertices_, &patches_}) project_.setArg(arg++, *b);
+    for (const cl::Buffer* b : {&face_coords_, &patches_}) project_.setArg(arg++, *b);
     project_.setArg(arg++, n);
     project_.setArg(arg++, per_item_);
     for (const cl::Buffer* b : {&params_, &projected_, &rows_}) project_.setArg(arg++, *b);
@@ -120,10 +132,12 @@ class ClShotEngine final : public ShotEngine {
   DeviceInfo info_;
   cl::Context context_;
   cl::CommandQueue queue_;
-  cl::Kernel project_, raster_;
+  cl::Kernel vertex_kernel_, project_, raster_;
+  std::size_t nv_ = 0, vertex_items_ = 1;
+  cl_uint per_vertex_item_ = 1;
   std::size_t patch_items_ = 1;
   cl_uint per_item_ = 1;
-  cl::Buffer vertices_, patches_, params_, projected_, rows_, band_list_, zbuf_, zwin_, image_, stats_;
+  cl::Buffer vertices_, patches_, params_, face_coords_, projected_, rows_, band_list_, zbuf_, zwin_, image_, stats_;
   SiradShot params_host_{};
   uint64_t capacity_ = 0, allocated_capacity_ = 0;
   int allocated_resolution_ = 0, allocated_bands_ = 0;

@@ -2,6 +2,8 @@
  * rendered with the rasterisation machinery of bundle.cl (set_edge, covers, row_span,
  * FOR_EACH_COVERED, depth_at), which the host prepends together with bundle_types.h and
  * shot_types.h. Per shot it enqueues:
+ *   shot_vertices (runs of vertices) every vertex into the five faces' coordinates, with an
+ *                 outcode per face (which side of the face's pyramid it is on);
  *   project_shot  (runs of patches)  every patch into the five hemicube faces: clipped
  *                 against z >= near_z (a triangle becomes 0, 1 or 2 triangles), projected
  *                 (X, Y) = (x / z, y / z) scaled, counter-clockwise, with the plane of 1 / z
@@ -81,9 +83,27 @@ SIRAD_INLINE void shot_empty(__global SiradProjected* out, __global int2* out_ro
   *out_rows = (int2)(0x7fffffff, -0x7fffffff);
 }
 
+/* Every vertex in the five faces' coordinates, once per shot (a vertex is shared by ~6 patch
+ * corners): face_coords[5 v + f] = (x, y, z, outcode) with outcode bits 1: x > z, 2: x < -z,
+ * 4: y > z, 8: y < -z on face 0 and y < 0 on the side faces (below the horizon), 16: z < near.
+ * Work-item i takes vertices [i * per_item, (i + 1) * per_item). */
+__kernel void shot_vertices(__global const float4* vertices, uint vertex_count, uint per_item,
+                            __constant SiradShot* s, __global float4* face_coords) {
+  uint last = min((uint)get_global_id(0) * per_item + per_item, vertex_count);
+  for (uint v = get_global_id(0) * per_item; v < last; ++v) {
+    float4 p = vertices[v];
+    for (int f = 0; f < 5; ++f) {
+      float3 q = shot_face_point(s, f, p);
+      uint code = (q.x > q.z ? 1u : 0u) | (q.x < -q.z ? 2u : 0u) | (q.y > q.z ? 4u : 0u) |
+                  ((f == 0 ? q.y < -q.z : q.y < 0.0f) ? 8u : 0u) | (q.z >= s->near_z ? 0u : 16u);
+      face_coords[5 * (size_t)v + f] = (float4)(q.x, q.y, q.z, (float)code);  /* exact: code < 32 */
+    }
+  }
+}
+
 /* Slots: triangle t (0 or 1) of patch j in face f is projected[(f * patch_count + j) * 2 + t].
  * Work-item i takes patches [i * per_item, (i + 1) * per_item). */
-__kernel void project_shot(__global const float4* vertices, __global const uint4* patches,
+__kernel void project_shot(__global const float4* face_coords, __global const uint4* patches,
                            uint patch_count, uint per_item, __constant SiradShot* s,
                            __global SiradProjected* projected, __global int2* rows) {
   uint last = min((uint)get_global_id(0) * per_item + per_item, patch_count);
@@ -91,23 +111,17 @@ __kernel void project_shot(__global const float4* vertices, __global const uint4
   for (uint j = get_global_id(0) * per_item; j < last; ++j) {
     uint4 idx = patches[j];
     uint id[3] = {idx.x, idx.y, idx.z};
-    float4 v[3] = {vertices[idx.x], vertices[idx.y], vertices[idx.z]};
     for (int f = 0; f < 5; ++f) {
       size_t slot = ((size_t)f * patch_count + j) * 2;
-      float3 q[3];
-      int inside = 0;
-      for (int k = 0; k < 3; ++k) {
-        q[k] = shot_face_point(s, f, v[k]);
-        inside += q[k].z >= near_z ? 1 : 0;
-      }
+      float4 c0 = face_coords[5 * (size_t)idx.x + f], c1 = face_coords[5 * (size_t)idx.y + f],
+             c2 = face_coords[5 * (size_t)idx.z + f];
+      uint o0 = (uint)c0.w, o1 = (uint)c1.w, o2 = (uint)c2.w;
       /* Entirely beyond one side of the face's pyramid |x| <= z, |y| <= z (a half-space through
-       * the eye, convex, so the whole triangle is there), or below the horizon on a side face
-       * (only y > 0 is rendered there): no pixel sample can see it. */
-      bool outside = (q[0].x > q[0].z && q[1].x > q[1].z && q[2].x > q[2].z) ||
-                     (q[0].x < -q[0].z && q[1].x < -q[1].z && q[2].x < -q[2].z) ||
-                     (q[0].y > q[0].z && q[1].y > q[1].z && q[2].y > q[2].z) ||
-                     (f == 0 ? (q[0].y < -q[0].z && q[1].y < -q[1].z && q[2].y < -q[2].z)
-                             : (q[0].y < 0.0f && q[1].y < 0.0f && q[2].y < 0.0f));
+       * the eye, convex, so the whole triangle is there), below the horizon on a side face (only
+       * y > 0 is rendered there), or behind the near plane: no pixel sample can see it. */
+      bool outside = (o0 & o1 & o2) != 0u;
+      int inside = 3 - (int)((o0 >> 4) & 1u) - (int)((o1 >> 4) & 1u) - (int)((o2 >> 4) & 1u);
+      float3 q[3] = {c0.xyz, c1.xyz, c2.xyz};
       if (inside == 0 || outside) {
         shot_empty(projected + slot, rows + slot);
         shot_empty(projected + slot + 1, rows + slot + 1);
