@@ -30,6 +30,10 @@ uint64_t total_bundles(const RunResult& r) {
 // node's share is K r_s / sum_i r_i within one grant. The fast nodes never wait on it: their idle time (from
 // a REPORT to the next GRANT, answered at once in async mode) stays near zero. The furnace
 // stays unbiased: 4 standard deviations of a 2000-bundle chain average, 0.04 sqrt(1024/2000).
+// Idle bound: 2 % of busy time for the REPORT-to-GRANT round trips, plus the run's tail, when the
+// budget is given out and the fast nodes wait for the slow node's outstanding work: with the
+// async grant queue of depth 2 that is up to 2 grants, 16 slow bundles (one grant, as first
+// written, was too little: a loaded parallel ctest measured 16.6 slow-bundle times of idle).
 TEST(Emulation, AsyncSlowNodeTakesProportionallyFewerAndNobodyWaits) {
   RunConfig c = furnace(2000);
   c.mesh_options.target_patches = 1200;  // bundles of about a millisecond, grants of 8
@@ -52,7 +56,7 @@ TEST(Emulation, AsyncSlowNodeTakesProportionallyFewerAndNobodyWaits) {
   for (const char* fast : {"n0", "n1"}) {
     const NodeReport& f = node_named(o.result, fast);
     EXPECT_LT(slow.bundles / slow.busy_s, 0.4 * f.bundles / f.busy_s) << "the slowdown acted";
-    EXPECT_LT(f.idle_s, 0.02 * f.busy_s + 8 / (slow.bundles / (slow.busy_s + slow.idle_s))) << fast << " waited";
+    EXPECT_LT(f.idle_s, 0.02 * f.busy_s + 2 * 8 / (slow.bundles / (slow.busy_s + slow.idle_s))) << fast << " waited";
   }
   EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04 * std::sqrt(1024.0 / 2000.0));
 }
