@@ -207,6 +207,8 @@ int render(const RenderArgs& a) {
   if (parse_directions(a.directions) == Directions::stratified && rule != UpdateRule::chain)
     fail("--directions stratified needs --rule chain (under average it biases the estimate)");
   check_first_shot(a.shots_per_bundle, a.shot_resolution);
+  if (a.target_error > 0 && a.nodes == 0 && rule != UpdateRule::chain)
+    fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
   std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
   check_output_name(out);
 

@@ -17,6 +17,7 @@ class ClShotEngine final : public ShotEngine {
   ClShotEngine(const PatchMesh& mesh, const std::string& device) : n_(mesh.size()) {
     device_ = select_device(device);
     info_ = describe_device(device_);
+    max_alloc_ = device_.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
     context_ = cl::Context(device_);
     profile_ = std::getenv("SIRAD_PROFILE") != nullptr;
     queue_ = cl::CommandQueue(context_, device_, profile_ ? CL_QUEUE_PROFILING_ENABLE : 0);
@@ -77,6 +78,11 @@ class ClShotEngine final : public ShotEngine {
     if (capacity_ == 0) capacity_ = 4 * 2 * n_ / std::max(1, bands / 5) + 4096;
     capacity_ = std::min<uint64_t>(capacity_, 2 * std::max<std::size_t>(n_, 1));
     if (capacity_ > 0xffffffffu / static_cast<uint64_t>(bands)) fail("shot scratch of {} triangles x {} bands is beyond 32-bit indexing", capacity_, bands);
+    // One busy band sets the capacity of all (a GPU has a band per row): refuse clearly before
+    // the device does.
+    if (capacity_ * static_cast<uint64_t>(bands) * sizeof(cl_uint) > max_alloc_)
+      fail("first shot: {} triangles x {} bands of scratch exceed the device's largest buffer ({} MiB); "
+           "lower --shot-resolution or the patch count", capacity_, bands, max_alloc_ >> 20);
     params_host_.capacity = static_cast<sirad_u32>(capacity_);
     if (H != allocated_resolution_ || bands != allocated_bands_ || capacity_ != allocated_capacity_) {
       band_list_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(capacity_) * bands * sizeof(cl_uint));
@@ -139,7 +145,7 @@ class ClShotEngine final : public ShotEngine {
   cl_uint per_item_ = 1;
   cl::Buffer vertices_, patches_, params_, face_coords_, projected_, rows_, band_list_, zbuf_, zwin_, image_, stats_;
   SiradShot params_host_{};
-  uint64_t capacity_ = 0, allocated_capacity_ = 0;
+  uint64_t capacity_ = 0, allocated_capacity_ = 0, max_alloc_ = 0;
   int allocated_resolution_ = 0, allocated_bands_ = 0;
   bool profile_ = false;
   cl::Event events_[2];

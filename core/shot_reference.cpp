@@ -50,6 +50,7 @@ struct Seen {
 Seen trace(const PatchMesh& mesh, const std::vector<glm::vec4>& vertices, const SiradShot& s, const Ray& r) {
   Seen seen;
   double best = std::numeric_limits<double>::infinity();
+  double w1 = 0.0, w2 = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
     const auto& t = mesh.patches[j];
     glm::dvec3 a(vertices[t[0]]), b(vertices[t[1]]), c(vertices[t[2]]);
@@ -61,15 +62,20 @@ Seen trace(const PatchMesh& mesh, const std::vector<glm::vec4>& vertices, const 
     if (seen.patch == SIRAD_NO_PATCH) take = true;
     else if (std::abs(w - wo) <= static_cast<double>(s.depth_tie) * std::max(w, wo)) take = faces && !seen.faces;
     else take = w > wo;
-    double gap = seen.patch == SIRAD_NO_PATCH ? std::numeric_limits<double>::infinity()
-                                              : std::abs(w - wo) / std::max(w, wo);
-    seen.runner_up = std::min(seen.runner_up, gap);
+    // The two nearest hits of all (largest 1 / z), whatever the tie rule picks.
+    if (w > w1) {
+      w2 = w1;
+      w1 = w;
+    } else if (w > w2) {
+      w2 = w;
+    }
     if (take) {
       best = d;
       seen.patch = static_cast<uint32_t>(j);
       seen.faces = faces;
     }
   }
+  if (w2 > 0.0) seen.runner_up = (w1 - w2) / w1;
   return seen;
 }
 

@@ -60,7 +60,9 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   sum_.assign(n, glm::dvec3(0.0));
   others_sum_.assign(n, glm::dvec3(0.0));
   others_count_.assign(n, 0);
-  if (options.track_error) batches_ = std::make_unique<BatchMeans>(n);
+  // Batch means assume the chain's estimates; under the average rule each one depends on the
+  // running mean of all before it and batch means would understate the error: not tracked.
+  if (options.track_error && options.rule == UpdateRule::chain) batches_ = std::make_unique<BatchMeans>(n);
   source_.resize(n);
   for (std::size_t j = 0; j < n; ++j) source_[j] = glm::dvec3(mesh.emission(j));
   state_ = source_;

@@ -41,7 +41,7 @@ struct SolverOptions {
   // [floor(k X), floor((k + 1) X)) of the run, or shot floor(k X) when that range is empty.
   double shots_per_bundle = 0.0;
   int shot_resolution = 0;  // hemicube side H; 0: auto_shot_resolution(mesh)
-  bool track_error = false; // keep batch means of the estimates (error_estimate())
+  bool track_error = false; // keep batch means of the estimates (error_estimate()); chain rule only
 };
 
 // The shots step `index` of `stream` uses under `shots_per_bundle` X: [first, first + count).

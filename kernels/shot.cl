@@ -36,26 +36,29 @@ SIRAD_INLINE float3 shot_clip_point(float3 a, uint ia, float3 b, uint ib, float 
 }
 
 /* One projected triangle of face f, or an empty one (rows that no band lets through). */
+/* `plane` = (z0, dzdx, dzdy): 1 / z of the patch's plane as an affine function of the pixel
+ * coordinates, anchored at the face centre (offset_x, offset_y): computed once per patch and
+ * face from the unclipped patch (shot_plane), so that a near-plane clip point never anchors it
+ * and both faces of a thin wall get the same plane to rounding. */
 SIRAD_INLINE void shot_triangle(__constant SiradShot* s, int f, float3 q0, float3 q1, float3 q2,
-                                __global SiradProjected* out, __global int2* out_rows) {
+                                float3 plane, __global SiradProjected* out, __global int2* out_rows) {
   float X0 = q0.x / q0.z * s->scale + s->offset_x, Y0 = q0.y / q0.z * s->scale + s->offset_y;
   float X1 = q1.x / q1.z * s->scale + s->offset_x, Y1 = q1.y / q1.z * s->scale + s->offset_y;
   float X2 = q2.x / q2.z * s->scale + s->offset_x, Y2 = q2.y / q2.z * s->scale + s->offset_y;
-  float W0 = 1.0f / q0.z, W1 = 1.0f / q1.z, W2 = 1.0f / q2.z;
   float area2 = edge_raw(X0, Y0, X1, Y1, X2, Y2);
   /* Seen from the eye, a patch whose front faces it turns clockwise: the signed area of the
    * projection has the sign of q0 . n (see DESIGN.md's note on the first shot). Store it
    * counter-clockwise and keep "faces the eye" in the FRONT bit. */
   bool faces_eye = area2 < 0.0f;
-  float x1 = faces_eye ? X2 : X1, y1 = faces_eye ? Y2 : Y1, w1 = faces_eye ? W2 : W1;
-  float x2 = faces_eye ? X1 : X2, y2 = faces_eye ? Y1 : Y2, w2 = faces_eye ? W1 : W2;
+  float x1 = faces_eye ? X2 : X1, y1 = faces_eye ? Y2 : Y1;
+  float x2 = faces_eye ? X1 : X2, y2 = faces_eye ? Y1 : Y2;
   SiradProjected p;
   p.flags = faces_eye ? SIRAD_FRONT_POS : 0u;
   set_edge(&p, 0, X0, Y0, x1, y1);
   set_edge(&p, 1, x1, y1, x2, y2);
   set_edge(&p, 2, x2, y2, X0, Y0);
-  p.x0 = X0;
-  p.y0 = Y0;
+  p.x0 = s->offset_x;
+  p.y0 = s->offset_y;
   p.xmin = fmin(X0, fmin(x1, x2));
   p.xmax = fmax(X0, fmax(x1, x2));
   p.pad = 0u;
@@ -66,15 +69,26 @@ SIRAD_INLINE void shot_triangle(__constant SiradShot* s, int f, float3 q0, float
     p.rows[0] = 0x7fffffff;
     p.rows[1] = -0x7fffffff;
   } else {
-    p.z0 = W0;
-    p.dzdx = ((w1 - W0) * (y2 - Y0) - (w2 - W0) * (y1 - Y0)) / a;
-    p.dzdy = ((w2 - W0) * (x1 - X0) - (w1 - W0) * (x2 - X0)) / a;
+    p.z0 = plane.x;
+    p.dzdx = plane.y;
+    p.dzdy = plane.z;
     float ylo = fmin(Y0, fmin(y1, y2)), yhi = fmax(Y0, fmax(y1, y2));
     p.rows[0] = (int)ceil(fmax(ylo, (float)first_row));
     p.rows[1] = (int)floor(fmin(yhi, (float)(s->resolution - 1)));
   }
   *out = p;
   *out_rows = (int2)(p.rows[0], p.rows[1]);
+}
+
+/* The plane of the unclipped patch q0 q1 q2 (face coordinates): N . q = d. Along the pixel ray
+ * q = z (u, v, 1), u = (X - offset_x) / scale, v = (Y - offset_y) / scale, it gives
+ * 1 / z = (N.x u + N.y v + N.z) / d. d = 0 (the plane through the eye: seen edge-on) gives a
+ * zero plane; such a patch covers no pixel sample's area anyway. */
+SIRAD_INLINE float3 shot_plane(__constant SiradShot* s, float3 q0, float3 q1, float3 q2) {
+  float3 n = cross(q1 - q0, q2 - q0);
+  float d = dot(n, q0);
+  if (d == 0.0f) return (float3)(0.0f);
+  return (float3)(n.z / d, n.x / (d * s->scale), n.y / (d * s->scale));
 }
 
 SIRAD_INLINE void shot_empty(__global SiradProjected* out, __global int2* out_rows) {
@@ -127,8 +141,9 @@ __kernel void project_shot(__global const float4* face_coords, __global const ui
         shot_empty(projected + slot + 1, rows + slot + 1);
         continue;
       }
+      float3 plane = shot_plane(s, q[0], q[1], q[2]);
       if (inside == 3) {
-        shot_triangle(s, f, q[0], q[1], q[2], projected + slot, rows + slot);
+        shot_triangle(s, f, q[0], q[1], q[2], plane, projected + slot, rows + slot);
         shot_empty(projected + slot + 1, rows + slot + 1);
         continue;
       }
@@ -142,8 +157,8 @@ __kernel void project_shot(__global const float4* face_coords, __global const ui
         if (in0) poly[m++] = q[k];
         if (in0 != in1) poly[m++] = shot_clip_point(q[k], id[k], q[k1], id[k1], near_z);
       }
-      shot_triangle(s, f, poly[0], poly[1], poly[2], projected + slot, rows + slot);
-      if (m == 4) shot_triangle(s, f, poly[0], poly[2], poly[3], projected + slot + 1, rows + slot + 1);
+      shot_triangle(s, f, poly[0], poly[1], poly[2], plane, projected + slot, rows + slot);
+      if (m == 4) shot_triangle(s, f, poly[0], poly[2], poly[3], plane, projected + slot + 1, rows + slot + 1);
       else shot_empty(projected + slot + 1, rows + slot + 1);
     }
   }
