@@ -244,7 +244,7 @@ int render(const RenderArgs& a) {
   Solver solver(mesh, *engine, so, shots.get());
   Progress progress(a.bundles, a.quiet);
   // --target-error: the batch-means estimate (core/error_estimate.h), checked every 16 bundles
-  // once it rests on 8 batches or more; --time-limit: wall time. --bundles stays the cap.
+  // once it is ready (Solver::error_estimate_ready); --time-limit: wall time. --bundles stays the cap.
   std::string ended_by = "budget";
   int64_t done = 0;
   for (int64_t k = 0; k < a.bundles; ++k) {
@@ -256,7 +256,7 @@ int render(const RenderArgs& a) {
       ended_by = "time limit";
       break;
     }
-    if (a.target_error > 0 && done % 16 == 0 && solver.batch_count() >= 8) {
+    if (a.target_error > 0 && done % 16 == 0 && solver.error_estimate_ready()) {
       double e = solver.error_estimate();
       if (e >= 0 && e <= a.target_error) {
         ended_by = fmt::format("target error (estimate {:.4f})", e);

@@ -76,6 +76,13 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   }
 }
 
+bool Solver::error_estimate_ready() const {
+  if (!batches_ || batches_->full_batches() < 8) return false;
+  double x = shots_ ? options_.shots_per_bundle : 0.0;
+  double shared = x > 0.0 && x < 1.0 ? std::ceil(4.0 / x) : 4.0;
+  return static_cast<double>(batches_->batch_size()) >= std::max(4.0, shared);
+}
+
 void Solver::update_source(uint64_t index, Stream stream) {
   if (shots_ == nullptr) return;
   ShotRange range = shots_of_step(options_.shots_per_bundle, index);

@@ -78,6 +78,10 @@ class Solver {
   // patch (core/error_estimate.h), or a negative value while there are too few bundles.
   double error_estimate() const { return batches_ ? batches_->relative_error(mesh_) : -1.0; }
   int batch_count() const { return batches_ ? batches_->full_batches() : 0; }
+  // Whether error_estimate() can be trusted for stopping: at least 8 full batches, each long
+  // against the correlations between consecutive estimates: the chain's (a few steps) and, with
+  // fewer than one shot per bundle, the 1 / X steps that share a shot: size >= max(4, 4 / X).
+  bool error_estimate_ready() const;
   uint64_t crossings() const { return crossings_; }
   int grid() const { return grid_; }
   int burn_in() const { return burn_in_; }

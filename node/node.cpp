@@ -300,8 +300,9 @@ class Node {
     busy_s_ += seconds(Clock::now() - start);
     report.set_busy_s(busy_s_);
     report.set_idle_s(idle_s_);
-    // Only once the batch means rest on 8 batches: fewer make an estimate that dips by chance.
-    if (state_->solver->batch_count() >= 8) report.set_error_estimate(state_->solver->error_estimate());
+    // Only once the batch means are ready (8 batches, each long against the correlations between
+    // consecutive estimates): fewer or shorter make an estimate that dips by chance.
+    if (state_->solver->error_estimate_ready()) report.set_error_estimate(state_->solver->error_estimate());
     Message m{Command::report, {}, chunk_frames(g.report_chunks(), report)};
     m.header = report;
     send(m);
