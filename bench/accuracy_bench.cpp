@@ -123,22 +123,19 @@ int main(int argc, char** argv) {
       if (c.direct_only) {
         // Shots only: D estimated from shots 0..k-1 against the reference's D.
         const int H = c.resolution ? c.resolution : auto_shot_resolution(mesh);
-        ShotSums sums{std::vector<glm::dvec3>(mesh.size(), glm::dvec3(0.0)), 0};
+        std::vector<glm::dvec3> direct(mesh.size(), glm::dvec3(0.0));
         EmitterTable table = emitter_table(mesh);
-        std::vector<uint32_t> image;
         double s = 0.0, to2 = -1, to1 = -1;
         uint64_t next = 4;
         for (uint64_t k = 0; s < max_seconds; ++k) {
           auto t0 = std::chrono::steady_clock::now();
-          ShotDraw draw = draw_shot(mesh, table, seed, k);
-          SiradShot shot = make_shot(mesh, draw, H);
-          shots->render(shot, image);
-          accumulate_shot(mesh, table, draw, shot, image, shot_weights(shot), sums.direct);
+          ShotSums one = run_shots(mesh, table, *shots, H, seed, k, 1);
+          for (std::size_t j = 0; j < direct.size(); ++j) direct[j] += one.direct[j];
           s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
           if (k + 1 < next) continue;
           next = std::max(next + 1, static_cast<uint64_t>(next * 1.15));
           std::vector<glm::vec3> d(mesh.size());
-          for (std::size_t j = 0; j < d.size(); ++j) d[j] = glm::vec3(sums.direct[j] / static_cast<double>(k + 1));
+          for (std::size_t j = 0; j < d.size(); ++j) d[j] = glm::vec3(direct[j] / static_cast<double>(k + 1));
           ReferenceError e = relative_rms_vs_reference(mesh, d, ref.direct, ref.direct_se);
           std::printf("%s,%zu,%llu,0,%llu,%.3f,%.5f,%.5f\n", c.name.c_str(), mesh.size(), static_cast<unsigned long long>(seed),
                       static_cast<unsigned long long>(k + 1), s, e.raw, e.corrected);

@@ -120,6 +120,16 @@ void write_outputs(const RenderArgs& a, const std::string& out, const PatchMesh&
               std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
 }
 
+// The meshing the flags ask for: --patches N, --max-edge L (not both), or about 10000 patches.
+MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<double> max_edge) {
+  if (patches && max_edge) fail("--patches and --max-edge exclude each other");
+  MeshOptions o;
+  if (patches) o.target_patches = static_cast<std::size_t>(*patches);
+  else if (max_edge) o.max_edge = *max_edge;
+  else o.target_patches = 10000;
+  return o;
+}
+
 // The embedded default: the coordinator on this thread, N nodes on their own threads, all over
 // ZeroMQ inproc with the same code as a cluster.
 int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, const PatchMesh& mesh,
@@ -199,7 +209,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
 
 int render(const RenderArgs& a) {
   // Check everything cheap before any work: flags, output place, scene, device.
-  if (a.patches && a.max_edge) fail("--patches and --max-edge exclude each other");
+  MeshOptions mesh_options = mesh_options_from(a.patches, a.max_edge);
   if (!a.profile.empty() && a.nodes == 0) fail("--profile {}: emulation needs a cluster (--nodes N)", a.profile);
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
@@ -215,10 +225,6 @@ int render(const RenderArgs& a) {
   ImportOptions import;
   import.skip_degenerate = a.skip_degenerate;
   Scene scene = load_scene(a.scene, import);
-  MeshOptions mesh_options;
-  if (a.patches) mesh_options.target_patches = static_cast<std::size_t>(*a.patches);
-  else if (a.max_edge) mesh_options.max_edge = *a.max_edge;
-  else mesh_options.target_patches = 10000;
   PatchMesh mesh = mesh_scene(scene, mesh_options);
   if (!mesh.camera) mesh.camera = default_camera(scene);
 
@@ -329,7 +335,7 @@ CLI::App* add_reference_command(CLI::App& app, ReferenceArgs& r) {
 }
 
 int reference(const ReferenceArgs& r) {
-  if (r.patches && r.max_edge) fail("--patches and --max-edge exclude each other");
+  MeshOptions mesh_options = mesh_options_from(r.patches, r.max_edge);
   if (r.options.rays_per_patch < r.options.batches)
     fail("--rays {} is below --batches {}", r.options.rays_per_patch, r.options.batches);
   if (r.options.light_samples < r.options.batches)
@@ -337,10 +343,6 @@ int reference(const ReferenceArgs& r) {
   std::string out = r.out.empty() ? std::filesystem::path(r.scene).stem().string() : r.out;
   check_output_name(out);
   Scene scene = load_scene(r.scene);
-  MeshOptions mesh_options;
-  if (r.patches) mesh_options.target_patches = static_cast<std::size_t>(*r.patches);
-  else if (r.max_edge) mesh_options.max_edge = *r.max_edge;
-  else mesh_options.target_patches = 10000;
   PatchMesh mesh = mesh_scene(scene, mesh_options);
   if (!mesh.camera) mesh.camera = default_camera(scene);
   if (!r.quiet)

@@ -21,12 +21,9 @@ class ClEngine final : public BundleEngine {
     context_ = cl::Context(device_);
     profile_ = std::getenv("SIRAD_PROFILE") != nullptr;
     queue_ = cl::CommandQueue(context_, device_, profile_ ? CL_QUEUE_PROFILING_ENABLE : 0);
-    std::string build = "-cl-std=CL1.2";
-    cl_device_fp_config fp = device_.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>();
-    if (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) build += " -cl-fp32-correctly-rounded-divide-sqrt";
-    // Experiments only (kernel variants selected by -D flags): appended to the build options.
-    if (const char* extra = std::getenv("SIRAD_CL_OPTIONS")) build += std::string(" ") + extra;
-    cl::Program program = build_program(context_, device_, {"kernels/bundle_types.h", "kernels/bundle.cl"}, build);
+    // SIRAD_CL_OPTIONS (in kernel_build_options) selects kernel variants by -D flags: experiments.
+    cl::Program program = build_program(context_, device_, {"kernels/bundle_types.h", "kernels/bundle.cl"},
+                                        kernel_build_options(device_));
     // On a CPU, eight patches per step in float8 lanes; elsewhere one patch per work-item.
     bool project8 = info_.is_cpu;
     if (const char* env = std::getenv("SIRAD_PROJECT8")) project8 = std::atoi(env) != 0;
@@ -45,10 +42,9 @@ class ClEngine final : public BundleEngine {
     // bench/RESULTS.md "Kernel tuning"): enough to balance the threads, few enough that
     // patches spanning two bands and the per-band scan of all patches stay cheap.
     if (bands_ <= 0) bands_ = info_.is_cpu ? static_cast<int>(4 * info_.compute_units) : 1 << 30;
-    // Runs of patches per work-item: whole runs on a CPU (no divergent lanes), one elsewhere.
-    patch_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(n_, 1), 16 * info_.compute_units)
-                                : std::max<std::size_t>(n_, 1);
-    per_item_ = static_cast<cl_uint>((n_ + patch_items_ - 1) / patch_items_);
+    WorkRuns runs = work_runs(info_, n_);
+    patch_items_ = runs.items;
+    per_item_ = runs.per_item;
 
     // Geometry: vertices relative to the bounding-sphere centre, patches as uint4.
     std::vector<glm::vec4> verts = centred_vertices(mesh);

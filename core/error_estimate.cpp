@@ -37,8 +37,7 @@ double BatchMeans::relative_error(const PatchMesh& mesh) const {
   const double G = full_, b = static_cast<double>(size_);
   double num = 0.0, den = 0.0;
   for (std::size_t j = 0; j < n_; ++j) {
-    glm::vec3 e = mesh.emission(j);
-    if (e.x > 0.0f || e.y > 0.0f || e.z > 0.0f) continue;
+    if (mesh.emits(j)) continue;
     glm::dvec3 mean(0.0), sq(0.0);
     for (int g = 0; g < full_; ++g) {
       glm::dvec3 m = sums_[static_cast<std::size_t>(g)][j] / b;

@@ -9,8 +9,7 @@ namespace sirad {
 double relative_rms(const PatchMesh& mesh, const std::vector<glm::vec3>& a, const std::vector<glm::vec3>& b) {
   double num = 0.0, den = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
-    glm::vec3 e = mesh.emission(j);
-    if (e.x > 0 || e.y > 0 || e.z > 0) continue;
+    if (mesh.emits(j)) continue;
     for (int c = 0; c < 3; ++c) {
       double d = static_cast<double>(a[j][c]) - b[j][c];
       num += mesh.area[j] * d * d;
@@ -24,8 +23,7 @@ ReferenceError relative_rms_vs_reference(const PatchMesh& mesh, const std::vecto
                                          const std::vector<glm::dvec3>& ref, const std::vector<glm::dvec3>& ref_se) {
   double num = 0.0, var = 0.0, den = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
-    glm::vec3 e = mesh.emission(j);
-    if (e.x > 0 || e.y > 0 || e.z > 0) continue;
+    if (mesh.emits(j)) continue;
     for (int c = 0; c < 3; ++c) {
       double d = static_cast<double>(a[j][c]) - ref[j][c];
       num += mesh.area[j] * d * d;

@@ -178,4 +178,20 @@ cl::Program build_program(const cl::Context& context, const cl::Device& device,
   return program;
 }
 
+std::string kernel_build_options(const cl::Device& device) {
+  std::string build = "-cl-std=CL1.2";
+  if (device.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>() & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT)
+    build += " -cl-fp32-correctly-rounded-divide-sqrt";
+  if (const char* extra = std::getenv("SIRAD_CL_OPTIONS")) build += std::string(" ") + extra;
+  return build;
+}
+
+WorkRuns work_runs(const DeviceInfo& info, std::size_t count) {
+  WorkRuns r;
+  r.items = info.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(count, 1), 16 * info.compute_units)
+                        : std::max<std::size_t>(count, 1);
+  r.per_item = static_cast<cl_uint>((count + r.items - 1) / r.items);
+  return r;
+}
+
 }  // namespace sirad

@@ -32,6 +32,19 @@ cl::Program build_program(const cl::Context& context, const cl::Device& device,
                           const std::vector<std::string>& resource_names,
                           const std::string& options);
 
+// The build options of every sirad program on `device`: OpenCL C 1.2, correctly rounded divide
+// and sqrt where the device offers them (the kernels then round like the host), and for
+// experiments the SIRAD_CL_OPTIONS environment variable appended.
+std::string kernel_build_options(const cl::Device& device);
+
+// Runs of `count` items (patches, vertices) per work-item: on a CPU whole runs, 16 per compute
+// unit (no divergent lanes, enough to balance the threads); elsewhere one item per work-item.
+struct WorkRuns {
+  std::size_t items = 1;  // work-items
+  cl_uint per_item = 1;   // consecutive items each takes
+};
+WorkRuns work_runs(const DeviceInfo& info, std::size_t count);
+
 // "clEnqueueNDRangeKernel: CL_OUT_OF_RESOURCES (-5)".
 std::string describe_cl_error(const cl::Error& e);
 

@@ -141,8 +141,7 @@ struct Emitter {
 std::vector<Emitter> find_emitters(const PatchMesh& mesh) {
   std::map<uint32_t, std::vector<uint32_t>> groups;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
-    glm::vec3 e = mesh.emission(j);
-    if (e.x > 0 || e.y > 0 || e.z > 0) groups[mesh.source_triangle[j]].push_back(static_cast<uint32_t>(j));
+    if (mesh.emits(j)) groups[mesh.source_triangle[j]].push_back(static_cast<uint32_t>(j));
   }
   std::vector<Emitter> out;
   auto vertex = [&](uint32_t v) { return dvec3(mesh.vertices[v]); };
@@ -458,8 +457,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
 double mean_relative_se(const PatchMesh& mesh, const ReferenceSolution& s) {
   double num = 0.0, den = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
-    glm::vec3 e = mesh.emission(j);
-    if (e.x > 0 || e.y > 0 || e.z > 0) continue;
+    if (mesh.emits(j)) continue;
     num += mesh.area[j] * glm::length(s.radiosity_se[j]);
     den += mesh.area[j] * glm::length(s.radiosity[j]);
   }

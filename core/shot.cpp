@@ -163,9 +163,13 @@ void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const Sho
 
 ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, uint64_t seed,
                    uint64_t first, uint64_t count, Stream stream) {
+  return run_shots(mesh, emitter_table(mesh), engine, resolution, seed, first, count, stream);
+}
+
+ShotSums run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine& engine, int resolution,
+                   uint64_t seed, uint64_t first, uint64_t count, Stream stream) {
   ShotSums sums;
   sums.direct.assign(mesh.size(), glm::dvec3(0.0));
-  EmitterTable table = emitter_table(mesh);
   if (table.empty()) {
     sums.shots = count;
     return sums;

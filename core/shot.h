@@ -84,6 +84,9 @@ struct ShotSums {
 };
 ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, uint64_t seed,
                    uint64_t first, uint64_t count, Stream stream = Stream::shots);
+// The same with the mesh's emitter table already built (callers that shoot repeatedly).
+ShotSums run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine& engine, int resolution,
+                   uint64_t seed, uint64_t first, uint64_t count, Stream stream = Stream::shots);
 
 // Adds one rendered shot's estimates to `direct` (per patch).
 void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const ShotDraw& draw,

@@ -21,22 +21,20 @@ class ClShotEngine final : public ShotEngine {
     context_ = cl::Context(device_);
     profile_ = std::getenv("SIRAD_PROFILE") != nullptr;
     queue_ = cl::CommandQueue(context_, device_, profile_ ? CL_QUEUE_PROFILING_ENABLE : 0);
-    std::string build = "-cl-std=CL1.2";
-    if (device_.getInfo<CL_DEVICE_SINGLE_FP_CONFIG>() & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT)
-      build += " -cl-fp32-correctly-rounded-divide-sqrt";
     cl::Program program = build_program(
-        context_, device_, {"kernels/bundle_types.h", "kernels/shot_types.h", "kernels/bundle.cl", "kernels/shot.cl"}, build);
+        context_, device_, {"kernels/bundle_types.h", "kernels/shot_types.h", "kernels/bundle.cl", "kernels/shot.cl"},
+        kernel_build_options(device_));
     vertex_kernel_ = cl::Kernel(program, "shot_vertices");
     project_ = cl::Kernel(program, "project_shot");
     raster_ = cl::Kernel(program, "raster_shot");
-    patch_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(n_, 1), 16 * info_.compute_units)
-                                : std::max<std::size_t>(n_, 1);
-    per_item_ = static_cast<cl_uint>((n_ + patch_items_ - 1) / patch_items_);
+    WorkRuns patch_runs = work_runs(info_, n_);
+    patch_items_ = patch_runs.items;
+    per_item_ = patch_runs.per_item;
     std::vector<glm::vec4> verts = centred_vertices(mesh);
     nv_ = verts.size();
-    vertex_items_ = info_.is_cpu ? std::min<std::size_t>(std::max<std::size_t>(nv_, 1), 16 * info_.compute_units)
-                                 : std::max<std::size_t>(nv_, 1);
-    per_vertex_item_ = static_cast<cl_uint>((nv_ + vertex_items_ - 1) / vertex_items_);
+    WorkRuns vertex_runs = work_runs(info_, nv_);
+    vertex_items_ = vertex_runs.items;
+    per_vertex_item_ = vertex_runs.per_item;
     std::vector<cl_uint4> tris(n_);
     for (std::size_t j = 0; j < n_; ++j) tris[j] = {{mesh.patches[j][0], mesh.patches[j][1], mesh.patches[j][2], 0u}};
     vertices_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, std::max<std::size_t>(verts.size(), 1) * sizeof(glm::vec4), verts.data());

@@ -44,7 +44,8 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   if (options.shots_per_bundle > 0.0) {
     if (shots == nullptr) fail("first shot: no shot engine given");
     // A scene that emits nothing has no direct light to shoot: D = 0 and the plain iteration.
-    if (!emitter_table(mesh).empty()) shots_ = shots;
+    emitters_ = emitter_table(mesh);
+    if (!emitters_.empty()) shots_ = shots;
     shot_resolution_ = options.shot_resolution ? options.shot_resolution : auto_shot_resolution(mesh);
   }
   if (options.grid < 0 || options.grid == 1) fail("--grid must be at least 2 (got {})", options.grid);
@@ -87,7 +88,7 @@ void Solver::update_source(uint64_t index, Stream stream) {
   if (shots_ == nullptr) return;
   ShotRange range = shots_of_step(options_.shots_per_bundle, index);
   if (stream == cached_stream_ && range.first == cached_.first && range.count == cached_.count) return;
-  ShotSums sums = run_shots(mesh_, *shots_, shot_resolution_, options_.seed, range.first, range.count, stream);
+  ShotSums sums = run_shots(mesh_, emitters_, *shots_, shot_resolution_, options_.seed, range.first, range.count, stream);
   shots_rendered_ += sums.shots;
   for (std::size_t j = 0; j < source_.size(); ++j)
     source_[j] = glm::dvec3(mesh_.emission(j)) + sums.direct[j] / static_cast<double>(sums.shots);

@@ -120,6 +120,7 @@ class Solver {
 
   void update_source(uint64_t index, Stream stream);
   ShotEngine* shots_ = nullptr;
+  EmitterTable emitters_;                  // built once: every step's shots draw from it
   std::unique_ptr<BatchMeans> batches_;
   int shot_resolution_ = 0;
   uint64_t shots_rendered_ = 0;

@@ -25,10 +25,6 @@ namespace {
 namespace fs = std::filesystem;
 using glm::dvec3;
 
-bool emits(const PatchMesh& mesh, std::size_t j) {
-  glm::vec3 e = mesh.emission(j);
-  return e.x > 0 || e.y > 0 || e.z > 0;
-}
 
 // Furnace: closed cube, E = 1, rho = 0.5: B = 2 exactly. Every row of the estimated F sums to 1
 // exactly (every ray from inside a closed cube hits a front face), and the direct part is
@@ -175,7 +171,7 @@ TEST(ReferenceStandardError, MatchesSpreadOverSeeds) {
                                           .seed = 100 + static_cast<uint64_t>(s)}));
   double v_sum = 0.0, q_sum = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
-    if (emits(mesh, j)) continue;
+    if (mesh.emits(j)) continue;
     for (int c = 0; c < 3; ++c) {
       double m = 0.0, v = 0.0, q = 0.0;
       for (const auto& r : runs) m += r.radiosity[j][c] / S;
@@ -221,10 +217,10 @@ TEST(ReferenceStandardError, MatchesSpreadOverSeeds) {
 template <typename F>
 dvec3 aggregate(const PatchMesh& mesh, F value) {
   bool all = true;
-  for (std::size_t j = 0; j < mesh.size() && all; ++j) all = emits(mesh, j);
+  for (std::size_t j = 0; j < mesh.size() && all; ++j) all = mesh.emits(j);
   dvec3 sum(0.0);
   for (std::size_t j = 0; j < mesh.size(); ++j)
-    if (all || !emits(mesh, j)) sum += static_cast<double>(mesh.area[j]) * dvec3(value(j));
+    if (all || !mesh.emits(j)) sum += static_cast<double>(mesh.area[j]) * dvec3(value(j));
   return sum;
 }
 

@@ -184,14 +184,14 @@ f 5 6 7 8
   const double exact = 0.5 * parallel_squares(1.0, 1.0);
   double receiver_area = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j)
-    if (mesh.emission(j).x == 0.0f) receiver_area += mesh.area[j];
+    if (!mesh.emits(j)) receiver_area += mesh.area[j];
   const int n = 1024;
   double sum = 0.0, sum2 = 0.0;
   for (int k = 0; k < n; ++k) {
     ShotSums s = run_shots(mesh, *cl, 32, 9, k, 1);
     double v = 0.0;
     for (std::size_t j = 0; j < mesh.size(); ++j)
-      if (mesh.emission(j).x == 0.0f) v += mesh.area[j] * s.direct[j].x;
+      if (!mesh.emits(j)) v += mesh.area[j] * s.direct[j].x;
     v /= receiver_area;
     sum += v;
     sum2 += v * v;
@@ -235,7 +235,7 @@ void check_direct(const char* name, const Scene& scene, std::size_t patches, int
   auto aggregate = [&](const std::vector<glm::dvec3>& v) {
     double sum = 0.0;
     for (std::size_t j = 0; j < mesh.size(); ++j)
-      if (mesh.emission(j) == glm::vec3(0.0f)) sum += mesh.area[j] * (v[j].x + v[j].y + v[j].z);
+      if (!mesh.emits(j)) sum += mesh.area[j] * (v[j].x + v[j].y + v[j].z);
     return sum;
   };
   double ref_agg = aggregate(ref.direct), ref_se_agg = aggregate(ref.direct_se);
@@ -245,7 +245,7 @@ void check_direct(const char* name, const Scene& scene, std::size_t patches, int
   double d = m / ref_agg - 1.0, se = std::hypot(std::sqrt(q / G), ref_se_agg) / ref_agg;
   int counted = 0, beyond = 0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
-    if (mesh.emission(j) != glm::vec3(0.0f) || ref.direct[j].x + ref.direct[j].y + ref.direct[j].z <= 0.0) continue;
+    if (mesh.emits(j) || ref.direct[j].x + ref.direct[j].y + ref.direct[j].z <= 0.0) continue;
     for (int c = 0; c < 3; ++c) {
       double mean = 0.0, var = 0.0;
       for (const auto& b : batch) mean += b[j][c] / G;
