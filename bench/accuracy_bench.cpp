@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -39,16 +40,33 @@ struct Config {
   int resolution = 0;
   bool direct_only = false;
   Directions directions = Directions::random;
+  bool control_variate = true;
+  int grid = 0;  // 0: --grid
 };
 
 Config parse_one(const std::string& text);
 
-// `CONFIG[/stratified]`: the configuration with stratified bundle directions.
+// `CONFIG[/OPTION...]`: the configuration with options: random | stratified (bundle
+// directions), cv | nocv (the transport's control variate, on by default).
 Config parse_config(const std::string& text) {
   std::size_t slash = text.find('/');
-  if (slash == std::string::npos) return parse_one(text);
   Config c = parse_one(text.substr(0, slash));
-  c.directions = parse_directions(text.substr(slash + 1));
+  while (slash != std::string::npos) {
+    std::size_t next = text.find('/', slash + 1);
+    std::string option = text.substr(slash + 1, next == std::string::npos ? std::string::npos : next - slash - 1);
+    if (option == "cv" || option == "nocv") {
+      c.control_variate = option == "cv";
+    } else if (option.rfind("grid=", 0) == 0) {
+      try {
+        c.grid = std::stoi(option.substr(5));
+      } catch (const std::exception&) {
+        fail("--config {}: expected grid=N", text);
+      }
+    } else {
+      c.directions = parse_directions(option);
+    }
+    slash = next;
+  }
   c.name = text;
   return c;
 }
@@ -149,37 +167,64 @@ int main(int argc, char** argv) {
                                       to1 < 0 ? "not reached" : fmt::format("{:.2f} s", to1)));
         continue;
       }
+    }
+    // The solver configurations run interleaved, in slices of about half a second each, so a
+    // change in the machine's speed (a shared VM's varies by 1.5x over minutes) falls on all
+    // of them alike; each one's time is its own solver time only.
+    struct Run {
+      const Config* config;
+      std::unique_ptr<Solver> solver;
+      double seconds = 0.0, to2 = -1.0, to1 = -1.0;
+      uint64_t next = 4;
+      bool done = false;
+    };
+    std::vector<Run> runs;
+    for (const Config& c : parsed) {
+      if (c.direct_only) continue;
       SolverOptions so;
       so.seed = seed;
-      so.grid = grid;
+      so.grid = c.grid ? c.grid : grid;
       so.shots_per_bundle = c.shots_per_bundle;
       so.shot_resolution = c.resolution;
       so.directions = c.directions;
-      double solver_s = 0.0;
+      so.control_variate = c.control_variate;
+      Run run{&c};
       auto t0 = std::chrono::steady_clock::now();
-      Solver solver(mesh, *engine, so, shots.get());
-      solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      double to2 = -1, to1 = -1;
-      uint64_t next = 4;
-      for (uint64_t k = 0; solver_s < max_seconds; ++k) {
-        t0 = std::chrono::steady_clock::now();
-        solver.step(k);
-        solver_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        if (k + 1 < next) continue;
-        next = std::max(next + 1, static_cast<uint64_t>(next * 1.15));
-        ReferenceError e = relative_rms_vs_reference(mesh, solver.estimate(), ref.radiosity, ref.radiosity_se);
-        std::printf("%s,%zu,%llu,%llu,%llu,%.3f,%.5f,%.5f\n", c.name.c_str(), mesh.size(),
-                    static_cast<unsigned long long>(seed), static_cast<unsigned long long>(k + 1),
-                    static_cast<unsigned long long>(solver.shots_rendered()), solver_s, e.raw, e.corrected);
-        std::fflush(stdout);
-        if (to2 < 0 && e.corrected <= 0.02) to2 = solver_s;
-        if (to1 < 0 && e.corrected <= 0.01) to1 = solver_s;
-        if (to1 >= 0) break;
-      }
-      summary.push_back(fmt::format("# {}: {} patches, H {}, time to 2 %: {}, to 1 %: {}", c.name, mesh.size(),
-                                    solver.shot_resolution(), to2 < 0 ? "not reached" : fmt::format("{:.2f} s", to2),
-                                    to1 < 0 ? "not reached" : fmt::format("{:.2f} s", to1)));
+      run.solver = std::make_unique<Solver>(mesh, *engine, so, shots.get());
+      run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      runs.push_back(std::move(run));
     }
+    for (bool any = true; any;) {
+      any = false;
+      for (Run& run : runs) {
+        if (run.done) continue;
+        any = true;
+        Solver& solver = *run.solver;
+        for (double slice = 0.0; slice < 0.5 && run.seconds < max_seconds;) {
+          auto t0 = std::chrono::steady_clock::now();
+          solver.step(solver.bundles());
+          double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          slice += dt;
+          run.seconds += dt;
+          if (solver.bundles() < run.next) continue;
+          run.next = std::max(run.next + 1, static_cast<uint64_t>(run.next * 1.15));
+          ReferenceError e = relative_rms_vs_reference(mesh, solver.estimate(), ref.radiosity, ref.radiosity_se);
+          std::printf("%s,%zu,%llu,%llu,%llu,%.3f,%.5f,%.5f\n", run.config->name.c_str(), mesh.size(),
+                      static_cast<unsigned long long>(seed), static_cast<unsigned long long>(solver.bundles()),
+                      static_cast<unsigned long long>(solver.shots_rendered()), run.seconds, e.raw, e.corrected);
+          std::fflush(stdout);
+          if (run.to2 < 0 && e.corrected <= 0.02) run.to2 = run.seconds;
+          if (run.to1 < 0 && e.corrected <= 0.01) run.to1 = run.seconds;
+          if (run.to1 >= 0) break;
+        }
+        run.done = run.to1 >= 0 || run.seconds >= max_seconds;
+      }
+    }
+    for (const Run& run : runs)
+      summary.push_back(fmt::format("# {}: {} patches, grid {}, H {}, time to 2 %: {}, to 1 %: {}", run.config->name, mesh.size(),
+                                    run.solver->grid(), run.solver->shot_resolution(),
+                                    run.to2 < 0 ? "not reached" : fmt::format("{:.2f} s", run.to2),
+                                    run.to1 < 0 ? "not reached" : fmt::format("{:.2f} s", run.to1)));
     for (const auto& s : summary) std::printf("%s\n", s.c_str());
   } catch (const Error& e) {
     std::fprintf(stderr, "sirad_bench_accuracy: error: %s\n", e.what());

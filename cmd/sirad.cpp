@@ -38,6 +38,7 @@ struct RenderArgs {
   std::string device;
   std::string rule = "chain";
   std::string directions = "random";
+  std::string control_variate = "on";
   std::optional<int> burn_in;
   double shots_per_bundle = kDefaultShotsPerBundle;
   int shot_resolution = 0;
@@ -102,6 +103,7 @@ Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, 
       {"sirad.seed", std::to_string(a.seed)},
       {"sirad.rule", std::string(to_string(rule))},
       {"sirad.directions", a.directions},
+      {"sirad.control_variate", a.control_variate},
       {"sirad.nodes", static_cast<int64_t>(std::max(a.nodes, 1))},
       {"sirad.exchange_every", a.exchange_every},
       {"sirad.exchange_fraction", a.exchange_fraction},
@@ -142,6 +144,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.grid = a.grid.value_or(0);
   rc.rule = rule;
   rc.directions = parse_directions(a.directions);
+  rc.control_variate = a.control_variate == "on";
   rc.burn_in = a.burn_in.value_or(-1);
   rc.shots_per_bundle = a.shots_per_bundle;
   rc.shot_resolution = a.shot_resolution;
@@ -235,6 +238,7 @@ int render(const RenderArgs& a) {
   so.grid = a.grid.value_or(0);
   so.rule = rule;
   so.directions = parse_directions(a.directions);
+  so.control_variate = a.control_variate == "on";
   so.burn_in = a.burn_in.value_or(-1);
   so.shots_per_bundle = a.shots_per_bundle;
   so.shot_resolution = a.shot_resolution;
@@ -403,6 +407,9 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--directions", r.directions,
                          "Bundle directions: random (default) or stratified (chain rule only)")
       ->check(CLI::IsMember({"random", "stratified"}))->capture_default_str();
+  render_cmd->add_option("--control-variate", r.control_variate,
+                         "The transport's constant control variate: on (default) or off (the plain estimator)")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   render_cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
       ->check(CLI::Range(0, 1 << 20));
   render_cmd->add_option("--shots-per-bundle", r.shots_per_bundle,

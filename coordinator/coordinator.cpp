@@ -58,6 +58,7 @@ class Coordinator {
     run_.set_rule(to_string(config.rule));
     run_.set_burn_in(config.burn_in);
     run_.set_directions(to_string(config.directions));
+    run_.set_no_control_variate(!config.control_variate);
     if (config.directions == Directions::stratified && config.rule != UpdateRule::chain)
       fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
     interleave_ = sampling_plan(mesh, config.directions).interleave;
@@ -523,6 +524,7 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
       {"sirad.seed", std::to_string(c.seed)},
       {"sirad.rule", std::string(to_string(c.rule))},
       {"sirad.directions", std::string(to_string(c.directions))},
+      {"sirad.control_variate", std::string(c.control_variate ? "on" : "off")},
       {"sirad.shots_per_bundle", c.shots_per_bundle},
       {"sirad.nodes", static_cast<int64_t>(r.nodes.size())},
       {"sirad.exchange_every", c.exchange_every == 0 ? std::string("end") : std::to_string(c.exchange_every)},

@@ -32,6 +32,7 @@ struct RunConfig {
   UpdateRule rule = UpdateRule::chain;
   int burn_in = -1;
   Directions directions = Directions::random;  // stratified: chain rule only
+  bool control_variate = true;  // the transport's control variate (core/solver.h SolverOptions)
   double shots_per_bundle = 0;  // first shot: shots rendered per bundle (0: off)
   int shot_resolution = 0;      // hemicube side (0: auto)
   uint32_t exchange_every = 0;  // I; 0: states only at the end

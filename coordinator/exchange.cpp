@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/error.h"
 
@@ -134,9 +135,14 @@ void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint
     fail("node {}: chunk {} has {} values, expected {}", node, chunk, sum.size(), 3 * chunk_size(chunk));
   Part& part = state_[node][chunk];
   if (count < part.count) fail("node {}: count of chunk {} went back from {} to {}", node, chunk, part.count, count);
+  // Sums are signed: the transport's control variate (core/solver.cpp) makes a single
+  // estimate of a nearly dark patch negative at times. What no node can send: a non-finite
+  // value, one beyond count x the largest float (every estimate is made from floats), or
+  // anything but zeros with a count of 0.
+  const double limit = static_cast<double>(count) * static_cast<double>(std::numeric_limits<float>::max());
   for (std::size_t i = 0; i < sum.size(); ++i)
-    if (!std::isfinite(sum[i]) || sum[i] < 0.0)
-      fail("node {}: chunk {} value {} is {}", node, chunk, i, sum[i]);
+    if (!std::isfinite(sum[i]) || std::fabs(sum[i]) > limit)
+      fail("node {}: chunk {} value {} is {} ({} bundles)", node, chunk, i, sum[i], count);
   part.sum = std::move(sum);
   part.count = count;
 }

@@ -42,6 +42,9 @@ struct SolverOptions {
   double shots_per_bundle = 0.0;
   int shot_resolution = 0;  // hemicube side H; 0: auto_shot_resolution(mesh)
   bool track_error = false; // keep batch means of the estimates (error_estimate()); chain rule only
+  // The transport's constant control variate (Solver::transport): unbiased either way; on,
+  // it removes the noise of how many lines happen to cross a patch and of their cosine.
+  bool control_variate = true;
 };
 
 // The shots step `index` of `stream` uses under `shots_per_bundle` X: [first, first + count).
@@ -60,10 +63,12 @@ int auto_burn_in(const PatchMesh& mesh);
 class Solver {
  public:
   // With options.shots_per_bundle > 0 every step also renders its first-shot samples on
-  // `shots` and becomes  L'(m) = E + D_m + T*_m (L'(m-1) - E):  the bundles carry only the
+  // `shots` and becomes  L'(m) = E + D_m + T*_m (S(m-1) - E):  the bundles carry only the
   // indirect part Y = B - E, and D_m, an unbiased estimate of the direct light D = rho F E
-  // independent of the transport, replaces its noisy part. Everything the solver reports
-  // (estimate, sum, state) stays in units of B.
+  // independent of the transport, replaces its noisy part. Under the chain rule the input
+  // S(m) = E + D-bar_m + T*_m (S(m-1) - E) differs from L'(m) only in its direct light: the
+  // mean of all shots so far (see transport()). Everything the solver reports (estimate, sum,
+  // state) stays in units of B.
   Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options,
          ShotEngine* shots = nullptr);
 
@@ -92,7 +97,7 @@ class Solver {
   std::vector<glm::vec3> estimate() const;
   // Sum of the per-bundle estimates L'(1..m), double precision.
   const std::vector<glm::dvec3>& sum() const { return sum_; }
-  // The input of the next transport: L'(m) under chain, L(m) under average.
+  // The input of the next transport: L'(m) under chain (S(m) with a first shot), L(m) under average.
   const std::vector<glm::dvec3>& state() const { return state_; }
   // The last bundle's raw result (gathered sums and hits), for tests and diagnostics.
   const BundleResult& last() const { return result_; }
@@ -103,8 +108,9 @@ class Solver {
   // chain it is kept (for the cluster's error estimate) and the chain itself is untouched.
   void absorb(std::size_t first, std::span<const glm::dvec3> others, uint64_t others_count);
 
-  // E (+ D) + rho (2 delta / A) gathered: one transport of the radiance that produced `gathered`.
-  std::vector<glm::dvec3> transport(const BundleResult& gathered) const;
+  // E (+ D) + rho * (the incoming radiance estimated from `gathered`): one transport of the
+  // radiance that produced it. Records the incoming estimate for the next control variate.
+  std::vector<glm::dvec3> transport(const BundleResult& gathered);
 
  private:
   void run_bundle(uint64_t index, Stream stream);
@@ -131,6 +137,11 @@ class Solver {
   std::vector<glm::dvec3> others_sum_;     // O_p per patch
   std::vector<uint64_t> others_count_;     // M_p per patch
   std::vector<glm::vec4> input_;
+  std::vector<glm::dvec3> incoming_sum_;   // per patch: sum of the incoming estimates so far
+  uint64_t incoming_count_ = 0;            // transports summed there (burn-in included)
+  std::vector<glm::dvec3> direct_sum_;     // sum of every shot's direct light so far (D-bar * shots)
+  uint64_t direct_shots_ = 0;
+  std::vector<glm::dvec3> next_state_;     // the chain's next input, made by transport()
   BundleResult result_;
   uint64_t count_ = 0, crossings_ = 0;
 };

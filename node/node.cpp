@@ -250,6 +250,7 @@ class Node {
       so.rule = parse_update_rule(run.rule());
       so.burn_in = run.burn_in();
       so.directions = run.directions().empty() ? Directions::random : parse_directions(run.directions());
+      so.control_variate = !run.no_control_variate();
       so.chain_id = pending_->index;
       // Its batch means go out with each REPORT (chain rule; memory-bounded: error_estimate.h).
       so.track_error = so.rule == UpdateRule::chain && pending_->mesh.size() <= kTrackErrorMaxPatches;

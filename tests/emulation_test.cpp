@@ -151,6 +151,7 @@ TEST(RunEnds, AtTheTargetError) {
   RunConfig c = furnace(20000);  // about 10 s if the target never ends it
   c.exchange_every = 8;
   c.target_error = 0.03;
+  c.control_variate = false;  // with it the furnace is nearly exact at once (solver_test.cpp)
   Outcome o = run_cluster(c, 3, "inproc://ends-target");
   double rms = furnace_rms(o);
   std::printf("target 0.03: ended after %llu bundles (%s), true RMS error %.4f\n",

@@ -108,7 +108,10 @@ TEST(ClusterAggregate, RefusesImpossibleStates) {
   auto nan = std::vector<double>(6, 1.0);
   nan[3] = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(agg.set(1, 0, nan, 1), Error);
-  EXPECT_THROW(agg.set(1, 0, std::vector<double>(6, -1.0), 1), Error);
+  EXPECT_THROW(agg.set(1, 0, std::vector<double>(6, 1e39), 1), Error);   // beyond any float estimate
+  EXPECT_THROW(agg.set(1, 0, std::vector<double>(6, 1.0), 0), Error);    // values from no bundle
+  agg.set(1, 1, std::vector<double>(6, -1.0), 2);  // signed sums are legal (control variate)
+  EXPECT_EQ(agg.state(1, 1).count, 2u);
   EXPECT_EQ(agg.state(0, 1).count, 5u);  // unchanged by the refusals
   EXPECT_EQ(agg.count(0), 0u);
   EXPECT_THROW(chunk_starts(3, 4), Error);
