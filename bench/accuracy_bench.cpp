@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
         uint64_t next = 4;
         for (uint64_t k = 0; s < max_seconds; ++k) {
           auto t0 = std::chrono::steady_clock::now();
-          ShotSums one = run_shots(mesh, table, *shots, H, seed, k, 1);
+          ShotSums one = run_shots(mesh, table, *shots, H, seed, k, 1, Stream::shots, c.directions == Directions::stratified);
           for (std::size_t j = 0; j < direct.size(); ++j) direct[j] += one.direct[j];
           s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
           if (k + 1 < next) continue;

@@ -37,7 +37,7 @@ struct RenderArgs {
   std::string out;
   std::string device;
   std::string rule = "chain";
-  std::string directions = "random";
+  std::string directions = "auto";
   std::string control_variate = "on";
   std::optional<int> burn_in;
   double shots_per_bundle = kDefaultShotsPerBundle;
@@ -102,7 +102,7 @@ Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, 
       {"sirad.grid", static_cast<int64_t>(grid)},
       {"sirad.seed", std::to_string(a.seed)},
       {"sirad.rule", std::string(to_string(rule))},
-      {"sirad.directions", a.directions},
+      {"sirad.directions", std::string(to_string(resolve_directions(a.directions, rule)))},
       {"sirad.control_variate", a.control_variate},
       {"sirad.nodes", static_cast<int64_t>(std::max(a.nodes, 1))},
       {"sirad.exchange_every", a.exchange_every},
@@ -143,7 +143,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.seed = a.seed;
   rc.grid = a.grid.value_or(0);
   rc.rule = rule;
-  rc.directions = parse_directions(a.directions);
+  rc.directions = resolve_directions(a.directions, rule);
   rc.control_variate = a.control_variate == "on";
   rc.burn_in = a.burn_in.value_or(-1);
   rc.shots_per_bundle = a.shots_per_bundle;
@@ -217,8 +217,7 @@ int render(const RenderArgs& a) {
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   UpdateRule rule = parse_update_rule(a.rule);
-  if (parse_directions(a.directions) == Directions::stratified && rule != UpdateRule::chain)
-    fail("--directions stratified needs --rule chain (under average it biases the estimate)");
+  resolve_directions(a.directions, rule);
   check_first_shot(a.shots_per_bundle, a.shot_resolution);
   if (a.target_error > 0 && a.nodes == 0 && rule != UpdateRule::chain)
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
@@ -237,7 +236,7 @@ int render(const RenderArgs& a) {
   so.seed = a.seed;
   so.grid = a.grid.value_or(0);
   so.rule = rule;
-  so.directions = parse_directions(a.directions);
+  so.directions = resolve_directions(a.directions, rule);
   so.control_variate = a.control_variate == "on";
   so.burn_in = a.burn_in.value_or(-1);
   so.shots_per_bundle = a.shots_per_bundle;
@@ -248,7 +247,7 @@ int render(const RenderArgs& a) {
   if (!a.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule, %s directions), %g shots per bundle, on %s\n",
                  a.scene.c_str(), mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
-                 to_string(rule), a.directions.c_str(), so.shots_per_bundle, engine->description().c_str());
+                 to_string(rule), to_string(so.directions), so.shots_per_bundle, engine->description().c_str());
 
   auto start = std::chrono::steady_clock::now();
   Solver solver(mesh, *engine, so, shots.get());
@@ -405,8 +404,8 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
       ->check(CLI::IsMember({"chain", "average"}));
   render_cmd->add_option("--directions", r.directions,
-                         "Bundle directions: random (default) or stratified (chain rule only)")
-      ->check(CLI::IsMember({"random", "stratified"}))->capture_default_str();
+                         "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified")
+      ->check(CLI::IsMember({"auto", "random", "stratified"}))->capture_default_str();
   render_cmd->add_option("--control-variate", r.control_variate,
                          "The transport's constant control variate: on (default) or off (the plain estimator)")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();

@@ -24,7 +24,7 @@ using namespace sirad;
 int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
   std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
-                          rule = "chain", directions = "random", control_variate = "on", endpoint_file, status_json, profile;
+                          rule = "chain", directions = "auto", control_variate = "on", endpoint_file, status_json, profile;
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
@@ -40,8 +40,8 @@ int main(int argc, char** argv) {
   app.add_option("--seed", seed, "Run seed")->capture_default_str();
   app.add_option("--out", out, "Output name (default: scene name)");
   app.add_option("--rule", rule, "chain or average")->check(CLI::IsMember({"chain", "average"}))->capture_default_str();
-  app.add_option("--directions", directions, "Bundle directions: random or stratified (chain rule only)")
-      ->check(CLI::IsMember({"random", "stratified"}))->capture_default_str();
+  app.add_option("--directions", directions, "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified")
+      ->check(CLI::IsMember({"auto", "random", "stratified"}))->capture_default_str();
   app.add_option("--control-variate", control_variate, "The transport's constant control variate: on or off")
       ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   app.add_option("--shots-per-bundle", shots_per_bundle, "First shot: hemicube shots from the emitters per bundle (0: off)")
@@ -90,10 +90,8 @@ int main(int argc, char** argv) {
     rc.seed = seed;
     rc.grid = grid.value_or(0);
     rc.rule = parse_update_rule(rule);
-    rc.directions = parse_directions(directions);
+    rc.directions = resolve_directions(directions, rc.rule);
     rc.control_variate = control_variate == "on";
-    if (rc.directions == Directions::stratified && rc.rule != UpdateRule::chain)
-      fail("--directions stratified needs --rule chain");
     check_first_shot(shots_per_bundle, shot_resolution);
     rc.shots_per_bundle = shots_per_bundle;
     rc.shot_resolution = shot_resolution;

@@ -125,6 +125,26 @@ glm::dvec3 square_to_hemisphere(double u, double v) {
 
 }  // namespace
 
+std::vector<uint32_t> block_orders(uint64_t seed, uint64_t block, uint32_t tag, uint32_t k, uint32_t orders) {
+  // Uniform random permutations of 0..k-1 (Fisher-Yates; j = floor(r (i + 1) / 2^32) is
+  // uniform on 0..i up to (i + 1) / 2^32 < 1e-6), from Philox draws on {block, tag, 1 + c}.
+  const uint32_t n = k * orders;
+  std::vector<uint32_t> order(n), r(n);
+  for (uint32_t c = 0; 4 * c < n; ++c) {
+    auto d = philox_draw(seed, static_cast<uint32_t>(block), static_cast<uint32_t>(block >> 32), tag, 1u + c);
+    for (uint32_t q = 0; q < 4 && 4 * c + q < n; ++q) r[4 * c + q] = d[q];
+  }
+  for (uint32_t p = 0; p < orders; ++p) {
+    uint32_t* o = order.data() + p * k;
+    for (uint32_t i = 0; i < k; ++i) o[i] = i;
+    for (uint32_t i = k - 1; i > 0; --i) {
+      uint32_t j = static_cast<uint32_t>((static_cast<uint64_t>(r[p * k + i]) * (i + 1)) >> 32);
+      std::swap(o[i], o[j]);
+    }
+  }
+  return order;
+}
+
 StratumOf stratum_of(uint64_t seed, uint64_t index, Stream stream, const Sampling& sampling) {
   StratumOf out;
   if (sampling.directions == Directions::random || stream != Stream::bundles) return out;
@@ -134,23 +154,9 @@ StratumOf stratum_of(uint64_t seed, uint64_t index, Stream stream, const Samplin
   uint64_t t = index / g;
   out.block = t / k;
   const uint32_t position = static_cast<uint32_t>(t % k);
-  // Two uniform random permutations of the K strata (Fisher-Yates; j = floor(r (i + 1) / 2^32)
-  // is uniform on 0..i up to (i + 1) / 2^32 < 1e-6), keyed by (seed, stream, sequence, block).
-  std::vector<uint32_t> order(2 * k);
-  std::vector<uint32_t> r(2 * k);
+  // Two uniform random permutations of the K strata, keyed by (seed, stream, sequence, block).
   const uint32_t w2 = kOrderTag | (static_cast<uint32_t>(stream) << 16) | static_cast<uint32_t>(out.sequence);
-  for (uint32_t c = 0; 4 * c < 2 * k; ++c) {
-    auto d = philox_draw(seed, static_cast<uint32_t>(out.block), static_cast<uint32_t>(out.block >> 32), w2, 1u + c);
-    for (uint32_t q = 0; q < 4 && 4 * c + q < 2 * k; ++q) r[4 * c + q] = d[q];
-  }
-  for (uint32_t p = 0; p < 2; ++p) {
-    uint32_t* o = order.data() + p * k;
-    for (uint32_t i = 0; i < k; ++i) o[i] = i;
-    for (uint32_t i = k - 1; i > 0; --i) {
-      uint32_t j = static_cast<uint32_t>((static_cast<uint64_t>(r[p * k + i]) * (i + 1)) >> 32);
-      std::swap(o[i], o[j]);
-    }
-  }
+  std::vector<uint32_t> order = block_orders(seed, out.block, w2, k, 2);
   out.direction = order[position];
   out.jitter = order[k + position];
   return out;

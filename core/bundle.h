@@ -68,6 +68,11 @@ struct StratumOf {
 };
 StratumOf stratum_of(uint64_t seed, uint64_t index, Stream stream, const Sampling& sampling);
 
+// `orders` independent uniform random permutations of 0..k-1, concatenated: a pure function of
+// (seed, block, tag). Tags keep different users' draws apart: bundle strata use 0x4000xxxx,
+// shot strata 0x6000xxxx (core/shot.cpp), bundle draws themselves only small word-2 values.
+std::vector<uint32_t> block_orders(uint64_t seed, uint64_t block, uint32_t tag, uint32_t k, uint32_t orders);
+
 // The bundle parameters for `mesh` with an R x R grid. Banding and scratch capacities are the
 // engine's: make_bundle leaves one band of all rows and capacities 0.
 SiradBundle make_bundle(const PatchMesh& mesh, int grid, uint64_t seed, uint64_t index,

@@ -54,12 +54,26 @@ EmitterTable emitter_table(const PatchMesh& mesh) {
   return t;
 }
 
-ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index, Stream stream) {
+ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index, Stream stream,
+                   bool stratified) {
   if (table.empty()) fail("first shot: the scene has no emitting patch");
   auto u = shot_uniforms(seed, index, stream);
   ShotDraw d;
+  if (stratified) {
+    // The stratum of this shot in its block's random order; (u, v) uniform inside it.
+    const uint64_t block = index / kShotStrata;
+    const uint32_t tag = 0x60000000u | (static_cast<uint32_t>(stream) << 16);
+    uint32_t stratum = block_orders(seed, block, tag, kShotStrata, 1)[index % kShotStrata];
+    u[0] = (stratum % kShotStrataSide + u[0]) / kShotStrataSide;
+    u[2] = (stratum / kShotStrataSide + u[2]) / kShotStrataSide;
+  }
   d.emitter = static_cast<std::size_t>(std::upper_bound(table.cdf.begin(), table.cdf.end(), u[0]) - table.cdf.begin());
   d.emitter = std::min(d.emitter, table.patch.size() - 1);
+  if (stratified) {
+    // u's remainder inside the emitter's step of the CDF: uniform in (0, 1) given the emitter.
+    double lo = d.emitter == 0 ? 0.0 : table.cdf[d.emitter - 1];
+    u[1] = std::clamp((u[0] - lo) / table.p[d.emitter], 0x1p-33, 1.0 - 0x1p-33);
+  }
   const uint32_t L = table.patch[d.emitter];
   const auto& tri = mesh.patches[L];
   glm::dvec3 v0(mesh.vertices[tri[0]]), v1(mesh.vertices[tri[1]]), v2(mesh.vertices[tri[2]]);
@@ -162,12 +176,12 @@ void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const Sho
 }
 
 ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, uint64_t seed,
-                   uint64_t first, uint64_t count, Stream stream) {
-  return run_shots(mesh, emitter_table(mesh), engine, resolution, seed, first, count, stream);
+                   uint64_t first, uint64_t count, Stream stream, bool stratified) {
+  return run_shots(mesh, emitter_table(mesh), engine, resolution, seed, first, count, stream, stratified);
 }
 
 ShotSums run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine& engine, int resolution,
-                   uint64_t seed, uint64_t first, uint64_t count, Stream stream) {
+                   uint64_t seed, uint64_t first, uint64_t count, Stream stream, bool stratified) {
   ShotSums sums;
   sums.direct.assign(mesh.size(), glm::dvec3(0.0));
   if (table.empty()) {
@@ -176,7 +190,7 @@ ShotSums run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine&
   }
   std::vector<uint32_t> image;
   for (uint64_t k = first; k < first + count; ++k) {
-    ShotDraw draw = draw_shot(mesh, table, seed, k, stream);
+    ShotDraw draw = draw_shot(mesh, table, seed, k, stream, stratified);
     SiradShot shot = make_shot(mesh, draw, resolution);
     engine.render(shot, image);
     accumulate_shot(mesh, table, draw, shot, image, shot_weights(shot), sums.direct);

@@ -45,8 +45,16 @@ struct ShotDraw {
   glm::dvec3 axes[5][3];    // per face a, b, c (c: where it looks)
   double jitter_x = 0.5, jitter_y = 0.5;  // of the pixel lattice, in (0, 1)
 };
+// `stratified`: the shots form blocks of kShotStrata consecutive indices; a block visits the
+// n x n strata (n = 8) of the unit square in a random order keyed by (seed, stream, block), and
+// the stratum's point (u, v) picks the emitter by inverting the power CDF at u, the point in
+// it from u's remainder inside the emitter's CDF step and v: each shot is still uniform over
+// the emitters' power marginally (so each shot's estimate stays unbiased), and a block of
+// shots covers the lights evenly. Shots only enter the solver linearly and independently of
+// the bundles' directions, so their dependence within a block biases nothing (core/solver.cpp).
+inline constexpr uint32_t kShotStrataSide = 8, kShotStrata = kShotStrataSide * kShotStrataSide;
 ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index,
-                   Stream stream = Stream::shots);
+                   Stream stream = Stream::shots, bool stratified = false);
 SiradShot make_shot(const PatchMesh& mesh, const ShotDraw& draw, int resolution);
 
 // Pixel samples of a shot's image (face 0: H x H, faces 1..4: H/2 x H) and the index of face
@@ -83,10 +91,11 @@ struct ShotSums {
   uint64_t shots = 0;
 };
 ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, uint64_t seed,
-                   uint64_t first, uint64_t count, Stream stream = Stream::shots);
+                   uint64_t first, uint64_t count, Stream stream = Stream::shots, bool stratified = false);
 // The same with the mesh's emitter table already built (callers that shoot repeatedly).
 ShotSums run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine& engine, int resolution,
-                   uint64_t seed, uint64_t first, uint64_t count, Stream stream = Stream::shots);
+                   uint64_t seed, uint64_t first, uint64_t count, Stream stream = Stream::shots,
+                   bool stratified = false);
 
 // Adds one rendered shot's estimates to `direct` (per patch).
 void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const ShotDraw& draw,

@@ -16,6 +16,14 @@ UpdateRule parse_update_rule(const std::string& name) {
 
 const char* to_string(UpdateRule rule) { return rule == UpdateRule::chain ? "chain" : "average"; }
 
+Directions resolve_directions(const std::string& name, UpdateRule rule) {
+  if (name == "auto") return rule == UpdateRule::chain ? Directions::stratified : Directions::random;
+  Directions d = parse_directions(name);
+  if (d == Directions::stratified && rule != UpdateRule::chain)
+    fail("--directions stratified needs --rule chain (under average it biases the estimate: core/bundle.cpp)");
+  return d;
+}
+
 int auto_burn_in(const PatchMesh& mesh) {
   float rho_max = 0.0f;
   for (const auto& m : mesh.materials) rho_max = std::max({rho_max, m.reflectance.x, m.reflectance.y, m.reflectance.z});
@@ -91,7 +99,10 @@ void Solver::update_source(uint64_t index, Stream stream) {
   if (shots_ == nullptr) return;
   ShotRange range = shots_of_step(options_.shots_per_bundle, index);
   if (stream == cached_stream_ && range.first == cached_.first && range.count == cached_.count) return;
-  ShotSums sums = run_shots(mesh_, emitters_, *shots_, shot_resolution_, options_.seed, range.first, range.count, stream);
+  // Stratified directions stratify the counted shots' points on the emitters too (core/shot.h).
+  const bool stratified = sampling_.directions == Directions::stratified && stream == Stream::shots;
+  ShotSums sums = run_shots(mesh_, emitters_, *shots_, shot_resolution_, options_.seed, range.first, range.count,
+                            stream, stratified);
   shots_rendered_ += sums.shots;
   direct_shots_ += sums.shots;
   for (std::size_t j = 0; j < source_.size(); ++j) {

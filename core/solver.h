@@ -28,6 +28,10 @@ enum class UpdateRule { chain, average };
 inline constexpr double kDefaultShotsPerBundle = 0.25;
 UpdateRule parse_update_rule(const std::string& name);  // "chain" | "average"
 const char* to_string(UpdateRule rule);
+// The command lines' --directions: "auto" (their default) is stratified under the chain rule
+// and random under average (where stratification biases: core/bundle.cpp); "stratified" under
+// average is refused.
+Directions resolve_directions(const std::string& name, UpdateRule rule);
 
 struct SolverOptions {
   uint64_t seed = 1;

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
 
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -171,6 +172,22 @@ TEST_F(Cli, DirectionsAreRecordedAndStratifiedNeedsTheChainRule) {
   }
   expect_error(sirad("render cornell --bundles 4 --directions stratified --rule average"), "--directions");
   expect_error(sirad("render cornell --bundles 4 --directions sobol"), "--directions");
+  // The default, auto: stratified under the chain rule, random under average; the control
+  // variate's setting is recorded too.
+  for (auto [flags, directions, cv] : {std::tuple{"", "stratified", "on"}, {" --rule average", "random", "on"},
+                                       {" --control-variate off", "stratified", "off"}}) {
+    Outcome r = sirad(std::string("render cornell --patches 300 --bundles 30 --width 16 --height 16") + flags);
+    ASSERT_EQ(r.status, 0) << r.err;
+    Imf::InputFile exr((dir_ / "cornell.exr").string().c_str());
+    auto* d = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.directions");
+    auto* c = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.control_variate");
+    ASSERT_NE(d, nullptr) << flags;
+    ASSERT_NE(c, nullptr) << flags;
+    EXPECT_EQ(d->value(), directions) << flags;
+    EXPECT_EQ(c->value(), cv) << flags;
+    for (const char* ext : {".exr", ".png", ".ply"}) fs::remove(dir_ / (std::string("cornell") + ext));
+  }
+  expect_error(sirad("render cornell --bundles 4 --control-variate maybe"), "--control-variate");
 }
 
 TEST_F(Cli, SameSeedGivesBitwiseIdenticalFiles) {
