@@ -43,6 +43,9 @@ RunConfig small_furnace(uint64_t bundles, UpdateRule rule, uint32_t every) {
   c.rule = rule;
   c.exchange_every = every;
   c.mode = Mode::sync;  // every bundle: a barrier per bundle, as the paper's "I = 1"
+  // The plain transport: with the control variate the furnace is nearly exact (solver_test.cpp),
+  // its errors ~1e-3 and no longer the exchange's to compare.
+  c.control_variate = false;
   return c;
 }
 
