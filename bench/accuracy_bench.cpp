@@ -2,7 +2,8 @@
 // against a reference solution (`sirad reference`, core/reference.h) and prints, as CSV, the
 // relative RMS error per non-emitting patch (area-weighted, the reference's own variance
 // subtracted: core/metrics.h relative_rms_vs_reference) at checkpoints of growing bundle counts,
-// with the solver's wall time up to there (error evaluation not counted). The summary lines
+// with the solver's wall time up to there (error evaluation not counted) and the process's CPU
+// time over the same steps (all threads). The summary lines
 // give the time to 2 % and to 1 % of each configuration (the first checkpoint at or below).
 //
 //   sirad_bench_accuracy --scene cornell --patches 20000 --reference cornell-20000.ref.csv
@@ -13,6 +14,7 @@
 // D (what its error costs in time, apart from the bundles). The reference file is computed (and
 // written) when missing.
 #include <chrono>
+#include <ctime>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -33,6 +35,13 @@
 using namespace sirad;
 
 namespace {
+
+// CPU time of the whole process (every PoCL thread included).
+double process_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
 
 struct Config {
   std::string name;
@@ -135,7 +144,7 @@ int main(int argc, char** argv) {
 
     auto engine = make_cl_engine(mesh);
     auto shots = make_cl_shot_engine(mesh);
-    std::printf("config,patches,seed,bundles,shots,seconds,error_raw,error\n");
+    std::printf("config,patches,seed,bundles,shots,seconds,error_raw,error,cpu_seconds\n");
     std::vector<std::string> summary;
     for (const Config& c : parsed) {
       if (c.direct_only) {
@@ -155,7 +164,7 @@ int main(int argc, char** argv) {
           std::vector<glm::vec3> d(mesh.size());
           for (std::size_t j = 0; j < d.size(); ++j) d[j] = glm::vec3(direct[j] / static_cast<double>(k + 1));
           ReferenceError e = relative_rms_vs_reference(mesh, d, ref.direct, ref.direct_se);
-          std::printf("%s,%zu,%llu,0,%llu,%.3f,%.5f,%.5f\n", c.name.c_str(), mesh.size(), static_cast<unsigned long long>(seed),
+          std::printf("%s,%zu,%llu,0,%llu,%.3f,%.5f,%.5f,\n", c.name.c_str(), mesh.size(), static_cast<unsigned long long>(seed),
                       static_cast<unsigned long long>(k + 1), s, e.raw, e.corrected);
           std::fflush(stdout);
           if (to2 < 0 && e.corrected <= 0.02) to2 = s;
@@ -174,7 +183,7 @@ int main(int argc, char** argv) {
     struct Run {
       const Config* config;
       std::unique_ptr<Solver> solver;
-      double seconds = 0.0, to2 = -1.0, to1 = -1.0;
+      double seconds = 0.0, cpu = 0.0, to2 = -1.0, to1 = -1.0;
       uint64_t next = 4;
       bool done = false;
     };
@@ -202,16 +211,18 @@ int main(int argc, char** argv) {
         Solver& solver = *run.solver;
         for (double slice = 0.0; slice < 0.5 && run.seconds < max_seconds;) {
           auto t0 = std::chrono::steady_clock::now();
+          double c0 = process_cpu_seconds();
           solver.step(solver.bundles());
           double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          run.cpu += process_cpu_seconds() - c0;
           slice += dt;
           run.seconds += dt;
           if (solver.bundles() < run.next) continue;
           run.next = std::max(run.next + 1, static_cast<uint64_t>(run.next * 1.15));
           ReferenceError e = relative_rms_vs_reference(mesh, solver.estimate(), ref.radiosity, ref.radiosity_se);
-          std::printf("%s,%zu,%llu,%llu,%llu,%.3f,%.5f,%.5f\n", run.config->name.c_str(), mesh.size(),
+          std::printf("%s,%zu,%llu,%llu,%llu,%.3f,%.5f,%.5f,%.3f\n", run.config->name.c_str(), mesh.size(),
                       static_cast<unsigned long long>(seed), static_cast<unsigned long long>(solver.bundles()),
-                      static_cast<unsigned long long>(solver.shots_rendered()), run.seconds, e.raw, e.corrected);
+                      static_cast<unsigned long long>(solver.shots_rendered()), run.seconds, e.raw, e.corrected, run.cpu);
           std::fflush(stdout);
           if (run.to2 < 0 && e.corrected <= 0.02) run.to2 = run.seconds;
           if (run.to1 < 0 && e.corrected <= 0.01) run.to1 = run.seconds;
