@@ -84,8 +84,10 @@ class ClShotEngine final : public ShotEngine {
     params_host_.capacity = static_cast<sirad_u32>(capacity_);
     if (H != allocated_resolution_ || bands != allocated_bands_ || capacity_ != allocated_capacity_) {
       band_list_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(capacity_) * bands * sizeof(cl_uint));
-      zbuf_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(H) * bands * sizeof(cl_float));
-      zwin_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(H) * bands * sizeof(cl_uint));
+      // Each band's z-buffer covers its rows (rows_per_band x H samples).
+      const std::size_t zsize = static_cast<std::size_t>(H) * static_cast<std::size_t>(rpb) * bands;
+      zbuf_ = cl::Buffer(context_, CL_MEM_READ_WRITE, zsize * sizeof(cl_float));
+      zwin_ = cl::Buffer(context_, CL_MEM_READ_WRITE, zsize * sizeof(cl_uint));
       image_ = cl::Buffer(context_, CL_MEM_WRITE_ONLY, shot_pixels(H) * sizeof(cl_uint));
       stats_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(bands) * sizeof(cl_uint));
       allocated_resolution_ = H;

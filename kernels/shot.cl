@@ -8,9 +8,10 @@
  *                 against z >= near_z (a triangle becomes 0, 1 or 2 triangles), projected
  *                 (X, Y) = (x / z, y / z) scaled, counter-clockwise, with the plane of 1 / z
  *                 (affine in X, Y for a planar patch) as its depth;
- *   raster_shot   (one work-item per band of a face's rows)  row by row, a z-buffer over the
- *                 row's pixel samples: the nearest patch at each sample (largest 1 / z; back
- *                 faces occlude too) and, if its front faces the eye, its index in the image.
+ *   raster_shot   (one work-item per band of a face's rows)  a z-buffer over the band's pixel
+ *                 samples, triangle by triangle: the nearest patch at each sample (largest
+ *                 1 / z; back faces occlude too) and, if its front faces the eye, its index in
+ *                 the image.
  * The host turns the image into form factors (kernels decide visibility only; the weights and
  * sums are the host's, in double). Each image element has one writer; no atomics.
  */
@@ -191,8 +192,8 @@ __kernel void raster_shot(__global const SiradProjected* restrict projected,
   const int r1 = min(r0 + rpb, H);
   const uint cap = s->capacity;
   band_list += (size_t)band * cap;
-  zbuf += (size_t)band * H;
-  zwin += (size_t)band * H;
+  zbuf += (size_t)band * rpb * H;
+  zwin += (size_t)band * rpb * H;
   __global const SiradProjected* face = projected + (size_t)f * patch_count * 2;
   __global const int2* face_rows = rows + (size_t)f * patch_count * 2;
 
@@ -209,39 +210,47 @@ __kernel void raster_shot(__global const SiradProjected* restrict projected,
   const float tie = s->depth_tie;
   __global uint* out = image + (f == 0 ? (size_t)0 : (size_t)H * H + (size_t)(f - 1) * half_h * H);
   const int out_row0 = f == 0 ? 0 : half_h;
-  for (int y = r0; y < r1; ++y) {
-    for (int x = 0; x < H; ++x) {
-      zbuf[x] = 0.0f;
-      zwin[x] = SIRAD_NO_PATCH;
-    }
-    for (uint i = 0; i < listed; ++i) {
-      uint t = band_list[i];
-      int2 r = face_rows[t];
-      if (y < r.x || y > r.y) continue;
-      SiradProjected p = face[t];
-      uint tag = (t >> 1) | ((p.flags & SIRAD_FRONT_POS) ? 0x80000000u : 0u);
+  /* The band's z-buffer holds all its rows: each listed triangle is drawn over the rows it
+   * covers at once (no per-row scan of the whole list); a sample still sees the triangles in
+   * list order, so the result is the same as drawing row by row. */
+  for (int i = 0; i < (r1 - r0) * H; ++i) {
+    zbuf[i] = 0.0f;
+    zwin[i] = SIRAD_NO_PATCH;
+  }
+  for (uint i = 0; i < listed; ++i) {
+    uint t = band_list[i];
+    int2 r = face_rows[t];
+    SiradProjected p = face[t];
+    uint tag = (t >> 1) | ((p.flags & SIRAD_FRONT_POS) ? 0x80000000u : 0u);
+    const int ylo = max(r.x, r0), yhi = min(r.y, r1 - 1);
+    for (int y = ylo; y <= yhi; ++y) {
+      __global float* zrow = zbuf + (size_t)(y - r0) * H;
+      __global uint* wrow = zwin + (size_t)(y - r0) * H;
       FOR_EACH_COVERED(&p, y, H, x) {
         float w = depth_at(&p, x, y);
-        uint old = zwin[x];
+        uint old = wrow[x];
         bool take;
         if (old == SIRAD_NO_PATCH) {
           take = true;
         } else {
-          float wo = zbuf[x];
+          float wo = zrow[x];
           /* Two faces at one place (a thin wall's two sides): the one facing the eye is
            * the surface seen; otherwise the nearer (larger 1 / z), the first on a tie. */
           if (fabs(w - wo) <= tie * fmax(w, wo)) take = (tag & 0x80000000u) && !(old & 0x80000000u);
           else take = w > wo;
         }
         if (take) {
-          zbuf[x] = w;
-          zwin[x] = tag;
+          zrow[x] = w;
+          wrow[x] = tag;
         }
       }
     }
+  }
+  for (int y = r0; y < r1; ++y) {
+    __global const uint* wrow = zwin + (size_t)(y - r0) * H;
     __global uint* o = out + (size_t)(y - out_row0) * H;
     for (int x = 0; x < H; ++x) {
-      uint tag = zwin[x];
+      uint tag = wrow[x];
       o[x] = (tag != SIRAD_NO_PATCH && (tag & 0x80000000u)) ? (tag & 0x7fffffffu) : SIRAD_NO_PATCH;
     }
   }
