@@ -37,6 +37,7 @@ struct Peer {
   uint64_t bundles = 0;
   double busy_s = 0, idle_s = 0;
   double error = -1;            // its last reported error estimate (<= 0: none)
+  uint64_t error_bundles = 0;   // the bundles it had done then
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   emulation::LinkModel down;  // the emulated coordinator -> node link
   proto::DelayQueue queue;    // messages on that link
@@ -424,21 +425,22 @@ class Coordinator {
   }
 
   // The run's error estimate. Under the chain rule the nodes are independent chains and the
-  // result is their count-weighted mean, so its relative error is sqrt(sum_p (m_p / M)^2 e_p^2)
-  // from each node's own batch-means estimate e_p (every node with bundles must have one);
-  // otherwise (the average rule couples the nodes, or a node has too few bundles yet) the
-  // spread of the node states (Aggregate::spread_error).
+  // result is their count-weighted mean: its relative error combines each node's own
+  // batch-means estimate e_p, weighted by the counts the aggregate holds for it
+  // (Aggregate::combined_error; every node holding data must have an estimate); otherwise
+  // (the average rule couples the nodes, or a node has too few bundles yet) the spread of the
+  // node states (Aggregate::spread_error).
   double error_estimate() const {
     if (config_.rule == UpdateRule::chain) {
-      double total = 0, sum = 0;
-      bool all = true;
+      std::vector<double> error(aggregate_.nodes(), -1.0);
+      std::vector<uint64_t> bundles(aggregate_.nodes(), 0);
       for (const Peer* p : all_peers()) {
-        if (p->bundles == 0) continue;
-        if (!(p->error > 0)) all = false;
-        total += static_cast<double>(p->bundles);
-        sum += static_cast<double>(p->bundles) * static_cast<double>(p->bundles) * p->error * p->error;
+        if (p->index >= error.size()) continue;
+        error[p->index] = p->error;
+        bundles[p->index] = p->error_bundles;
       }
-      if (all && total > 0) return std::sqrt(sum) / total;
+      double e = aggregate_.combined_error(error, bundles, weight_);
+      if (e > 0) return e;
     }
     return aggregate_.spread_error(weight_);
   }
@@ -460,7 +462,10 @@ class Coordinator {
       throw;
     }
     crossings_ += r.crossings();
-    if (r.error_estimate() > 0) p.error = r.error_estimate();
+    if (r.error_estimate() > 0) {
+      p.error = r.error_estimate();
+      p.error_bundles = p.bundles;  // the node's chain had run this many when it estimated
+    }
     ++reports_;
     if (config_.progress) config_.progress(ledger_.done_count(), config_.bundles);
     if (r.chunks_size() > 0) {

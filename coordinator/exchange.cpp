@@ -205,4 +205,28 @@ double Aggregate::spread_error(const std::vector<double>& weight) const {
   return any && mean_sum > 0 ? std::sqrt(var_sum / mean_sum) : -1.0;
 }
 
+double Aggregate::combined_error(const std::vector<double>& error, const std::vector<uint64_t>& bundles,
+                                 const std::vector<double>& weight) const {
+  if (error.size() != nodes() || bundles.size() != nodes()) fail("combined error: {} estimates for {} nodes", error.size(), nodes());
+  double acc = 0, total_w = 0;
+  for (uint32_t c = 0; c < chunks(); ++c) {
+    double w = 0;
+    for (uint32_t j = 0; j < chunk_size(c); ++j) w += std::max(0.0, weight.at(starts_[c] + j));
+    if (w <= 0) continue;
+    const double m_total = static_cast<double>(count(c));
+    if (m_total <= 0) return -1.0;
+    double v = 0;
+    for (uint32_t p = 0; p < nodes(); ++p) {
+      const double m = static_cast<double>(state_[p][c].count);
+      if (m == 0) continue;
+      if (!(error[p] > 0)) return -1.0;
+      const double n = std::max(m, static_cast<double>(bundles[p]));
+      v += m * n * error[p] * error[p];
+    }
+    acc += w * v / (m_total * m_total);
+    total_w += w;
+  }
+  return total_w > 0 ? std::sqrt(acc / total_w) : -1.0;
+}
+
 }  // namespace sirad::cluster

@@ -94,6 +94,18 @@ class Aggregate {
   // average rule with exchanges the nodes are correlated and this underestimates.
   double spread_error(const std::vector<double>& weight) const;
 
+  // The relative error of the global estimate from the nodes' own error estimates (chain rule:
+  // independent chains). Node p reported relative error e_p for its estimate after n_p bundles
+  // (error[p], bundles[p]); the aggregate holds its chunk c with count m_pc <= n_p (a chunk
+  // sent earlier, or data refused since), whose error is then e_p sqrt(n_p / m_pc). The
+  // chunk's count-weighted mean has relative variance
+  //     V_c = sum_p (m_pc / M_c)^2 e_p^2 n_p / m_pc = sum_p m_pc n_p e_p^2 / M_c^2,
+  // and the run's estimate is sqrt(sum_c W_c V_c / sum_c W_c), W_c the chunk's total weight
+  // (weight: one per patch, 0 to leave a patch out). Returns -1 when a node holding a chunk
+  // has no estimate (e_p <= 0) or nothing is held.
+  double combined_error(const std::vector<double>& error, const std::vector<uint64_t>& bundles,
+                        const std::vector<double>& weight) const;
+
  private:
   std::vector<uint32_t> starts_;
   std::vector<std::vector<Part>> state_;  // [node][chunk]

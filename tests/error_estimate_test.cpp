@@ -92,7 +92,8 @@ TEST(ErrorEstimate, IsCalibratedAgainstTheReference) {
 
 // The cluster's estimate: the nodes are independent chains and the result their count-weighted
 // mean, so the coordinator combines the nodes' own batch-means estimates as
-// sqrt(sum (m_p / M)^2 e_p^2) (coordinator.cpp error_estimate). Embedded clusters of 2 nodes with
+// sqrt(sum (m_p / M)^2 e_p^2), per chunk with the counts it holds (Aggregate::combined_error).
+// Embedded clusters of 2 nodes with
 // the first shot, exchanging every 64 bundles. One run's measured error scatters far more than
 // the estimate (seeds 1-6 and 23 measured 0.015-0.027 around estimates of 0.020-0.022: the errors
 // are correlated across patches), so the estimate is held against the RMS of the measured errors

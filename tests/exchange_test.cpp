@@ -99,6 +99,27 @@ TEST(ClusterAggregate, CountWeightedEstimateStarAndRing) {
   for (double v : agg.estimate(0)) EXPECT_DOUBLE_EQ(v, 2.5);
 }
 
+// The combined error (Aggregate::combined_error): node 0 reported e = 0.1 after 100 bundles,
+// node 1 e = 0.05 after 300. Chunk 0 holds both at those counts:
+//     V = (100 * 100 * 0.01 + 300 * 300 * 0.0025) / 400^2 = 325 / 160000 -> 0.04507,
+// chunk 1 holds node 1's older state of 100 bundles (its error then 0.05 sqrt(3)):
+//     V = (100 * 100 * 0.01 + 100 * 300 * 0.0025) / 200^2 = 175 / 40000 -> 0.06614;
+// with chunk weights 1 and 3 the run's estimate is sqrt((V0 + 3 V1) / 4). A node holding data
+// without an estimate makes it unknown (-1).
+TEST(ClusterAggregate, CombinedErrorWeighsTheCountsHeld) {
+  Aggregate agg(chunk_starts(4, 2), 2);
+  agg.set(0, 0, std::vector<double>(6, 1.0), 100);
+  agg.set(0, 1, std::vector<double>(6, 1.0), 100);
+  agg.set(1, 0, std::vector<double>(6, 1.0), 300);
+  agg.set(1, 1, std::vector<double>(6, 1.0), 100);
+  std::vector<double> weight = {0.5, 0.5, 1.5, 1.5};
+  double v0 = 325.0 / 160000.0, v1 = 175.0 / 40000.0;
+  EXPECT_NEAR(agg.combined_error({0.1, 0.05}, {100, 300}, weight), std::sqrt((v0 + 3 * v1) / 4), 1e-12);
+  EXPECT_NEAR(agg.combined_error({0.1, 0.05}, {100, 300}, {1, 1, 0, 0}), std::sqrt(v0), 1e-12);
+  EXPECT_EQ(agg.combined_error({0.1, -1.0}, {100, 300}, weight), -1.0);
+  EXPECT_THROW(agg.combined_error({0.1}, {100}, weight), Error);
+}
+
 TEST(ClusterAggregate, RefusesImpossibleStates) {
   Aggregate agg(chunk_starts(4, 2), 2);
   agg.set(0, 1, std::vector<double>(6, 1.0), 5);
