@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <optional>
 
@@ -230,7 +231,16 @@ int render(const RenderArgs& a) {
   PatchMesh mesh = mesh_scene(scene, mesh_options);
   if (!mesh.camera) mesh.camera = default_camera(scene);
 
-  if (a.nodes > 0) return render_embedded(a, scene, mesh_options, mesh, rule, out, std::move(profile));
+  if (a.nodes > 0) {
+    // Two or more nodes in this process on PoCL's CPU device would each get a pool of threads
+    // for every kernel: oversubscribed, and woken once per launch. Unless the user chose PoCL's
+    // devices or a device, each node gets PoCL's single-threaded CPU device instead (one chain
+    // per core, like one thread per MPI rank). Measured at 20k patches, 2 nodes on 2 cores:
+    // 5.2 s against 6.3 s for 1500 bundles (bench/RESULTS.md). Must precede any OpenCL call.
+    if (a.nodes >= 2 && a.device.empty() && std::getenv("SIRAD_DEVICE") == nullptr && std::getenv("POCL_DEVICES") == nullptr)
+      setenv("POCL_DEVICES", "basic", 0);
+    return render_embedded(a, scene, mesh_options, mesh, rule, out, std::move(profile));
+  }
   auto engine = make_cl_engine(mesh, {.device = a.device});
   SolverOptions so;
   so.seed = a.seed;
