@@ -8,6 +8,7 @@
 #include <deque>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <random>
 
 #include <fmt/format.h>
@@ -62,7 +63,16 @@ class Coordinator {
     run_.set_no_control_variate(!config.control_variate);
     if (config.directions == Directions::stratified && config.rule != UpdateRule::chain)
       fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
-    interleave_ = sampling_plan(mesh, config.directions).interleave;
+    grant_unit_ = sampling_plan(mesh, config.directions).interleave;
+    // With X = 1/k shots per bundle (k an integer) the steps [k s, k (s + 1)) share shot s
+    // (core/solver.h shots_of_step): grants in whole multiples of k keep each shot on one node,
+    // so the nodes' chains stay independent, as the combined error estimate assumes.
+    if (config.shots_per_bundle > 0.0 && config.shots_per_bundle < 1.0) {
+      const double k = 1.0 / config.shots_per_bundle;
+      const uint64_t whole = static_cast<uint64_t>(std::llround(k));
+      if (whole > 1 && whole <= 4096 && std::fabs(k - static_cast<double>(whole)) <= 1e-9 * k)
+        grant_unit_ = std::lcm(grant_unit_, whole);
+    }
     check_first_shot(config.shots_per_bundle, config.shot_resolution);
     run_.set_shots_per_bundle(config.shots_per_bundle);
     run_.set_shot_resolution(static_cast<uint32_t>(config.shot_resolution));
@@ -387,10 +397,11 @@ class Coordinator {
   uint64_t grant_size() const {
     uint64_t n = config_.exchange_every > 0 ? config_.exchange_every
                                             : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, aggregate_.nodes())));
-    // Stratified directions: whole multiples of the interleave G, so ranges start at multiples
-    // of G (the ledger hands out its free ranges from the front) and a node's chain runs
-    // same-sequence bundles >= G steps apart even across grants (core/bundle.cpp).
-    return (n + interleave_ - 1) / interleave_ * interleave_;
+    // Whole multiples of the grant unit, so ranges start at multiples of it (the ledger hands
+    // out its free ranges from the front): of the interleave G under stratified directions (a
+    // node's chain runs same-sequence bundles >= G steps apart even across grants,
+    // core/bundle.cpp) and of 1 / X when that is a whole number of steps sharing a shot.
+    return (n + grant_unit_ - 1) / grant_unit_ * grant_unit_;
   }
 
   bool give_grant(Peer& p) {
@@ -513,7 +524,7 @@ class Coordinator {
   bool closing_ = false;        // no more grants (time limit or target error)
   std::string ended_by_;
   uint64_t last_error_check_ = 0;
-  uint64_t interleave_ = 1;  // grants are multiples of it (stratified directions)
+  uint64_t grant_unit_ = 1;  // grants are multiples of it (stratified G, and 1 / X)
 };
 
 }  // namespace

@@ -94,6 +94,29 @@ TEST(Cluster, StratifiedDirectionsReachTheNodesAndGrantsAreWholeInterleaves) {
   EXPECT_THROW(run_cluster(c, 1, "inproc://stratified-average"), Error);
 }
 
+// With X = 1/4 shots per bundle, steps 4s .. 4s + 3 share shot s: grants are whole multiples of
+// 4 (I = 30 becomes 32), so no shot is split between two nodes. Every node's count is a whole
+// number of 32-bundle grants but the one that ran the ledger's tail (1026 = 32 * 32 + 2); with
+// grants of 30 a count k * 30 is 0 or 2 mod 32 only for k = 0 or 15 mod 16.
+TEST(Cluster, GrantsKeepEachShotOnOneNode) {
+  RunConfig c = furnace(1026);
+  c.exchange_every = 30;
+  c.shots_per_bundle = 0.25;
+  Outcome o = run_cluster(c, 3, "inproc://shot-grants");
+  int off = 0;
+  uint64_t total = 0;
+  for (const auto& n : o.result.nodes) {
+    total += n.bundles;
+    if (n.bundles % 32 != 0) {
+      ++off;
+      EXPECT_EQ(n.bundles % 32, 2u) << n.name;
+    }
+  }
+  EXPECT_EQ(total, 1026u);
+  EXPECT_LE(off, 1);
+  EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04);
+}
+
 // Sync mode follows the period: with I = 16 and K = 256 over 2 nodes each node exchanges
 // K / (2 I) = 8 times; S = 1/4 of 8 chunks sends 2 chunks per exchange, so the coordinator
 // receives exactly 8 * 2 * 2 chunk states.
