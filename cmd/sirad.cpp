@@ -20,6 +20,7 @@
 #include "node/node.h"
 #include "core/error.h"
 #include "core/mesh.h"
+#include "core/model.h"
 #include "core/reference.h"
 #include "core/results.h"
 #include "core/scene.h"
@@ -315,6 +316,61 @@ int profile_table(const std::string& path, int nodes, const std::string& prefix)
   return 0;
 }
 
+// `sirad model`: the paper's cost and error model (core/model.h) for one setup, or swept over
+// processors, exchange periods or fractions; CSV on stdout, then the exchange period that
+// maximises the effective sample number.
+struct ModelArgs {
+  model::Setup setup;
+  model::Costs costs;
+  model::Scene scene;
+  double time = 60.0;
+  std::string sweep = "none";
+  uint64_t max = 16;
+};
+
+CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
+  auto* cmd = app.add_subcommand("model", "The paper's cost and error model: predicted error and effective samples (CSV)");
+  cmd->add_option("--processors", m.setup.processors, "P")->check(CLI::Range(1, 1000000))->capture_default_str();
+  cmd->add_option("--exchange-every", m.setup.exchange_every, "I (0: never)")->check(CLI::Range(uint64_t{0}, uint64_t{1} << 40))->capture_default_str();
+  cmd->add_option("--fraction", m.setup.fraction, "S in (0, 1]")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
+  cmd->add_option("--contraction", m.scene.contraction, "a in [0, 1)")->check(CLI::Range(0.0, 0.999999))->capture_default_str();
+  cmd->add_option("--sigma", m.scene.sigma_ratio, "sigma_1 / C")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--t-iteration", m.costs.t_iteration, "T_i, seconds per iteration")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--t-exchange", m.costs.t_exchange, "T_e, seconds per exchange with one processor")->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--time", m.time, "T, seconds")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--sweep", m.sweep, "none, processors (P = 1..max), period (I = 1..max) or fraction (S = k / max)")
+      ->check(CLI::IsMember({"none", "processors", "period", "fraction"}))->capture_default_str();
+  cmd->add_option("--max", m.max, "Sweep range, and the largest I searched for the best")->check(CLI::Range(uint64_t{1}, uint64_t{1000000}))->capture_default_str();
+  return cmd;
+}
+
+int model_table(ModelArgs m) {
+  model::check(m.setup);
+  model::check(m.costs);
+  model::check(m.scene);
+  std::printf("processors,exchange_every,fraction,contraction,sigma_ratio,t_iteration,t_exchange,time,iterations,phases,"
+              "relative_error,log_effective_samples\n");
+  auto row = [&](const model::Setup& s) {
+    model::Prediction p = model::predict(m.time, s, m.costs, m.scene);
+    std::printf("%u,%llu,%g,%g,%g,%g,%g,%g,%llu,%llu,%.6g,%.6f\n", s.processors, static_cast<unsigned long long>(s.exchange_every),
+                s.fraction, m.scene.contraction, m.scene.sigma_ratio, m.costs.t_iteration, m.costs.t_exchange, m.time,
+                static_cast<unsigned long long>(p.iterations), static_cast<unsigned long long>(p.phases), p.relative_error,
+                p.log_effective);
+  };
+  for (uint64_t k = 1; k <= (m.sweep == "none" ? 1 : m.max); ++k) {
+    model::Setup s = m.setup;
+    if (m.sweep == "processors") s.processors = static_cast<uint32_t>(k);
+    if (m.sweep == "period") s.exchange_every = k;
+    if (m.sweep == "fraction") s.fraction = static_cast<double>(k) / static_cast<double>(m.max);
+    row(s);
+  }
+  model::Setup s = m.setup;
+  std::printf("# best exchange period for the effective sample number (I = 1..%llu): %llu\n",
+              static_cast<unsigned long long>(m.max),
+              static_cast<unsigned long long>(model::best_period(m.time, s, m.costs, m.scene.contraction, m.max)));
+  return 0;
+}
+
 // `sirad reference SCENE`: the independent reference solver (core/reference.h). Writes NAME.exr,
 // .png, .ply like `render`, plus NAME.ref.csv (per-patch B, D and their standard errors).
 struct ReferenceArgs {
@@ -450,6 +506,8 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(1, 4096))->capture_default_str();
   ReferenceArgs ref_args;
   auto* reference_cmd = add_reference_command(app, ref_args);
+  ModelArgs model_args;
+  auto* model_cmd = add_model_command(app, model_args);
   app.add_subcommand("devices", "List the OpenCL devices");
   std::string profile_path, profile_prefix = "local-";
   int profile_nodes = 4;
@@ -470,6 +528,7 @@ int run(int argc, char** argv) {
   }
   if (render_cmd->parsed()) return render(r);
   if (reference_cmd->parsed()) return reference(ref_args);
+  if (model_cmd->parsed()) return model_table(model_args);
   if (profile_cmd->parsed()) return profile_table(profile_path, profile_nodes, profile_prefix);
   return devices();
 }

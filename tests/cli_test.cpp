@@ -281,3 +281,28 @@ TEST_F(Cli, NoOpenClPlatform) {
 }
 
 }  // namespace
+
+namespace sirad {
+namespace {
+
+// `sirad model`: the paper's settings give N = 12 iterations for P = 8 (equation 2: 60 / 4.9),
+// a sweep prints one row per value, the last line names the best period, and bad flags are one
+// clear line.
+class ModelCli : public Cli {};
+
+TEST_F(ModelCli, PrintsTheModelAndRefusesBadFlags) {
+  Outcome one = sirad("model");
+  ASSERT_EQ(one.status, 0) << one.err;
+  EXPECT_EQ(one.out.rfind("processors,exchange_every,fraction,contraction,sigma_ratio", 0), 0u) << one.out;
+  EXPECT_NE(one.out.find("\n8,1,1,0.5,1,4.5,0.05,60,12,12,"), std::string::npos) << one.out;
+  EXPECT_NE(one.out.find("# best exchange period"), std::string::npos);
+  Outcome sweep = sirad("model --sweep processors --max 16 --contraction 0.8");
+  ASSERT_EQ(sweep.status, 0) << sweep.err;
+  EXPECT_EQ(std::count(sweep.out.begin(), sweep.out.end(), '\n'), 1 + 16 + 1);
+  expect_error(sirad("model --fraction 0"), "--fraction");
+  expect_error(sirad("model --contraction 1"), "--contraction");
+  expect_error(sirad("model --sweep everything"), "--sweep");
+}
+
+}  // namespace
+}  // namespace sirad
