@@ -10,9 +10,11 @@
 //       --config naive --config shot:1 --config shot:0.5:128 --max-seconds 60
 //
 // A configuration is `naive` (no first shot), `shot:X[:H]` (X shots per bundle, hemicube side H,
-// 0 or absent: auto), either with `/stratified` for stratified directions, or `direct[:H]`: the first shot alone against the reference's direct part
-// D (what its error costs in time, apart from the bundles). The reference file is computed (and
-// written) when missing.
+// 0 or absent: auto) or `direct[:H]` (the first shot alone against the reference's direct part
+// D: what its error costs in time, apart from the bundles), followed by options
+// `/stratified` or `/random` (directions and shot points), `/cv` or `/nocv` (the transport's
+// control variate, on by default) and `/grid=R`. The reference file is computed (and written)
+// when missing.
 #include <chrono>
 #include <ctime>
 #include <cstdio>
@@ -199,8 +201,10 @@ int main(int argc, char** argv) {
       so.control_variate = c.control_variate;
       Run run{&c};
       auto t0 = std::chrono::steady_clock::now();
-      run.solver = std::make_unique<Solver>(mesh, *engine, so, shots.get());
+      double c0 = process_cpu_seconds();
+      run.solver = std::make_unique<Solver>(mesh, *engine, so, shots.get());  // set-up and burn-in count
       run.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      run.cpu = process_cpu_seconds() - c0;
       runs.push_back(std::move(run));
     }
     for (bool any = true; any;) {
