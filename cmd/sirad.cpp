@@ -21,6 +21,7 @@
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/model.h"
+#include "core/model_fit.h"
 #include "core/reference.h"
 #include "core/results.h"
 #include "core/scene.h"
@@ -322,10 +323,13 @@ int profile_table(const std::string& path, int nodes, const std::string& prefix)
 struct ModelArgs {
   model::Setup setup;
   model::Costs costs;
-  model::Scene scene;
+  model::Scene scene_params;
   double time = 60.0;
   std::string sweep = "none";
   uint64_t max = 16;
+  std::string scene;                // fit a, sigma_1 / C and T_i on this scene's real bundles
+  std::optional<int64_t> patches;
+  std::string device;
 };
 
 CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
@@ -333,27 +337,43 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
   cmd->add_option("--processors", m.setup.processors, "P")->check(CLI::Range(1, 1000000))->capture_default_str();
   cmd->add_option("--exchange-every", m.setup.exchange_every, "I (0: never)")->check(CLI::Range(uint64_t{0}, uint64_t{1} << 40))->capture_default_str();
   cmd->add_option("--fraction", m.setup.fraction, "S in (0, 1]")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
-  cmd->add_option("--contraction", m.scene.contraction, "a in [0, 1)")->check(CLI::Range(0.0, 0.999999))->capture_default_str();
-  cmd->add_option("--sigma", m.scene.sigma_ratio, "sigma_1 / C")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--contraction", m.scene_params.contraction, "a in [0, 1)")->check(CLI::Range(0.0, 0.999999))->capture_default_str();
+  cmd->add_option("--sigma", m.scene_params.sigma_ratio, "sigma_1 / C")->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--t-iteration", m.costs.t_iteration, "T_i, seconds per iteration")->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--t-exchange", m.costs.t_exchange, "T_e, seconds per exchange with one processor")->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--time", m.time, "T, seconds")->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--sweep", m.sweep, "none, processors (P = 1..max), period (I = 1..max) or fraction (S = k / max)")
       ->check(CLI::IsMember({"none", "processors", "period", "fraction"}))->capture_default_str();
   cmd->add_option("--max", m.max, "Sweep range, and the largest I searched for the best")->check(CLI::Range(uint64_t{1}, uint64_t{1000000}))->capture_default_str();
+  cmd->add_option("--scene", m.scene, "Fit the contraction, sigma_1 / C and T_i on this scene's bundles (replacing those flags)");
+  cmd->add_option("--patches", m.patches, "Mesh the fitted scene to about this many patches (default 10000)")
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
+  cmd->add_option("--device", m.device, "OpenCL device for the fit");
   return cmd;
 }
 
 int model_table(ModelArgs m) {
+  if (!m.scene.empty()) {
+    PatchMesh mesh = mesh_scene(load_scene(m.scene), mesh_options_from(m.patches, std::nullopt));
+    auto engine = make_cl_engine(mesh, {.device = m.device});
+    model::SceneFit fit = model::fit_scene(mesh, *engine);
+    m.scene_params.contraction = std::min(fit.contraction, 0.999);
+    m.scene_params.sigma_ratio = fit.sigma_ratio;
+    m.costs.t_iteration = fit.t_iteration;
+    std::printf("# fitted on %s (%zu patches, %llu bundles on %s): contraction a = %.4f +- %.4f, sigma_1 / C = %.4f, "
+                "T_i = %.6f s\n",
+                m.scene.c_str(), mesh.size(), static_cast<unsigned long long>(fit.bundles), engine->description().c_str(),
+                fit.contraction, fit.contraction_se, fit.sigma_ratio, fit.t_iteration);
+  }
   model::check(m.setup);
   model::check(m.costs);
-  model::check(m.scene);
+  model::check(m.scene_params);
   std::printf("processors,exchange_every,fraction,contraction,sigma_ratio,t_iteration,t_exchange,time,iterations,phases,"
               "relative_error,log_effective_samples\n");
   auto row = [&](const model::Setup& s) {
-    model::Prediction p = model::predict(m.time, s, m.costs, m.scene);
+    model::Prediction p = model::predict(m.time, s, m.costs, m.scene_params);
     std::printf("%u,%llu,%g,%g,%g,%g,%g,%g,%llu,%llu,%.6g,%.6f\n", s.processors, static_cast<unsigned long long>(s.exchange_every),
-                s.fraction, m.scene.contraction, m.scene.sigma_ratio, m.costs.t_iteration, m.costs.t_exchange, m.time,
+                s.fraction, m.scene_params.contraction, m.scene_params.sigma_ratio, m.costs.t_iteration, m.costs.t_exchange, m.time,
                 static_cast<unsigned long long>(p.iterations), static_cast<unsigned long long>(p.phases), p.relative_error,
                 p.log_effective);
   };
@@ -367,7 +387,7 @@ int model_table(ModelArgs m) {
   model::Setup s = m.setup;
   std::printf("# best exchange period for the effective sample number (I = 1..%llu): %llu\n",
               static_cast<unsigned long long>(m.max),
-              static_cast<unsigned long long>(model::best_period(m.time, s, m.costs, m.scene.contraction, m.max)));
+              static_cast<unsigned long long>(model::best_period(m.time, s, m.costs, m.scene_params.contraction, m.max)));
   return 0;
 }
 

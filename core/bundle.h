@@ -20,9 +20,9 @@ static_assert(sizeof(SiradProjected) == 4 * 26, "SiradProjected layout must matc
 
 namespace sirad {
 
-// Streams of Philox draws: counted bundles, the burn-in of a chain and the first shot's
-// samples (core/shot.h) never share one.
-enum class Stream : uint32_t { bundles = 0, burn_in = 1, shots = 2, burn_in_shots = 3 };
+// Streams of Philox draws: counted bundles, the burn-in of a chain, the first shot's samples
+// (core/shot.h) and the model fit's bundles (core/model_fit.h) never share one.
+enum class Stream : uint32_t { bundles = 0, burn_in = 1, shots = 2, burn_in_shots = 3, fit = 4 };
 
 // How a run draws its bundles' directions and jitters (DESIGN.md section 1, lever 2).
 //   random      every bundle independent: direction uniform on the sphere, jitter uniform.

@@ -299,6 +299,12 @@ TEST_F(ModelCli, PrintsTheModelAndRefusesBadFlags) {
   Outcome sweep = sirad("model --sweep processors --max 16 --contraction 0.8");
   ASSERT_EQ(sweep.status, 0) << sweep.err;
   EXPECT_EQ(std::count(sweep.out.begin(), sweep.out.end(), '\n'), 1 + 16 + 1);
+  // Fitted on a scene's real bundles: the furnace contracts by its albedo, 0.5 (model_fit_test).
+  Outcome fitted = sirad("model --scene furnace --patches 200");
+  ASSERT_EQ(fitted.status, 0) << fitted.err;
+  EXPECT_NE(fitted.out.find("# fitted on furnace"), std::string::npos) << fitted.out;
+  EXPECT_NE(fitted.out.find("contraction a = 0.5000"), std::string::npos) << fitted.out;
+  expect_error(sirad("model --scene nothere.obj"), "nothere.obj");
   expect_error(sirad("model --fraction 0"), "--fraction");
   expect_error(sirad("model --contraction 1"), "--contraction");
   expect_error(sirad("model --sweep everything"), "--sweep");
