@@ -152,8 +152,8 @@ Prediction predict(double time, const Setup& setup, const Costs& costs, const Sc
   p.iterations = iterations_in(time, setup, costs);
   p.phases = setup.exchange_every == 0 ? 0 : p.iterations / setup.exchange_every;
   auto ls = log_sample_numbers(p.iterations, setup, bounces_that_matter(scene.contraction, p.iterations));
-  p.relative_error = ls.empty() ? 1.0 + 3.0 * (1.0 - scene.contraction) * scene.sigma_ratio * 1e300
-                                : relative_error(ls, scene, p.iterations);
+  // No iteration fits in the time: nothing is estimated.
+  p.relative_error = ls.empty() ? std::numeric_limits<double>::infinity() : relative_error(ls, scene, p.iterations);
   p.log_effective = log_effective_samples(ls, scene.contraction);
   return p;
 }

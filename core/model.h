@@ -73,8 +73,8 @@ double log_effective_samples_closed(uint64_t phases, const Setup& setup, double 
 // Everything the model says about one setup run for `time` seconds.
 struct Prediction {
   uint64_t iterations = 0, phases = 0;  // N, K = N / I (0 when I = 0)
-  double relative_error = 0;            // section 2, from the sample-number recursion
-  double log_effective = 0;             // ln E, from the recursion
+  double relative_error = 0;            // section 2, from the sample-number recursion (inf: N = 0)
+  double log_effective = 0;             // ln E, from the recursion (-inf: N = 0)
 };
 Prediction predict(double time, const Setup& setup, const Costs& costs, const Scene& scene);
 

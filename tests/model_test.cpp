@@ -127,3 +127,17 @@ TEST(Model, BadInputIsNamed) {
 
 }  // namespace
 }  // namespace sirad::model
+
+namespace sirad::model {
+namespace {
+
+// Too little time for one iteration: nothing is estimated, the error is unbounded.
+TEST(Model, NoIterationNoEstimate) {
+  Prediction p = predict(1.0, model::Setup{8, 1, 1.0}, Costs{4.5, 0.05}, Scene{0.5, 1.0});
+  EXPECT_EQ(p.iterations, 0u);
+  EXPECT_TRUE(std::isinf(p.relative_error));
+  EXPECT_TRUE(std::isinf(p.log_effective) && p.log_effective < 0);
+}
+
+}  // namespace
+}  // namespace sirad::model
