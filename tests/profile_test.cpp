@@ -85,6 +85,27 @@ TEST(Profile, ShippedProfilesParse) {
   EXPECT_EQ(load_profile(SIRAD_SOURCE_DIR "/deploy/profiles/office-mixed.yaml").for_node(3, "x").down_mbit, 100);
 }
 
+// The heterogeneous 16-node farm of issue 5's experiments: speeds 0.25x to 4x, links 10 Mbit/s
+// to 1 Gbit/s, every node listed, no loss or disconnects.
+TEST(Profile, Hetero16SpansItsSpeedsAndLinks) {
+  Profile p = load_profile(SIRAD_SOURCE_DIR "/deploy/profiles/hetero-16.yaml");
+  double slow = 1e9, fast = 0, thin = 1e9, wide = 0;
+  for (uint32_t i = 0; i < 16; ++i) {
+    LinkSpec l = p.for_node(i, "node");
+    slow = std::min(slow, l.speed);
+    fast = std::max(fast, l.speed);
+    thin = std::min(thin, l.up_mbit);
+    wide = std::max(wide, l.up_mbit);
+    EXPECT_EQ(l.loss, 0.0) << i;
+    EXPECT_LT(l.disconnect_at_s, 0.0) << i;
+  }
+  EXPECT_EQ(slow, 0.25);
+  EXPECT_EQ(fast, 4.0);
+  EXPECT_EQ(thin, 10.0);
+  EXPECT_EQ(wide, 1000.0);
+  EXPECT_EQ(p.slowdown(p.for_node(15, "n15")), 16.0);  // the fastest runs at real speed
+}
+
 // Bandwidth and latency: a 1 MB message on an 8 Mbit/s link with 10 ms latency arrives after
 // 1 s + 10 ms; a second one sent at once queues behind it (store and forward).
 TEST(LinkModel, BandwidthQueuesAndLatencyAdds) {
