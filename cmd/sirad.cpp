@@ -330,6 +330,8 @@ struct ModelArgs {
   std::string scene;                // fit a, sigma_1 / C and T_i on this scene's real bundles
   std::optional<int64_t> patches;
   std::string device;
+  std::string from_run;             // a --status-json file: P, I, S, T, T_i and T_e from a real run
+  bool time_given = false;
 };
 
 CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
@@ -349,17 +351,53 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
   cmd->add_option("--patches", m.patches, "Mesh the fitted scene to about this many patches (default 10000)")
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
   cmd->add_option("--device", m.device, "OpenCL device for the fit");
+  cmd->add_option("--from-run", m.from_run,
+                  "A run's --status-json file: its P, I, S, time, T_i (busy / bundles) and T_e (idle / exchanges) are the setup");
   return cmd;
 }
 
+// The setup and costs of a real run from its status file: P = the nodes that ran bundles, its
+// I and S, T = its elapsed time (unless --time), T_i = busy time / bundles over the nodes, and
+// T_e = the nodes' idle time (waiting for the next grant: in sync mode the exchange barrier)
+// over exchanges x P x S, as equation (1) charges P S T_e per exchange. Without idle time
+// (async mode, or exchanges only at the end) T_e stays the flag's.
+void apply_run(ModelArgs& m) {
+  cluster::Status st = cluster::read_status(m.from_run);
+  uint32_t processors = 0;
+  uint64_t bundles = 0, exchanges = 0;
+  double busy = 0, idle = 0;
+  for (const auto& n : st.nodes) {
+    if (n.bundles == 0) continue;
+    ++processors;
+    bundles += n.bundles;
+    exchanges += n.exchanges;
+    busy += n.busy_s;
+    idle += n.idle_s;
+  }
+  if (processors == 0 || !(busy > 0)) fail("{}: no node of the run reported bundles and busy time", m.from_run);
+  m.setup.processors = processors;
+  m.setup.exchange_every = st.exchange_every;
+  m.setup.fraction = st.exchange_fraction;
+  if (!m.time_given) m.time = st.elapsed_s;
+  m.costs.t_iteration = busy / static_cast<double>(bundles);
+  const bool measured = exchanges > 0 && idle > 0;
+  if (measured) m.costs.t_exchange = idle / (static_cast<double>(exchanges) * processors * st.exchange_fraction);
+  std::printf("# from the run %s: P = %u, I = %llu, S = %g (%s, %s), T = %.3f s, T_i = %.6f s (busy / bundles), "
+              "T_e = %.6f s (%s)\n",
+              m.from_run.c_str(), processors, static_cast<unsigned long long>(st.exchange_every), st.exchange_fraction,
+              st.mode.c_str(), st.topology.c_str(), m.time, m.costs.t_iteration, m.costs.t_exchange,
+              measured ? "idle / (exchanges x P x S)" : "no exchange waits in the run: --t-exchange");
+}
+
 int model_table(ModelArgs m) {
+  if (!m.from_run.empty()) apply_run(m);
   if (!m.scene.empty()) {
     PatchMesh mesh = mesh_scene(load_scene(m.scene), mesh_options_from(m.patches, std::nullopt));
     auto engine = make_cl_engine(mesh, {.device = m.device});
     model::SceneFit fit = model::fit_scene(mesh, *engine);
     m.scene_params.contraction = std::min(fit.contraction, 0.999);
     m.scene_params.sigma_ratio = fit.sigma_ratio;
-    m.costs.t_iteration = fit.t_iteration;
+    if (m.from_run.empty()) m.costs.t_iteration = fit.t_iteration;  // a run's own T_i is the better one
     std::printf("# fitted on %s (%zu patches, %llu bundles on %s): contraction a = %.4f +- %.4f, sigma_1 / C = %.4f, "
                 "T_i = %.6f s\n",
                 m.scene.c_str(), mesh.size(), static_cast<unsigned long long>(fit.bundles), engine->description().c_str(),
@@ -548,7 +586,10 @@ int run(int argc, char** argv) {
   }
   if (render_cmd->parsed()) return render(r);
   if (reference_cmd->parsed()) return reference(ref_args);
-  if (model_cmd->parsed()) return model_table(model_args);
+  if (model_cmd->parsed()) {
+    model_args.time_given = model_cmd->count("--time") > 0;
+    return model_table(model_args);
+  }
   if (profile_cmd->parsed()) return profile_table(profile_path, profile_nodes, profile_prefix);
   return devices();
 }

@@ -177,6 +177,10 @@ class Coordinator {
     s.exchanges = exchanges_;
     s.bytes_in = bytes_in_;
     s.bytes_out = bytes_out_;
+    s.exchange_every = config_.exchange_every;
+    s.exchange_fraction = config_.fraction;
+    s.mode = config_.mode == Mode::sync ? "sync" : "async";
+    s.topology = config_.topology == Topology::star ? "star" : "ring";
     for (const Peer* p : all_peers()) {
       Status::Node n;
       n.name = p->name;

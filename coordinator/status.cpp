@@ -1,7 +1,12 @@
 // sirad: the run status as JSON.
 #include "coordinator/status.h"
 
+#include <cmath>
+
 #include <fmt/format.h>
+#include <yaml-cpp/yaml.h>
+
+#include "core/error.h"
 
 #include "core/atomic_file.h"
 
@@ -32,8 +37,66 @@ std::string to_json(const Status& s) {
   std::string error = s.error_estimate < 0 ? "null" : fmt::format("{:.6g}", s.error_estimate);
   return fmt::format("{{\"bundles_done\": {}, \"bundles\": {}, \"elapsed_s\": {:.3f}, \"bundles_per_s\": {:.3f}, "
                      "\"error_estimate\": {}, \"exchanges\": {}, \"bytes_in\": {}, \"bytes_out\": {}, "
+                     "\"exchange_every\": {}, \"exchange_fraction\": {}, \"mode\": {}, \"topology\": {}, "
                      "\"nodes\": [{}]}}\n",
-                     s.bundles_done, s.bundles, s.elapsed_s, rate, error, s.exchanges, s.bytes_in, s.bytes_out, nodes);
+                     s.bundles_done, s.bundles, s.elapsed_s, rate, error, s.exchanges, s.bytes_in, s.bytes_out,
+                     s.exchange_every, s.exchange_fraction, json_string(s.mode), json_string(s.topology), nodes);
+}
+
+namespace {
+
+// Field `key` of `node` as T, or one clear error naming the file and where.
+template <class T>
+T field(const YAML::Node& node, const char* key, const std::string& path, const std::string& where) {
+  const YAML::Node v = node[key];
+  if (!v || !v.IsScalar()) fail("{}: {}'{}' is missing", path, where, key);
+  try {
+    return v.as<T>();
+  } catch (const YAML::Exception&) {
+    fail("{}: {}'{}' is not a valid value ('{}')", path, where, key, v.Scalar());
+  }
+}
+
+}  // namespace
+
+Status read_status(const std::string& path) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    fail("{}: cannot read the status file", path);
+  } catch (const YAML::Exception& e) {
+    fail("{}: not a status file (line {}: {})", path, e.mark.line + 1, e.msg);
+  }
+  if (!root.IsMap()) fail("{}: not a status file (expected a JSON object)", path);
+  Status s;
+  s.bundles_done = field<uint64_t>(root, "bundles_done", path, "");
+  s.bundles = field<uint64_t>(root, "bundles", path, "");
+  s.elapsed_s = field<double>(root, "elapsed_s", path, "");
+  s.exchanges = field<uint32_t>(root, "exchanges", path, "");
+  s.exchange_every = field<uint64_t>(root, "exchange_every", path, "");
+  s.exchange_fraction = field<double>(root, "exchange_fraction", path, "");
+  s.mode = field<std::string>(root, "mode", path, "");
+  s.topology = field<std::string>(root, "topology", path, "");
+  const YAML::Node nodes = root["nodes"];
+  if (!nodes || !nodes.IsSequence()) fail("{}: 'nodes' is missing or not a list", path);
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const std::string where = fmt::format("node {}: ", i);
+    if (!nodes[i].IsMap()) fail("{}: node {} is not an object", path, i);
+    Status::Node n;
+    n.name = field<std::string>(nodes[i], "name", path, where);
+    n.state = field<std::string>(nodes[i], "state", path, where);
+    n.bundles = field<uint64_t>(nodes[i], "bundles", path, where);
+    n.exchanges = field<uint32_t>(nodes[i], "exchanges", path, where);
+    n.busy_s = field<double>(nodes[i], "busy_s", path, where);
+    n.idle_s = field<double>(nodes[i], "idle_s", path, where);
+    if (!std::isfinite(n.busy_s) || n.busy_s < 0 || !std::isfinite(n.idle_s) || n.idle_s < 0)
+      fail("{}: {}busy_s and idle_s must be finite and non-negative", path, where);
+    s.nodes.push_back(n);
+  }
+  if (!std::isfinite(s.elapsed_s) || s.elapsed_s < 0) fail("{}: 'elapsed_s' must be finite and non-negative", path);
+  if (!(s.exchange_fraction > 0 && s.exchange_fraction <= 1)) fail("{}: 'exchange_fraction' must be in (0, 1]", path);
+  return s;
 }
 
 void write_status(const std::string& path, const Status& status) {

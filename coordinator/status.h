@@ -16,6 +16,10 @@ struct Status {
   double error_estimate = -1;
   uint32_t exchanges = 0;
   uint64_t bytes_in = 0, bytes_out = 0;  // exchange traffic so far (REPORT / UPDATE bulk)
+  // The run's exchange settings (for `sirad model --from-run`): I (0: only at the end), S.
+  uint64_t exchange_every = 0;
+  double exchange_fraction = 1.0;
+  std::string mode, topology;
   struct Node {
     std::string name;
     std::string device;        // as the node described it in HELLO
@@ -32,6 +36,9 @@ struct Status {
 
 // The status as one line of JSON (names escaped), ending in a newline.
 std::string to_json(const Status& status);
+// Reads a --status-json file back (the run settings and every node's counters); throws
+// sirad::Error naming the file and the field for anything missing or malformed.
+Status read_status(const std::string& path);
 // Rewrites `path` atomically with to_json(status) (for --status-json).
 void write_status(const std::string& path, const Status& status);
 

@@ -310,5 +310,34 @@ TEST_F(ModelCli, PrintsTheModelAndRefusesBadFlags) {
   expect_error(sirad("model --sweep everything"), "--sweep");
 }
 
+// `sirad model --from-run`: the setup and costs of a run's --status-json. By hand: two nodes
+// busy 2 s each for 100 bundles each, idle 0.5 s and 0.3 s over 5 exchanges each, S = 0.5:
+// T_i = 4 / 200 = 0.02 s, T_e = 0.8 / (10 x 2 x 0.5) = 0.08 s. Then a real sync run's file
+// reads back (P = 2, its I), and a broken file is one clear line naming it.
+TEST_F(ModelCli, TakesTheSetupAndCostsOfARun) {
+  write("hand.json",
+        "{\"bundles_done\": 200, \"bundles\": 200, \"elapsed_s\": 5.0, \"exchanges\": 10, \"exchange_every\": 20, "
+        "\"exchange_fraction\": 0.5, \"mode\": \"sync\", \"topology\": \"star\", \"nodes\": ["
+        "{\"name\": \"a\", \"state\": \"done\", \"bundles\": 100, \"exchanges\": 5, \"busy_s\": 2.0, \"idle_s\": 0.5},"
+        "{\"name\": \"b\", \"state\": \"done\", \"bundles\": 100, \"exchanges\": 5, \"busy_s\": 2.0, \"idle_s\": 0.3}]}");
+  Outcome hand = sirad("model --from-run hand.json");
+  ASSERT_EQ(hand.status, 0) << hand.err;
+  EXPECT_NE(hand.out.find("P = 2, I = 20, S = 0.5 (sync, star), T = 5.000 s, T_i = 0.020000 s"), std::string::npos) << hand.out;
+  EXPECT_NE(hand.out.find("T_e = 0.080000 s"), std::string::npos) << hand.out;
+  EXPECT_NE(hand.out.find("\n2,20,0.5,"), std::string::npos) << hand.out;
+
+  Outcome run = sirad("render cornell --patches 300 --bundles 120 --nodes 2 --exchange-every 10 --mode sync "
+                      "--status-json run.json --width 16 --height 16 -q");
+  ASSERT_EQ(run.status, 0) << run.err;
+  Outcome fitted = sirad("model --from-run run.json --time 60");
+  ASSERT_EQ(fitted.status, 0) << fitted.err;
+  EXPECT_NE(fitted.out.find("P = 2, I = 10, S = 1 (sync, star), T = 60.000 s"), std::string::npos) << fitted.out;
+  for (const char* ext : {".exr", ".png", ".ply"}) fs::remove(dir_ / (std::string("cornell") + ext));
+
+  write("broken.json", "{\"bundles_done\": 1, \"nodes\": []}");
+  expect_error(sirad("model --from-run broken.json"), "broken.json");
+  expect_error(sirad("model --from-run missing.json"), "missing.json");
+}
+
 }  // namespace
 }  // namespace sirad

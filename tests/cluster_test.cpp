@@ -4,8 +4,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <thread>
+
+#include <unistd.h>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
@@ -38,9 +41,26 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   s.nodes.push_back(n);
   EXPECT_EQ(to_json(s),
             "{\"bundles_done\": 3, \"bundles\": 10, \"elapsed_s\": 1.500, \"bundles_per_s\": 2.000, \"error_estimate\": null, "
-            "\"exchanges\": 0, \"bytes_in\": 0, \"bytes_out\": 0, \"nodes\": [{\"name\": \"a\\\"b\\\\c\\u000ad\", "
+            "\"exchanges\": 0, \"bytes_in\": 0, \"bytes_out\": 0, \"exchange_every\": 0, \"exchange_fraction\": 1, "
+            "\"mode\": \"\", \"topology\": \"\", \"nodes\": [{\"name\": \"a\\\"b\\\\c\\u000ad\", "
             "\"device\": \"\", \"state\": \"\", \"bundles\": 3, \"exchanges\": 1, \"last_seen_s\": 0.250, "
             "\"bundles_per_s\": 0.000, \"busy_s\": 0.000, \"idle_s\": 0.000}]}\n");
+  // It reads back (sirad model --from-run), the escaped name included.
+  auto path = std::filesystem::temp_directory_path() / ("sirad_status_" + std::to_string(::getpid()) + ".json");
+  s.exchange_every = 8;
+  s.exchange_fraction = 0.25;
+  s.mode = "sync";
+  s.nodes[0].busy_s = 1.25;
+  write_status(path.string(), s);
+  Status back = read_status(path.string());
+  std::filesystem::remove(path);
+  ASSERT_EQ(back.nodes.size(), 1u);
+  EXPECT_EQ(back.nodes[0].name, n.name);
+  EXPECT_EQ(back.nodes[0].bundles, 3u);
+  EXPECT_DOUBLE_EQ(back.nodes[0].busy_s, 1.25);
+  EXPECT_EQ(back.exchange_every, 8u);
+  EXPECT_DOUBLE_EQ(back.exchange_fraction, 0.25);
+  EXPECT_EQ(back.mode, "sync");
 }
 
 // Three nodes over loopback TCP (a port the system picks): the bundles add up to the budget
