@@ -81,6 +81,22 @@ TEST(Cluster, ThreeNodesOverTcpRunEveryBundleOnceAndStayUnbiased) {
   EXPECT_NEAR(mean, 2.0, 0.04);
 }
 
+// The nodes' bundle counts add up to `total`, and each is a whole number of `unit`-bundle
+// grants but for at most one node, which ran the ledger's tail and is `tail` past a multiple.
+void expect_whole_grants(const Outcome& o, uint64_t unit, uint64_t tail, uint64_t total) {
+  int off = 0;
+  uint64_t sum = 0;
+  for (const auto& n : o.result.nodes) {
+    sum += n.bundles;
+    if (n.bundles % unit != 0) {
+      ++off;
+      EXPECT_EQ(n.bundles % unit, tail) << n.name;
+    }
+  }
+  EXPECT_EQ(sum, total);
+  EXPECT_LE(off, 1);
+}
+
 // Stratified directions over 3 nodes (core/bundle.h): the Run message carries them, the furnace
 // stays unbiased (same bound as above: stratification lowers the noise, see directions_test),
 // and grants are whole multiples of the interleave G = 10 (rho = 0.5): I = 32 becomes 40, so
@@ -91,17 +107,7 @@ TEST(Cluster, StratifiedDirectionsReachTheNodesAndGrantsAreWholeInterleaves) {
   c.exchange_every = 32;
   c.directions = Directions::stratified;
   Outcome o = run_cluster(c, 3, "inproc://stratified");
-  int off = 0;
-  uint64_t total = 0;
-  for (const auto& n : o.result.nodes) {
-    total += n.bundles;
-    if (n.bundles % 10 != 0) {
-      ++off;
-      EXPECT_EQ(n.bundles % 10, 4u) << n.name;
-    }
-  }
-  EXPECT_EQ(total, 1024u);
-  EXPECT_LE(off, 1);
+  expect_whole_grants(o, 10, 4, 1024);
   double mean = area_mean(o.mesh, o.result.radiosity);
   std::printf("3 nodes, stratified directions, furnace: mean %.5f\n", mean);
   EXPECT_NEAR(mean, 2.0, 0.04);
@@ -123,17 +129,7 @@ TEST(Cluster, GrantsKeepEachShotOnOneNode) {
   c.exchange_every = 30;
   c.shots_per_bundle = 0.25;
   Outcome o = run_cluster(c, 3, "inproc://shot-grants");
-  int off = 0;
-  uint64_t total = 0;
-  for (const auto& n : o.result.nodes) {
-    total += n.bundles;
-    if (n.bundles % 32 != 0) {
-      ++off;
-      EXPECT_EQ(n.bundles % 32, 2u) << n.name;
-    }
-  }
-  EXPECT_EQ(total, 1026u);
-  EXPECT_LE(off, 1);
+  expect_whole_grants(o, 32, 2, 1026);
   EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04);
 }
 

@@ -284,6 +284,28 @@ TEST(FirstShot, StratifiedMatchesReferenceDirectThreeLights) {
 namespace sirad {
 namespace {
 
+// The first shot's D from `replicas` disjoint runs of `shots` shots each (shot indices from
+// `first` on) against the reference's D: the RMS over replicas of the relative RMS error per
+// non-emitting patch (the reference's variance subtracted).
+struct Replicas {
+  int resolution = 48;
+  uint64_t seed = 1, first = 0, shots = 64;
+  int replicas = 6;
+  bool stratified = false;
+};
+double replica_error(const PatchMesh& mesh, const ReferenceSolution& ref, ShotEngine& engine, const Replicas& r) {
+  double sum2 = 0.0;
+  for (int k = 0; k < r.replicas; ++k) {
+    ShotSums s = run_shots(mesh, engine, r.resolution, r.seed, r.first + static_cast<uint64_t>(k) * r.shots, r.shots,
+                           Stream::shots, r.stratified);
+    std::vector<glm::vec3> d(mesh.size());
+    for (std::size_t j = 0; j < d.size(); ++j) d[j] = glm::vec3(s.direct[j] / static_cast<double>(s.shots));
+    double e = relative_rms_vs_reference(mesh, d, ref.direct, ref.direct_se).corrected;
+    sum2 += e * e / r.replicas;
+  }
+  return std::sqrt(sum2);
+}
+
 TEST(FirstShot, ErrorFallsWithItsOwnSampleCount) {
   // The first shot's D from N and from 4N shots against the reference's D (its own variance
   // subtracted): for an unbiased estimator with finite variance the relative RMS error falls as
@@ -295,20 +317,8 @@ TEST(FirstShot, ErrorFallsWithItsOwnSampleCount) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 1200});
   ReferenceSolution ref = solve_reference(mesh, {.rays_per_patch = 64, .light_samples = 4096, .batches = 8, .seed = 8});
   auto cl = make_cl_shot_engine(mesh);
-  uint64_t next = 0;
-  auto error_of = [&](uint64_t shots) {
-    double sum2 = 0.0;
-    for (int r = 0; r < 6; ++r) {
-      ShotSums s = run_shots(mesh, *cl, 48, 77, next, shots);
-      next += shots;
-      std::vector<glm::vec3> d(mesh.size());
-      for (std::size_t j = 0; j < d.size(); ++j) d[j] = glm::vec3(s.direct[j] / static_cast<double>(s.shots));
-      double e = relative_rms_vs_reference(mesh, d, ref.direct, ref.direct_se).corrected;
-      sum2 += e * e / 6.0;
-    }
-    return std::sqrt(sum2);
-  };
-  double e1 = error_of(64), e4 = error_of(256);
+  double e1 = replica_error(mesh, ref, *cl, {.resolution = 48, .seed = 77, .first = 0, .shots = 64, .replicas = 6});
+  double e4 = replica_error(mesh, ref, *cl, {.resolution = 48, .seed = 77, .first = 6 * 64, .shots = 256, .replicas = 6});
   fmt::print("first shot alone: error {:.4f} at 64 shots, {:.4f} at 256 (ratio {:.2f})\n", e1, e4, e1 / e4);
   EXPECT_GT(e1 / e4, 1.5);
   EXPECT_LT(e1 / e4, 2.7);
@@ -332,18 +342,11 @@ TEST(FirstShot, StratifiedPointsLowerTheError) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 1200});
   ReferenceSolution ref = solve_reference(mesh, {.rays_per_patch = 64, .light_samples = 4096, .batches = 8, .seed = 8});
   auto cl = make_cl_shot_engine(mesh);
-  auto error_of = [&](bool stratified) {
-    double sum2 = 0.0;
-    for (uint64_t r = 0; r < 8; ++r) {
-      ShotSums s = run_shots(mesh, *cl, 96, 78, 256 * r, 256, Stream::shots, stratified);
-      std::vector<glm::vec3> d(mesh.size());
-      for (std::size_t j = 0; j < d.size(); ++j) d[j] = glm::vec3(s.direct[j] / static_cast<double>(s.shots));
-      double e = relative_rms_vs_reference(mesh, d, ref.direct, ref.direct_se).corrected;
-      sum2 += e * e / 8.0;
-    }
-    return std::sqrt(sum2);
-  };
-  double random = error_of(false), stratified = error_of(true);
+  const Replicas replicas{.resolution = 96, .seed = 78, .first = 0, .shots = 256, .replicas = 8};
+  double random = replica_error(mesh, ref, *cl, replicas);
+  Replicas strata = replicas;
+  strata.stratified = true;
+  double stratified = replica_error(mesh, ref, *cl, strata);
   fmt::print("first shot alone, 8 x 256 shots at H 96: error {:.4f} random, {:.4f} stratified (ratio {:.2f})\n", random,
              stratified, stratified / random);
   EXPECT_LT(stratified / random, 0.8);
