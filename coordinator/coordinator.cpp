@@ -27,18 +27,12 @@ using proto::Message;
 
 using Clock = std::chrono::steady_clock;
 
+// A node as the socket side sees it; what the policy decides about it is Policy::node(index).
 struct Peer {
   std::string id;       // ZeroMQ routing id
-  uint32_t index = 0;   // in the run's aggregate (a node that rejoins gets a new one)
+  uint32_t index = 0;   // in the policy (a node that rejoins gets a new one)
   std::string name, device;
-  bool ready = false, stopped = false, final_in = false, dead = false;
-  std::deque<uint64_t> grants;  // outstanding grant ids, oldest first
-  uint32_t rotation = 0;        // grants given with report chunks (the rotation of S)
-  uint32_t exchange = 0;
-  uint64_t bundles = 0;
   double busy_s = 0, idle_s = 0;
-  double error = -1;            // its last reported error estimate (<= 0: none)
-  uint64_t error_bundles = 0;   // the bundles it had done then
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   emulation::LinkModel down;  // the emulated coordinator -> node link
   proto::DelayQueue queue;    // messages on that link
@@ -47,9 +41,11 @@ struct Peer {
 class Coordinator {
  public:
   Coordinator(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh)
-      : router_(router), config_(config), mesh_(mesh), ledger_(config.bundles),
-        starts_(chunk_starts(static_cast<uint32_t>(mesh.size()), std::min<uint32_t>(config.chunks, static_cast<uint32_t>(mesh.size())))),
-        aggregate_(starts_, 0), scene_bytes_(encode_scene(config.scene)), weight_(mesh.size()) {
+      : router_(router), config_(config), mesh_(mesh),
+        policy_(policy_config(config, mesh),
+                 chunk_starts(static_cast<uint32_t>(mesh.size()), std::min<uint32_t>(config.chunks, static_cast<uint32_t>(mesh.size()))),
+                 error_weights(mesh)),
+        scene_bytes_(encode_scene(config.scene)) {
     // A reconnecting node keeps its routing id; the new connection takes it over.
     router_.set(zmq::sockopt::router_handover, 1);
     std::random_device rd;
@@ -61,22 +57,10 @@ class Coordinator {
     run_.set_burn_in(config.burn_in);
     run_.set_directions(to_string(config.directions));
     run_.set_no_control_variate(!config.control_variate);
-    if (config.directions == Directions::stratified && config.rule != UpdateRule::chain)
-      fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
-    grant_unit_ = sampling_plan(mesh, config.directions).interleave;
-    // With X = 1/k shots per bundle (k an integer) the steps [k s, k (s + 1)) share shot s
-    // (core/solver.h shots_of_step): grants in whole multiples of k keep each shot on one node,
-    // so the nodes' chains stay independent, as the combined error estimate assumes.
-    if (config.shots_per_bundle > 0.0 && config.shots_per_bundle < 1.0) {
-      const double k = 1.0 / config.shots_per_bundle;
-      const uint64_t whole = static_cast<uint64_t>(std::llround(k));
-      if (whole > 1 && whole <= 4096 && std::fabs(k - static_cast<double>(whole)) <= 1e-9 * k)
-        grant_unit_ = std::lcm(grant_unit_, whole);
-    }
-    check_first_shot(config.shots_per_bundle, config.shot_resolution);
     run_.set_shots_per_bundle(config.shots_per_bundle);
     run_.set_shot_resolution(static_cast<uint32_t>(config.shot_resolution));
-    for (std::size_t c = 0; c + 1 < starts_.size(); ++c) run_.add_chunk_starts(starts_[c]);
+    const auto& starts = policy_.starts();
+    for (std::size_t c = 0; c + 1 < starts.size(); ++c) run_.add_chunk_starts(starts[c]);
     run_.set_patches(static_cast<uint32_t>(mesh.size()));
     run_.set_exchange_every(config.exchange_every);
     run_.set_exchange_fraction(config.fraction);
@@ -85,33 +69,27 @@ class Coordinator {
     run_.set_bundles(config.bundles);
     run_.set_target_patches(config.mesh_options.target_patches);
     run_.set_max_edge(config.mesh_options.max_edge);
-    // The error estimate weighs non-emitting patches by area (emitters are mostly E, known
-    // exactly); a scene where every patch emits (the furnace) weighs them all.
-    double lit = 0;
-    for (std::size_t j = 0; j < mesh.size(); ++j) {
-      glm::vec3 e = mesh.emission(j);
-      weight_[j] = e.x + e.y + e.z > 0 ? 0.0 : static_cast<double>(mesh.area[j]);
-      lit += weight_[j];
-    }
-    if (lit == 0)
-      for (std::size_t j = 0; j < mesh.size(); ++j) weight_[j] = mesh.area[j];
   }
 
   RunResult run() {
     start_ = Clock::now();
     auto last_status = start_;
-    while (!done()) {
+    while (!policy_.done()) {
       auto now = Clock::now();
       if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
         last_status = now;
         config_.status(snapshot());
       }
       if (config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s)
-        fail("run did not finish within {} s ({} of {} bundles done)", config_.timeout_s, ledger_.done_count(),
+        fail("run did not finish within {} s ({} of {} bundles done)", config_.timeout_s, policy_.ledger().done_count(),
              config_.bundles);
       if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
       keep_alive(now);
-      check_close(now);
+      if (policy_.check_close(seconds(now - start_))) {
+        std::fprintf(stderr, "sirad-coordinator: %s reached after %llu bundles: finishing the outstanding grants\n",
+                     policy_.ended_by().c_str(), static_cast<unsigned long long>(policy_.ledger().done_count()));
+        schedule();
+      }
       auto frames = proto::receive(router_, wait_ms(now));
       if (!frames || frames->size() < 2) continue;
       std::string id = frames->front();
@@ -134,29 +112,35 @@ class Coordinator {
     for (auto& [id, p] : peers_) p.queue.flush(router_, std::numeric_limits<double>::infinity());
     if (config_.status) config_.status(snapshot());
     RunResult result;
-    result.radiosity.resize(mesh_.size());
-    for (uint32_t c = 0; c + 1 < starts_.size(); ++c) {
-      std::vector<double> est = aggregate_.estimate(c);
-      for (uint32_t j = starts_[c]; j < starts_[c + 1]; ++j) {
-        std::size_t i = 3 * static_cast<std::size_t>(j - starts_[c]);
-        result.radiosity[j] = glm::vec3(static_cast<float>(est[i]), static_cast<float>(est[i + 1]), static_cast<float>(est[i + 2]));
-      }
+    result.radiosity = policy_.radiosity();
+    for (const Peer* p : all_peers()) {
+      const NodeState& n = policy_.node(p->index);
+      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead});
     }
-    for (const Peer* p : all_peers()) result.nodes.push_back({p->name, p->bundles, p->exchange, p->busy_s, p->idle_s, p->dead});
     result.exchange_bytes_in = bytes_in_;
     result.exchange_bytes_out = bytes_out_;
     result.final_bytes = final_bytes_;
-    result.exchanges = exchanges_;
+    result.exchanges = policy_.exchanges();
     result.crossings = crossings_;
     result.grid = static_cast<int>(run_.grid());
-    result.bundles = ledger_.done_count();
-    result.ended_by = ended_by_.empty() ? "budget" : ended_by_;
+    result.bundles = policy_.ledger().done_count();
+    result.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
     return result;
   }
 
  private:
   static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
   double clock(Clock::time_point t) const { return seconds(t - start_); }
+
+  static PolicyConfig policy_config(const RunConfig& c, const PatchMesh& mesh) {
+    if (c.directions == Directions::stratified && c.rule != UpdateRule::chain)
+      fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
+    check_first_shot(c.shots_per_bundle, c.shot_resolution);
+    return {.bundles = c.bundles, .exchange_every = c.exchange_every, .fraction = c.fraction, .topology = c.topology,
+            .mode = c.mode, .rule = c.rule, .min_nodes = c.min_nodes,
+            .grant_unit = grant_unit(mesh, c.directions, c.shots_per_bundle), .time_limit_s = c.time_limit_s,
+            .target_error = c.target_error};
+  }
 
   // Every peer of the run in join order: the departed (dead, replaced by a rejoin) and the current.
   std::vector<const Peer*> all_peers() const {
@@ -170,11 +154,11 @@ class Coordinator {
   Status snapshot() const {
     auto now = Clock::now();
     Status s;
-    s.bundles_done = ledger_.done_count();
+    s.bundles_done = policy_.ledger().done_count();
     s.bundles = config_.bundles;
     s.elapsed_s = seconds(now - start_);
-    s.error_estimate = error_estimate();
-    s.exchanges = exchanges_;
+    s.error_estimate = policy_.error_estimate();
+    s.exchanges = policy_.exchanges();
     s.bytes_in = bytes_in_;
     s.bytes_out = bytes_out_;
     s.exchange_every = config_.exchange_every;
@@ -182,15 +166,16 @@ class Coordinator {
     s.mode = config_.mode == Mode::sync ? "sync" : "async";
     s.topology = config_.topology == Topology::star ? "star" : "ring";
     for (const Peer* p : all_peers()) {
+      const NodeState& ns = policy_.node(p->index);
       Status::Node n;
       n.name = p->name;
       n.device = p->device;
-      n.state = p->dead ? "dead" : p->final_in ? "done" : !p->ready ? "joining" : !p->grants.empty() ? "working" : "waiting";
-      n.bundles = p->bundles;
-      n.exchanges = p->exchange;
+      n.state = ns.state();
+      n.bundles = ns.bundles;
+      n.exchanges = ns.exchanges;
       n.last_seen_s = seconds(now - p->last_seen);
-      double up = p->ready ? seconds(now - p->ready_at) : 0.0;
-      n.rate = up > 0 ? static_cast<double>(p->bundles) / up : 0.0;
+      double up = ns.ready ? seconds(now - p->ready_at) : 0.0;
+      n.rate = up > 0 ? static_cast<double>(ns.bundles) / up : 0.0;
       n.busy_s = p->busy_s;
       n.idle_s = p->idle_s;
       s.nodes.push_back(n);
@@ -198,20 +183,14 @@ class Coordinator {
     return s;
   }
 
-  bool done() const {
-    if (!ending()) return false;
-    for (const auto& [id, p] : peers_)
-      if (!p.dead && p.ready && !p.final_in) return false;
-    return true;
-  }
-
   // Heartbeats to every live peer that has heard nothing for an interval; flushes the emulated
   // links; declares dead the ready peers silent for `liveness` intervals.
   void keep_alive(Clock::time_point now) {
     auto interval = std::chrono::milliseconds(config_.heartbeat_ms);
     for (auto& [id, p] : peers_) {
-      if (p.dead || p.final_in) continue;
-      if (p.ready && now - p.last_seen > interval * config_.liveness) {
+      const NodeState& n = policy_.node(p.index);
+      if (n.dead || n.final_in) continue;
+      if (n.ready && now - p.last_seen > interval * config_.liveness) {
         declare_dead(p, fmt::format("silent for {:.1f} s", seconds(now - p.last_seen)));
         continue;
       }
@@ -221,10 +200,7 @@ class Coordinator {
   }
 
   void declare_dead(Peer& p, const std::string& why) {
-    uint64_t back = ledger_.outstanding(p.index);
-    ledger_.abandon(p.index);
-    p.dead = true;
-    p.grants.clear();
+    uint64_t back = policy_.dead(p.index);
     p.queue.clear();
     std::fprintf(stderr, "sirad-coordinator: %s: declared dead (%s); %llu granted bundles return to the budget\n",
                  p.name.c_str(), why.c_str(), static_cast<unsigned long long>(back));
@@ -261,7 +237,7 @@ class Coordinator {
     wire::Error e;
     e.set_reason(reason);
     auto it = peers_.find(id);
-    if (it != peers_.end() && !it->second.dead) return send(it->second, {Command::error, e, {}});
+    if (it != peers_.end() && !policy_.node(it->second.index).dead) return send(it->second, {Command::error, e, {}});
     proto::send(router_, {Command::error, e, {}}, &id);
   }
 
@@ -270,7 +246,7 @@ class Coordinator {
     auto it = peers_.find(id);
     if (it == peers_.end()) fail("{} before HELLO", proto::command_name(m.command));
     Peer& p = it->second;
-    if (p.dead) fail("{} from a node declared dead; say HELLO to rejoin", proto::command_name(m.command));
+    if (policy_.node(p.index).dead) fail("{} from a node declared dead; say HELLO to rejoin", proto::command_name(m.command));
     p.last_seen = Clock::now();
     switch (m.command) {
       case Command::ready: ready(p, std::get<wire::Ready>(m.header)); break;
@@ -290,20 +266,20 @@ class Coordinator {
   void hello(const std::string& id, const wire::Hello& h) {
     if (auto it = peers_.find(id); it != peers_.end()) {
       Peer& old = it->second;
+      const NodeState& n = policy_.node(old.index);
       old.last_seen = Clock::now();
       // An idle node repeats HELLO until it has a run, and a node between FINAL and the next
       // run does too: nothing to do for either.
-      if (!old.dead && (!old.ready || old.stopped)) return;
-      if (!old.dead) declare_dead(old, "it said HELLO again: it lost its run");
+      if (!n.dead && (!n.ready || n.stopped)) return;
+      if (!n.dead) declare_dead(old, "it said HELLO again: it lost its run");
       departed_.push_back(std::move(old));
       peers_.erase(it);
     }
     Peer& p = peers_[id];
     p.id = id;
-    p.index = aggregate_.nodes();
+    p.index = policy_.join();
     p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : h.node_name();
     if (h.has_device()) p.device = h.device().name();
-    aggregate_.add_node();
     wire::Welcome w;
     w.set_node_index(p.index);
     w.set_heartbeat_ms(config_.heartbeat_ms);
@@ -312,7 +288,7 @@ class Coordinator {
     if (config_.profile) {
       emulation::LinkSpec spec = config_.profile->for_node(p.index, p.name);
       if (!config_.emulate_bandwidth) spec.up_mbit = spec.down_mbit = 0;
-      uint64_t seed = config_.seed * 0x9E3779B97F4A7C15ull + p.index;
+      uint64_t seed = emulation::link_seed(config_.seed, p.index);
       p.down = emulation::LinkModel(spec.down_mbit, spec.latency_ms, spec.jitter_ms, spec.loss, seed);
       wire::Emulation* e = w.mutable_emulation();
       e->set_slowdown(config_.profile->slowdown(spec));
@@ -337,198 +313,115 @@ class Coordinator {
   }
 
   void ready(Peer& p, const wire::Ready& r) {
-    if (p.ready) fail("READY twice");
     if (r.run_id() != run_.run_id()) fail("READY for run {:x}, not this run", r.run_id());
-    p.ready = true;
+    policy_.ready(p.index);
     p.ready_at = Clock::now();
     schedule();
   }
 
-  // Grants. Async: every live ready node holds two, the one it runs and one queued behind it,
-  // so it never waits for the REPORT -> GRANT round trip; near the end of the budget (less
-  // than two grants per node left) only one, so no node queues work a faster one could take.
-  // Sync: one each, given only when no node holds one (the barrier of the exchange period).
+  // Sends what the policy orders: grants, then STOPs.
   void schedule() {
-    uint32_t ready = 0;
-    bool any_holding = false;
-    for (const auto& [id, p] : peers_) {
-      if (p.dead) continue;
-      ready += p.ready && !p.stopped;
-      any_holding = any_holding || (p.ready && !p.grants.empty());
-    }
-    if (!started_ && ready < config_.min_nodes) return;  // min_nodes gates the first grant only
-    started_ = true;
-    if (config_.mode == Mode::sync && any_holding) return;
-    std::size_t depth = config_.mode == Mode::async && ledger_.available() >= 2 * ready * grant_size() ? 2 : 1;
-    for (auto& [id, p] : peers_)
-      while (!closing_ && !p.dead && p.ready && !p.stopped && p.grants.size() < depth && give_grant(p)) {
+    Orders orders = policy_.schedule();
+    for (const GrantOrder& o : orders.grants) {
+      wire::Grant g;
+      g.set_run_id(run_.run_id());
+      g.set_grant_id(o.id);
+      for (const Range& r : o.ranges) {
+        auto* w = g.add_ranges();
+        w->set_first(r.first);
+        w->set_last(r.last);
       }
-    if (ending())  // not before: a dead node's grant may still come back to the budget
-      for (auto& [id, p] : peers_)
-        if (!p.dead && p.ready && !p.stopped && p.grants.empty()) {
-          wire::Stop s;
-          s.set_run_id(run_.run_id());
-          send(p, {Command::stop, s, {}});
-          p.stopped = true;
-        }
-  }
-
-  // Every bundle done, or the run closed early and every outstanding grant is in.
-  bool ending() const {
-    if (ledger_.finished()) return true;
-    if (!closing_) return false;
-    for (const auto& [id, p] : peers_)
-      if (!p.dead && !p.grants.empty()) return false;
-    return true;
-  }
-
-  // A time limit or the target error closes the run: no more grants, the outstanding ones finish.
-  void check_close(Clock::time_point now) {
-    if (closing_ || ledger_.finished()) return;
-    if (config_.time_limit_s > 0 && seconds(now - start_) >= config_.time_limit_s) ended_by_ = "time limit";
-    else if (config_.target_error > 0 && reports_ > last_error_check_) {
-      last_error_check_ = reports_;
-      double e = error_estimate();
-      if (e >= 0 && e <= config_.target_error) ended_by_ = fmt::format("target error ({:.4g} <= {:.4g})", e, config_.target_error);
+      for (uint32_t c : o.report_chunks) g.add_report_chunks(c);
+      send(peer(o.node), {Command::grant, g, {}});
     }
-    if (ended_by_.empty()) return;
-    closing_ = true;
-    std::fprintf(stderr, "sirad-coordinator: %s reached after %llu bundles: finishing the outstanding grants\n",
-                 ended_by_.c_str(), static_cast<unsigned long long>(ledger_.done_count()));
-    schedule();
-  }
-
-  uint64_t grant_size() const {
-    uint64_t n = config_.exchange_every > 0 ? config_.exchange_every
-                                            : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, aggregate_.nodes())));
-    // Whole multiples of the grant unit, so ranges start at multiples of it (the ledger hands
-    // out its free ranges from the front): of the interleave G under stratified directions (a
-    // node's chain runs same-sequence bundles >= G steps apart even across grants,
-    // core/bundle.cpp) and of 1 / X when that is a whole number of steps sharing a shot.
-    return (n + grant_unit_ - 1) / grant_unit_ * grant_unit_;
-  }
-
-  bool give_grant(Peer& p) {
-    auto ranges = ledger_.grant(p.index, grant_size());
-    if (ranges.empty()) return false;
-    wire::Grant g;
-    g.set_run_id(run_.run_id());
-    g.set_grant_id(++grants_);
-    for (const Range& r : ranges) {
-      auto* w = g.add_ranges();
-      w->set_first(r.first);
-      w->set_last(r.last);
+    for (uint32_t n : orders.stops) {
+      wire::Stop s;
+      s.set_run_id(run_.run_id());
+      send(peer(n), {Command::stop, s, {}});
     }
-    if (config_.exchange_every > 0)
-      for (uint32_t c : exchange_chunks(p.rotation++, config_.fraction, aggregate_.chunks())) g.add_report_chunks(c);
-    p.grants.push_back(g.grant_id());
-    send(p, {Command::grant, g, {}});
-    return true;
   }
 
-  void take_chunks(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk, uint64_t& bytes) {
+  Peer& peer(uint32_t index) {
+    for (auto& [id, p] : peers_)
+      if (p.index == index) return p;
+    fail("no peer with index {}", index);  // the policy orders only current peers
+  }
+
+  // The REPORT or FINAL's chunks as the policy takes them (the run id checked first).
+  std::vector<ChunkState> chunk_states(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk, uint64_t& bytes) {
     if (r.run_id() != run_.run_id()) fail("{} for run {:x}, not this run", "state", r.run_id());
+    std::vector<ChunkState> out;
     for (int i = 0; i < r.chunks_size(); ++i) {
-      if (r.chunks(i) >= aggregate_.chunks()) fail("report names chunk {} of {}", r.chunks(i), aggregate_.chunks());
-      aggregate_.set(p.index, r.chunks(i), proto::unpack(bulk[i]), r.counts(i));
+      out.push_back({r.chunks(i), proto::unpack(bulk[i]), r.counts(i)});
       bytes += bulk[i].size();
     }
     if (std::isfinite(r.busy_s()) && std::isfinite(r.idle_s())) {
       p.busy_s = std::max(p.busy_s, r.busy_s());
       p.idle_s = std::max(p.idle_s, r.idle_s());
     }
-  }
-
-  // The run's error estimate. Under the chain rule the nodes are independent chains and the
-  // result is their count-weighted mean: its relative error combines each node's own
-  // batch-means estimate e_p, weighted by the counts the aggregate holds for it
-  // (Aggregate::combined_error; every node holding data must have an estimate); otherwise
-  // (the average rule couples the nodes, or a node has too few bundles yet) the spread of the
-  // node states (Aggregate::spread_error).
-  double error_estimate() const {
-    if (config_.rule == UpdateRule::chain) {
-      std::vector<double> error(aggregate_.nodes(), -1.0);
-      std::vector<uint64_t> bundles(aggregate_.nodes(), 0);
-      for (const Peer* p : all_peers()) {
-        if (p->index >= error.size()) continue;
-        error[p->index] = p->error;
-        bundles[p->index] = p->error_bundles;
-      }
-      double e = aggregate_.combined_error(error, bundles, weight_);
-      if (e > 0) return e;
-    }
-    return aggregate_.spread_error(weight_);
+    return out;
   }
 
   void report(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
-    if (p.grants.empty() || r.grant_id() != p.grants.front()) fail("report for grant {} it does not hold", r.grant_id());
-    p.grants.pop_front();  // answered, whatever follows: a refused report must not wedge the run
+    std::optional<Exchange> x;
     try {
-      for (const auto& d : r.done()) {
-        ledger_.done(p.index, {d.first(), d.last()});
-        p.bundles += d.last() - d.first();
+      std::vector<Range> done;
+      for (const auto& d : r.done()) done.push_back({d.first(), d.last()});
+      // A report for a grant it does not hold is refused before its data is looked at; one for
+      // its grant with data refused (another run's) still answers the grant, without the data.
+      uint64_t bytes = 0;
+      std::vector<ChunkState> chunks;
+      std::string refused;
+      const NodeState& n = policy_.node(p.index);
+      if (!n.grants.empty() && r.grant_id() == n.grants.front()) {
+        try {
+          chunks = chunk_states(p, r, bulk, bytes);
+        } catch (const Error& e) {
+          refused = e.what();
+          chunks.clear();
+        }
       }
-      // Refused like a bad chunk: the indices count as done (the ledger moves on), the data not.
-      if (!std::isfinite(r.error_estimate()) || r.error_estimate() > 1e6)
-        fail("REPORT error estimate {} is not a finite relative error", r.error_estimate());
-      take_chunks(p, r, bulk, bytes_in_);
+      x = policy_.report(p.index, r.grant_id(), done, std::move(chunks), refused.empty() ? r.error_estimate() : 0.0);
+      if (!refused.empty()) throw Error(refused);
+      bytes_in_ += bytes;
     } catch (const Error&) {
       schedule();  // refused (the caller logs it and answers ERROR); the others go on
       throw;
     }
     crossings_ += r.crossings();
-    if (r.error_estimate() > 0) {
-      p.error = r.error_estimate();
-      p.error_bundles = p.bundles;  // the node's chain had run this many when it estimated
-    }
-    ++reports_;
-    if (config_.progress) config_.progress(ledger_.done_count(), config_.bundles);
-    if (r.chunks_size() > 0) {
+    if (config_.progress) config_.progress(policy_.ledger().done_count(), config_.bundles);
+    if (x) {
       // The exchange: the others' aggregate (star) or the next node's state (ring).
       wire::Update u;
       u.set_run_id(run_.run_id());
-      u.set_exchange(p.exchange);
+      u.set_exchange(x->exchange);
       std::vector<std::string> frames;
-      for (uint32_t c : r.chunks()) {
-        Aggregate::Part part = aggregate_.others(p.index, c, config_.topology);
-        u.add_chunks(c);
-        u.add_counts(part.count);
-        frames.push_back(proto::pack(part.sum));
+      for (std::size_t i = 0; i < x->chunks.size(); ++i) {
+        u.add_chunks(x->chunks[i]);
+        u.add_counts(x->parts[i].count);
+        frames.push_back(proto::pack(x->parts[i].sum));
         bytes_out_ += frames.back().size();
       }
       send(p, {Command::update, u, frames});
-      ++p.exchange;
-      ++exchanges_;
     }
     schedule();
   }
 
   void final_state(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
-    if (!p.stopped || p.final_in) fail("FINAL without STOP");
-    take_chunks(p, r, bulk, final_bytes_);
-    p.final_in = true;
+    if (!policy_.node(p.index).stopped) fail("FINAL without STOP");
+    policy_.final_state(p.index, chunk_states(p, r, bulk, final_bytes_));
   }
 
   zmq::socket_t& router_;
   const RunConfig& config_;
   const PatchMesh& mesh_;
-  Ledger ledger_;
-  std::vector<uint32_t> starts_;
-  Aggregate aggregate_;
+  Policy policy_;
   std::string scene_bytes_;
-  std::vector<double> weight_;  // per patch, for the error estimate: area if not emitting
   wire::Run run_;
   std::map<std::string, Peer> peers_;
   std::vector<Peer> departed_;
   Clock::time_point start_ = Clock::now();
-  uint64_t grants_ = 0, bytes_in_ = 0, bytes_out_ = 0, final_bytes_ = 0, crossings_ = 0;
-  uint32_t exchanges_ = 0;
-  uint64_t reports_ = 0;
-  bool started_ = false;
-  bool closing_ = false;        // no more grants (time limit or target error)
-  std::string ended_by_;
-  uint64_t last_error_check_ = 0;
-  uint64_t grant_unit_ = 1;  // grants are multiples of it (stratified G, and 1 / X)
+  uint64_t bytes_in_ = 0, bytes_out_ = 0, final_bytes_ = 0, crossings_ = 0;
 };
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include <zmq.hpp>
 
 #include "coordinator/exchange.h"
+#include "coordinator/policy.h"
 #include "coordinator/profile.h"
 #include "coordinator/status.h"
 #include "core/mesh.h"

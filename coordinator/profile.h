@@ -50,6 +50,9 @@ Profile parse_profile(const std::string& text, const std::string& origin);
 // Reads and parses a profile file (sirad::Error naming the file if it cannot be read).
 Profile load_profile(const std::string& path);
 
+// The seed of node `index`'s emulated links in a run of `seed` (downlink; the uplink: + 1).
+inline uint64_t link_seed(uint64_t seed, uint32_t index) { return seed * 0x9E3779B97F4A7C15ull + index; }
+
 // One direction of an emulated TCP link: messages leave in order through a server of the
 // link's bandwidth (store and forward), then take the latency with jitter; a lost packet costs
 // a retransmission timeout (TCP delivers everything, late) and messages never overtake each

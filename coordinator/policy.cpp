@@ -1,0 +1,213 @@
+// sirad: the coordinator's decisions (no sockets, no clocks): see policy.h.
+#include "coordinator/policy.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+
+namespace sirad::cluster {
+
+uint64_t grant_unit(const PatchMesh& mesh, Directions directions, double shots_per_bundle) {
+  uint64_t unit = sampling_plan(mesh, directions).interleave;
+  if (shots_per_bundle > 0.0 && shots_per_bundle < 1.0) {
+    const double k = 1.0 / shots_per_bundle;
+    const uint64_t whole = static_cast<uint64_t>(std::llround(k));
+    if (whole > 1 && whole <= 4096 && std::fabs(k - static_cast<double>(whole)) <= 1e-9 * k)
+      unit = std::lcm(unit, whole);
+  }
+  return unit;
+}
+
+std::vector<double> error_weights(const PatchMesh& mesh) {
+  std::vector<double> weight(mesh.size());
+  double lit = 0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    weight[j] = mesh.emits(j) ? 0.0 : static_cast<double>(mesh.area[j]);
+    lit += weight[j];
+  }
+  if (lit == 0)
+    for (std::size_t j = 0; j < mesh.size(); ++j) weight[j] = mesh.area[j];
+  return weight;
+}
+
+const char* NodeState::state() const {
+  return dead ? "dead" : final_in ? "done" : !ready ? "joining" : !grants.empty() ? "working" : "waiting";
+}
+
+Policy::Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight)
+    : config_(config), starts_(starts), weight_(std::move(weight)), ledger_(config.bundles), aggregate_(std::move(starts), 0) {
+  if (config_.grant_unit == 0) config_.grant_unit = 1;
+}
+
+uint32_t Policy::join() {
+  nodes_.emplace_back();
+  aggregate_.add_node();
+  return nodes() - 1;
+}
+
+void Policy::ready(uint32_t n) {
+  NodeState& p = nodes_.at(n);
+  if (p.ready) fail("READY twice");
+  p.ready = true;
+}
+
+uint64_t Policy::dead(uint32_t n) {
+  NodeState& p = nodes_.at(n);
+  uint64_t back = ledger_.outstanding(n);
+  ledger_.abandon(n);
+  p.dead = true;
+  p.grants.clear();
+  return back;
+}
+
+uint64_t Policy::grant_size() const {
+  uint64_t n = config_.exchange_every > 0 ? config_.exchange_every
+                                          : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, nodes())));
+  // Whole multiples of the grant unit, so ranges start at multiples of it (the ledger hands out
+  // its free ranges from the front).
+  return (n + config_.grant_unit - 1) / config_.grant_unit * config_.grant_unit;
+}
+
+Orders Policy::schedule() {
+  Orders orders;
+  uint32_t ready = 0;
+  bool any_holding = false;
+  for (const NodeState& p : nodes_) {
+    if (p.dead) continue;
+    ready += p.ready && !p.stopped;
+    any_holding = any_holding || (p.ready && !p.grants.empty());
+  }
+  if (!started_ && ready < config_.min_nodes) return orders;  // min_nodes gates the first grant only
+  started_ = true;
+  if (config_.mode == Mode::sync && any_holding) return orders;
+  std::size_t depth = config_.mode == Mode::async && ledger_.available() >= 2 * ready * grant_size() ? 2 : 1;
+  for (uint32_t n = 0; n < nodes(); ++n) {
+    NodeState& p = nodes_[n];
+    while (!closing_ && !p.dead && p.ready && !p.stopped && p.grants.size() < depth) {
+      auto ranges = ledger_.grant(n, grant_size());
+      if (ranges.empty()) break;
+      GrantOrder g{n, ++grants_, std::move(ranges), {}};
+      if (config_.exchange_every > 0) g.report_chunks = exchange_chunks(p.rotation++, config_.fraction, aggregate_.chunks());
+      p.grants.push_back(g.id);
+      orders.grants.push_back(std::move(g));
+    }
+  }
+  if (ending())  // not before: a dead node's grant may still come back to the budget
+    for (uint32_t n = 0; n < nodes(); ++n) {
+      NodeState& p = nodes_[n];
+      if (!p.dead && p.ready && !p.stopped && p.grants.empty()) {
+        p.stopped = true;
+        orders.stops.push_back(n);
+      }
+    }
+  return orders;
+}
+
+void Policy::take_chunks(uint32_t n, std::vector<ChunkState>& chunks) {
+  for (ChunkState& c : chunks) {
+    if (c.chunk >= aggregate_.chunks()) fail("report names chunk {} of {}", c.chunk, aggregate_.chunks());
+    aggregate_.set(n, c.chunk, std::move(c.sum), c.count);
+  }
+}
+
+std::optional<Exchange> Policy::report(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
+                                       std::vector<ChunkState> chunks, double error_estimate) {
+  NodeState& p = nodes_.at(n);
+  if (p.grants.empty() || grant_id != p.grants.front()) fail("report for grant {} it does not hold", grant_id);
+  p.grants.pop_front();  // answered, whatever follows: a refused report must not wedge the run
+  for (const Range& d : done) {
+    ledger_.done(n, d);
+    p.bundles += d.size();
+  }
+  // Refused like a bad chunk: the indices count as done (the ledger moves on), the data not.
+  if (!std::isfinite(error_estimate) || error_estimate > 1e6)
+    fail("REPORT error estimate {} is not a finite relative error", error_estimate);
+  take_chunks(n, chunks);
+  if (error_estimate > 0) {
+    p.error = error_estimate;
+    p.error_bundles = p.bundles;  // the node's chain had run this many when it estimated
+  }
+  ++reports_;
+  if (chunks.empty()) return std::nullopt;
+  // The exchange: the others' aggregate (star) or the next node's state (ring).
+  Exchange x;
+  x.exchange = p.exchanges++;
+  for (const ChunkState& c : chunks) {
+    x.chunks.push_back(c.chunk);
+    x.parts.push_back(aggregate_.others(n, c.chunk, config_.topology));
+  }
+  ++exchanges_;
+  return x;
+}
+
+void Policy::final_state(uint32_t n, std::vector<ChunkState> chunks) {
+  NodeState& p = nodes_.at(n);
+  if (!p.stopped || p.final_in) fail("FINAL without STOP");
+  take_chunks(n, chunks);
+  p.final_in = true;
+}
+
+bool Policy::check_close(double elapsed_s) {
+  if (closing_ || ledger_.finished()) return false;
+  if (config_.time_limit_s > 0 && elapsed_s >= config_.time_limit_s) ended_by_ = "time limit";
+  else if (config_.target_error > 0 && reports_ > last_error_check_) {
+    last_error_check_ = reports_;
+    double e = error_estimate();
+    if (e >= 0 && e <= config_.target_error) ended_by_ = fmt::format("target error ({:.4g} <= {:.4g})", e, config_.target_error);
+  }
+  if (ended_by_.empty()) return false;
+  closing_ = true;
+  return true;
+}
+
+bool Policy::ending() const {
+  if (ledger_.finished()) return true;
+  if (!closing_) return false;
+  for (const NodeState& p : nodes_)
+    if (!p.dead && !p.grants.empty()) return false;
+  return true;
+}
+
+bool Policy::done() const {
+  if (!ending()) return false;
+  for (const NodeState& p : nodes_)
+    if (!p.dead && p.ready && !p.final_in) return false;
+  return true;
+}
+
+// Under the chain rule the nodes are independent chains and the result is their count-weighted
+// mean: its relative error combines each node's own batch-means estimate e_p, weighted by the
+// counts the aggregate holds for it (Aggregate::combined_error; every node holding data must
+// have an estimate); otherwise (the average rule couples the nodes, or a node has too few
+// bundles yet) the spread of the node states (Aggregate::spread_error).
+double Policy::error_estimate() const {
+  if (config_.rule == UpdateRule::chain) {
+    std::vector<double> error(nodes(), -1.0);
+    std::vector<uint64_t> bundles(nodes(), 0);
+    for (uint32_t n = 0; n < nodes(); ++n) {
+      error[n] = nodes_[n].error;
+      bundles[n] = nodes_[n].error_bundles;
+    }
+    double e = aggregate_.combined_error(error, bundles, weight_);
+    if (e > 0) return e;
+  }
+  return aggregate_.spread_error(weight_);
+}
+
+std::vector<glm::vec3> Policy::radiosity() const {
+  std::vector<glm::vec3> out(starts_.back());
+  for (uint32_t c = 0; c + 1 < starts_.size(); ++c) {
+    std::vector<double> est = aggregate_.estimate(c);
+    for (uint32_t j = starts_[c]; j < starts_[c + 1]; ++j) {
+      std::size_t i = 3 * static_cast<std::size_t>(j - starts_[c]);
+      out[j] = glm::vec3(static_cast<float>(est[i]), static_cast<float>(est[i + 1]), static_cast<float>(est[i + 2]));
+    }
+  }
+  return out;
+}
+
+}  // namespace sirad::cluster

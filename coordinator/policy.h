@@ -1,0 +1,151 @@
+// sirad: the coordinator's decisions as plain state, free of sockets and clocks (DESIGN.md
+// section 2): who gets which grant when (async depth, the sync barrier, grant sizes aligned to
+// the sampling plan), what a report changes (ledger, aggregate, the exchange it is answered
+// with), when the run closes and ends, and its error estimate. The ZeroMQ coordinator
+// (coordinator.cpp) and the virtual-time cluster (emulate.cpp) both drive this one class, so
+// an emulated timeline is decided exactly as a real run would be.
+#pragma once
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "coordinator/exchange.h"
+#include "core/bundle.h"
+#include "core/mesh.h"
+#include "core/solver.h"
+
+namespace sirad::cluster {
+
+struct PolicyConfig {
+  uint64_t bundles = 0;
+  uint32_t exchange_every = 0;  // I (0: states only at the end)
+  double fraction = 1.0;        // S
+  Topology topology = Topology::star;
+  Mode mode = Mode::async;
+  UpdateRule rule = UpdateRule::chain;  // chain: the nodes' chains are independent (error estimate)
+  uint32_t min_nodes = 1;       // ready nodes before the first grant
+  uint64_t grant_unit = 1;      // grants are whole multiples of it (grant_unit())
+  double time_limit_s = 0;      // 0: none; else no grants after this long
+  double target_error = 0;      // 0: none; else close once error_estimate() is at or below it
+};
+
+// Grants must be whole multiples of: the interleave G under stratified directions (a node's
+// chain runs same-sequence bundles >= G steps apart even across grants, core/bundle.cpp), and
+// 1 / X when that is a whole number k of steps sharing one shot (core/solver.h shots_of_step),
+// so each shot stays on one node and the nodes' chains stay independent.
+uint64_t grant_unit(const PatchMesh& mesh, Directions directions, double shots_per_bundle);
+
+// The error estimate's patch weights: the area of non-emitting patches (emitters are mostly E,
+// known exactly); every patch's area where all of them emit (the furnace).
+std::vector<double> error_weights(const PatchMesh& mesh);
+
+struct NodeState {
+  bool ready = false, stopped = false, final_in = false, dead = false;
+  std::deque<uint64_t> grants;  // outstanding grant ids, oldest first
+  uint32_t rotation = 0;        // grants given with report chunks (the rotation of S)
+  uint32_t exchanges = 0;
+  uint64_t bundles = 0;
+  double error = -1;            // its last reported error estimate (<= 0: none)
+  uint64_t error_bundles = 0;   // the bundles it had done then
+  // "dead" | "done" | "joining" | "working" | "waiting" (Status::Node::state)
+  const char* state() const;
+};
+
+struct GrantOrder {
+  uint32_t node = 0;
+  uint64_t id = 0;
+  std::vector<Range> ranges;
+  std::vector<uint32_t> report_chunks;  // the chunks its REPORT carries (empty: no exchange)
+};
+
+// What the policy wants sent now: grants, then STOPs (the node has no more work: FINAL next).
+struct Orders {
+  std::vector<GrantOrder> grants;
+  std::vector<uint32_t> stops;
+};
+
+// A node's state of one chunk: 3 doubles (rgb) per patch, and its bundle count.
+struct ChunkState {
+  uint32_t chunk = 0;
+  std::vector<double> sum;
+  uint64_t count = 0;
+};
+
+// The answer to a REPORT that carried chunks: the others' data for each (Aggregate::others).
+struct Exchange {
+  uint32_t exchange = 0;  // the node's exchange number
+  std::vector<uint32_t> chunks;
+  std::vector<Aggregate::Part> parts;
+};
+
+class Policy {
+ public:
+  // `starts`: chunk_starts of the mesh; `weight`: error_weights of the mesh.
+  Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight);
+
+  uint32_t join();  // a new node (not ready yet); its index
+  uint32_t nodes() const { return static_cast<uint32_t>(nodes_.size()); }
+  const NodeState& node(uint32_t n) const { return nodes_.at(n); }
+  void ready(uint32_t n);  // throws sirad::Error for a second READY
+  // Declares node n dead: its outstanding grant goes back to the budget. Returns how many
+  // bundles went back. Call schedule() next (a sync barrier may have waited on it).
+  uint64_t dead(uint32_t n);
+
+  // Gives grants and STOPs. Async: every live ready node holds two grants, the one it runs and
+  // one queued behind it, so it never waits for the REPORT -> GRANT round trip; near the end of
+  // the budget (less than two grants per node left) only one, so no node queues work a faster
+  // one could take. Sync: one each, given only when no node holds one (the exchange barrier).
+  Orders schedule();
+
+  // Node n's REPORT for grant `grant_id` (which must be its oldest): the done ranges go into
+  // the ledger, the chunks into the aggregate. Returns the exchange to answer with (none when
+  // the report carried no chunks). Throws sirad::Error when refused: the grant counts as
+  // answered and its indices as done either way, the data not. Call schedule() next, always.
+  std::optional<Exchange> report(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
+                                 std::vector<ChunkState> chunks, double error_estimate);
+  // Node n's FINAL (after its STOP): its end states.
+  void final_state(uint32_t n, std::vector<ChunkState> chunks);
+
+  // The time limit (elapsed_s on the driver's clock) or the target error closes the run: no
+  // more grants, the outstanding ones finish. True when it closed now; call schedule() next.
+  bool check_close(double elapsed_s);
+  bool closing() const { return closing_; }
+  const std::string& ended_by() const { return ended_by_; }
+  // Every bundle done, or the run closed and every outstanding grant is in.
+  bool ending() const;
+  // Ending, and the FINAL of every live ready node is in.
+  bool done() const;
+
+  // The run's relative error estimate (see the .cpp), or < 0 while there is none.
+  double error_estimate() const;
+  // The count-weighted estimate per patch.
+  std::vector<glm::vec3> radiosity() const;
+
+  uint64_t grant_size() const;
+  const Ledger& ledger() const { return ledger_; }
+  const Aggregate& aggregate() const { return aggregate_; }
+  const std::vector<uint32_t>& starts() const { return starts_; }
+  uint32_t exchanges() const { return exchanges_; }
+  uint64_t reports() const { return reports_; }
+  const PolicyConfig& config() const { return config_; }
+
+ private:
+  void take_chunks(uint32_t n, std::vector<ChunkState>& chunks);
+
+  PolicyConfig config_;
+  std::vector<uint32_t> starts_;
+  std::vector<double> weight_;
+  Ledger ledger_;
+  Aggregate aggregate_;
+  std::vector<NodeState> nodes_;
+  uint64_t grants_ = 0, reports_ = 0, last_error_check_ = 0;
+  uint32_t exchanges_ = 0;
+  bool started_ = false, closing_ = false;
+  std::string ended_by_;
+};
+
+}  // namespace sirad::cluster
