@@ -2,6 +2,7 @@
 // NAME.exr, NAME.png and NAME.ply; `sirad devices` lists the OpenCL devices.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -15,9 +16,11 @@
 #include <thread>
 
 #include "coordinator/coordinator.h"
+#include "coordinator/emulate.h"
 #include "coordinator/live_view.h"
 #include "core/bundle_cl.h"
 #include "node/node.h"
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/model.h"
@@ -135,10 +138,9 @@ MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<doub
   return o;
 }
 
-// The embedded default: the coordinator on this thread, N nodes on their own threads, all over
-// ZeroMQ inproc with the same code as a cluster.
-int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, const PatchMesh& mesh,
-                    UpdateRule rule, const std::string& out, std::optional<emulation::Profile> profile) {
+// The cluster run the flags ask for (the embedded cluster's and the emulation's).
+cluster::RunConfig run_config_from(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, UpdateRule rule,
+                                   std::optional<emulation::Profile> profile) {
   cluster::RunConfig rc;
   rc.scene = scene;
   rc.mesh_options = mesh_options;
@@ -157,10 +159,18 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   rc.mode = cluster::parse_mode(a.mode);
   rc.chunks = static_cast<uint32_t>(a.chunks);
   rc.min_nodes = static_cast<uint32_t>(a.nodes);
-  rc.strict = true;
   rc.profile = std::move(profile);
   rc.time_limit_s = a.time_limit;
   rc.target_error = a.target_error;
+  return rc;
+}
+
+// The embedded default: the coordinator on this thread, N nodes on their own threads, all over
+// ZeroMQ inproc with the same code as a cluster.
+int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, const PatchMesh& mesh,
+                    UpdateRule rule, const std::string& out, std::optional<emulation::Profile> profile) {
+  cluster::RunConfig rc = run_config_from(a, scene, mesh_options, rule, std::move(profile));
+  rc.strict = true;
 
   const std::string endpoint = "inproc://sirad-embedded";
   zmq::context_t context;
@@ -302,6 +312,76 @@ int render(const RenderArgs& a) {
   if (ended_by != "budget") std::printf("ended early: %s\n", ended_by.c_str());
   return 0;
 }
+
+struct EmulateArgs {
+  RenderArgs run;
+  double bundle_ms = 0;
+  std::string nodes_csv, timeline;
+  bool nodes_given = false;
+};
+
+// `sirad emulate`: the virtual-time cluster (coordinator/emulate.h) on this machine's device.
+int emulate(EmulateArgs& e) {
+  RenderArgs& a = e.run;
+  MeshOptions mesh_options = mesh_options_from(a.patches, a.max_edge);
+  std::optional<emulation::Profile> profile;
+  if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
+  if (!e.nodes_given) {
+    if (!profile || profile->nodes.empty()) fail("emulate: give --nodes N (or a --profile with node entries)");
+    a.nodes = static_cast<int>(profile->nodes.size());
+  }
+  UpdateRule rule = parse_update_rule(a.rule);
+  resolve_directions(a.directions, rule);
+  check_first_shot(a.shots_per_bundle, a.shot_resolution);
+  std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
+  check_output_name(out);
+  ImportOptions import;
+  import.skip_degenerate = a.skip_degenerate;
+  Scene scene = load_scene(a.scene, import);
+  PatchMesh mesh = mesh_scene(scene, mesh_options);
+  if (!mesh.camera) mesh.camera = default_camera(scene);
+
+  cluster::EmulateConfig ec;
+  ec.run = run_config_from(a, scene, mesh_options, rule, std::move(profile));
+  ec.nodes = static_cast<uint32_t>(a.nodes);
+  ec.bundle_s = e.bundle_ms / 1e3;
+  cluster::check_emulation(ec);
+  auto engine = make_cl_engine(mesh, {.device = a.device});
+  std::unique_ptr<ShotEngine> shots;
+  if (a.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
+  if (!a.quiet)
+    std::fprintf(stderr, "sirad emulate: %s: %zu patches, %lld bundles on %u emulated nodes%s, on %s\n", a.scene.c_str(),
+                 mesh.size(), static_cast<long long>(a.bundles), ec.nodes,
+                 a.profile.empty() ? "" : fmt::format(" (profile {})", a.profile).c_str(), engine->description().c_str());
+  cluster::EmulateResult r = cluster::emulate(ec, mesh, *engine, shots.get());
+
+  Attributes attrs = cluster::run_attributes(ec.run, r.run, mesh, a.scene);
+  attrs.emplace_back("sirad.emulated", std::string("virtual time"));
+  attrs.emplace_back("sirad.virtual_wall_s", r.wall_s);
+  attrs.emplace_back("sirad.bundle_s", r.bundle_s);
+  if (r.error_estimate >= 0) attrs.emplace_back("sirad.error_estimate", r.error_estimate);
+  write_outputs(a, out, mesh, r.run.radiosity, attrs);
+  if (!e.nodes_csv.empty()) write_file_atomic(e.nodes_csv, cluster::nodes_csv(r));
+  if (!e.timeline.empty()) write_file_atomic(e.timeline, cluster::timeline_csv(r));
+  // Every node up to 32; beyond, the spread of their utilisation.
+  std::vector<double> use;
+  for (const auto& n : r.nodes) {
+    use.push_back(r.wall_s > 0 ? n.busy_s / r.wall_s : 0.0);
+    if (r.nodes.size() <= 32)
+      std::printf("node %s: speed %g, %llu bundles, %u exchanges, busy %.3f s, idle %.3f s, utilisation %.1f %%\n", n.name.c_str(),
+                  n.speed, static_cast<unsigned long long>(n.bundles), n.exchanges, n.busy_s, n.idle_s, 100 * use.back());
+  }
+  std::sort(use.begin(), use.end());
+  std::printf("utilisation over %zu nodes: min %.1f %%, median %.1f %%, max %.1f %%\n", use.size(), 100 * use.front(),
+              100 * use[use.size() / 2], 100 * use.back());
+  std::printf("%s\n", cluster::traffic_line(r.run).c_str());
+  std::printf("virtual wall time %.3f s for %llu bundles (%.3f ms per bundle at speed 1), error estimate %s; emulated in %.2f s\n",
+              r.wall_s, static_cast<unsigned long long>(r.run.bundles), r.bundle_s * 1e3,
+              r.error_estimate >= 0 ? fmt::format("{:.4f}", r.error_estimate).c_str() : "n/a", r.real_s);
+  if (r.run.ended_by != "budget") std::printf("ended early: %s\n", r.run.ended_by.c_str());
+  return 0;
+}
+
 
 // The links a profile gives nodes 0..N-1 (named PREFIX0, PREFIX1, ...), one row each: for
 // people checking a profile and for deploy/netns-cluster.sh (tc rates per node).
@@ -508,60 +588,77 @@ int devices() {
   return 0;
 }
 
+// The flags of a run, shared by `render` and `emulate` (the cluster flags: with --nodes).
+void add_run_options(CLI::App* cmd, RenderArgs& r) {
+  cmd->add_option("scene", r.scene, "Built-in scene (cornell, furnace, bright-room, three-lights) or an .obj file")->required();
+  cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
+  cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--bundles", r.bundles, "Bundles (random directions) to run")
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
+  cmd->add_option("--grid", r.grid, "Lines per side of a bundle (default: from the patch sizes)")
+      ->check(CLI::Range(2, 8192));
+  cmd->add_option("--seed", r.seed, "Run seed")->capture_default_str();
+  cmd->add_option("--out", r.out, "Output name: writes NAME.exr, NAME.png, NAME.ply (default: scene name)");
+  cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");
+  cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
+      ->check(CLI::IsMember({"chain", "average"}));
+  cmd->add_option("--directions", r.directions,
+                         "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified")
+      ->check(CLI::IsMember({"auto", "random", "stratified"}))->capture_default_str();
+  cmd->add_option("--control-variate", r.control_variate,
+                         "The transport's constant control variate: on (default) or off (the plain estimator)")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
+  cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
+      ->check(CLI::Range(0, 1 << 20));
+  cmd->add_option("--shots-per-bundle", r.shots_per_bundle,
+                         "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
+      ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
+  cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
+      ->check(CLI::Range(0, 2048))->capture_default_str();
+  cmd->add_option("--width", r.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd->add_option("--height", r.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd->add_option("--exposure", r.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
+  cmd->add_flag("--flat", r.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
+  cmd->add_flag("--skip-degenerate", r.skip_degenerate, "Drop zero-area triangles instead of failing");
+  cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
+  cmd->add_option("--exchange-every", r.exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
+  cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")
+      ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
+  cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
+  cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
+  cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--target-error", r.target_error,
+                         "End the run at this relative error estimate (one node: batch means; --nodes 2+ with --exchange-every: the nodes' spread)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
+      ->check(CLI::Range(1, 4096))->capture_default_str();
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"sirad: diffuse global illumination by stochastic iteration with bundles of parallel lines"};
   app.require_subcommand(1);
   RenderArgs r;
   auto* render_cmd = app.add_subcommand("render", "Solve a scene on one OpenCL device; write NAME.exr, .png, .ply");
-  render_cmd->add_option("scene", r.scene, "Built-in scene (cornell, furnace, bright-room, three-lights) or an .obj file")->required();
-  render_cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
-      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
-  render_cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")
-      ->check(CLI::PositiveNumber);
-  render_cmd->add_option("--bundles", r.bundles, "Bundles (random directions) to run")
-      ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
-  render_cmd->add_option("--grid", r.grid, "Lines per side of a bundle (default: from the patch sizes)")
-      ->check(CLI::Range(2, 8192));
-  render_cmd->add_option("--seed", r.seed, "Run seed")->capture_default_str();
-  render_cmd->add_option("--out", r.out, "Output name: writes NAME.exr, NAME.png, NAME.ply (default: scene name)");
-  render_cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");
-  render_cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
-      ->check(CLI::IsMember({"chain", "average"}));
-  render_cmd->add_option("--directions", r.directions,
-                         "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified")
-      ->check(CLI::IsMember({"auto", "random", "stratified"}))->capture_default_str();
-  render_cmd->add_option("--control-variate", r.control_variate,
-                         "The transport's constant control variate: on (default) or off (the plain estimator)")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  render_cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
-      ->check(CLI::Range(0, 1 << 20));
-  render_cmd->add_option("--shots-per-bundle", r.shots_per_bundle,
-                         "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
-      ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
-  render_cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
-      ->check(CLI::Range(0, 2048))->capture_default_str();
-  render_cmd->add_option("--width", r.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
-  render_cmd->add_option("--height", r.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
-  render_cmd->add_option("--exposure", r.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
-  render_cmd->add_flag("--flat", r.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
-  render_cmd->add_flag("--skip-degenerate", r.skip_degenerate, "Drop zero-area triangles instead of failing");
-  render_cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
+  add_run_options(render_cmd, r);
   render_cmd->add_option("--nodes", r.nodes, "Embedded cluster: N local nodes over ZeroMQ inproc (0: single node)")
       ->check(CLI::Range(0, 64));
-  render_cmd->add_option("--exchange-every", r.exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
-  render_cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")
-      ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
-  render_cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
-  render_cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
   render_cmd->add_option("--status-json", r.status_json, "With --nodes: rewrite this file with the run's status every second");
   render_cmd->add_option("--profile", r.profile, "With --nodes: network emulation profile (YAML; nodes are named local-0, local-1, ...)");
-  render_cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")
-      ->check(CLI::NonNegativeNumber);
-  render_cmd->add_option("--target-error", r.target_error,
-                         "End the run at this relative error estimate (one node: batch means; --nodes 2+ with --exchange-every: the nodes' spread)")
-      ->check(CLI::Range(0.0, 1.0));
-  render_cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
-      ->check(CLI::Range(1, 4096))->capture_default_str();
+  EmulateArgs e;
+  auto* emulate_cmd = app.add_subcommand(
+      "emulate", "Run a cluster of N nodes in virtual time on this machine (real bundles, emulated clocks and links); write NAME.exr, .png, .ply");
+  add_run_options(emulate_cmd, e.run);
+  emulate_cmd->add_option("--nodes", e.run.nodes, "Emulated nodes (default: the profile's node entries)")
+      ->check(CLI::Range(1, 4096));
+  emulate_cmd->add_option("--profile", e.run.profile, "Emulation profile (YAML): speeds and links; nodes are named emu-0, emu-1, ...");
+  emulate_cmd->add_option("--bundle-ms", e.bundle_ms,
+                          "Milliseconds of one bundle at speed 1 (default: measured before the run; fix it for a reproducible timeline)")
+      ->check(CLI::PositiveNumber);
+  emulate_cmd->add_option("--nodes-csv", e.nodes_csv, "Write the per-node figures (bundles, busy, idle, utilisation) as CSV");
+  emulate_cmd->add_option("--timeline", e.timeline, "Write the virtual timeline (every grant, report, update, stop) as CSV");
   ReferenceArgs ref_args;
   auto* reference_cmd = add_reference_command(app, ref_args);
   ModelArgs model_args;
@@ -585,6 +682,10 @@ int run(int argc, char** argv) {
     return 2;
   }
   if (render_cmd->parsed()) return render(r);
+  if (emulate_cmd->parsed()) {
+    e.nodes_given = emulate_cmd->count("--nodes") > 0;
+    return emulate(e);
+  }
   if (reference_cmd->parsed()) return reference(ref_args);
   if (model_cmd->parsed()) {
     model_args.time_given = model_cmd->count("--time") > 0;

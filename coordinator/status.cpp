@@ -100,10 +100,7 @@ Status read_status(const std::string& path) {
 }
 
 void write_status(const std::string& path, const Status& status) {
-  std::string text = to_json(status);
-  AtomicFile f(path);
-  f.write(text.data(), text.size());
-  f.commit();
+  write_file_atomic(path, to_json(status));
 }
 
 }  // namespace sirad::cluster

@@ -59,4 +59,10 @@ void AtomicFile::fail(const std::string& reason) const {
 
 void AtomicFile::fail_errno(int error) const { fail(std::strerror(error)); }
 
+void write_file_atomic(const std::string& path, const std::string& text) {
+  AtomicFile f(path);
+  f.write(text.data(), text.size());
+  f.commit();
+}
+
 }  // namespace sirad

@@ -31,4 +31,7 @@ class AtomicFile {
   bool committed_ = false;
 };
 
+// Replaces `path` atomically with `text`.
+void write_file_atomic(const std::string& path, const std::string& text);
+
 }  // namespace sirad

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <sstream>
 #include <string>
 #include <tuple>
 
@@ -155,6 +157,54 @@ TEST_F(Cli, EmbeddedClusterRendersWithTwoNodes) {
   EXPECT_NE(status.find("\"name\": \"local-0\""), std::string::npos) << status;
   EXPECT_NE(status.find("\"name\": \"local-1\""), std::string::npos) << status;
   fs::remove(dir_ / "status.json");
+}
+
+// sirad emulate: the virtual-time cluster with the hetero-16 profile writes the three outputs,
+// the per-node CSV (16 nodes from the profile's entries; the 4x node does more bundles than the
+// 0.25x one) and the timeline; the EXR says it was emulated.
+TEST_F(Cli, EmulateRunsTheHeterogeneousProfileInVirtualTime) {
+  Outcome r = sirad(std::string("emulate cornell --profile ") + SIRAD_SOURCE_DIR +
+                    "/deploy/profiles/hetero-16.yaml --patches 300 --bundles 480 --exchange-every 8 --bundle-ms 20 "
+                    "--shots-per-bundle 0 --directions random "
+                    "--width 32 --height 32 --out emu --nodes-csv nodes.csv --timeline timeline.csv");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* ext : {".exr", ".png", ".ply"}) EXPECT_TRUE(fs::exists(dir_ / (std::string("emu") + ext))) << ext;
+  EXPECT_NE(r.out.find("virtual wall time"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("node emu-15"), std::string::npos) << r.out;
+  std::ifstream csv(dir_ / "nodes.csv");
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "node,speed,slowdown,bundles,exchanges,ready_s,busy_s,idle_s,utilisation,end_s");
+  std::map<double, uint64_t> by_speed;  // the bundles of the last node of each speed
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    std::stringstream ss(line);
+    std::string name, speed, slowdown, bundles;
+    std::getline(ss, name, ',');
+    std::getline(ss, speed, ',');
+    std::getline(ss, slowdown, ',');
+    std::getline(ss, bundles, ',');
+    by_speed[std::stod(speed)] = std::stoull(bundles);
+  }
+  EXPECT_EQ(rows, 16);
+  ASSERT_TRUE(by_speed.count(0.25) && by_speed.count(4.0));
+  EXPECT_GT(by_speed[4.0], by_speed[0.25]);
+  std::string timeline = slurp((dir_ / "timeline.csv").string());
+  EXPECT_EQ(timeline.rfind("t,node,event,bundles\n", 0), 0u);
+  EXPECT_NE(timeline.find(",grant,"), std::string::npos);
+  Imf::InputFile exr((dir_ / "emu.exr").string().c_str());
+  auto* emulated = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.emulated");
+  ASSERT_NE(emulated, nullptr);
+  EXPECT_EQ(emulated->value(), "virtual time");
+  fs::remove(dir_ / "nodes.csv");
+  fs::remove(dir_ / "timeline.csv");
+}
+
+TEST_F(Cli, EmulateNeedsNodesOrAProfileWithNodes) {
+  expect_error(sirad("emulate cornell --bundles 8"), "--nodes");
+  write("drops.yaml", "nodes:\n  - {index: 0, disconnect_at_s: 2}\n");
+  expect_error(sirad("emulate furnace --patches 50 --bundles 8 --nodes 2 --profile drops.yaml"), "disconnects are not emulated");
 }
 
 // --directions: recorded in the EXR header, single node and embedded cluster; stratified needs

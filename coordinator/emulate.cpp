@@ -1,0 +1,351 @@
+// sirad: the virtual-time cluster: a discrete-event loop around Policy (see emulate.h).
+#include "coordinator/emulate.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <queue>
+
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "core/error_estimate.h"
+#include "core/scene_io.h"
+#include "core/solver.h"
+
+namespace sirad::cluster {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Bytes of a message carrying `patches` patches of chunk data (3 doubles each) and a header.
+constexpr std::size_t kHeaderBytes = 64;
+std::size_t message_bytes(std::size_t patches) { return kHeaderBytes + 24 * patches; }
+
+// A message on its way to a node.
+struct ToNode {
+  enum Kind { grant, update, stop } kind = grant;
+  GrantOrder grant_order;
+  Exchange exchange;
+};
+
+struct VNode {
+  emulation::LinkSpec spec;
+  double slowdown = 1;
+  emulation::LinkModel up, down;
+  std::unique_ptr<Solver> solver;
+  std::deque<ToNode> inbox;   // delivered, not handled yet
+  bool running = false;       // a grant is running
+  bool granted = false;       // it has had a grant (idle counts from then)
+  bool stopped = false;
+  double idle_since = -1;     // waiting with nothing to run since then (< 0: not waiting)
+  EmulatedNode figures;
+};
+
+class Emulator {
+ public:
+  Emulator(const EmulateConfig& config, const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots)
+      : config_(config), run_(config.run), mesh_(mesh), engine_(engine), shots_(shots),
+        policy_(policy_config(), chunk_starts(static_cast<uint32_t>(mesh.size()), std::min<uint32_t>(run_.chunks, static_cast<uint32_t>(mesh.size()))),
+                error_weights(mesh)) {}
+
+  EmulateResult run() {
+    auto real_start = Clock::now();
+    check_emulation(config_);
+    const uint32_t P = config_.nodes;
+    if (run_.shots_per_bundle > 0 && shots_ == nullptr) fail("emulate: the first shot needs a shot engine");
+    result_.bundle_s = config_.bundle_s > 0 ? config_.bundle_s
+                                            : measure_bundle_seconds(mesh_, engine_, shots_, node_solver_options(run_, mesh_, P));
+    const std::size_t scene_bytes = encode_scene(run_.scene).size();
+    nodes_.resize(P);
+    for (uint32_t n = 0; n < P; ++n) {
+      VNode& v = nodes_[n];
+      v.figures.name = fmt::format("emu-{}", n);
+      if (run_.profile) {
+        v.spec = run_.profile->for_node(n, v.figures.name);
+        v.slowdown = run_.profile->slowdown(v.spec);
+        uint64_t seed = emulation::link_seed(run_.seed, n);
+        v.down = emulation::LinkModel(v.spec.down_mbit, v.spec.latency_ms, v.spec.jitter_ms, v.spec.loss, seed);
+        v.up = emulation::LinkModel(v.spec.up_mbit, v.spec.latency_ms, v.spec.jitter_ms, v.spec.loss, seed + 1);
+      }
+      v.figures.speed = v.spec.speed;
+      v.figures.slowdown = v.slowdown;
+      if (policy_.join() != n) fail("emulate: node index out of order");
+      // WELCOME and the scene go out at 0; the node meshes (not timed), builds its solver (the
+      // burn-in bundles, timed) and says READY.
+      double arrival = v.down.deliver(0.0, kHeaderBytes + scene_bytes);
+      at(arrival, [this, n] { setup(n); });
+    }
+    while (!events_.empty() && !policy_.done()) {
+      Event e = events_.top();
+      events_.pop();
+      now_ = e.t;
+      e.fn();
+    }
+    if (!policy_.done()) fail("emulate: the run stalled at {:.3f} s with {} of {} bundles done", now_, policy_.ledger().done_count(), run_.bundles);
+
+    result_.wall_s = now_;
+    result_.real_s = seconds_since(real_start);
+    result_.error_estimate = policy_.error_estimate();
+    RunResult& r = result_.run;
+    r.radiosity = policy_.radiosity();
+    r.exchanges = policy_.exchanges();
+    r.grid = grid();
+    r.bundles = policy_.ledger().done_count();
+    r.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
+    for (uint32_t n = 0; n < P; ++n) {
+      EmulatedNode& f = nodes_[n].figures;
+      f.bundles = policy_.node(n).bundles;
+      f.exchanges = policy_.node(n).exchanges;
+      r.nodes.push_back({f.name, f.bundles, f.exchanges, f.busy_s, f.idle_s, false});
+      result_.nodes.push_back(f);
+    }
+    return std::move(result_);
+  }
+
+ private:
+  struct Event {
+    double t;
+    uint64_t seq;  // ties in time keep the order they were scheduled in
+    std::function<void()> fn;
+    bool operator>(const Event& o) const { return t != o.t ? t > o.t : seq > o.seq; }
+  };
+
+  PolicyConfig policy_config() const {
+    const RunConfig& c = config_.run;
+    if (c.directions == Directions::stratified && c.rule != UpdateRule::chain)
+      fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
+    check_first_shot(c.shots_per_bundle, c.shot_resolution);
+    return {.bundles = c.bundles, .exchange_every = c.exchange_every, .fraction = c.fraction, .topology = c.topology,
+            .mode = c.mode, .rule = c.rule, .min_nodes = config_.nodes,
+            .grant_unit = grant_unit(mesh_, c.directions, c.shots_per_bundle), .time_limit_s = c.time_limit_s,
+            .target_error = c.target_error};
+  }
+
+  int grid() const { return run_.grid == 0 ? auto_grid(mesh_) : run_.grid; }
+
+  void at(double t, std::function<void()> fn) { events_.push({t, seq_++, std::move(fn)}); }
+  void log(uint32_t n, const char* what, uint64_t bundles) { result_.timeline.push_back({now_, n, what, bundles}); }
+  double cost(uint32_t n, uint64_t bundles) const { return static_cast<double>(bundles) * result_.bundle_s * nodes_[n].slowdown; }
+
+  std::size_t patches_of(const std::vector<uint32_t>& chunks) const {
+    std::size_t p = 0;
+    for (uint32_t c : chunks) p += policy_.aggregate().chunk_size(c);
+    return p;
+  }
+
+  // --- the node side ---
+
+  void setup(uint32_t n) {
+    VNode& v = nodes_[n];
+    v.solver = std::make_unique<Solver>(mesh_, engine_, node_solver_options(run_, mesh_, n), shots_);
+    double t = now_ + cost(n, static_cast<uint64_t>(v.solver->burn_in()));
+    at(v.up.deliver(t, kHeaderBytes), [this, n] { ready(n); });
+  }
+
+  void to_node(uint32_t n, ToNode m, std::size_t bytes) {
+    double arrival = nodes_[n].down.deliver(now_, bytes);
+    at(arrival, [this, n, m = std::move(m)]() mutable {
+      VNode& v = nodes_[n];
+      if (v.idle_since >= 0) {
+        v.figures.idle_s += now_ - v.idle_since;
+        v.idle_since = -1;
+      }
+      v.inbox.push_back(std::move(m));
+      work(n);
+    });
+  }
+
+  // Handles the node's messages in order until it runs a grant, stops, or has none left.
+  void work(uint32_t n) {
+    VNode& v = nodes_[n];
+    while (!v.running && !v.stopped && !v.inbox.empty()) {
+      ToNode m = std::move(v.inbox.front());
+      v.inbox.pop_front();
+      if (m.kind == ToNode::update) {
+        const auto& starts = policy_.starts();
+        for (std::size_t i = 0; i < m.exchange.chunks.size(); ++i) {
+          const Aggregate::Part& part = m.exchange.parts[i];
+          std::vector<glm::dvec3> others(part.sum.size() / 3);
+          for (std::size_t j = 0; j < others.size(); ++j) others[j] = {part.sum[3 * j], part.sum[3 * j + 1], part.sum[3 * j + 2]};
+          v.solver->absorb(starts[m.exchange.chunks[i]], others, part.count);
+        }
+      } else if (m.kind == ToNode::stop) {
+        v.stopped = true;
+        std::vector<uint32_t> all(policy_.aggregate().chunks());
+        for (uint32_t c = 0; c < all.size(); ++c) all[c] = c;
+        std::vector<ChunkState> chunks = states(n, all);
+        at(v.up.deliver(now_, message_bytes(mesh_.size())), [this, n, chunks = std::move(chunks)]() mutable {
+          policy_.final_state(n, std::move(chunks));
+          nodes_[n].figures.end_s = now_;
+          log(n, "final", policy_.aggregate().chunks());
+        });
+      } else {
+        run_grant(n, std::move(m.grant_order));
+      }
+    }
+    if (!v.running && !v.stopped && v.granted && v.idle_since < 0) v.idle_since = now_;
+  }
+
+  // The grant's bundles run now, for real; the REPORT leaves when their virtual time is up.
+  void run_grant(uint32_t n, GrantOrder g) {
+    VNode& v = nodes_[n];
+    v.running = v.granted = true;
+    uint64_t count = 0, crossings = v.solver->crossings();
+    for (const Range& r : g.ranges)
+      for (uint64_t k = r.first; k < r.last; ++k, ++count) v.solver->step(k);
+    result_.run.crossings += v.solver->crossings() - crossings;
+    double busy = cost(n, count);
+    double error = v.solver->error_estimate_ready() ? v.solver->error_estimate() : 0.0;
+    std::vector<ChunkState> chunks = states(n, g.report_chunks);
+    at(now_ + busy, [this, n, g = std::move(g), chunks = std::move(chunks), busy, error, count]() mutable {
+      VNode& v = nodes_[n];
+      v.running = false;
+      v.figures.busy_s += busy;
+      std::size_t bytes = message_bytes(patches_of(g.report_chunks)) + 16 * g.ranges.size();
+      at(v.up.deliver(now_, bytes), [this, n, g = std::move(g), chunks = std::move(chunks), error, count]() mutable {
+        report(n, g, std::move(chunks), error, count);
+      });
+      work(n);
+    });
+  }
+
+  // The node's (sum, count) of the chunks.
+  std::vector<ChunkState> states(uint32_t n, const std::vector<uint32_t>& chunks) const {
+    const Solver& s = *nodes_[n].solver;
+    const auto& starts = policy_.starts();
+    std::vector<ChunkState> out;
+    for (uint32_t c : chunks) {
+      ChunkState cs{c, {}, s.bundles()};
+      cs.sum.reserve(3 * (starts[c + 1] - starts[c]));
+      for (uint32_t j = starts[c]; j < starts[c + 1]; ++j) {
+        cs.sum.push_back(s.sum()[j].x);
+        cs.sum.push_back(s.sum()[j].y);
+        cs.sum.push_back(s.sum()[j].z);
+      }
+      out.push_back(std::move(cs));
+    }
+    return out;
+  }
+
+  // --- the coordinator side ---
+
+  void ready(uint32_t n) {
+    log(n, "ready", 0);
+    nodes_[n].figures.ready_s = now_;
+    policy_.ready(n);
+    dispatch();
+  }
+
+  void report(uint32_t n, const GrantOrder& g, std::vector<ChunkState> chunks, double error, uint64_t count) {
+    log(n, "report", count);
+    std::optional<Exchange> x = policy_.report(n, g.id, g.ranges, std::move(chunks), error);
+    if (x) {
+      result_.run.exchange_bytes_in += 24 * patches_of(x->chunks);
+      result_.run.exchange_bytes_out += 24 * patches_of(x->chunks);
+      log(n, "update", x->chunks.size());
+      std::size_t bytes = message_bytes(patches_of(x->chunks));
+      to_node(n, {ToNode::update, {}, std::move(*x)}, bytes);
+    }
+    policy_.check_close(now_);
+    dispatch();
+  }
+
+  void dispatch() {
+    Orders orders = policy_.schedule();
+    for (GrantOrder& g : orders.grants) {
+      uint64_t bundles = 0;
+      for (const Range& r : g.ranges) bundles += r.size();
+      log(g.node, "grant", bundles);
+      std::size_t bytes = kHeaderBytes + 16 * g.ranges.size() + 4 * g.report_chunks.size();
+      uint32_t node = g.node;
+      to_node(node, {ToNode::grant, std::move(g), {}}, bytes);
+    }
+    for (uint32_t n : orders.stops) {
+      log(n, "stop", 0);
+      result_.run.final_bytes += 24 * mesh_.size();
+      to_node(n, {ToNode::stop, {}, {}}, kHeaderBytes);
+    }
+  }
+
+  const EmulateConfig& config_;
+  const RunConfig& run_;
+  const PatchMesh& mesh_;
+  BundleEngine& engine_;
+  ShotEngine* shots_;
+  Policy policy_;
+  std::vector<VNode> nodes_;
+  std::priority_queue<Event, std::vector<Event>, std::greater<Event>> events_;
+  uint64_t seq_ = 0;
+  double now_ = 0;
+  EmulateResult result_;
+};
+
+}  // namespace
+
+void check_emulation(const EmulateConfig& c) {
+  if (c.nodes == 0) fail("emulate: --nodes must be at least 1");
+  if (!c.run.profile) return;
+  for (uint32_t n = 0; n < c.nodes; ++n) {
+    emulation::LinkSpec spec = c.run.profile->for_node(n, fmt::format("emu-{}", n));
+    if (spec.disconnect_at_s >= 0)
+      fail("emulate: profile{}: node emu-{} disconnects at {} s: disconnects are not emulated in virtual time (use sirad render --nodes)",
+           c.run.profile->name.empty() ? "" : " " + c.run.profile->name, n, spec.disconnect_at_s);
+  }
+}
+
+SolverOptions node_solver_options(const RunConfig& c, const PatchMesh& mesh, uint32_t index) {
+  SolverOptions so;
+  so.seed = c.seed;
+  so.grid = c.grid == 0 ? auto_grid(mesh) : c.grid;
+  so.rule = c.rule;
+  so.burn_in = c.burn_in;
+  so.directions = c.directions;
+  so.control_variate = c.control_variate;
+  so.chain_id = index;
+  so.track_error = so.rule == UpdateRule::chain && mesh.size() <= kTrackErrorMaxPatches;
+  so.shots_per_bundle = c.shots_per_bundle;
+  so.shot_resolution = c.shot_resolution;
+  return so;
+}
+
+double measure_bundle_seconds(const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots, const SolverOptions& options,
+                              int steps) {
+  SolverOptions o = options;
+  o.track_error = false;
+  Solver solver(mesh, engine, o, shots);
+  std::vector<double> t;
+  for (int i = 0; i < std::max(1, steps); ++i) {
+    auto t0 = Clock::now();
+    solver.step(static_cast<uint64_t>(i));
+    t.push_back(seconds_since(t0));
+  }
+  std::nth_element(t.begin(), t.begin() + t.size() / 2, t.end());
+  return t[t.size() / 2];
+}
+
+EmulateResult emulate(const EmulateConfig& config, const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots) {
+  return Emulator(config, mesh, engine, shots).run();
+}
+
+std::string nodes_csv(const EmulateResult& r) {
+  std::string out = "node,speed,slowdown,bundles,exchanges,ready_s,busy_s,idle_s,utilisation,end_s\n";
+  for (const EmulatedNode& n : r.nodes)
+    out += fmt::format("{},{},{},{},{},{:.6f},{:.6f},{:.6f},{:.4f},{:.6f}\n", n.name, n.speed, n.slowdown, n.bundles,
+                       n.exchanges, n.ready_s, n.busy_s, n.idle_s, r.wall_s > 0 ? n.busy_s / r.wall_s : 0.0, n.end_s);
+  return out;
+}
+
+std::string timeline_csv(const EmulateResult& r) {
+  std::string out = "t,node,event,bundles\n";
+  for (const TimelineEvent& e : r.timeline) out += fmt::format("{:.9f},{},{},{}\n", e.t, e.node, e.what, e.bundles);
+  return out;
+}
+
+}  // namespace sirad::cluster
