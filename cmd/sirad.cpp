@@ -111,7 +111,7 @@ Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, 
       {"sirad.directions", std::string(to_string(resolve_directions(a.directions, rule)))},
       {"sirad.control_variate", a.control_variate},
       {"sirad.nodes", static_cast<int64_t>(std::max(a.nodes, 1))},
-      {"sirad.exchange_every", a.exchange_every},
+      {"sirad.exchange_every", a.exchange_every},  // single node: as given (nothing is exchanged)
       {"sirad.exchange_fraction", a.exchange_fraction},
   };
 }
@@ -379,6 +379,7 @@ int emulate(EmulateArgs& e) {
               r.wall_s, static_cast<unsigned long long>(r.run.bundles), r.bundle_s * 1e3,
               r.error_estimate >= 0 ? fmt::format("{:.4f}", r.error_estimate).c_str() : "n/a", r.real_s);
   if (r.run.ended_by != "budget") std::printf("ended early: %s\n", r.run.ended_by.c_str());
+  if (!r.exchange_why.empty()) std::printf("--exchange-every auto: %s\n", r.exchange_why.c_str());
   return 0;
 }
 
@@ -623,7 +624,7 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
   cmd->add_flag("--flat", r.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
   cmd->add_flag("--skip-degenerate", r.skip_degenerate, "Drop zero-area triangles instead of failing");
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
-  cmd->add_option("--exchange-every", r.exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
+  cmd->add_option("--exchange-every", r.exchange_every, "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)")->capture_default_str();
   cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")
       ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();

@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "core/bundle.h"
+#include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/scene_io.h"
 #include "proto/transport.h"
@@ -33,6 +34,7 @@ struct Peer {
   uint32_t index = 0;   // in the policy (a node that rejoins gets a new one)
   std::string name, device;
   double busy_s = 0, idle_s = 0;
+  double ms_per_bundle = 0;  // as its READY said (its burn-in, slowdown included)
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   emulation::LinkModel down;  // the emulated coordinator -> node link
   proto::DelayQueue queue;    // messages on that link
@@ -42,7 +44,7 @@ class Coordinator {
  public:
   Coordinator(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh)
       : router_(router), config_(config), mesh_(mesh),
-        policy_(policy_config(config, mesh),
+        policy_(policy_config(),
                  chunk_starts(static_cast<uint32_t>(mesh.size()), std::min<uint32_t>(config.chunks, static_cast<uint32_t>(mesh.size()))),
                  error_weights(mesh)),
         scene_bytes_(encode_scene(config.scene)) {
@@ -125,6 +127,9 @@ class Coordinator {
     result.grid = static_cast<int>(run_.grid());
     result.bundles = policy_.ledger().done_count();
     result.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
+    result.exchange_every = policy_.exchange_every();
+    result.fraction = policy_.fraction();
+    result.exchange_why = policy_.exchange_why();
     return result;
   }
 
@@ -132,14 +137,30 @@ class Coordinator {
   static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
   double clock(Clock::time_point t) const { return seconds(t - start_); }
 
-  static PolicyConfig policy_config(const RunConfig& c, const PatchMesh& mesh) {
-    if (c.directions == Directions::stratified && c.rule != UpdateRule::chain)
-      fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
-    check_first_shot(c.shots_per_bundle, c.shot_resolution);
-    return {.bundles = c.bundles, .exchange_every = c.exchange_every, .fraction = c.fraction, .topology = c.topology,
-            .mode = c.mode, .rule = c.rule, .min_nodes = c.min_nodes,
-            .grant_unit = grant_unit(mesh, c.directions, c.shots_per_bundle), .time_limit_s = c.time_limit_s,
-            .target_error = c.target_error};
+  PolicyConfig policy_config() {
+    PolicyConfig pc = cluster::policy_config(config_, mesh_, config_.min_nodes);
+    if (config_.exchange_every == kExchangeAuto) pc.choose = [this](const std::vector<uint32_t>& ready) { return choose(ready); };
+    return pc;
+  }
+
+  // --exchange-every auto: T_i from the ready nodes' READY (median), T_e from the slowest of
+  // their links, the scene from a quick fit on this machine (its OpenCL device, else the plain
+  // C++ reference engine).
+  ExchangeSetting choose(const std::vector<uint32_t>& ready) {
+    std::vector<double> ms;
+    double t_exchange = 0;
+    for (uint32_t n : ready) {
+      const Peer& p = peer(n);
+      if (p.ms_per_bundle > 0 && std::isfinite(p.ms_per_bundle)) ms.push_back(p.ms_per_bundle);
+      std::optional<emulation::LinkSpec> spec;
+      if (config_.profile) spec = config_.profile->for_node(n, p.name);
+      t_exchange = std::max(t_exchange, exchange_seconds(mesh_.size(), spec ? &*spec : nullptr, config_.mode));
+    }
+    std::sort(ms.begin(), ms.end());
+    double t_iteration = ms.empty() ? 0.01 : ms[ms.size() / 2] / 1e3;
+    ExchangeSetting s = auto_setting(config_, mesh_, t_iteration, t_exchange, static_cast<uint32_t>(ready.size()), policy_.aggregate().chunks());
+    std::fprintf(stderr, "sirad-coordinator: --exchange-every auto: %s\n", s.why.c_str());
+    return s;
   }
 
   // Every peer of the run in join order: the departed (dead, replaced by a rejoin) and the current.
@@ -161,8 +182,8 @@ class Coordinator {
     s.exchanges = policy_.exchanges();
     s.bytes_in = bytes_in_;
     s.bytes_out = bytes_out_;
-    s.exchange_every = config_.exchange_every;
-    s.exchange_fraction = config_.fraction;
+    s.exchange_every = policy_.exchange_every() == kExchangeAuto ? 0 : policy_.exchange_every();
+    s.exchange_fraction = policy_.fraction();
     s.mode = config_.mode == Mode::sync ? "sync" : "async";
     s.topology = config_.topology == Topology::star ? "star" : "ring";
     for (const Peer* p : all_peers()) {
@@ -316,6 +337,7 @@ class Coordinator {
     if (r.run_id() != run_.run_id()) fail("READY for run {:x}, not this run", r.run_id());
     policy_.ready(p.index);
     p.ready_at = Clock::now();
+    p.ms_per_bundle = r.ms_per_bundle();
     schedule();
   }
 
@@ -426,6 +448,40 @@ class Coordinator {
 
 }  // namespace
 
+PolicyConfig policy_config(const RunConfig& c, const PatchMesh& mesh, uint32_t min_nodes) {
+  if (c.directions == Directions::stratified && c.rule != UpdateRule::chain)
+    fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
+  check_first_shot(c.shots_per_bundle, c.shot_resolution);
+  return {.bundles = c.bundles, .exchange_every = c.exchange_every, .fraction = c.fraction, .topology = c.topology,
+          .mode = c.mode, .rule = c.rule, .min_nodes = min_nodes,
+          .grant_unit = grant_unit(mesh, c.directions, c.shots_per_bundle), .time_limit_s = c.time_limit_s,
+          .target_error = c.target_error};
+}
+
+ExchangeSetting auto_setting(const RunConfig& c, const PatchMesh& mesh, double t_iteration, double t_exchange,
+                             uint32_t nodes, uint32_t chunks, BundleEngine* engine) {
+  model::Scene scene;
+  if (c.rule == UpdateRule::average) {
+    try {
+      std::unique_ptr<BundleEngine> own;
+      if (engine == nullptr) {
+        try {
+          own = make_cl_engine(mesh, {});
+        } catch (const std::exception&) {
+          own = make_reference_engine(mesh);
+        }
+        engine = own.get();
+      }
+      scene = quick_scene_fit(mesh, *engine, c.seed);
+    } catch (const Error& e) {
+      ExchangeSetting s = auto_exchange(UpdateRule::chain, scene, t_iteration, t_exchange, nodes, c.bundles, chunks, c.time_limit_s);
+      s.why = fmt::format("the scene fit failed ({}); {}", e.what(), s.why);
+      return s;
+    }
+  }
+  return auto_exchange(c.rule, scene, t_iteration, t_exchange, nodes, c.bundles, chunks, c.time_limit_s);
+}
+
 Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMesh& mesh, const std::string& scene) {
   return {
       {"sirad.version", std::string(SIRAD_VERSION)},
@@ -440,8 +496,8 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
       {"sirad.control_variate", std::string(c.control_variate ? "on" : "off")},
       {"sirad.shots_per_bundle", c.shots_per_bundle},
       {"sirad.nodes", static_cast<int64_t>(r.nodes.size())},
-      {"sirad.exchange_every", c.exchange_every == 0 ? std::string("end") : std::to_string(c.exchange_every)},
-      {"sirad.exchange_fraction", c.fraction},
+      {"sirad.exchange_every", exchange_every_name(r.exchange_every)},
+      {"sirad.exchange_fraction", r.fraction},
       {"sirad.topology", std::string(c.topology == Topology::star ? "star" : "ring")},
       {"sirad.mode", std::string(c.mode == Mode::sync ? "sync" : "async")},
   };

@@ -77,7 +77,20 @@ struct RunResult {
   int grid = 0;            // the run's grid (config.grid, or the auto grid of the mesh)
   uint64_t bundles = 0;    // bundles done (config.bundles unless a time limit or target ended it)
   std::string ended_by;    // "budget", "time limit" or "target error"
+  uint32_t exchange_every = 0;  // the period and fraction the run used (what auto chose)
+  double fraction = 1.0;
+  std::string exchange_why;     // with auto: how it chose
 };
+
+// The policy's settings for a run of `config` on `mesh` (checks the sampling settings; the
+// chooser of --exchange-every auto is the driver's to add).
+PolicyConfig policy_config(const RunConfig& config, const PatchMesh& mesh, uint32_t min_nodes);
+
+// --exchange-every auto for a run of `config`: auto_exchange (policy.h) with the scene fitted
+// on this machine when the model needs it (the average rule; a fit that fails falls back to
+// the chain rule's choice and says so).
+ExchangeSetting auto_setting(const RunConfig& config, const PatchMesh& mesh, double t_iteration, double t_exchange,
+                             uint32_t nodes, uint32_t chunks, BundleEngine* engine = nullptr);
 
 // The EXR header attributes of a cluster run (DESIGN.md section 4: scene hash, bundles, nodes,
 // R, I, S, seed, and the topology and mode), `scene` naming it as the user did.

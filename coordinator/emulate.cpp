@@ -99,6 +99,9 @@ class Emulator {
     r.grid = grid();
     r.bundles = policy_.ledger().done_count();
     r.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
+    r.exchange_every = policy_.exchange_every();
+    r.fraction = policy_.fraction();
+    r.exchange_why = policy_.exchange_why();
     for (uint32_t n = 0; n < P; ++n) {
       EmulatedNode& f = nodes_[n].figures;
       f.bundles = policy_.node(n).bundles;
@@ -117,15 +120,26 @@ class Emulator {
     bool operator>(const Event& o) const { return t != o.t ? t > o.t : seq > o.seq; }
   };
 
-  PolicyConfig policy_config() const {
-    const RunConfig& c = config_.run;
-    if (c.directions == Directions::stratified && c.rule != UpdateRule::chain)
-      fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
-    check_first_shot(c.shots_per_bundle, c.shot_resolution);
-    return {.bundles = c.bundles, .exchange_every = c.exchange_every, .fraction = c.fraction, .topology = c.topology,
-            .mode = c.mode, .rule = c.rule, .min_nodes = config_.nodes,
-            .grant_unit = grant_unit(mesh_, c.directions, c.shots_per_bundle), .time_limit_s = c.time_limit_s,
-            .target_error = c.target_error};
+  PolicyConfig policy_config() {
+    PolicyConfig pc = cluster::policy_config(config_.run, mesh_, config_.nodes);
+    if (run_.exchange_every == kExchangeAuto) pc.choose = [this](const std::vector<uint32_t>& ready) { return choose(ready); };
+    return pc;
+  }
+
+  // --exchange-every auto, as the real coordinator decides it (Coordinator::choose): T_i the
+  // nodes' median bundle time (their READY), T_e the slowest of their links.
+  ExchangeSetting choose(const std::vector<uint32_t>& ready) {
+    std::vector<double> t;
+    double t_exchange = 0;
+    for (uint32_t n : ready) {
+      t.push_back(result_.bundle_s * nodes_[n].slowdown);
+      t_exchange = std::max(t_exchange, exchange_seconds(mesh_.size(), run_.profile ? &nodes_[n].spec : nullptr, run_.mode));
+    }
+    std::sort(t.begin(), t.end());
+    ExchangeSetting s = auto_setting(run_, mesh_, t.empty() ? result_.bundle_s : t[t.size() / 2], t_exchange,
+                                     static_cast<uint32_t>(ready.size()), policy_.aggregate().chunks(), &engine_);
+    result_.exchange_why = s.why;
+    return s;
   }
 
   int grid() const { return run_.grid == 0 ? auto_grid(mesh_) : run_.grid; }

@@ -59,6 +59,7 @@ struct EmulateResult {
   double wall_s = 0;       // virtual wall time: until the last FINAL is in
   double real_s = 0;       // real seconds the emulation took
   double error_estimate = -1;  // the run's own estimate at the end (Policy::error_estimate)
+  std::string exchange_why;    // --exchange-every auto: what it chose and why
   std::vector<EmulatedNode> nodes;
   std::vector<TimelineEvent> timeline;
 };

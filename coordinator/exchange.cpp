@@ -23,6 +23,7 @@ Mode parse_mode(const std::string& s) {
 
 uint32_t parse_exchange_every(const std::string& s) {
   if (s == "end") return 0;
+  if (s == "auto") return kExchangeAuto;
   std::size_t used = 0;
   unsigned long v = 0;
   try {
@@ -30,9 +31,13 @@ uint32_t parse_exchange_every(const std::string& s) {
   } catch (const std::exception&) {
     used = 0;
   }
-  if (used != s.size() || s.empty() || s[0] == '-' || v == 0 || v > 0xffffffffUL)
-    fail("--exchange-every '{}' is not a bundle count >= 1 or 'end'", s);
+  if (used != s.size() || s.empty() || s[0] == '-' || v == 0 || v >= kExchangeAuto)
+    fail("--exchange-every '{}' is not a bundle count >= 1, 'end' or 'auto'", s);
   return static_cast<uint32_t>(v);
+}
+
+std::string exchange_every_name(uint32_t e) {
+  return e == 0 ? "end" : e == kExchangeAuto ? "auto" : std::to_string(e);
 }
 
 Ledger::Ledger(uint64_t bundles) : bundles_(bundles) {

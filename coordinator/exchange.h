@@ -16,8 +16,11 @@ enum class Topology { star, ring };
 enum class Mode { sync, async };
 Topology parse_topology(const std::string& s);  // "star" | "ring"; throws sirad::Error
 Mode parse_mode(const std::string& s);          // "sync" | "async"; throws sirad::Error
-// --exchange-every: a bundle count >= 1, or "end" (0: states only at the end of the run).
+// --exchange-every: a bundle count >= 1, "end" (0: states only at the end of the run), or
+// "auto" (kExchangeAuto: the coordinator chooses I and S at the start, policy.h).
+inline constexpr uint32_t kExchangeAuto = 0xffffffffu;
 uint32_t parse_exchange_every(const std::string& s);
+std::string exchange_every_name(uint32_t exchange_every);  // "end", "auto" or the number
 
 // A half-open range of bundle indices [first, last).
 struct Range {

@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
   app.add_option("--shot-resolution", shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
       ->check(CLI::Range(0, 2048))->capture_default_str();
-  app.add_option("--exchange-every", exchange_every, "Bundles between exchanges, or 'end'")->capture_default_str();
+  app.add_option("--exchange-every", exchange_every, "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model when the nodes are ready)")->capture_default_str();
   app.add_option("--exchange-fraction", fraction, "Fraction S of chunks per exchange")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   app.add_option("--topology", topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
   app.add_option("--mode", mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
+#include "core/model_fit.h"
 
 namespace sirad::cluster {
 
@@ -32,6 +33,46 @@ std::vector<double> error_weights(const PatchMesh& mesh) {
   if (lit == 0)
     for (std::size_t j = 0; j < mesh.size(); ++j) weight[j] = mesh.area[j];
   return weight;
+}
+
+ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, double t_iteration, double t_exchange,
+                              uint32_t nodes, uint64_t bundles, uint32_t chunks, double time_limit_s) {
+  nodes = std::max<uint32_t>(1, nodes);
+  t_iteration = std::max(t_iteration, 1e-9);
+  uint64_t per_node = std::max<uint64_t>(1, bundles / nodes);
+  if (time_limit_s > 0) per_node = std::clamp<uint64_t>(static_cast<uint64_t>(time_limit_s / t_iteration), 1, per_node);
+  if (rule == UpdateRule::chain) {
+    uint64_t i = std::clamp<uint64_t>(per_node / 8, 1, kExchangeAuto - 1);
+    return {static_cast<uint32_t>(i), 1.0,
+            fmt::format("chain rule: exchanges do not change the chains, only cost; I = {} gives 8 reports per node", i)};
+  }
+  model::Costs costs{t_iteration, std::max(t_exchange, 0.0)};
+  const double time = time_limit_s > 0 ? time_limit_s : static_cast<double>(per_node) * costs.t_iteration;
+  model::ExchangeChoice c = model::choose_exchange(time, nodes, costs, scene, per_node, 1.0 / std::max<uint32_t>(1, chunks));
+  uint64_t i = std::clamp<uint64_t>(c.period, 1, kExchangeAuto - 1);
+  return {static_cast<uint32_t>(i), c.fraction,
+          fmt::format("model: P {}, a {:.3f}, sigma_1/C {:.3g}, T_i {:.4g} s, T_e {:.4g} s, T {:.4g} s: I = {}, S = {} "
+                      "(predicted error {:.4g})",
+                      nodes, scene.contraction, scene.sigma_ratio, costs.t_iteration, costs.t_exchange, time, i, c.fraction,
+                      c.prediction.relative_error)};
+}
+
+double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link, Mode mode) {
+  if (mode == Mode::async) return 0.0;
+  const double bits = 24.0 * 8.0 * static_cast<double>(patches);
+  if (link == nullptr) return 2 * bits / 1e9 + 2 * 1e-4;
+  auto rate = [](double mbit) { return mbit > 0 ? mbit * 1e6 : 1e9; };
+  return bits / rate(link->up_mbit) + bits / rate(link->down_mbit) + 2 * (link->latency_ms + link->jitter_ms) * 1e-3;
+}
+
+model::Scene quick_scene_fit(const PatchMesh& mesh, BundleEngine& engine, uint64_t seed) {
+  model::FitOptions o;
+  o.seed = seed;
+  o.chains = 32;
+  o.bounces = 4;
+  o.first_bounce = 16;
+  model::SceneFit f = model::fit_scene(mesh, engine, o);
+  return {std::clamp(f.contraction, 0.0, 0.99), std::max(f.sigma_ratio, 1e-6)};
 }
 
 const char* NodeState::state() const {
@@ -82,6 +123,16 @@ Orders Policy::schedule() {
     any_holding = any_holding || (p.ready && !p.grants.empty());
   }
   if (!started_ && ready < config_.min_nodes) return orders;  // min_nodes gates the first grant only
+  if (!started_ && config_.exchange_every == kExchangeAuto) {
+    std::vector<uint32_t> ready_nodes;
+    for (uint32_t n = 0; n < nodes(); ++n)
+      if (!nodes_[n].dead && nodes_[n].ready) ready_nodes.push_back(n);
+    ExchangeSetting s = config_.choose ? config_.choose(ready_nodes) : ExchangeSetting{0, 1.0, "no chooser: states at the end"};
+    if (s.exchange_every == kExchangeAuto || !(s.fraction > 0 && s.fraction <= 1)) fail("auto exchange chose an invalid setting");
+    config_.exchange_every = s.exchange_every;
+    config_.fraction = s.fraction;
+    exchange_why_ = s.why;
+  }
   started_ = true;
   if (config_.mode == Mode::sync && any_holding) return orders;
   std::size_t depth = config_.mode == Mode::async && ledger_.available() >= 2 * ready * grant_size() ? 2 : 1;

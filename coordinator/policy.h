@@ -7,6 +7,7 @@
 #pragma once
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -14,15 +15,24 @@
 #include <glm/vec3.hpp>
 
 #include "coordinator/exchange.h"
+#include "coordinator/profile.h"
 #include "core/bundle.h"
 #include "core/mesh.h"
+#include "core/model.h"
 #include "core/solver.h"
 
 namespace sirad::cluster {
 
+// The exchange setting --exchange-every auto chose, and from what.
+struct ExchangeSetting {
+  uint32_t exchange_every = 0;
+  double fraction = 1.0;
+  std::string why;  // one line: the model's inputs and prediction, or why the model was not used
+};
+
 struct PolicyConfig {
   uint64_t bundles = 0;
-  uint32_t exchange_every = 0;  // I (0: states only at the end)
+  uint32_t exchange_every = 0;  // I (0: states only at the end; kExchangeAuto: choose() decides)
   double fraction = 1.0;        // S
   Topology topology = Topology::star;
   Mode mode = Mode::async;
@@ -31,7 +41,31 @@ struct PolicyConfig {
   uint64_t grant_unit = 1;      // grants are whole multiples of it (grant_unit())
   double time_limit_s = 0;      // 0: none; else no grants after this long
   double target_error = 0;      // 0: none; else close once error_estimate() is at or below it
+  // With exchange_every = kExchangeAuto: called once, when the first grants are about to go
+  // out, with the ready nodes' indices; the driver measures what the model needs (auto_exchange).
+  std::function<ExchangeSetting(const std::vector<uint32_t>& ready)> choose;
 };
+
+// --exchange-every auto (issue 5): the model (core/model.h choose_exchange) run for `nodes`
+// processors that share `bundles` (or, with a time limit, for that time: then the exchanges'
+// cost is bundles not done), with T_i the nodes' seconds per bundle and T_e the seconds
+// one node's exchange of the whole state takes (exchange_seconds). Under the chain rule an
+// exchange never changes a node's chain, so the paper's gain from combining does not exist:
+// only the cost does. Then I is the period that still gives the coordinator 8 reports per node
+// for its error estimate and progress (bundles / (8 P)), with S = 1. Under the average rule the
+// model picks I and S. Fractions stay at or above 1 / chunks.
+ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, double t_iteration, double t_exchange,
+                              uint32_t nodes, uint64_t bundles, uint32_t chunks, double time_limit_s = 0);
+
+// Seconds for one node to send its whole state (24 bytes per patch) up and receive the others'
+// down over `link` in a star (the P nodes' transfers run side by side, so this is what one
+// exchange of all nodes costs), or over an unshaped LAN (1 Gbit/s, 0.1 ms) without a profile.
+// Async runs overlap exchanges with work (a second grant is queued): their cost is 0 there.
+double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link, Mode mode);
+
+// The scene's contraction and sigma_1 / C for auto_exchange: model::fit_scene with a small
+// budget (32 chains x 4 bounces, 16 first bounces) on `engine`.
+model::Scene quick_scene_fit(const PatchMesh& mesh, BundleEngine& engine, uint64_t seed);
 
 // Grants must be whole multiples of: the interleave G under stratified directions (a node's
 // chain runs same-sequence bundles >= G steps apart even across grants, core/bundle.cpp), and
@@ -132,6 +166,10 @@ class Policy {
   uint32_t exchanges() const { return exchanges_; }
   uint64_t reports() const { return reports_; }
   const PolicyConfig& config() const { return config_; }
+  // The exchange setting in force (after auto chose it, what it chose and why).
+  uint32_t exchange_every() const { return config_.exchange_every; }
+  double fraction() const { return config_.fraction; }
+  const std::string& exchange_why() const { return exchange_why_; }
 
  private:
   void take_chunks(uint32_t n, std::vector<ChunkState>& chunks);
@@ -146,6 +184,7 @@ class Policy {
   uint32_t exchanges_ = 0;
   bool started_ = false, closing_ = false;
   std::string ended_by_;
+  std::string exchange_why_;
 };
 
 }  // namespace sirad::cluster

@@ -215,4 +215,29 @@ uint64_t best_period(double time, Setup setup, const Costs& costs, double contra
   return best;
 }
 
+ExchangeChoice choose_exchange(double time, uint32_t processors, const Costs& costs, const Scene& scene,
+                               uint64_t max_period, double min_fraction) {
+  check(costs);
+  check(scene);
+  if (processors == 0) fail("model: processors must be at least 1");
+  ExchangeChoice best;
+  best.prediction.relative_error = std::numeric_limits<double>::infinity();
+  const uint64_t fit = std::max<uint64_t>(1, iterations_in(time, {processors, 0, 1.0}, costs));
+  const uint64_t last = std::max<uint64_t>(1, std::min(max_period, fit));
+  std::vector<uint64_t> periods;
+  for (uint64_t i = 1; i <= last; i = i < 16 ? i + 1 : std::max(i + 1, i * 109 / 100)) periods.push_back(i);
+  if (periods.back() != last) periods.push_back(last);
+  for (double fraction : {1.0, 0.5, 0.25, 0.125}) {
+    if (fraction < min_fraction && fraction != 1.0) continue;
+    for (uint64_t i : periods) {
+      Prediction p = predict(time, {processors, i, fraction}, costs, scene);
+      const double e = p.relative_error, b = best.prediction.relative_error;
+      const bool tie = std::isfinite(b) && std::fabs(e - b) <= 1e-9 * b;
+      if ((!tie && e < b) || (tie && (i > best.period || (i == best.period && fraction < best.fraction))))
+        best = {i, fraction, p};
+    }
+  }
+  return best;
+}
+
 }  // namespace sirad::model

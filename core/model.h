@@ -87,4 +87,17 @@ Prediction predict(double time, const Setup& setup, const Costs& costs, const Sc
 uint64_t best_period(double time, Setup setup, const Costs& costs, double contraction, uint64_t max_period);
 uint64_t brute_force_period(double time, Setup setup, const Costs& costs, double contraction, uint64_t max_period);
 
+// `--exchange-every auto`: the period I (1 .. max_period, and at most the iterations that fit
+// in `time`) and fraction S (1, 1/2, 1/4, 1/8, not below min_fraction) whose predicted relative
+// error (section 2, predict()) in `time` is the least; ties go to the longer period and then
+// the smaller fraction (less traffic). The candidates for I are every period up to 16 and
+// about 8 per octave beyond, so a few hundred predictions at most.
+struct ExchangeChoice {
+  uint64_t period = 1;
+  double fraction = 1.0;
+  Prediction prediction;
+};
+ExchangeChoice choose_exchange(double time, uint32_t processors, const Costs& costs, const Scene& scene,
+                               uint64_t max_period, double min_fraction = 1.0 / 8);
+
 }  // namespace sirad::model

@@ -1,6 +1,7 @@
 // The paper's cost and error model (core/model.h): its closed forms against its recurrences,
 // small cases by hand, and the optimum exchange period against a brute-force search.
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -137,6 +138,36 @@ TEST(Model, NoIterationNoEstimate) {
   EXPECT_EQ(p.iterations, 0u);
   EXPECT_TRUE(std::isinf(p.relative_error));
   EXPECT_TRUE(std::isinf(p.log_effective) && p.log_effective < 0);
+}
+
+}  // namespace
+}  // namespace sirad::model
+
+namespace sirad::model {
+namespace {
+
+// choose_exchange: up to 16 every period is a candidate, so it must equal the brute-force
+// minimum of the predicted error over I = 1..max and S in {1, 1/2, 1/4, 1/8}; and exchanging
+// costs more when T_e grows, so its period never shortens as T_e rises.
+TEST(ModelChoice, ChooseExchangeIsTheBruteForceMinimum) {
+  for (double a : {0.2, 0.5, 0.8}) {
+    for (double te : {0.0, 0.05, 0.5, 5.0}) {
+      Costs costs{1.0, te};
+      Scene scene{a, 2.0};
+      ExchangeChoice c = choose_exchange(60.0, 8, costs, scene, 16);
+      double best = std::numeric_limits<double>::infinity();
+      for (double s : {1.0, 0.5, 0.25, 0.125})
+        for (uint64_t i = 1; i <= 16; ++i) best = std::min(best, predict(60.0, {8, i, s}, costs, scene).relative_error);
+      EXPECT_NEAR(c.prediction.relative_error, best, 1e-9 * best) << "a " << a << ", T_e " << te;
+      EXPECT_DOUBLE_EQ(c.prediction.relative_error, predict(60.0, {8, c.period, c.fraction}, costs, scene).relative_error);
+    }
+    uint64_t last = 0;
+    for (double te : {0.0, 0.05, 0.5, 5.0}) {
+      ExchangeChoice c = choose_exchange(60.0, 8, {1.0, te}, {a, 2.0}, 16);
+      EXPECT_GE(c.period * 8 / c.fraction, last * 1.0) << "a " << a << ", T_e " << te;  // exchanges per bundle fall
+      last = static_cast<uint64_t>(c.period * 8 / c.fraction);
+    }
+  }
 }
 
 }  // namespace
