@@ -413,6 +413,7 @@ struct ModelArgs {
   std::string device;
   std::string from_run;             // a --status-json file: P, I, S, T, T_i and T_e from a real run
   bool time_given = false;
+  double time_to = 0;               // > 0: also the time the model needs to reach this error
 };
 
 CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
@@ -432,6 +433,8 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
   cmd->add_option("--patches", m.patches, "Mesh the fitted scene to about this many patches (default 10000)")
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
   cmd->add_option("--device", m.device, "OpenCL device for the fit");
+  cmd->add_option("--time-to", m.time_to, "Also print the time each setup needs to reach this relative error (column time_to_error)")
+      ->check(CLI::Range(1e-9, 1e9));
   cmd->add_option("--from-run", m.from_run,
                   "A run's --status-json file: its P, I, S, time, T_i (busy / bundles) and T_e (idle / exchanges) are the setup");
   return cmd;
@@ -488,13 +491,15 @@ int model_table(ModelArgs m) {
   model::check(m.costs);
   model::check(m.scene_params);
   std::printf("processors,exchange_every,fraction,contraction,sigma_ratio,t_iteration,t_exchange,time,iterations,phases,"
-              "relative_error,log_effective_samples\n");
+              "relative_error,log_effective_samples,bias,sd%s\n", m.time_to > 0 ? ",time_to_error" : "");
   auto row = [&](const model::Setup& s) {
     model::Prediction p = model::predict(m.time, s, m.costs, m.scene_params);
-    std::printf("%u,%llu,%g,%g,%g,%g,%g,%g,%llu,%llu,%.6g,%.6f\n", s.processors, static_cast<unsigned long long>(s.exchange_every),
+    std::printf("%u,%llu,%g,%g,%g,%g,%g,%g,%llu,%llu,%.6g,%.6f,%.6g,%.6g", s.processors, static_cast<unsigned long long>(s.exchange_every),
                 s.fraction, m.scene_params.contraction, m.scene_params.sigma_ratio, m.costs.t_iteration, m.costs.t_exchange, m.time,
                 static_cast<unsigned long long>(p.iterations), static_cast<unsigned long long>(p.phases), p.relative_error,
-                p.log_effective);
+                p.log_effective, p.bias, p.sd);
+    if (m.time_to > 0) std::printf(",%.6g", model::time_to_error(m.time_to, s, m.costs, m.scene_params));
+    std::printf("\n");
   };
   for (uint64_t k = 1; k <= (m.sweep == "none" ? 1 : m.max); ++k) {
     model::Setup s = m.setup;

@@ -155,7 +155,31 @@ Prediction predict(double time, const Setup& setup, const Costs& costs, const Sc
   // No iteration fits in the time: nothing is estimated.
   p.relative_error = ls.empty() ? std::numeric_limits<double>::infinity() : relative_error(ls, scene, p.iterations);
   p.log_effective = log_effective_samples(ls, scene.contraction);
+  p.bias = std::pow(scene.contraction, static_cast<double>(p.iterations) + 1);
+  p.sd = std::isfinite(p.relative_error) ? (p.relative_error - p.bias) / 3 : std::numeric_limits<double>::infinity();
   return p;
+}
+
+double time_to_error(double target, const Setup& setup, const Costs& costs, const Scene& scene, uint64_t max_iterations) {
+  check(setup);
+  check(costs);
+  check(scene);
+  auto error = [&](uint64_t n) {
+    auto ls = log_sample_numbers(n, setup, bounces_that_matter(scene.contraction, n));
+    return relative_error(ls, scene, n);
+  };
+  // Doubling until the target is met (it is met early for any practical target), then bisection.
+  uint64_t lo = 0, hi = 1;  // error(lo) > target (N = 0: unbounded), error(hi) <= target
+  while (!(error(hi) <= target)) {
+    if (hi >= max_iterations) return std::numeric_limits<double>::infinity();
+    lo = hi;
+    hi = std::min(2 * hi, max_iterations);
+  }
+  while (hi - lo > 1) {
+    uint64_t mid = lo + (hi - lo) / 2;
+    (error(mid) <= target ? hi : lo) = mid;
+  }
+  return total_time(hi, setup, costs);
 }
 
 uint64_t brute_force_period(double time, Setup setup, const Costs& costs, double contraction, uint64_t max_period) {

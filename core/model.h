@@ -75,8 +75,15 @@ struct Prediction {
   uint64_t iterations = 0, phases = 0;  // N, K = N / I (0 when I = 0)
   double relative_error = 0;            // section 2, from the sample-number recursion (inf: N = 0)
   double log_effective = 0;             // ln E, from the recursion (-inf: N = 0)
+  double bias = 0;                      // its bias part a^(N+1) (1 when N = 0)
+  double sd = 0;                        // its relative standard deviation (the 3 sd part / 3)
 };
 Prediction predict(double time, const Setup& setup, const Costs& costs, const Scene& scene);
+
+// The least time in which the setup's predicted error reaches `target` (the iterations N found
+// by doubling and bisection, the error falling with N; then equation 1), or inf if not within max_iterations.
+double time_to_error(double target, const Setup& setup, const Costs& costs, const Scene& scene,
+                     uint64_t max_iterations = 1u << 20);
 
 // The exchange period that maximises the effective sample number in `time` (the paper's goal
 // function, section 5), over I = 1 .. max_period and at most the longest period with one whole

@@ -172,3 +172,26 @@ TEST(ModelChoice, ChooseExchangeIsTheBruteForceMinimum) {
 
 }  // namespace
 }  // namespace sirad::model
+
+namespace sirad::model {
+namespace {
+
+// time_to_error: the predicted error at that time is at or below the target, and one iteration
+// less (on the same setup) is above it; an unreachable target is inf.
+TEST(ModelChoice, TimeToErrorIsTheFirstTimeTheErrorIsReached) {
+  for (double a : {0.3, 0.8})
+    for (uint32_t p : {1u, 4u, 16u}) {
+      model::Setup s{p, 1, 1.0};
+      Costs c{4.5, 0.05};
+      Scene sc{a, 1.0};
+      double t = time_to_error(0.1, s, c, sc);
+      ASSERT_TRUE(std::isfinite(t));
+      uint64_t n = iterations_in(t * (1 + 1e-12), s, c);
+      EXPECT_LE(predict(t * (1 + 1e-12), s, c, sc).relative_error, 0.1) << a << " " << p;
+      EXPECT_GT(predict(total_time(n - 1, s, c), s, c, sc).relative_error, 0.1) << a << " " << p;
+    }
+  EXPECT_TRUE(std::isinf(time_to_error(0.1, {1, 1, 1.0}, {4.5, 0.05}, {0.5, 1e6}, 1000)));
+}
+
+}  // namespace
+}  // namespace sirad::model
