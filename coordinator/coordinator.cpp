@@ -143,22 +143,19 @@ class Coordinator {
     return pc;
   }
 
-  // --exchange-every auto: T_i from the ready nodes' READY (median), T_e from the slowest of
-  // their links, the scene from a quick fit on this machine (its OpenCL device, else the plain
-  // C++ reference engine).
+  // --exchange-every auto: each ready node's bundle time from its READY (its burn-in, slowdown
+  // included) and its link's transfer time, the scene from a quick fit on this machine (its
+  // OpenCL device, else the plain C++ reference engine) when the model needs it.
   ExchangeSetting choose(const std::vector<uint32_t>& ready) {
-    std::vector<double> ms;
-    double t_exchange = 0;
+    std::vector<NodeCost> costs;
     for (uint32_t n : ready) {
       const Peer& p = peer(n);
-      if (p.ms_per_bundle > 0 && std::isfinite(p.ms_per_bundle)) ms.push_back(p.ms_per_bundle);
       std::optional<emulation::LinkSpec> spec;
       if (config_.profile) spec = config_.profile->for_node(n, p.name);
-      t_exchange = std::max(t_exchange, exchange_seconds(mesh_.size(), spec ? &*spec : nullptr, config_.mode));
+      double t = p.ms_per_bundle > 0 && std::isfinite(p.ms_per_bundle) ? p.ms_per_bundle / 1e3 : 0.01;
+      costs.push_back({t, exchange_seconds(mesh_.size(), spec ? &*spec : nullptr)});
     }
-    std::sort(ms.begin(), ms.end());
-    double t_iteration = ms.empty() ? 0.01 : ms[ms.size() / 2] / 1e3;
-    ExchangeSetting s = auto_setting(config_, mesh_, t_iteration, t_exchange, static_cast<uint32_t>(ready.size()), policy_.aggregate().chunks());
+    ExchangeSetting s = auto_setting(config_, mesh_, costs, policy_.aggregate().chunks());
     std::fprintf(stderr, "sirad-coordinator: --exchange-every auto: %s\n", s.why.c_str());
     return s;
   }
@@ -458,8 +455,8 @@ PolicyConfig policy_config(const RunConfig& c, const PatchMesh& mesh, uint32_t m
           .target_error = c.target_error};
 }
 
-ExchangeSetting auto_setting(const RunConfig& c, const PatchMesh& mesh, double t_iteration, double t_exchange,
-                             uint32_t nodes, uint32_t chunks, BundleEngine* engine) {
+ExchangeSetting auto_setting(const RunConfig& c, const PatchMesh& mesh, const std::vector<NodeCost>& nodes,
+                             uint32_t chunks, BundleEngine* engine) {
   model::Scene scene;
   if (c.rule == UpdateRule::average) {
     try {
@@ -474,12 +471,12 @@ ExchangeSetting auto_setting(const RunConfig& c, const PatchMesh& mesh, double t
       }
       scene = quick_scene_fit(mesh, *engine, c.seed);
     } catch (const Error& e) {
-      ExchangeSetting s = auto_exchange(UpdateRule::chain, scene, t_iteration, t_exchange, nodes, c.bundles, chunks, c.time_limit_s);
+      ExchangeSetting s = auto_exchange(UpdateRule::chain, scene, nodes, c.mode, c.bundles, chunks, c.time_limit_s);
       s.why = fmt::format("the scene fit failed ({}); {}", e.what(), s.why);
       return s;
     }
   }
-  return auto_exchange(c.rule, scene, t_iteration, t_exchange, nodes, c.bundles, chunks, c.time_limit_s);
+  return auto_exchange(c.rule, scene, nodes, c.mode, c.bundles, chunks, c.time_limit_s);
 }
 
 Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMesh& mesh, const std::string& scene) {

@@ -89,8 +89,8 @@ PolicyConfig policy_config(const RunConfig& config, const PatchMesh& mesh, uint3
 // --exchange-every auto for a run of `config`: auto_exchange (policy.h) with the scene fitted
 // on this machine when the model needs it (the average rule; a fit that fails falls back to
 // the chain rule's choice and says so).
-ExchangeSetting auto_setting(const RunConfig& config, const PatchMesh& mesh, double t_iteration, double t_exchange,
-                             uint32_t nodes, uint32_t chunks, BundleEngine* engine = nullptr);
+ExchangeSetting auto_setting(const RunConfig& config, const PatchMesh& mesh, const std::vector<NodeCost>& nodes,
+                             uint32_t chunks, BundleEngine* engine = nullptr);
 
 // The EXR header attributes of a cluster run (DESIGN.md section 4: scene hash, bundles, nodes,
 // R, I, S, seed, and the topology and mode), `scene` naming it as the user did.

@@ -126,18 +126,13 @@ class Emulator {
     return pc;
   }
 
-  // --exchange-every auto, as the real coordinator decides it (Coordinator::choose): T_i the
-  // nodes' median bundle time (their READY), T_e the slowest of their links.
+  // --exchange-every auto, as the real coordinator decides it (Coordinator::choose): each
+  // node's bundle time (its READY there) and its link's transfer time.
   ExchangeSetting choose(const std::vector<uint32_t>& ready) {
-    std::vector<double> t;
-    double t_exchange = 0;
-    for (uint32_t n : ready) {
-      t.push_back(result_.bundle_s * nodes_[n].slowdown);
-      t_exchange = std::max(t_exchange, exchange_seconds(mesh_.size(), run_.profile ? &nodes_[n].spec : nullptr, run_.mode));
-    }
-    std::sort(t.begin(), t.end());
-    ExchangeSetting s = auto_setting(run_, mesh_, t.empty() ? result_.bundle_s : t[t.size() / 2], t_exchange,
-                                     static_cast<uint32_t>(ready.size()), policy_.aggregate().chunks(), &engine_);
+    std::vector<NodeCost> costs;
+    for (uint32_t n : ready)
+      costs.push_back({result_.bundle_s * nodes_[n].slowdown, exchange_seconds(mesh_.size(), run_.profile ? &nodes_[n].spec : nullptr)});
+    ExchangeSetting s = auto_setting(run_, mesh_, costs, policy_.aggregate().chunks(), &engine_);
     result_.exchange_why = s.why;
     return s;
   }

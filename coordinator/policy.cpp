@@ -35,30 +35,44 @@ std::vector<double> error_weights(const PatchMesh& mesh) {
   return weight;
 }
 
-ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, double t_iteration, double t_exchange,
-                              uint32_t nodes, uint64_t bundles, uint32_t chunks, double time_limit_s) {
-  nodes = std::max<uint32_t>(1, nodes);
-  t_iteration = std::max(t_iteration, 1e-9);
-  uint64_t per_node = std::max<uint64_t>(1, bundles / nodes);
-  if (time_limit_s > 0) per_node = std::clamp<uint64_t>(static_cast<uint64_t>(time_limit_s / t_iteration), 1, per_node);
-  if (rule == UpdateRule::chain) {
-    uint64_t i = std::clamp<uint64_t>(per_node / 8, 1, kExchangeAuto - 1);
-    return {static_cast<uint32_t>(i), 1.0,
-            fmt::format("chain rule: exchanges do not change the chains, only cost; I = {} gives 8 reports per node", i)};
+ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, const std::vector<NodeCost>& nodes, Mode mode,
+                              uint64_t bundles, uint32_t chunks, double time_limit_s) {
+  const uint32_t P = std::max<uint32_t>(1, static_cast<uint32_t>(nodes.size()));
+  std::vector<double> t;
+  double t_transfer = 0;
+  for (const NodeCost& n : nodes) {
+    t.push_back(std::max(n.t_iteration, 1e-9));
+    t_transfer = std::max(t_transfer, n.t_transfer);
   }
-  model::Costs costs{t_iteration, std::max(t_exchange, 0.0)};
+  std::sort(t.begin(), t.end());
+  const double t_iteration = t.empty() ? 1e-3 : t[t.size() / 2];
+  uint64_t per_node = std::max<uint64_t>(1, bundles / P);
+  if (time_limit_s > 0) per_node = std::clamp<uint64_t>(static_cast<uint64_t>(time_limit_s / t_iteration), 1, per_node);
+  const double min_fraction = 1.0 / std::max<uint32_t>(1, chunks);
+  if (rule == UpdateRule::chain) {
+    const double S = std::max(0.25, min_fraction);
+    double need = 1;
+    for (const NodeCost& n : nodes) need = std::max(need, std::ceil(10 * S * n.t_transfer / std::max(n.t_iteration, 1e-9)));
+    uint64_t i = std::clamp<uint64_t>(static_cast<uint64_t>(std::min(need, 1e15)), 1, std::max<uint64_t>(1, per_node / 8));
+    i = std::min<uint64_t>(i, kExchangeAuto - 1);
+    return {static_cast<uint32_t>(i), S,
+            fmt::format("chain rule: exchanges do not change the chains; S = {} and I = {}, the shortest period at which no "
+                        "node spends over a tenth of a grant on its report's transfer (P {}, median T_i {:.4g} s, slowest "
+                        "transfer {:.4g} s)",
+                        S, i, P, t_iteration, t_transfer)};
+  }
+  model::Costs costs{t_iteration, mode == Mode::async ? 0.0 : t_transfer / P};
   const double time = time_limit_s > 0 ? time_limit_s : static_cast<double>(per_node) * costs.t_iteration;
-  model::ExchangeChoice c = model::choose_exchange(time, nodes, costs, scene, per_node, 1.0 / std::max<uint32_t>(1, chunks));
+  model::ExchangeChoice c = model::choose_exchange(time, P, costs, scene, per_node, min_fraction);
   uint64_t i = std::clamp<uint64_t>(c.period, 1, kExchangeAuto - 1);
   return {static_cast<uint32_t>(i), c.fraction,
           fmt::format("model: P {}, a {:.3f}, sigma_1/C {:.3g}, T_i {:.4g} s, T_e {:.4g} s, T {:.4g} s: I = {}, S = {} "
                       "(predicted error {:.4g})",
-                      nodes, scene.contraction, scene.sigma_ratio, costs.t_iteration, costs.t_exchange, time, i, c.fraction,
+                      P, scene.contraction, scene.sigma_ratio, costs.t_iteration, costs.t_exchange, time, i, c.fraction,
                       c.prediction.relative_error)};
 }
 
-double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link, Mode mode) {
-  if (mode == Mode::async) return 0.0;
+double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link) {
   const double bits = 24.0 * 8.0 * static_cast<double>(patches);
   if (link == nullptr) return 2 * bits / 1e9 + 2 * 1e-4;
   auto rate = [](double mbit) { return mbit > 0 ? mbit * 1e6 : 1e9; };

@@ -46,22 +46,31 @@ struct PolicyConfig {
   std::function<ExchangeSetting(const std::vector<uint32_t>& ready)> choose;
 };
 
-// --exchange-every auto (issue 5): the model (core/model.h choose_exchange) run for `nodes`
-// processors that share `bundles` (or, with a time limit, for that time: then the exchanges'
-// cost is bundles not done), with T_i the nodes' seconds per bundle and T_e the seconds
-// one node's exchange of the whole state takes (exchange_seconds). Under the chain rule an
-// exchange never changes a node's chain, so the paper's gain from combining does not exist:
-// only the cost does. Then I is the period that still gives the coordinator 8 reports per node
-// for its error estimate and progress (bundles / (8 P)), with S = 1. Under the average rule the
-// model picks I and S. Fractions stay at or above 1 / chunks.
-ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, double t_iteration, double t_exchange,
-                              uint32_t nodes, uint64_t bundles, uint32_t chunks, double time_limit_s = 0);
+// What --exchange-every auto knows of one ready node: its seconds per bundle (slowdown
+// included) and the seconds its link takes to carry the whole state up and back down
+// (exchange_seconds).
+struct NodeCost {
+  double t_iteration = 0;
+  double t_transfer = 0;
+};
 
-// Seconds for one node to send its whole state (24 bytes per patch) up and receive the others'
-// down over `link` in a star (the P nodes' transfers run side by side, so this is what one
-// exchange of all nodes costs), or over an unshaped LAN (1 Gbit/s, 0.1 ms) without a profile.
-// Async runs overlap exchanges with work (a second grant is queued): their cost is 0 there.
-double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link, Mode mode);
+// --exchange-every auto (issue 5) for `nodes` sharing `bundles` (or, with a time limit, that
+// time: then exchanging costs bundles not done).
+// Average rule: the paper's model (core/model.h choose_exchange) picks I and S, with T_i the
+// nodes' median bundle time and T_e the slowest transfer (0 in async mode, where a queued
+// grant hides it; with S it is charged P S T_e per exchange, eq. 1).
+// Chain rule: an exchange never changes a node's chain, so the paper's gain from combining does
+// not exist; reports only feed the coordinator's estimate, its error estimate and the stopping
+// rules, and cost transfers. Then S = 1/4 and I is the shortest period at which no node spends
+// more than a tenth of a grant's compute time on its report's transfer, max_p 10 S e_p / t_p
+// (short grants end a run promptly at its target and balance unequal nodes at the end), and at
+// most bundles / (8 P). Fractions stay at or above 1 / chunks.
+ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, const std::vector<NodeCost>& nodes, Mode mode,
+                              uint64_t bundles, uint32_t chunks, double time_limit_s = 0);
+
+// Seconds for one node's link to carry the whole state (24 bytes per patch) up and the others'
+// back down, with the latency both ways; an unshaped LAN (1 Gbit/s, 0.1 ms) without a profile.
+double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link);
 
 // The scene's contraction and sigma_1 / C for auto_exchange: model::fit_scene with a small
 // budget (32 chains x 4 bounces, 16 first bounces) on `engine`.
