@@ -30,6 +30,14 @@ uint64_t bounces_that_matter(double a, uint64_t iterations) {
   return std::min<uint64_t>(iterations, static_cast<uint64_t>(std::ceil(k)));
 }
 
+}  // namespace
+
+double combined_factor(uint32_t processors, double fraction) {
+  return 1.0 + (static_cast<double>(processors) - 1.0) * fraction;
+}
+
+namespace {
+
 // ln of the closed form for K phases (K real for the search over I).
 double log_closed(double phases, double period, uint32_t processors, double fraction, double a) {
   const double p = static_cast<double>(processors), a2 = a * a;
@@ -37,8 +45,8 @@ double log_closed(double phases, double period, uint32_t processors, double frac
   // A = P ((a^2 + 1)^I - 1) / a^2  (-> P I at a = 0)
   double log_a_term = a2 > 0.0 ? std::log(p) + std::log(std::expm1(period * std::log1p(a2))) - std::log(a2)
                                : std::log(p * period);
-  // B = (a^2 + 1)^(I-1) (P S a^2 + 1); (B^K - 1) / (B - 1)  (-> K at B = 1)
-  double log_b = (period - 1.0) * std::log1p(a2) + std::log1p(p * fraction * a2);
+  // B = (a^2 + 1)^(I-1) (c a^2 + 1), c = combined_factor; (B^K - 1) / (B - 1)  (-> K at B = 1)
+  double log_b = (period - 1.0) * std::log1p(a2) + std::log1p(combined_factor(processors, fraction) * a2);
   double log_sum;
   if (log_b <= 0.0) {
     log_sum = std::log(phases);
@@ -101,7 +109,7 @@ std::vector<double> log_sample_numbers(uint64_t iterations, const Setup& setup, 
   const uint64_t kmax = max_bounces == 0 ? iterations : std::min(iterations, max_bounces);
   std::vector<double> ls(kmax, kNone);
   const double log_p = std::log(static_cast<double>(setup.processors));
-  const double log_ps = std::log(static_cast<double>(setup.processors) * setup.fraction);
+  const double log_ps = std::log(combined_factor(setup.processors, setup.fraction));
   for (uint64_t n = 0; n < iterations; ++n) {
     const bool combined = setup.exchange_every > 0 && n % setup.exchange_every == 0;
     const double log_c = combined ? log_ps : 0.0;

@@ -9,8 +9,14 @@
 //    form A (B^K - 1) / (B - 1) need (with a^(2k) every E is a^2 times smaller and the
 //    recursion's constant term would be P a^2); the ranking of setups, and so the best I, is the
 //    same either way;
-//  - the closed form is derived for S = 1; with S the combined step is E' = P + (P S a^2 + 1) E
-//    (eq. 6), so B = (a^2 + 1)^(I-1) (P S a^2 + 1) and A is unchanged.
+//  - a combined step multiplies the paths it extends by c = 1 + (P - 1) S (combined_factor),
+//    not by the P S of eq. 6: a node that takes the others' data for a fraction S of the patches
+//    keeps its own for the rest, so per patch it extends its own paths there and P nodes' paths
+//    on the fraction S. Both are P at S = 1 (the paper's figures 1, 2 and 4); for S < 1 / P
+//    eq. 6 makes exchanging lose paths (P S < 1, fewer than an independent step's 1) and its
+//    figure 3 error explode as S falls (7.7 at a = 0.9, S = 0.05, against 0.29 at S = 1);
+//  - the closed form is derived for S = 1; with S the combined step is E' = P + (c a^2 + 1) E,
+//    so B = (a^2 + 1)^(I-1) (c a^2 + 1) and A is unchanged.
 #pragma once
 #include <cstdint>
 #include <string>
@@ -44,6 +50,9 @@ void check(const Setup& setup);
 void check(const Costs& costs);
 void check(const Scene& scene);
 
+// The combined step's factor on the paths it extends: 1 + (P - 1) S (see above; eq. 6: P S).
+double combined_factor(uint32_t processors, double fraction);
+
 // (1) T = N T_i + (N P S / I) T_e (no exchange cost when I = 0).
 double total_time(uint64_t iterations, const Setup& setup, const Costs& costs);
 // (2) N = T I / (T_i I + T_e P S), rounded down: the iterations that fit in `time`.
@@ -51,7 +60,7 @@ uint64_t iterations_in(double time, const Setup& setup, const Costs& costs);
 
 // The sample numbers s(k), k = 1..N, after N iterations, as natural logarithms (they grow like
 // binomial coefficients and overflow doubles beyond N ~ 1000; -inf for none). The run is
-// phases of I iterations, each starting with a combined step (eqs. 5, 6: s(k+1) += P S s(k))
+// phases of I iterations, each starting with a combined step (eqs. 5, 6: s(k+1) += c s(k))
 // followed by I - 1 independent ones (eqs. 3, 4: s(k+1) += s(k)); every step adds P one-bounce
 // samples. I = 0: all steps independent. max_bounces > 0 keeps only s(1..max_bounces): exact
 // for them, since s(k) needs only s(1..k).

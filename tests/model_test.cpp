@@ -195,3 +195,23 @@ TEST(ModelChoice, TimeToErrorIsTheFirstTimeTheErrorIsReached) {
 
 }  // namespace
 }  // namespace sirad::model
+
+namespace sirad::model {
+namespace {
+
+// The combined step's factor 1 + (P - 1) S (model.h: eq. 6's P S would make a small exchange
+// lose paths): P at S = 1; as S falls to 0 the sample numbers fall to the independent run's,
+// never below them.
+TEST(ModelChoice, ExchangingAFractionNeverLosesPaths) {
+  EXPECT_DOUBLE_EQ(combined_factor(8, 1.0), 8.0);
+  auto independent = log_sample_numbers(20, {8, 0, 1.0});
+  for (double s : {1.0, 0.5, 0.1, 0.01, 1e-6}) {
+    auto ls = log_sample_numbers(20, {8, 1, s});
+    for (std::size_t k = 0; k < ls.size(); ++k) EXPECT_GE(ls[k], independent[k] - 1e-12) << "S " << s << ", k " << k;
+  }
+  auto tiny = log_sample_numbers(20, {8, 1, 1e-9});
+  for (std::size_t k = 0; k < tiny.size(); ++k) EXPECT_NEAR(tiny[k], independent[k], 1e-6) << k;
+}
+
+}  // namespace
+}  // namespace sirad::model
