@@ -59,6 +59,7 @@ struct RenderArgs {
   double exchange_fraction = 1.0;
   std::string topology = "star";
   std::string mode = "async";
+  std::string balance = "on";
   int chunks = 16;
   std::string status_json;
   std::string profile;
@@ -158,6 +159,7 @@ cluster::RunConfig run_config_from(const RenderArgs& a, const Scene& scene, cons
   rc.topology = cluster::parse_topology(a.topology);
   rc.mode = cluster::parse_mode(a.mode);
   rc.chunks = static_cast<uint32_t>(a.chunks);
+  rc.balance = a.balance == "on";
   rc.min_nodes = static_cast<uint32_t>(a.nodes);
   rc.profile = std::move(profile);
   rc.time_limit_s = a.time_limit;
@@ -634,6 +636,8 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
       ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
   cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
+  cmd->add_option("--balance", r.balance, "Grants sized to each node's speed, so unequal nodes finish them together: on or off (every grant I bundles)")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--target-error", r.target_error,

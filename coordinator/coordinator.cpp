@@ -35,6 +35,8 @@ struct Peer {
   std::string name, device;
   double busy_s = 0, idle_s = 0;
   double ms_per_bundle = 0;  // as its READY said (its burn-in, slowdown included)
+  uint64_t first_bundles = 0;  // bundles and busy time at its first report
+  double first_busy_s = 0;
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   emulation::LinkModel down;  // the emulated coordinator -> node link
   proto::DelayQueue queue;    // messages on that link
@@ -408,6 +410,12 @@ class Coordinator {
       throw;
     }
     crossings_ += r.crossings();
+    // Its speed as it runs, for balanced grants: busy time (emulated slowdown included) over
+    // bundles since its first report (the first grant carries the kernels' compilation).
+    if (uint64_t b = policy_.node(p.index).bundles; b > 0) {
+      if (p.first_bundles == 0) p.first_bundles = b, p.first_busy_s = p.busy_s;
+      else if (b > p.first_bundles) policy_.set_bundle_time(p.index, (p.busy_s - p.first_busy_s) / static_cast<double>(b - p.first_bundles));
+    }
     if (config_.progress) config_.progress(policy_.ledger().done_count(), config_.bundles);
     if (x) {
       // The exchange: the others' aggregate (star) or the next node's state (ring).
@@ -452,7 +460,7 @@ PolicyConfig policy_config(const RunConfig& c, const PatchMesh& mesh, uint32_t m
   return {.bundles = c.bundles, .exchange_every = c.exchange_every, .fraction = c.fraction, .topology = c.topology,
           .mode = c.mode, .rule = c.rule, .min_nodes = min_nodes,
           .grant_unit = grant_unit(mesh, c.directions, c.shots_per_bundle), .time_limit_s = c.time_limit_s,
-          .target_error = c.target_error};
+          .target_error = c.target_error, .balance = c.balance};
 }
 
 ExchangeSetting auto_setting(const RunConfig& c, const PatchMesh& mesh, const std::vector<NodeCost>& nodes,

@@ -41,6 +41,7 @@ struct RunConfig {
   Topology topology = Topology::star;
   Mode mode = Mode::async;
   uint32_t chunks = 16;
+  bool balance = true;          // grants sized to each node's speed (PolicyConfig::balance)
   uint32_t min_nodes = 1;       // nodes ready before the first grant
   double timeout_s = 0;         // 0: none; else the run fails if it takes longer
   double time_limit_s = 0;      // 0: none; else no grants after this long: the run ends early

@@ -249,6 +249,7 @@ class Emulator {
     log(n, "ready", 0);
     nodes_[n].figures.ready_s = now_;
     policy_.ready(n);
+    policy_.set_bundle_time(n, cost(n, 1));
     dispatch();
   }
 

@@ -24,7 +24,8 @@ using namespace sirad;
 int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
   std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
-                          rule = "chain", directions = "auto", control_variate = "on", endpoint_file, status_json, profile;
+                          rule = "chain", directions = "auto", control_variate = "on", endpoint_file, status_json, profile,
+                          balance = "on";
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
@@ -52,6 +53,8 @@ int main(int argc, char** argv) {
   app.add_option("--exchange-fraction", fraction, "Fraction S of chunks per exchange")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   app.add_option("--topology", topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
   app.add_option("--mode", mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
+  app.add_option("--balance", balance, "Grants sized to each node's speed, so unequal nodes finish them together: on or off")
+      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
   app.add_option("--min-nodes", min_nodes, "Nodes ready before the first grant")->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_option("--chunks", chunks, "Chunks of patches exchanged separately")->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_option("--width", width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
@@ -100,6 +103,7 @@ int main(int argc, char** argv) {
     rc.topology = cluster::parse_topology(topology);
     rc.mode = cluster::parse_mode(mode);
     rc.chunks = static_cast<uint32_t>(chunks);
+    rc.balance = balance == "on";
     rc.min_nodes = static_cast<uint32_t>(min_nodes);
     rc.timeout_s = timeout;
     rc.time_limit_s = time_limit;

@@ -100,6 +100,7 @@ Policy::Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::ve
 
 uint32_t Policy::join() {
   nodes_.emplace_back();
+  bundle_time_.push_back(0.0);
   aggregate_.add_node();
   return nodes() - 1;
 }
@@ -125,6 +126,25 @@ uint64_t Policy::grant_size() const {
   // Whole multiples of the grant unit, so ranges start at multiples of it (the ledger hands out
   // its free ranges from the front).
   return (n + config_.grant_unit - 1) / config_.grant_unit * config_.grant_unit;
+}
+
+void Policy::set_bundle_time(uint32_t n, double seconds) {
+  bundle_time_.at(n) = std::isfinite(seconds) && seconds > 0 ? seconds : 0.0;
+}
+
+uint64_t Policy::grant_size(uint32_t n) const {
+  const uint64_t base = grant_size();
+  if (!config_.balance || n >= nodes() || bundle_time_[n] <= 0) return base;
+  std::vector<double> t;
+  for (uint32_t m = 0; m < nodes(); ++m)
+    if (!nodes_[m].dead && nodes_[m].ready && bundle_time_[m] > 0) t.push_back(bundle_time_[m]);
+  if (t.size() < 2) return base;
+  std::nth_element(t.begin(), t.begin() + t.size() / 2, t.end());
+  const double l = std::log2(t[t.size() / 2] / bundle_time_[n]);
+  const double f = std::exp2(std::clamp(std::copysign(std::floor(std::fabs(l) + 1e-9), l), -4.0, 4.0));
+  const double size = std::max(1.0, std::round(static_cast<double>(base) * f));
+  const uint64_t u = config_.grant_unit;
+  return (static_cast<uint64_t>(size) + u - 1) / u * u;
 }
 
 Orders Policy::schedule() {
@@ -153,7 +173,7 @@ Orders Policy::schedule() {
   for (uint32_t n = 0; n < nodes(); ++n) {
     NodeState& p = nodes_[n];
     while (!closing_ && !p.dead && p.ready && !p.stopped && p.grants.size() < depth) {
-      auto ranges = ledger_.grant(n, grant_size());
+      auto ranges = ledger_.grant(n, grant_size(n));
       if (ranges.empty()) break;
       GrantOrder g{n, ++grants_, std::move(ranges), {}};
       if (config_.exchange_every > 0) g.report_chunks = exchange_chunks(p.rotation++, config_.fraction, aggregate_.chunks());

@@ -41,6 +41,10 @@ struct PolicyConfig {
   uint64_t grant_unit = 1;      // grants are whole multiples of it (grant_unit())
   double time_limit_s = 0;      // 0: none; else no grants after this long
   double target_error = 0;      // 0: none; else close once error_estimate() is at or below it
+  // Grants sized to each node's speed (grant_size(n)): on unequal nodes every grant takes about
+  // the same time, so sync barriers do not wait on the slow and a closing run is not held up
+  // by a slow node's long grant. Off: every grant has the same bundle count.
+  bool balance = true;
   // With exchange_every = kExchangeAuto: called once, when the first grants are about to go
   // out, with the ready nodes' indices; the driver measures what the model needs (auto_exchange).
   std::function<ExchangeSetting(const std::vector<uint32_t>& ready)> choose;
@@ -168,7 +172,16 @@ class Policy {
   // The count-weighted estimate per patch.
   std::vector<glm::vec3> radiosity() const;
 
+  // Bundles per grant: I (or, exchanging only at the end, bundles / (8 P)), in whole grant
+  // units. With `balance` and node n's bundle time known, times f = the median bundle time of
+  // the ready nodes over n's, rounded towards 1 to a power of two (nodes within 2x of the
+  // median get exactly I: measured times are noisy) and clamped to [1/16, 16]: each grant then
+  // takes about I median bundles' time.
   uint64_t grant_size() const;
+  uint64_t grant_size(uint32_t n) const;
+  // Node n's seconds per bundle, as its driver measures it (READY, then busy / bundles of its
+  // reports); <= 0 or non-finite: unknown.
+  void set_bundle_time(uint32_t n, double seconds);
   const Ledger& ledger() const { return ledger_; }
   const Aggregate& aggregate() const { return aggregate_; }
   const std::vector<uint32_t>& starts() const { return starts_; }
@@ -189,6 +202,7 @@ class Policy {
   Ledger ledger_;
   Aggregate aggregate_;
   std::vector<NodeState> nodes_;
+  std::vector<double> bundle_time_;  // per node (0: unknown)
   uint64_t grants_ = 0, reports_ = 0, last_error_check_ = 0;
   uint32_t exchanges_ = 0;
   bool started_ = false, closing_ = false;

@@ -90,8 +90,9 @@ TEST(Emulate, SameSeedGivesTheSameTimelineAndTheSameResultBitwise) {
   EXPECT_EQ(sum, 384u);
 }
 
-// Async, two nodes of speed 1 and 0.5 on unshaped links: both run back to back (each holds a
-// grant queued behind the one it runs), so in the same time the slow one does half the bundles.
+// Async, two nodes of speed 1 and 0.5 on unshaped links, grants of equal bundle counts: both
+// run back to back (each holds a grant queued behind the one it runs), so in the same time the
+// slow one does half the bundles.
 // The end of the budget is where they can part: the last grants go to whichever asks first, and
 // near the end only one is held each, so the split can be off by at most about one grant.
 TEST(Emulate, AHalfSpeedNodeDoesHalfTheBundlesInAsyncMode) {
@@ -101,6 +102,7 @@ TEST(Emulate, AHalfSpeedNodeDoesHalfTheBundlesInAsyncMode) {
   c.run.bundles = 600;
   c.run.exchange_every = 10;
   c.run.mode = Mode::async;
+  c.run.balance = false;
   c.run.profile = emulation::parse_profile("nodes:\n  - {index: 0, speed: 1}\n  - {index: 1, speed: 0.5}\n", "halves");
   c.nodes = 2;
   c.bundle_s = 0.01;
@@ -113,12 +115,24 @@ TEST(Emulate, AHalfSpeedNodeDoesHalfTheBundlesInAsyncMode) {
   EXPECT_EQ(r.nodes[1].slowdown, 2.0);
   // Neither waited on the other: async idle is only the tail after the budget ran out.
   EXPECT_LT(r.nodes[0].idle_s, 10 * 0.01 * 2 + 1e-9);
-  // The same in sync mode makes the fast node wait at every barrier: equal shares, and idle.
+  // The same with balanced grants (the default): the slow node's grants are half as long.
+  c.run.balance = true;
+  EmulateResult rb = run(c, b);
+  EXPECT_LE(std::fabs(static_cast<double>(rb.nodes[1].bundles) - rb.nodes[0].bundles / 2.0), 10.0);
+  // Sync with grants of equal bundle counts (--balance off): the fast node waits at every
+  // barrier, so equal shares, and idle time. Balanced grants (the default) give the slow node
+  // half as many bundles per round: no waiting, and the async run's time.
   c.run.mode = Mode::sync;
+  c.run.balance = false;
   EmulateResult s = run(c, b);
   EXPECT_EQ(s.nodes[0].bundles, s.nodes[1].bundles);
   EXPECT_NEAR(s.nodes[0].idle_s, 30 * 0.1, 1e-6);  // 30 barriers, each 10 x (0.02 - 0.01) s
   EXPECT_GT(s.wall_s, r.wall_s);
+  c.run.balance = true;
+  EmulateResult balanced = run(c, b);
+  EXPECT_EQ(balanced.nodes[0].bundles, 2 * balanced.nodes[1].bundles);
+  EXPECT_NEAR(balanced.nodes[0].idle_s, 0.0, 1e-9);
+  EXPECT_LT(balanced.wall_s, 0.8 * s.wall_s);
 }
 
 // 64 nodes in one process: the run completes with every bundle once, every node takes part,

@@ -1,0 +1,108 @@
+// sirad tests: the coordinator's decisions (coordinator/policy.h) as plain state.
+#include <gtest/gtest.h>
+
+#include "coordinator/policy.h"
+#include "core/error.h"
+
+namespace sirad::cluster {
+namespace {
+
+Policy make(PolicyConfig c, uint32_t nodes) {
+  Policy p(c, chunk_starts(64, 4), std::vector<double>(64, 1.0));
+  for (uint32_t n = 0; n < nodes; ++n) p.join();
+  return p;
+}
+
+uint64_t size_of(const GrantOrder& g) {
+  uint64_t s = 0;
+  for (const Range& r : g.ranges) s += r.size();
+  return s;
+}
+
+// Balanced grants: each node's grant is I times the median bundle time over its own, rounded
+// towards 1 to a power of two: 1.5x slower is noise (I), 4x slower gets I / 4, 4x faster 4 I.
+TEST(Policy, BalancedGrantsFollowTheNodesSpeeds) {
+  PolicyConfig c{.bundles = 100000, .exchange_every = 16, .mode = Mode::sync, .min_nodes = 4, .grant_unit = 2};
+  Policy p = make(c, 4);
+  const double t[] = {1.0, 1.5, 4.0, 0.25};
+  for (uint32_t n = 0; n < 4; ++n) {
+    p.ready(n);
+    p.set_bundle_time(n, t[n]);
+  }
+  Orders o = p.schedule();
+  ASSERT_EQ(o.grants.size(), 4u);
+  // median of {0.25, 1, 1.5, 4} (the upper middle): 1.5
+  EXPECT_EQ(size_of(o.grants[0]), 16u);  // 1.5 / 1: below 2x, exactly I
+  EXPECT_EQ(size_of(o.grants[1]), 16u);
+  EXPECT_EQ(size_of(o.grants[2]), 8u);   // 1.5 / 4 = 0.375: 1/2
+  EXPECT_EQ(size_of(o.grants[3]), 64u);  // 1.5 / 0.25 = 6: 4x
+  // Off: every grant I.
+  c.balance = false;
+  Policy q = make(c, 4);
+  for (uint32_t n = 0; n < 4; ++n) {
+    q.ready(n);
+    q.set_bundle_time(n, t[n]);
+  }
+  for (const GrantOrder& g : q.schedule().grants) EXPECT_EQ(size_of(g), 16u);
+}
+
+// Sync: no grant while any node holds one; the last report opens the next round, and a node
+// declared dead does not hold it up. Each index is granted once.
+TEST(Policy, SyncGrantsARoundOnlyWhenTheLastIsIn) {
+  PolicyConfig c{.bundles = 64, .exchange_every = 8, .mode = Mode::sync, .min_nodes = 2};
+  Policy p = make(c, 3);
+  p.ready(0);
+  EXPECT_TRUE(p.schedule().grants.empty());  // min_nodes
+  p.ready(1);
+  p.ready(2);
+  Orders first = p.schedule();
+  ASSERT_EQ(first.grants.size(), 3u);
+  p.report(0, first.grants[0].id, first.grants[0].ranges, {}, 0);
+  EXPECT_TRUE(p.schedule().grants.empty());
+  EXPECT_EQ(p.dead(2), 8u);  // its grant goes back
+  EXPECT_TRUE(p.schedule().grants.empty());  // node 1 still holds one
+  p.report(1, first.grants[1].id, first.grants[1].ranges, {}, 0);
+  Orders second = p.schedule();
+  ASSERT_EQ(second.grants.size(), 2u);
+  EXPECT_EQ(second.grants[0].ranges.front().first, 16u);  // node 2's returned range first
+  EXPECT_THROW(p.report(0, first.grants[0].id, first.grants[0].ranges, {}, 0), Error);  // answered already
+}
+
+// --exchange-every auto: chosen once, when the first grants go out, from the ready nodes.
+TEST(Policy, AutoExchangeIsChosenOnceAtTheStart) {
+  int calls = 0;
+  PolicyConfig c{.bundles = 640, .exchange_every = kExchangeAuto, .mode = Mode::async, .min_nodes = 2};
+  c.choose = [&](const std::vector<uint32_t>& ready) {
+    ++calls;
+    EXPECT_EQ(ready.size(), 2u);
+    return ExchangeSetting{5, 0.5, "test"};
+  };
+  Policy p = make(c, 2);
+  p.ready(0);
+  p.schedule();
+  EXPECT_EQ(calls, 0);
+  p.ready(1);
+  Orders o = p.schedule();
+  EXPECT_EQ(calls, 1);
+  EXPECT_EQ(p.exchange_every(), 5u);
+  EXPECT_EQ(p.fraction(), 0.5);
+  EXPECT_EQ(p.exchange_why(), "test");
+  ASSERT_FALSE(o.grants.empty());
+  EXPECT_EQ(size_of(o.grants[0]), 5u);
+  EXPECT_EQ(o.grants[0].report_chunks.size(), 2u);  // S = 1/2 of 4 chunks
+  p.schedule();
+  EXPECT_EQ(calls, 1);
+}
+
+// The chain rule's auto: S = 1/4 and I = max over nodes of ceil(10 S e_p / t_p), capped at
+// bundles / (8 P). Node 1's transfer (0.2 s) over its bundle (0.01 s): 10 * 0.25 * 20 = 50.
+TEST(Policy, ChainRuleAutoBoundsTheTransferShare) {
+  ExchangeSetting s = auto_exchange(UpdateRule::chain, {}, {{0.01, 0.01}, {0.01, 0.2}}, Mode::async, 100000, 16);
+  EXPECT_EQ(s.exchange_every, 50u);
+  EXPECT_EQ(s.fraction, 0.25);
+  ExchangeSetting capped = auto_exchange(UpdateRule::chain, {}, {{0.01, 0.01}, {0.01, 0.2}}, Mode::async, 320, 16);
+  EXPECT_EQ(capped.exchange_every, 20u);  // 320 / (8 x 2)
+}
+
+}  // namespace
+}  // namespace sirad::cluster
