@@ -151,7 +151,7 @@ int fig6(const Common& c, int seeds, const std::string& totals_s, const std::str
 // for sync / async x star / ring x each period, sirad's default estimator; the measured error
 // at that point beside it, and the nodes' utilisation.
 int hetero(const Common& c, const std::string& profile_path, double target, int seeds, const std::string& periods_s,
-           uint64_t cap) {
+           uint64_t cap, const std::string& topologies, const std::string& balances) {
   Setup s = setup(c);
   emulation::Profile profile = emulation::load_profile(profile_path);
   cluster::RunConfig base;
@@ -165,14 +165,16 @@ int hetero(const Common& c, const std::string& profile_path, double target, int 
   const uint32_t P = static_cast<uint32_t>(profile.nodes.size());
   double bundle_s = cluster::measure_bundle_seconds(s.mesh, *s.engine, s.shots.get(), cluster::node_solver_options(base, s.mesh, 0), 15);
   std::fprintf(stderr, "%u nodes, bundle time %.6f s at speed %g (median of 15)\n", P, bundle_s, profile.max_speed());
-  std::printf("mode,topology,period,chosen_period,fraction,seed,virtual_s,bundles,error_estimate,error,exchanges,"
+  std::printf("mode,topology,balance,period,chosen_period,fraction,seed,virtual_s,bundles,error_estimate,error,exchanges,"
               "utilisation_mean,utilisation_min,idle_s_total,ended_by\n");
   for (const char* mode : {"sync", "async"})
-    for (const char* topo : {"star", "ring"})
+    for (const std::string& topo : split(topologies))
+     for (const std::string& balance : split(balances))
       for (const std::string& i : split(periods_s))
         for (int seed = 1; seed <= seeds; ++seed) {
           cluster::EmulateConfig ec;
           ec.run = base;
+          ec.run.balance = balance == "on";
           ec.run.mode = cluster::parse_mode(mode);
           ec.run.topology = cluster::parse_topology(topo);
           ec.run.exchange_every = cluster::parse_exchange_every(i);
@@ -188,7 +190,7 @@ int hetero(const Common& c, const std::string& profile_path, double target, int 
             idle += n.idle_s;
           }
           std::string ended = r.run.ended_by.substr(0, r.run.ended_by.find(' '));
-          std::printf("%s,%s,%s,%s,%g,%d,%.6f,%llu,%.6f,%.6f,%u,%.4f,%.4f,%.4f,%s\n", mode, topo, i.c_str(),
+          std::printf("%s,%s,%s,%s,%s,%g,%d,%.6f,%llu,%.6f,%.6f,%u,%.4f,%.4f,%.4f,%s\n", mode, topo.c_str(), balance.c_str(), i.c_str(),
                       cluster::exchange_every_name(r.run.exchange_every).c_str(), r.run.fraction, seed, r.wall_s,
                       static_cast<unsigned long long>(r.run.bundles), r.error_estimate, error_of(s, r.run.radiosity),
                       r.run.exchanges, use, use_min, idle, ended.c_str());
@@ -223,6 +225,7 @@ int run(int argc, char** argv) {
   double target = 0.02;
   int hetero_seeds = 2;
   uint64_t cap = 20000;
+  std::string topologies = "star,ring", balances = "on,off";
   auto* h = app.add_subcommand("hetero", "Time to the target error on a heterogeneous farm");
   common(h);
   h->add_option("--profile", profile, "Emulation profile")->capture_default_str();
@@ -230,13 +233,15 @@ int run(int argc, char** argv) {
   h->add_option("--seeds", hetero_seeds, "Seeds per setting")->check(CLI::Range(1, 100))->capture_default_str();
   h->add_option("--periods", hetero_periods, "Exchange periods I (or end, auto)")->capture_default_str();
   h->add_option("--cap", cap, "Bundle budget (the run ends at the target before it)")->capture_default_str();
+  h->add_option("--topologies", topologies, "Topologies to run")->capture_default_str();
+  h->add_option("--balance", balances, "Balanced grants: on, off or both")->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
   if (f6->parsed()) return fig6(c, seeds, totals, procs, periods, estimator, f6_profile);
-  return hetero(c, profile, target, hetero_seeds, hetero_periods, cap);
+  return hetero(c, profile, target, hetero_seeds, hetero_periods, cap, topologies, balances);
 }
 
 }  // namespace

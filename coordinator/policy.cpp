@@ -50,16 +50,18 @@ ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, const 
   if (time_limit_s > 0) per_node = std::clamp<uint64_t>(static_cast<uint64_t>(time_limit_s / t_iteration), 1, per_node);
   const double min_fraction = 1.0 / std::max<uint32_t>(1, chunks);
   if (rule == UpdateRule::chain) {
-    const double S = std::max(0.25, min_fraction);
+    // Async: a node computes its queued grant while its report travels, so the link only has to
+    // keep up (transfer <= grant time); sync: the barrier waits for the transfer (<= 1/10).
+    const double share = mode == Mode::async ? 1.0 : 10.0;
     double need = 1;
-    for (const NodeCost& n : nodes) need = std::max(need, std::ceil(10 * S * n.t_transfer / std::max(n.t_iteration, 1e-9)));
+    for (const NodeCost& n : nodes) need = std::max(need, std::ceil(share * n.t_transfer / std::max(n.t_iteration, 1e-9)));
     uint64_t i = std::clamp<uint64_t>(static_cast<uint64_t>(std::min(need, 1e15)), 1, std::max<uint64_t>(1, per_node / 8));
     i = std::min<uint64_t>(i, kExchangeAuto - 1);
-    return {static_cast<uint32_t>(i), S,
-            fmt::format("chain rule: exchanges do not change the chains; S = {} and I = {}, the shortest period at which no "
-                        "node spends over a tenth of a grant on its report's transfer (P {}, median T_i {:.4g} s, slowest "
-                        "transfer {:.4g} s)",
-                        S, i, P, t_iteration, t_transfer)};
+    return {static_cast<uint32_t>(i), 1.0,
+            fmt::format("chain rule: exchanges do not change the chains, only cost; S = 1 and I = {}, the shortest period at "
+                        "which every node's link {} (P {}, median T_i {:.4g} s, slowest transfer {:.4g} s)",
+                        i, mode == Mode::async ? "keeps up with its grants" : "takes under a tenth of a grant", P, t_iteration,
+                        t_transfer)};
   }
   model::Costs costs{t_iteration, mode == Mode::async ? 0.0 : t_transfer / P};
   const double time = time_limit_s > 0 ? time_limit_s : static_cast<double>(per_node) * costs.t_iteration;
@@ -139,9 +141,8 @@ uint64_t Policy::grant_size(uint32_t n) const {
   for (uint32_t m = 0; m < nodes(); ++m)
     if (!nodes_[m].dead && nodes_[m].ready && bundle_time_[m] > 0) t.push_back(bundle_time_[m]);
   if (t.size() < 2) return base;
-  std::nth_element(t.begin(), t.begin() + t.size() / 2, t.end());
-  const double l = std::log2(t[t.size() / 2] / bundle_time_[n]);
-  const double f = std::exp2(std::clamp(std::copysign(std::floor(std::fabs(l) + 1e-9), l), -4.0, 4.0));
+  const double fastest = *std::min_element(t.begin(), t.end());
+  const double f = std::exp2(-std::min(4.0, std::floor(std::log2(bundle_time_[n] / fastest) + 1e-9)));
   const double size = std::max(1.0, std::round(static_cast<double>(base) * f));
   const uint64_t u = config_.grant_unit;
   return (static_cast<uint64_t>(size) + u - 1) / u * u;

@@ -42,8 +42,8 @@ struct PolicyConfig {
   double time_limit_s = 0;      // 0: none; else no grants after this long
   double target_error = 0;      // 0: none; else close once error_estimate() is at or below it
   // Grants sized to each node's speed (grant_size(n)): on unequal nodes every grant takes about
-  // the same time, so sync barriers do not wait on the slow and a closing run is not held up
-  // by a slow node's long grant. Off: every grant has the same bundle count.
+  // the same time, so sync barriers do not wait on the slow and a closing run is held up less
+  // by a slow node's grant. Off: every grant has the same bundle count.
   bool balance = true;
   // With exchange_every = kExchangeAuto: called once, when the first grants are about to go
   // out, with the ready nodes' indices; the driver measures what the model needs (auto_exchange).
@@ -65,10 +65,12 @@ struct NodeCost {
 // grant hides it; with S it is charged P S T_e per exchange, eq. 1).
 // Chain rule: an exchange never changes a node's chain, so the paper's gain from combining does
 // not exist; reports only feed the coordinator's estimate, its error estimate and the stopping
-// rules, and cost transfers. Then S = 1/4 and I is the shortest period at which no node spends
-// more than a tenth of a grant's compute time on its report's transfer, max_p 10 S e_p / t_p
-// (short grants end a run promptly at its target and balance unequal nodes at the end), and at
-// most bundles / (8 P). Fractions stay at or above 1 / chunks.
+// rules, and cost transfers. Then S = 1 (a stale chunk makes the error estimate pessimistic and
+// the run stop late: measured in bench/paper/REPORT.md) and I is the shortest period at which
+// every node's link keeps up: max_p e_p / t_p in async mode (a queued grant runs while the
+// report travels), max_p 10 e_p / t_p in sync (the barrier waits for it: under a tenth), at
+// most bundles / (8 P). Short grants end a run promptly at its target. Fractions stay at or
+// above 1 / chunks.
 ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, const std::vector<NodeCost>& nodes, Mode mode,
                               uint64_t bundles, uint32_t chunks, double time_limit_s = 0);
 
@@ -173,10 +175,11 @@ class Policy {
   std::vector<glm::vec3> radiosity() const;
 
   // Bundles per grant: I (or, exchanging only at the end, bundles / (8 P)), in whole grant
-  // units. With `balance` and node n's bundle time known, times f = the median bundle time of
-  // the ready nodes over n's, rounded towards 1 to a power of two (nodes within 2x of the
-  // median get exactly I: measured times are noisy) and clamped to [1/16, 16]: each grant then
-  // takes about I median bundles' time.
+  // units. With `balance` and node n's bundle time known, times f = the fastest ready node's
+  // bundle time over n's, rounded up to a power of two (nodes within 2x of the fastest get
+  // exactly I: measured times are noisy) and at least 1/16: each grant then takes about I of
+  // the fastest node's bundles (or one grant unit, if that is longer). No grant grows: a long
+  // one would hold up a run that closes at its target.
   uint64_t grant_size() const;
   uint64_t grant_size(uint32_t n) const;
   // Node n's seconds per bundle, as its driver measures it (READY, then busy / bundles of its

@@ -19,23 +19,22 @@ uint64_t size_of(const GrantOrder& g) {
   return s;
 }
 
-// Balanced grants: each node's grant is I times the median bundle time over its own, rounded
-// towards 1 to a power of two: 1.5x slower is noise (I), 4x slower gets I / 4, 4x faster 4 I.
+// Balanced grants: each node's grant is I times the fastest node's bundle time over its own,
+// rounded up to a power of two: 1.5x slower is noise (I), 4x slower gets I / 4; never above I.
 TEST(Policy, BalancedGrantsFollowTheNodesSpeeds) {
   PolicyConfig c{.bundles = 100000, .exchange_every = 16, .mode = Mode::sync, .min_nodes = 4, .grant_unit = 2};
   Policy p = make(c, 4);
-  const double t[] = {1.0, 1.5, 4.0, 0.25};
+  const double t[] = {1.0, 1.5, 4.0, 3.5};
   for (uint32_t n = 0; n < 4; ++n) {
     p.ready(n);
     p.set_bundle_time(n, t[n]);
   }
   Orders o = p.schedule();
   ASSERT_EQ(o.grants.size(), 4u);
-  // median of {0.25, 1, 1.5, 4} (the upper middle): 1.5
-  EXPECT_EQ(size_of(o.grants[0]), 16u);  // 1.5 / 1: below 2x, exactly I
-  EXPECT_EQ(size_of(o.grants[1]), 16u);
-  EXPECT_EQ(size_of(o.grants[2]), 8u);   // 1.5 / 4 = 0.375: 1/2
-  EXPECT_EQ(size_of(o.grants[3]), 64u);  // 1.5 / 0.25 = 6: 4x
+  EXPECT_EQ(size_of(o.grants[0]), 16u);  // the fastest
+  EXPECT_EQ(size_of(o.grants[1]), 16u);  // 1.5x: below 2x, exactly I
+  EXPECT_EQ(size_of(o.grants[2]), 4u);   // 4x: I / 4
+  EXPECT_EQ(size_of(o.grants[3]), 8u);   // 3.5x: I / 2
   // Off: every grant I.
   c.balance = false;
   Policy q = make(c, 4);
@@ -94,13 +93,15 @@ TEST(Policy, AutoExchangeIsChosenOnceAtTheStart) {
   EXPECT_EQ(calls, 1);
 }
 
-// The chain rule's auto: S = 1/4 and I = max over nodes of ceil(10 S e_p / t_p), capped at
-// bundles / (8 P). Node 1's transfer (0.2 s) over its bundle (0.01 s): 10 * 0.25 * 20 = 50.
-TEST(Policy, ChainRuleAutoBoundsTheTransferShare) {
+// The chain rule's auto: S = 1 and I = max over nodes of ceil(e_p / t_p) in async, of
+// ceil(10 e_p / t_p) in sync, capped at bundles / (8 P). Node 1's transfer (0.2 s) over its
+// bundle (0.01 s): 20 and 200.
+TEST(Policy, ChainRuleAutoLetsEveryLinkKeepUp) {
   ExchangeSetting s = auto_exchange(UpdateRule::chain, {}, {{0.01, 0.01}, {0.01, 0.2}}, Mode::async, 100000, 16);
-  EXPECT_EQ(s.exchange_every, 50u);
-  EXPECT_EQ(s.fraction, 0.25);
-  ExchangeSetting capped = auto_exchange(UpdateRule::chain, {}, {{0.01, 0.01}, {0.01, 0.2}}, Mode::async, 320, 16);
+  EXPECT_EQ(s.exchange_every, 20u);
+  EXPECT_EQ(s.fraction, 1.0);
+  EXPECT_EQ(auto_exchange(UpdateRule::chain, {}, {{0.01, 0.01}, {0.01, 0.2}}, Mode::sync, 100000, 16).exchange_every, 200u);
+  ExchangeSetting capped = auto_exchange(UpdateRule::chain, {}, {{0.01, 0.01}, {0.01, 0.2}}, Mode::sync, 320, 16);
   EXPECT_EQ(capped.exchange_every, 20u);  // 320 / (8 x 2)
 }
 

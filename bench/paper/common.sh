@@ -17,4 +17,4 @@ export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$BUILD/pocl-cache}
 CONTRACTIONS="0.1 0.3 0.5 0.7 0.9"
 
 # gnuplot's PNG terminal with the settings every figure uses; $1 the output file.
-png() { printf 'set terminal pngcairo size 1000,600 font ",10" noenhanced\nset output "%s"\nset datafile separator ","\nset key outside right\nset grid\n' "$1"; }
+png() { printf 'set terminal pngcairo size 1100,650 font ",10" noenhanced\nset output "%s"\nset datafile separator ","\nset key outside right\nset grid\n' "$1"; }
