@@ -17,8 +17,8 @@ packages=(
   # ray casting for the independent reference solver (sirad reference)
   libembree-dev
   # tests and benchmarks; docker-compose only validates deploy/docker-compose.yml (no engine);
-  # iproute2 (ip, tc) runs the namespace cluster
-  libgtest-dev libgmock-dev libbenchmark-dev docker-compose iproute2
+  # iproute2 (ip, tc) runs the namespace cluster; gnuplot-nox draws bench/paper's figures
+  libgtest-dev libgmock-dev libbenchmark-dev docker-compose iproute2 gnuplot-nox
 )
 
 missing=()

@@ -128,6 +128,7 @@ TEST(Cluster, GrantsKeepEachShotOnOneNode) {
   RunConfig c = furnace(1026);
   c.exchange_every = 30;
   c.shots_per_bundle = 0.25;
+  c.balance = false;  // grants of exactly 32: a loaded machine can make one node look 2x slower (16)
   Outcome o = run_cluster(c, 3, "inproc://shot-grants");
   expect_whole_grants(o, 32, 2, 1026);
   EXPECT_NEAR(area_mean(o.mesh, o.result.radiosity), 2.0, 0.04);
