@@ -347,7 +347,7 @@ int emulate(EmulateArgs& e) {
   ec.run = run_config_from(a, scene, mesh_options, rule, std::move(profile));
   ec.nodes = static_cast<uint32_t>(a.nodes);
   ec.bundle_s = e.bundle_ms / 1e3;
-  cluster::check_emulation(ec);
+  cluster::check_emulation(ec, mesh.size());
   auto engine = make_cl_engine(mesh, {.device = a.device});
   std::unique_ptr<ShotEngine> shots;
   if (a.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);

@@ -64,8 +64,9 @@ struct EmulateResult {
   std::vector<TimelineEvent> timeline;
 };
 
-// Throws sirad::Error for settings the emulation cannot model (no nodes; a disconnect).
-void check_emulation(const EmulateConfig& config);
+// Throws sirad::Error for settings the emulation cannot model (no nodes; a disconnect) or hold
+// (the nodes' solver state for `patches` would not fit in half of this machine's memory).
+void check_emulation(const EmulateConfig& config, std::size_t patches);
 
 // Median seconds of one solver step of `options` on these engines (steps timed after the
 // solver's burn-in, which is not counted).

@@ -205,6 +205,8 @@ TEST_F(Cli, EmulateNeedsNodesOrAProfileWithNodes) {
   expect_error(sirad("emulate cornell --bundles 8"), "--nodes");
   write("drops.yaml", "nodes:\n  - {index: 0, disconnect_at_s: 2}\n");
   expect_error(sirad("emulate furnace --patches 50 --bundles 8 --nodes 2 --profile drops.yaml"), "disconnects are not emulated");
+  // 4096 solvers of 100,000 patches: ~420 GiB, refused before any is built.
+  expect_error(sirad("emulate cornell --patches 100000 --bundles 8 --nodes 4096"), "GiB of solver state");
 }
 
 // --directions: recorded in the EXR header, single node and embedded cluster; stratified needs
