@@ -1,11 +1,23 @@
 // sirad: the SIRAD/1 codec: frames <-> messages, with the structural checks of PROTOCOL.md.
 #include "proto/codec.h"
 
+#include <cstdio>
+
 #include <fmt/format.h>
+#include <google/protobuf/stubs/logging.h>
 
 namespace sirad::proto {
 
 namespace {
+
+// protobuf logs to stderr every string field it refuses for invalid UTF-8 (and other parse
+// trouble); decode reports every refusal itself as a ProtocolError, which its caller logs once,
+// so a hostile peer must not be able to flood the log (a 60 s fuzz run printed 24,889 lines).
+// Only protobuf's fatal errors still print.
+void protobuf_log(google::protobuf::LogLevel level, const char* file, int line, const std::string& message) {
+  if (level == google::protobuf::LOGLEVEL_FATAL) std::fprintf(stderr, "protobuf: %s:%d: %s\n", file, line, message.c_str());
+}
+[[maybe_unused]] const bool kQuietProtobuf = (google::protobuf::SetLogHandler(&protobuf_log), true);
 
 [[noreturn]] void refuse(const std::string& why) { throw ProtocolError(why); }
 

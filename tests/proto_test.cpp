@@ -97,6 +97,19 @@ TEST(ProtoCodec, MalformedMessagesAreRefusedWithAReason) {
 
 // The same frames across a real ROUTER/DEALER pair: the ROUTER sees the routing id first, then
 // the message; a malformed message is refused and the next good one still decodes.
+// A string field with invalid UTF-8 is refused, and quietly: protobuf would log every such
+// refusal to stderr, which a hostile peer could use to flood the log (proto/codec.cpp).
+TEST(ProtoCodec, InvalidUtf8IsRefusedWithoutLogging) {
+  std::vector<std::string> frames = encode(one_of_each()[0]);  // HELLO from "box-1"
+  std::size_t at = frames[2].find("box-1");
+  ASSERT_NE(at, std::string::npos);
+  frames[2][at + 2] = '\xff';
+  testing::internal::CaptureStderr();
+  EXPECT_THROW(decode(frames), ProtocolError);
+  std::string logged = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(logged, "");
+}
+
 TEST(ProtoCodec, FramesCrossARouterDealerPair) {
   zmq::context_t ctx;
   zmq::socket_t router(ctx, zmq::socket_type::router), dealer(ctx, zmq::socket_type::dealer);
