@@ -139,6 +139,26 @@ MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<doub
   return o;
 }
 
+// The outputs' name: --out, or the scene's file name without extension; checked before any work.
+std::string output_name(const std::string& out, const std::string& scene) {
+  std::string name = out.empty() ? std::filesystem::path(scene).stem().string() : out;
+  check_output_name(name);
+  return name;
+}
+
+// The scene `spec` names, meshed, with a camera (the scene's, else a default view of it).
+struct Meshed {
+  Scene scene;
+  PatchMesh mesh;
+};
+Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, const ImportOptions& import = {}) {
+  Meshed m;
+  m.scene = load_scene(spec, import);
+  m.mesh = mesh_scene(m.scene, mesh_options);
+  if (!m.mesh.camera) m.mesh.camera = default_camera(m.scene);
+  return m;
+}
+
 // The cluster run the flags ask for (the embedded cluster's and the emulation's).
 cluster::RunConfig run_config_from(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, UpdateRule rule,
                                    std::optional<emulation::Profile> profile) {
@@ -236,14 +256,8 @@ int render(const RenderArgs& a) {
   check_first_shot(a.shots_per_bundle, a.shot_resolution);
   if (a.target_error > 0 && a.nodes == 0 && rule != UpdateRule::chain)
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
-  std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
-  check_output_name(out);
-
-  ImportOptions import;
-  import.skip_degenerate = a.skip_degenerate;
-  Scene scene = load_scene(a.scene, import);
-  PatchMesh mesh = mesh_scene(scene, mesh_options);
-  if (!mesh.camera) mesh.camera = default_camera(scene);
+  std::string out = output_name(a.out, a.scene);
+  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate});
 
   if (a.nodes > 0) {
     // Two or more nodes in this process on PoCL's CPU device would each get a pool of threads
@@ -335,13 +349,8 @@ int emulate(EmulateArgs& e) {
   UpdateRule rule = parse_update_rule(a.rule);
   resolve_directions(a.directions, rule);
   check_first_shot(a.shots_per_bundle, a.shot_resolution);
-  std::string out = a.out.empty() ? std::filesystem::path(a.scene).stem().string() : a.out;
-  check_output_name(out);
-  ImportOptions import;
-  import.skip_degenerate = a.skip_degenerate;
-  Scene scene = load_scene(a.scene, import);
-  PatchMesh mesh = mesh_scene(scene, mesh_options);
-  if (!mesh.camera) mesh.camera = default_camera(scene);
+  std::string out = output_name(a.out, a.scene);
+  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate});
 
   cluster::EmulateConfig ec;
   ec.run = run_config_from(a, scene, mesh_options, rule, std::move(profile));
@@ -368,7 +377,7 @@ int emulate(EmulateArgs& e) {
   // Every node up to 32; beyond, the spread of their utilisation.
   std::vector<double> use;
   for (const auto& n : r.nodes) {
-    use.push_back(r.wall_s > 0 ? n.busy_s / r.wall_s : 0.0);
+    use.push_back(n.utilisation);
     if (r.nodes.size() <= 32)
       std::printf("node %s: speed %g, %llu bundles, %u exchanges, busy %.3f s, idle %.3f s, utilisation %.1f %%\n", n.name.c_str(),
                   n.speed, static_cast<unsigned long long>(n.bundles), n.exchanges, n.busy_s, n.idle_s, 100 * use.back());
@@ -555,11 +564,8 @@ int reference(const ReferenceArgs& r) {
     fail("--rays {} is below --batches {}", r.options.rays_per_patch, r.options.batches);
   if (r.options.light_samples < r.options.batches)
     fail("--light-samples {} is below --batches {}", r.options.light_samples, r.options.batches);
-  std::string out = r.out.empty() ? std::filesystem::path(r.scene).stem().string() : r.out;
-  check_output_name(out);
-  Scene scene = load_scene(r.scene);
-  PatchMesh mesh = mesh_scene(scene, mesh_options);
-  if (!mesh.camera) mesh.camera = default_camera(scene);
+  std::string out = output_name(r.out, r.scene);
+  auto [scene, mesh] = load_meshed(r.scene, mesh_options);
   if (!r.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, reference with %d rays and %d light samples per patch, %d batches\n",
                  r.scene.c_str(), mesh.size(), r.options.rays_per_patch, r.options.light_samples, r.options.batches);
