@@ -81,6 +81,7 @@
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/scene.h"
+#include "core/solver.h"
 #include "core/scene_io.h"
 #include "core/solver.h"
 #include "node/node.h"
@@ -180,13 +181,7 @@ ExchangeTimes time_exchange(zmq::context_t& context, const std::string& bind, ui
         report.set_grant_id(static_cast<uint64_t>(rep + 1));
         std::vector<std::string> bulk;
         for (uint32_t ch = 0; ch < c; ++ch) {
-          std::vector<double> v;
-          v.reserve(3 * static_cast<std::size_t>(starts[ch + 1] - starts[ch]));
-          for (uint32_t j = starts[ch]; j < starts[ch + 1]; ++j) {
-            v.push_back(sum[j].x);
-            v.push_back(sum[j].y);
-            v.push_back(sum[j].z);
-          }
+          std::vector<double> v = flatten(std::span<const glm::dvec3>(sum).subspan(starts[ch], starts[ch + 1] - starts[ch]));
           report.add_chunks(ch);
           report.add_counts(static_cast<uint64_t>(rep + 1));
           bulk.push_back(proto::pack(v));
@@ -201,10 +196,7 @@ ExchangeTimes time_exchange(zmq::context_t& context, const std::string& bind, ui
         const auto& header = std::get<wire::Update>(u.header);
         std::size_t got = 0;
         for (int i = 0; i < header.chunks_size(); ++i) {
-          std::vector<double> v = proto::unpack(u.bulk[static_cast<std::size_t>(i)]);
-          std::vector<glm::dvec3> others(v.size() / 3);
-          for (std::size_t j = 0; j < others.size(); ++j) others[j] = glm::dvec3(v[3 * j], v[3 * j + 1], v[3 * j + 2]);
-          got += others.size();
+          got += unflatten(proto::unpack(u.bulk[static_cast<std::size_t>(i)])).size();
         }
         if (got != patches) fail("exchange bench: UPDATE carried {} patches, expected {}", got, patches);
         if (rep >= warmup) times.round_ms.push_back(1e3 * seconds_since(t0));

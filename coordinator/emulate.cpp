@@ -123,6 +123,7 @@ class Emulator {
       EmulatedNode& f = nodes_[n].figures;
       f.bundles = policy_.node(n).bundles;
       f.exchanges = policy_.node(n).exchanges;
+      f.utilisation = result_.wall_s > 0 ? f.busy_s / result_.wall_s : 0.0;
       r.nodes.push_back({f.name, f.bundles, f.exchanges, f.busy_s, f.idle_s, false});
       result_.nodes.push_back(f);
     }
@@ -198,9 +199,7 @@ class Emulator {
         const auto& starts = policy_.starts();
         for (std::size_t i = 0; i < m.exchange.chunks.size(); ++i) {
           const Aggregate::Part& part = m.exchange.parts[i];
-          std::vector<glm::dvec3> others(part.sum.size() / 3);
-          for (std::size_t j = 0; j < others.size(); ++j) others[j] = {part.sum[3 * j], part.sum[3 * j + 1], part.sum[3 * j + 2]};
-          v.solver->absorb(starts[m.exchange.chunks[i]], others, part.count);
+          v.solver->absorb(starts[m.exchange.chunks[i]], unflatten(part.sum), part.count);
         }
       } else if (m.kind == ToNode::stop) {
         v.stopped = true;
@@ -247,16 +246,8 @@ class Emulator {
     const Solver& s = *nodes_[n].solver;
     const auto& starts = policy_.starts();
     std::vector<ChunkState> out;
-    for (uint32_t c : chunks) {
-      ChunkState cs{c, {}, s.bundles()};
-      cs.sum.reserve(3 * (starts[c + 1] - starts[c]));
-      for (uint32_t j = starts[c]; j < starts[c + 1]; ++j) {
-        cs.sum.push_back(s.sum()[j].x);
-        cs.sum.push_back(s.sum()[j].y);
-        cs.sum.push_back(s.sum()[j].z);
-      }
-      out.push_back(std::move(cs));
-    }
+    const std::span<const glm::dvec3> sum = s.sum();
+    for (uint32_t c : chunks) out.push_back({c, flatten(sum.subspan(starts[c], starts[c + 1] - starts[c])), s.bundles()});
     return out;
   }
 
@@ -366,7 +357,7 @@ std::string nodes_csv(const EmulateResult& r) {
   std::string out = "node,speed,slowdown,bundles,exchanges,ready_s,busy_s,idle_s,utilisation,end_s\n";
   for (const EmulatedNode& n : r.nodes)
     out += fmt::format("{},{},{},{},{},{:.6f},{:.6f},{:.6f},{:.4f},{:.6f}\n", n.name, n.speed, n.slowdown, n.bundles,
-                       n.exchanges, n.ready_s, n.busy_s, n.idle_s, r.wall_s > 0 ? n.busy_s / r.wall_s : 0.0, n.end_s);
+                       n.exchanges, n.ready_s, n.busy_s, n.idle_s, n.utilisation, n.end_s);
   return out;
 }
 

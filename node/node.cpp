@@ -314,16 +314,10 @@ class Node {
   std::vector<std::string> chunk_frames(const Chunks& chunks, wire::Report& report) {
     std::vector<std::string> bulk;
     const auto& starts = state_->run.chunk_starts();
-    const auto& sum = state_->solver->sum();
+    const std::span<const glm::dvec3> sum = state_->solver->sum();
     for (uint32_t c : chunks) {
       uint32_t first = starts[c], last = c + 1 < static_cast<uint32_t>(starts.size()) ? starts[c + 1] : state_->run.patches();
-      std::vector<double> v;
-      v.reserve(3 * (last - first));
-      for (uint32_t j = first; j < last; ++j) {
-        v.push_back(sum[j].x);
-        v.push_back(sum[j].y);
-        v.push_back(sum[j].z);
-      }
+      std::vector<double> v = flatten(sum.subspan(first, last - first));
       report.add_chunks(c);
       report.add_counts(state_->solver->bundles());
       bulk.push_back(proto::pack(v));
@@ -341,10 +335,8 @@ class Node {
       std::vector<double> v = proto::unpack(bulk[i]);
       if (v.size() != 3 * static_cast<std::size_t>(last - first))
         return error(fmt::format("UPDATE chunk {}: {} values for {} patches", c, v.size(), last - first));
-      std::vector<glm::dvec3> others(v.size() / 3);
-      for (std::size_t j = 0; j < others.size(); ++j) others[j] = glm::dvec3(v[3 * j], v[3 * j + 1], v[3 * j + 2]);
       try {
-        state_->solver->absorb(first, others, u.counts(i));
+        state_->solver->absorb(first, unflatten(v), u.counts(i));
       } catch (const Error& e) {
         return error(e.what());
       }
