@@ -184,9 +184,8 @@ int hetero(const Common& c, const std::string& profile_path, double target, int 
           cluster::EmulateResult r = cluster::emulate(ec, s.mesh, *s.engine, s.shots.get());
           double use = 0, use_min = 1, idle = 0;
           for (const auto& n : r.nodes) {
-            double u = r.wall_s > 0 ? n.busy_s / r.wall_s : 0;
-            use += u / static_cast<double>(r.nodes.size());
-            use_min = std::min(use_min, u);
+            use += n.utilisation / static_cast<double>(r.nodes.size());
+            use_min = std::min(use_min, n.utilisation);
             idle += n.idle_s;
           }
           std::string ended = r.run.ended_by.substr(0, r.run.ended_by.find(' '));

@@ -51,6 +51,7 @@ struct EmulatedNode {
   double busy_s = 0;       // running bundles
   double idle_s = 0;       // waiting for work between its first grant and its STOP
   double end_s = 0;        // when its FINAL reached the coordinator
+  double utilisation = 0;  // busy_s over the run's virtual wall time
 };
 
 struct EmulateResult {

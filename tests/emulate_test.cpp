@@ -35,6 +35,18 @@ Bench bench_for(const RunConfig& c) {
 
 EmulateResult run(const EmulateConfig& c, Bench& b) { return emulate(c, b.mesh, *b.engine, b.shots.get()); }
 
+// The cluster tests' furnace run (test::furnace: every patch's radiosity is exactly 2) at 200
+// patches, exchanging every `every` bundles, on `nodes` emulated nodes of `bundle_s` each.
+EmulateConfig furnace_on(uint32_t nodes, uint64_t bundles, uint32_t every, double bundle_s) {
+  EmulateConfig c;
+  c.run = test::furnace(bundles);
+  c.run.mesh_options.target_patches = 200;
+  c.run.exchange_every = every;
+  c.nodes = nodes;
+  c.bundle_s = bundle_s;
+  return c;
+}
+
 // A heterogeneous profile: speeds 1, 0.5, 0.25, 2 and shaped links with jitter (seeded).
 const char* kHetero = R"(profile: test-hetero
 defaults: {latency_ms: 2, jitter_ms: 1, up_mbit: 100, down_mbit: 100}
@@ -96,16 +108,10 @@ TEST(Emulate, SameSeedGivesTheSameTimelineAndTheSameResultBitwise) {
 // The end of the budget is where they can part: the last grants go to whichever asks first, and
 // near the end only one is held each, so the split can be off by at most about one grant.
 TEST(Emulate, AHalfSpeedNodeDoesHalfTheBundlesInAsyncMode) {
-  EmulateConfig c;
-  c.run.scene = builtin_furnace();
-  c.run.mesh_options.target_patches = 200;
-  c.run.bundles = 600;
-  c.run.exchange_every = 10;
+  EmulateConfig c = furnace_on(2, 600, 10, 0.01);
   c.run.mode = Mode::async;
   c.run.balance = false;
   c.run.profile = emulation::parse_profile("nodes:\n  - {index: 0, speed: 1}\n  - {index: 1, speed: 0.5}\n", "halves");
-  c.nodes = 2;
-  c.bundle_s = 0.01;
   Bench b = bench_for(c.run);
   EmulateResult r = run(c, b);
   ASSERT_EQ(r.nodes.size(), 2u);
@@ -140,14 +146,8 @@ TEST(Emulate, AHalfSpeedNodeDoesHalfTheBundlesInAsyncMode) {
 // standard deviations of a 512-bundle plain chain average, 0.04 sqrt(1024 / 512) (the
 // cluster tests' bound for 1024, see SolverFurnace; the control variate only lowers the noise).
 TEST(Emulate, SixtyFourNodesRunTheFurnace) {
-  EmulateConfig c;
-  c.run.scene = builtin_furnace();
-  c.run.mesh_options.target_patches = 200;
-  c.run.bundles = 512;
-  c.run.exchange_every = 4;
+  EmulateConfig c = furnace_on(64, 512, 4, 0.002);
   c.run.mode = Mode::async;
-  c.nodes = 64;
-  c.bundle_s = 0.002;
   Bench b = bench_for(c.run);
   EmulateResult r = run(c, b);
   ASSERT_EQ(r.nodes.size(), 64u);
@@ -164,13 +164,9 @@ TEST(Emulate, SixtyFourNodesRunTheFurnace) {
 }
 
 TEST(Emulate, ADisconnectingProfileIsRefused) {
-  EmulateConfig c;
-  c.run.scene = builtin_furnace();
+  EmulateConfig c = furnace_on(2, 16, 0, 0.01);
   c.run.mesh_options.target_patches = 50;
-  c.run.bundles = 16;
   c.run.profile = emulation::parse_profile("nodes:\n  - {index: 1, disconnect_at_s: 1}\n", "drops");
-  c.nodes = 2;
-  c.bundle_s = 0.01;
   Bench b = bench_for(c.run);
   try {
     run(c, b);
