@@ -119,7 +119,7 @@ class Coordinator {
     result.radiosity = policy_.radiosity();
     for (const Peer* p : all_peers()) {
       const NodeState& n = policy_.node(p->index);
-      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead});
+      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why});
     }
     result.exchange_bytes_in = bytes_in_;
     result.exchange_bytes_out = bytes_out_;
@@ -191,6 +191,7 @@ class Coordinator {
       n.name = p->name;
       n.device = p->device;
       n.state = ns.state();
+      n.why = ns.why;
       n.bundles = ns.bundles;
       n.exchanges = ns.exchanges;
       n.last_seen_s = seconds(now - p->last_seen);
@@ -266,7 +267,9 @@ class Coordinator {
     auto it = peers_.find(id);
     if (it == peers_.end()) fail("{} before HELLO", proto::command_name(m.command));
     Peer& p = it->second;
-    if (policy_.node(p.index).dead) fail("{} from a node declared dead; say HELLO to rejoin", proto::command_name(m.command));
+    const NodeState& n = policy_.node(p.index);
+    if (n.quarantined) fail("{} from a quarantined node ({})", proto::command_name(m.command), n.why);
+    if (n.dead) fail("{} from a node declared dead; say HELLO to rejoin", proto::command_name(m.command));
     p.last_seen = Clock::now();
     switch (m.command) {
       case Command::ready: ready(p, std::get<wire::Ready>(m.header)); break;
@@ -288,10 +291,13 @@ class Coordinator {
       Peer& old = it->second;
       const NodeState& n = policy_.node(old.index);
       old.last_seen = Clock::now();
+      if (n.quarantined) fail("HELLO from a quarantined node ({}): refused", n.why);
       // An idle node repeats HELLO until it has a run, and a node between FINAL and the next
-      // run does too: nothing to do for either.
-      if (!n.dead && (!n.ready || n.stopped)) return;
-      if (!n.dead) declare_dead(old, "it said HELLO again: it lost its run");
+      // run does too: nothing to do for either, unless the budget has work again (a node
+      // quarantined at its FINAL gave its bundles back): then it rejoins, its FINAL kept.
+      bool work = n.final_in && !policy_.closing() && policy_.ledger().available() > 0;
+      if (!n.dead && (!n.ready || n.stopped) && !work) return;
+      if (!n.dead && !n.final_in) declare_dead(old, "it said HELLO again: it lost its run");
       departed_.push_back(std::move(old));
       peers_.erase(it);
     }
@@ -436,7 +442,12 @@ class Coordinator {
 
   void final_state(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
     if (!policy_.node(p.index).stopped) fail("FINAL without STOP");
-    policy_.final_state(p.index, chunk_states(p, r, bulk, final_bytes_));
+    try {
+      policy_.final_state(p.index, chunk_states(p, r, bulk, final_bytes_));
+    } catch (const Error&) {
+      schedule();  // a quarantine gave bundles back
+      throw;
+    }
   }
 
   zmq::socket_t& router_;
@@ -519,7 +530,8 @@ std::string node_lines(const RunResult& r) {
   std::string out;
   for (const auto& n : r.nodes)
     out += fmt::format("node {}: {} bundles, {} exchanges, busy {:.2f} s, idle {:.2f} s{}\n", n.name, n.bundles,
-                       n.exchanges, n.busy_s, n.idle_s, n.dead ? ", dead" : "");
+                       n.exchanges, n.busy_s, n.idle_s,
+                       !n.quarantined.empty() ? ", quarantined: " + n.quarantined : n.dead ? ", dead" : "");
   return out;
 }
 

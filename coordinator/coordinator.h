@@ -66,6 +66,7 @@ struct NodeReport {
   uint32_t exchanges = 0;
   double busy_s = 0, idle_s = 0;  // as the node last reported them
   bool dead = false;              // declared dead (silent for `liveness` heartbeats)
+  std::string quarantined;        // why it was quarantined (empty: it was not)
 };
 
 struct RunResult {
@@ -102,7 +103,7 @@ Attributes run_attributes(const RunConfig& config, const RunResult& result, cons
 // states Z B" (bulk bytes: 24 per patch of each chunk sent).
 std::string traffic_line(const RunResult& result);
 
-// One line per node: "node NAME: B bundles, E exchanges, busy Xs, idle Ys[, dead]".
+// One line per node: "node NAME: B bundles, E exchanges, busy Xs, idle Ys[, dead | , quarantined: WHY]".
 std::string node_lines(const RunResult& result);
 
 // Serves one run of `mesh` (meshed from config.scene with config.mesh_options) until every

@@ -77,22 +77,49 @@ void Ledger::done(uint32_t node, Range r) {
   held.erase(h);
   if (before.size()) held.push_back(before);
   if (after.size()) held.push_back(after);
+  done_[node].push_back(r);
   done_count_ += r.size();
 }
+
+namespace {
+// Sorted by first index, adjacent ranges joined.
+std::vector<Range> merged(std::vector<Range> ranges) {
+  std::sort(ranges.begin(), ranges.end(), [](const Range& a, const Range& b) { return a.first < b.first; });
+  std::vector<Range> out;
+  for (const Range& r : ranges) {
+    if (!out.empty() && out.back().last == r.first) out.back().last = r.last;
+    else out.push_back(r);
+  }
+  return out;
+}
+}  // namespace
 
 void Ledger::abandon(uint32_t node) {
   auto it = granted_.find(node);
   if (it == granted_.end()) return;
   for (const Range& r : it->second) free_.push_back(r);
   granted_.erase(it);
-  // Keep the free list sorted and merged, so the lowest indices go out first.
-  std::sort(free_.begin(), free_.end(), [](const Range& a, const Range& b) { return a.first < b.first; });
-  std::vector<Range> merged;
-  for (const Range& r : free_) {
-    if (!merged.empty() && merged.back().last == r.first) merged.back().last = r.last;
-    else merged.push_back(r);
+  free_ = merged(std::move(free_));  // the lowest indices go out first
+}
+
+uint64_t Ledger::revoke(uint32_t node) {
+  abandon(node);
+  auto it = done_.find(node);
+  if (it == done_.end()) return 0;
+  uint64_t n = 0;
+  for (const Range& r : it->second) {
+    free_.push_back(r);
+    n += r.size();
   }
-  free_ = std::move(merged);
+  done_.erase(it);
+  done_count_ -= n;
+  free_ = merged(std::move(free_));
+  return n;
+}
+
+std::vector<Range> Ledger::done_by(uint32_t node) const {
+  auto it = done_.find(node);
+  return it == done_.end() ? std::vector<Range>{} : merged(it->second);
 }
 
 uint64_t Ledger::outstanding(uint32_t node) const {
@@ -133,12 +160,12 @@ void Aggregate::add_node() {
   state_.push_back(std::move(parts));
 }
 
-void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint64_t count) {
+void Aggregate::check(uint32_t node, uint32_t chunk, const std::vector<double>& sum, uint64_t count) const {
   if (node >= nodes()) fail("aggregate: no node {}", node);
   if (chunk >= chunks()) fail("node {}: no chunk {} (the run has {})", node, chunk, chunks());
   if (sum.size() != 3 * static_cast<std::size_t>(chunk_size(chunk)))
     fail("node {}: chunk {} has {} values, expected {}", node, chunk, sum.size(), 3 * chunk_size(chunk));
-  Part& part = state_[node][chunk];
+  const Part& part = state_[node][chunk];
   if (count < part.count) fail("node {}: count of chunk {} went back from {} to {}", node, chunk, part.count, count);
   // Sums are signed: the transport's control variate (core/solver.cpp) makes a single
   // estimate of a nearly dark patch negative at times. What no node can send: a non-finite
@@ -148,8 +175,21 @@ void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint
   for (std::size_t i = 0; i < sum.size(); ++i)
     if (!std::isfinite(sum[i]) || std::fabs(sum[i]) > limit)
       fail("node {}: chunk {} value {} is {} ({} bundles)", node, chunk, i, sum[i], count);
+}
+
+void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint64_t count) {
+  check(node, chunk, sum, count);
+  Part& part = state_[node][chunk];
   part.sum = std::move(sum);
   part.count = count;
+}
+
+void Aggregate::clear(uint32_t node) {
+  if (node >= nodes()) fail("aggregate: no node {}", node);
+  for (Part& part : state_[node]) {
+    std::fill(part.sum.begin(), part.sum.end(), 0.0);
+    part.count = 0;
+  }
 }
 
 Aggregate::Part Aggregate::others(uint32_t node, uint32_t chunk, Topology topology) const {

@@ -41,6 +41,11 @@ class Ledger {
   void done(uint32_t node, Range r);
   // Everything granted to `node` and not done returns to the budget.
   void abandon(uint32_t node);
+  // Everything granted to `node`, done or not, returns to the budget (a quarantined node: its
+  // data are dropped, so its bundles must be run again). Returns how many were done.
+  uint64_t revoke(uint32_t node);
+  // The indices `node` has done, merged and sorted (the ledger's record: who ran what).
+  std::vector<Range> done_by(uint32_t node) const;
   uint64_t bundles() const { return bundles_; }
   uint64_t done_count() const { return done_count_; }
   uint64_t outstanding(uint32_t node) const;
@@ -51,6 +56,7 @@ class Ledger {
   uint64_t bundles_;
   std::vector<Range> free_;                           // sorted, disjoint
   std::map<uint32_t, std::vector<Range>> granted_;    // per node, not yet done
+  std::map<uint32_t, std::vector<Range>> done_;       // per node, done (unmerged)
   uint64_t done_count_ = 0;
 };
 
@@ -74,6 +80,10 @@ class Aggregate {
   // Refused (sirad::Error, state unchanged) for a wrong size, a count that goes backwards, or a
   // non-finite or negative value.
   void set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint64_t count);
+  // What set() checks, without setting: throws sirad::Error naming the first problem.
+  void check(uint32_t node, uint32_t chunk, const std::vector<double>& sum, uint64_t count) const;
+  // Drops everything node has sent (a quarantined node): its sums and counts become zero.
+  void clear(uint32_t node);
 
   struct Part {
     std::vector<double> sum;  // 3 per patch of the chunk

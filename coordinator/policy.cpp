@@ -92,7 +92,7 @@ model::Scene quick_scene_fit(const PatchMesh& mesh, BundleEngine& engine, uint64
 }
 
 const char* NodeState::state() const {
-  return dead ? "dead" : final_in ? "done" : !ready ? "joining" : !grants.empty() ? "working" : "waiting";
+  return quarantined ? "quarantined" : dead ? "dead" : final_in ? "done" : !ready ? "joining" : !grants.empty() ? "working" : "waiting";
 }
 
 Policy::Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight)
@@ -148,6 +148,24 @@ uint64_t Policy::grant_size(uint32_t n) const {
   return (static_cast<uint64_t>(size) + u - 1) / u * u;
 }
 
+uint64_t Policy::quarantine(uint32_t n, const std::string& why) {
+  NodeState& p = nodes_.at(n);
+  uint64_t done = ledger_.revoke(n);
+  aggregate_.clear(n);
+  p.dead = p.quarantined = true;
+  p.why = why;
+  p.grants.clear();
+  p.bundles = 0;
+  p.error = -1;
+  p.error_bundles = 0;
+  return done;
+}
+
+void Policy::quarantine_and_fail(uint32_t n, const std::string& why) {
+  uint64_t done = quarantine(n, why);
+  fail("quarantined: {}; its {} bundles return to the budget and its data are dropped", why, done);
+}
+
 Orders Policy::schedule() {
   Orders orders;
   uint32_t ready = 0;
@@ -194,24 +212,39 @@ Orders Policy::schedule() {
 }
 
 void Policy::take_chunks(uint32_t n, std::vector<ChunkState>& chunks) {
-  for (ChunkState& c : chunks) {
-    if (c.chunk >= aggregate_.chunks()) fail("report names chunk {} of {}", c.chunk, aggregate_.chunks());
-    aggregate_.set(n, c.chunk, std::move(c.sum), c.count);
+  const NodeState& p = nodes_.at(n);
+  std::vector<bool> seen(aggregate_.chunks(), false);
+  for (const ChunkState& c : chunks) {
+    try {
+      aggregate_.check(n, c.chunk, c.sum, c.count);
+    } catch (const Error& e) {
+      quarantine_and_fail(n, e.what());
+    }
+    // A node's count of a chunk is the bundles its chain has run (core/solver.h): never more
+    // than the bundles the ledger says it has done.
+    if (c.count > p.bundles) quarantine_and_fail(n, fmt::format("chunk {} count {} exceeds its {} bundles", c.chunk, c.count, p.bundles));
+    if (seen[c.chunk]) quarantine_and_fail(n, fmt::format("chunk {} twice in one message", c.chunk));
+    seen[c.chunk] = true;
   }
+  for (ChunkState& c : chunks) aggregate_.set(n, c.chunk, std::move(c.sum), c.count);
 }
 
 std::optional<Exchange> Policy::report(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
                                        std::vector<ChunkState> chunks, double error_estimate) {
   NodeState& p = nodes_.at(n);
+  if (p.dead) fail("report from a node declared dead");
   if (p.grants.empty() || grant_id != p.grants.front()) fail("report for grant {} it does not hold", grant_id);
   p.grants.pop_front();  // answered, whatever follows: a refused report must not wedge the run
   for (const Range& d : done) {
-    ledger_.done(n, d);
+    try {
+      ledger_.done(n, d);
+    } catch (const Error& e) {
+      quarantine_and_fail(n, e.what());
+    }
     p.bundles += d.size();
   }
-  // Refused like a bad chunk: the indices count as done (the ledger moves on), the data not.
   if (!std::isfinite(error_estimate) || error_estimate > 1e6)
-    fail("REPORT error estimate {} is not a finite relative error", error_estimate);
+    quarantine_and_fail(n, fmt::format("REPORT error estimate {} is not a finite relative error", error_estimate));
   take_chunks(n, chunks);
   if (error_estimate > 0) {
     p.error = error_estimate;
@@ -232,6 +265,7 @@ std::optional<Exchange> Policy::report(uint32_t n, uint64_t grant_id, const std:
 
 void Policy::final_state(uint32_t n, std::vector<ChunkState> chunks) {
   NodeState& p = nodes_.at(n);
+  if (p.dead) fail("FINAL from a node declared dead");
   if (!p.stopped || p.final_in) fail("FINAL without STOP");
   take_chunks(n, chunks);
   p.final_in = true;

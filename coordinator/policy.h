@@ -94,13 +94,16 @@ std::vector<double> error_weights(const PatchMesh& mesh);
 
 struct NodeState {
   bool ready = false, stopped = false, final_in = false, dead = false;
+  // Sent an impossible state (quarantine()): dead too, its data and its bundles dropped.
+  bool quarantined = false;
+  std::string why;              // why it was quarantined
   std::deque<uint64_t> grants;  // outstanding grant ids, oldest first
   uint32_t rotation = 0;        // grants given with report chunks (the rotation of S)
   uint32_t exchanges = 0;
   uint64_t bundles = 0;
   double error = -1;            // its last reported error estimate (<= 0: none)
   uint64_t error_bundles = 0;   // the bundles it had done then
-  // "dead" | "done" | "joining" | "working" | "waiting" (Status::Node::state)
+  // "quarantined" | "dead" | "done" | "joining" | "working" | "waiting" (Status::Node::state)
   const char* state() const;
 };
 
@@ -143,6 +146,12 @@ class Policy {
   // Declares node n dead: its outstanding grant goes back to the budget. Returns how many
   // bundles went back. Call schedule() next (a sync barrier may have waited on it).
   uint64_t dead(uint32_t n);
+  // Quarantines node n for sending what no honest node can (a non-finite or absurd value, a
+  // count beyond its bundles or going backwards, bundles it was not granted): dead, its data
+  // dropped from the aggregate, and every index granted to it, done or not, back in the budget,
+  // so the run still ends with its full count of accepted bundles. Returns how many bundles it
+  // had done. Call schedule() next.
+  uint64_t quarantine(uint32_t n, const std::string& why);
 
   // Gives grants and STOPs. Async: every live ready node holds two grants, the one it runs and
   // one queued behind it, so it never waits for the REPORT -> GRANT round trip; near the end of
@@ -152,11 +161,12 @@ class Policy {
 
   // Node n's REPORT for grant `grant_id` (which must be its oldest): the done ranges go into
   // the ledger, the chunks into the aggregate. Returns the exchange to answer with (none when
-  // the report carried no chunks). Throws sirad::Error when refused: the grant counts as
-  // answered and its indices as done either way, the data not. Call schedule() next, always.
+  // the report carried no chunks). Throws sirad::Error when refused: a report for a grant the
+  // node does not hold changes nothing; one whose data (or error estimate, or done ranges) no
+  // honest node sends quarantines the node. Call schedule() next, always.
   std::optional<Exchange> report(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
                                  std::vector<ChunkState> chunks, double error_estimate);
-  // Node n's FINAL (after its STOP): its end states.
+  // Node n's FINAL (after its STOP): its end states (impossible ones quarantine it, as above).
   void final_state(uint32_t n, std::vector<ChunkState> chunks);
 
   // The time limit (elapsed_s on the driver's clock) or the target error closes the run: no
@@ -197,7 +207,10 @@ class Policy {
   const std::string& exchange_why() const { return exchange_why_; }
 
  private:
+  // Every chunk checked (Aggregate::check, and its count within the node's bundles), then all
+  // taken, or none and the node quarantined.
   void take_chunks(uint32_t n, std::vector<ChunkState>& chunks);
+  [[noreturn]] void quarantine_and_fail(uint32_t n, const std::string& why);
 
   PolicyConfig config_;
   std::vector<uint32_t> starts_;

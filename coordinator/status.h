@@ -23,13 +23,14 @@ struct Status {
   struct Node {
     std::string name;
     std::string device;        // as the node described it in HELLO
-    std::string state;         // "joining" | "working" | "waiting" | "done" | "dead"
+    std::string state;         // "joining" | "working" | "waiting" | "done" | "dead" | "quarantined"
     uint64_t bundles = 0;
     uint32_t exchanges = 0;
     double last_seen_s = 0;    // seconds since its last message
     double rate = 0;           // bundles per second since it was ready
     double busy_s = 0;         // its own time running bundles (as last reported)
     double idle_s = 0;         // its own time waiting for a grant while the run had work
+    std::string why;           // quarantined: what it sent (empty otherwise)
   };
   std::vector<Node> nodes;
 };

@@ -57,6 +57,28 @@ TEST(ClusterLedger, RefusesWhatWasNotGrantedOrIsDoneAlready) {
   EXPECT_EQ(ledger.done_count(), 5u);
 }
 
+// The ledger records who ran what; revoking a node returns its done and outstanding indices to
+// the budget (a quarantined node), and they are granted again, lowest first.
+TEST(ClusterLedger, RevokeReturnsDoneAndOutstandingIndices) {
+  Ledger ledger(100);
+  ledger.grant(0, 10);  // [0, 10)
+  ledger.grant(1, 10);  // [10, 20)
+  ledger.grant(0, 10);  // [20, 30)
+  ledger.done(0, {0, 4});
+  ledger.done(0, {4, 10});
+  ledger.done(1, {10, 20});
+  ledger.done(0, {20, 25});
+  EXPECT_EQ(ledger.done_by(0), (std::vector<Range>{{0, 10}, {20, 25}}));
+  EXPECT_EQ(ledger.done_by(1), (std::vector<Range>{{10, 20}}));
+  EXPECT_EQ(ledger.revoke(0), 15u);
+  EXPECT_EQ(ledger.done_count(), 10u);
+  EXPECT_TRUE(ledger.done_by(0).empty());
+  EXPECT_EQ(ledger.outstanding(0), 0u);
+  EXPECT_EQ(ledger.available(), 90u);
+  EXPECT_EQ(ledger.grant(2, 12), (std::vector<Range>{{0, 10}, {20, 22}}));
+  EXPECT_THROW(ledger.done(0, {25, 30}), Error);  // its late report
+}
+
 TEST(ClusterExchange, FractionSelectsRotatingChunks) {
   // S = 1: all chunks every time.
   auto all = exchange_chunks(7, 1.0, 8);

@@ -1,4 +1,6 @@
 // sirad tests: the coordinator's decisions (coordinator/policy.h) as plain state.
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include "coordinator/policy.h"
@@ -43,6 +45,39 @@ TEST(Policy, BalancedGrantsFollowTheNodesSpeeds) {
     q.set_bundle_time(n, t[n]);
   }
   for (const GrantOrder& g : q.schedule().grants) EXPECT_EQ(size_of(g), 16u);
+}
+
+// Quarantine: a report with a value no node can send (NaN), a count beyond its bundles or done
+// ranges it was not granted drops the node's data and returns its bundles, done or not; its
+// earlier accepted report goes too. A late report from it is refused without changing anything.
+TEST(Policy, QuarantineDropsTheDataAndReturnsTheBundles) {
+  struct Case {
+    const char* name;
+    double value;
+    uint64_t count_factor;
+    bool foreign_range;
+  };
+  for (const Case& k : {Case{"nan", std::nan(""), 1, false}, Case{"count", 1.0, 2, false}, Case{"range", 1.0, 1, true}}) {
+    SCOPED_TRACE(k.name);
+    PolicyConfig c{.bundles = 64, .exchange_every = 8, .mode = Mode::async, .min_nodes = 2, .balance = false};
+    Policy p = make(c, 2);
+    p.ready(0);
+    p.ready(1);
+    Orders o = p.schedule();
+    ASSERT_EQ(o.grants.size(), 4u);  // two each, 8 bundles: node 0 holds 0 and 1, node 1 holds 2 and 3
+    auto chunk = [](double v, uint64_t count) { return ChunkState{0, std::vector<double>(48, v * static_cast<double>(count)), count}; };
+    p.report(1, o.grants[2].id, o.grants[2].ranges, {chunk(5.0, 8)}, 0);  // node 1's first: accepted
+    EXPECT_EQ(p.aggregate().count(0), 8u);
+    std::vector<Range> done = k.foreign_range ? o.grants[0].ranges : o.grants[3].ranges;
+    EXPECT_THROW(p.report(1, o.grants[3].id, done, {chunk(k.value, 16 * k.count_factor)}, 0), Error);
+    EXPECT_TRUE(p.node(1).quarantined);
+    EXPECT_STREQ(p.node(1).state(), "quarantined");
+    EXPECT_EQ(p.aggregate().count(0), 0u) << "its accepted state is dropped too";
+    EXPECT_EQ(p.ledger().done_count(), 0u);
+    EXPECT_EQ(p.ledger().available(), 64u - 16u) << "only node 0's grants are out";
+    EXPECT_THROW(p.report(1, o.grants[3].id, o.grants[3].ranges, {}, 0), Error);
+    EXPECT_EQ(p.ledger().done_count(), 0u);
+  }
 }
 
 // Sync: no grant while any node holds one; the last report opens the next round, and a node
