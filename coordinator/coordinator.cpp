@@ -40,6 +40,7 @@ struct Peer {
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   emulation::LinkModel down;  // the emulated coordinator -> node link
   proto::DelayQueue queue;    // messages on that link
+  bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
 };
 
 class Coordinator {
@@ -52,6 +53,7 @@ class Coordinator {
         scene_bytes_(encode_scene(config.scene)) {
     // A reconnecting node keeps its routing id; the new connection takes it over.
     router_.set(zmq::sockopt::router_handover, 1);
+    proto::harden(router_, proto::max_frame_bytes(mesh.size()));
     std::random_device rd;
     run_.set_run_id((static_cast<uint64_t>(rd()) << 32 | rd()) | 1);  // a stale message names another run
     run_.set_scene_hash(mesh.hash);
@@ -211,6 +213,10 @@ class Coordinator {
     for (auto& [id, p] : peers_) {
       const NodeState& n = policy_.node(p.index);
       if (n.dead || n.final_in) continue;
+      if (p.unreachable || p.queue.failed() > 0) {
+        declare_dead(p, "a message to it could not be sent");
+        continue;
+      }
       if (n.ready && now - p.last_seen > interval * config_.liveness) {
         declare_dead(p, fmt::format("silent for {:.1f} s", seconds(now - p.last_seen)));
         continue;
@@ -248,7 +254,10 @@ class Coordinator {
     frames.insert(frames.begin(), p.id);
     auto now = Clock::now();
     p.last_sent = now;
-    if (!p.down.shaped()) return proto::send_frames(router_, frames);
+    if (!p.down.shaped()) {
+      p.unreachable = p.unreachable || !proto::send_frames(router_, frames);
+      return;
+    }
     std::size_t bytes = 0;
     for (const auto& f : frames) bytes += f.size();
     p.queue.push(p.down.deliver(clock(now), bytes), std::move(frames));

@@ -63,11 +63,14 @@ class Node {
     auto last_hello = Clock::now();
     hello();
     while (!stopping()) {
-      // Without a run, say HELLO again every second: a coordinator that starts (or restarts)
-      // later hears of this node that way.
-      if (!state_ && !pending_ && Clock::now() - last_hello > std::chrono::seconds(1)) {
+      // Without a run, say HELLO again: a coordinator that starts (or restarts) later hears of
+      // this node that way. Every reconnect_ms while a coordinator answers; while none does,
+      // the wait doubles up to reconnect_max_ms.
+      if (!state_ && !pending_ && Clock::now() - last_hello > hello_every_) {
         hello();
         last_hello = Clock::now();
+        if (Clock::now() - last_heard_ > hello_every_)
+          hello_every_ = std::min<Clock::duration>(2 * hello_every_, std::chrono::milliseconds(options_.reconnect_max_ms));
       }
       if (!tick()) {
         if (!reconnect()) return;
@@ -82,6 +85,7 @@ class Node {
         continue;
       }
       last_heard_ = Clock::now();
+      hello_every_ = std::chrono::milliseconds(options_.reconnect_ms);
       Message m;
       try {
         m = proto::decode(*frames);
@@ -102,6 +106,9 @@ class Node {
     socket_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
     socket_->set(zmq::sockopt::routing_id, fmt::format("node-{:08x}{:08x}", rd(), rd()));
     socket_->set(zmq::sockopt::linger, 0);
+    socket_->set(zmq::sockopt::reconnect_ivl, options_.reconnect_ms);
+    socket_->set(zmq::sockopt::reconnect_ivl_max, options_.reconnect_max_ms);
+    proto::harden(*socket_, options_.max_frame_bytes);
     socket_->connect(endpoint_);
   }
 
@@ -115,13 +122,19 @@ class Node {
     d->set_is_cpu(device_.is_cpu);
     d->set_compute_units(device_.compute_units);
     d->set_opencl_version(device_.version);
+    h.set_max_message_bytes(static_cast<uint64_t>(options_.max_frame_bytes));
     send({Command::hello, h, {}});
   }
 
   // Through the emulated uplink when the run's profile shapes it.
   void send(const Message& m) {
     last_sent_ = Clock::now();
-    if (!up_.shaped()) return proto::send(*socket_, m);
+    // A message that cannot go (the coordinator has been unreachable for HWM messages) is
+    // dropped: the coordinator declares this node dead and it rejoins.
+    if (!up_.shaped()) {
+      proto::send(*socket_, m);
+      return;
+    }
     std::vector<std::string> frames = proto::encode(m);
     std::size_t bytes = 0;
     for (const auto& f : frames) bytes += f.size();
@@ -375,6 +388,7 @@ class Node {
   Clock::time_point epoch_ = Clock::now(), last_sent_ = Clock::now(), last_heard_ = Clock::now();
   Clock::time_point ready_at_ = Clock::now();
   Clock::duration heartbeat_ = std::chrono::seconds(1);
+  Clock::duration hello_every_ = std::chrono::milliseconds(options_.reconnect_ms);
   uint32_t liveness_ = 3;
   double busy_s_ = 0, idle_s_ = 0;
   bool granted_ = false;  // this run has given a grant (idle: blocked waiting for a message after it)

@@ -15,6 +15,12 @@ struct NodeOptions {
   std::string device;                      // see select_device
   const std::atomic<bool>* stop = nullptr; // set: leave after the current message
   int poll_ms = 100;
+  // Reconnecting to a coordinator that went away: ZeroMQ retries after reconnect_ms, doubling up
+  // to reconnect_max_ms; HELLO without a run backs off the same way until a coordinator answers.
+  int reconnect_ms = 1000, reconnect_max_ms = 32000;
+  // The largest frame this node accepts (ZMQ_MAXMSGSIZE; said in HELLO): 1 GiB, a chunk of
+  // 44 M patches.
+  int64_t max_frame_bytes = int64_t{1} << 30;
 };
 
 // Serves runs until `stop` is set or the coordinator sends BYE. Throws sirad::Error on a local

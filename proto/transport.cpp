@@ -4,6 +4,7 @@
 #include "core/error.h"
 
 #include <cerrno>
+#include <algorithm>
 #include <cstring>
 #include <limits>
 
@@ -28,15 +29,38 @@ void check_endpoint(const std::string& flag, const std::string& endpoint, bool b
     fail("{} {}: port '{}' is not in 1..65535", flag, endpoint, port);
 }
 
-void send(zmq::socket_t& socket, const Message& message, const std::string* routing_id) {
-  std::vector<std::string> frames = encode(message);
-  if (routing_id) frames.insert(frames.begin(), *routing_id);
-  send_frames(socket, frames);
+void harden(zmq::socket_t& socket, int64_t max_frame_bytes) {
+  socket.set(zmq::sockopt::maxmsgsize, max_frame_bytes);
+  socket.set(zmq::sockopt::sndtimeo, kSendTimeoutMs);
+  socket.set(zmq::sockopt::handshake_ivl, kHandshakeMs);
+  if (socket.get(zmq::sockopt::type) == static_cast<int>(zmq::socket_type::router))
+    socket.set(zmq::sockopt::router_mandatory, 1);
 }
 
-void send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames) {
-  for (std::size_t i = 0; i < frames.size(); ++i)
-    socket.send(zmq::buffer(frames[i]), i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+int64_t max_frame_bytes(std::size_t patches) {
+  const uint64_t chunk = 24 * static_cast<uint64_t>(patches);
+  const uint64_t largest = std::max<uint64_t>({chunk, kMaxSceneFrameBytes, kMaxHeaderBytes});
+  return static_cast<int64_t>(std::min<uint64_t>(largest + 64 * 1024, std::numeric_limits<int64_t>::max()));
+}
+
+bool send(zmq::socket_t& socket, const Message& message, const std::string* routing_id) {
+  std::vector<std::string> frames = encode(message);
+  if (routing_id) frames.insert(frames.begin(), *routing_id);
+  return send_frames(socket, frames);
+}
+
+bool send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames) {
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    try {
+      // Only the first frame can fail (the peer's queue is chosen there); the rest follow it.
+      if (!socket.send(zmq::buffer(frames[i]), i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::none))
+        return false;  // EAGAIN: its queue stayed full for the send timeout
+    } catch (const zmq::error_t& e) {
+      if (e.num() == EHOSTUNREACH) return false;  // ROUTER_MANDATORY: no such peer (any more)
+      throw;
+    }
+  }
+  return true;
 }
 
 void DelayQueue::push(double due, std::vector<std::string> frames) {
@@ -46,7 +70,7 @@ void DelayQueue::push(double due, std::vector<std::string> frames) {
 
 double DelayQueue::flush(zmq::socket_t& socket, double now) {
   while (!queue_.empty() && queue_.front().first <= now) {
-    send_frames(socket, queue_.front().second);
+    failed_ += !send_frames(socket, queue_.front().second);
     queue_.pop_front();
   }
   return queue_.empty() ? std::numeric_limits<double>::infinity() : queue_.front().first;

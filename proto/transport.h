@@ -16,11 +16,28 @@ namespace sirad::proto {
 // inproc://NAME. Throws sirad::Error naming `flag` and what is wrong.
 void check_endpoint(const std::string& flag, const std::string& endpoint, bool bind);
 
-// Sends `message`, preceded by `routing_id` on a ROUTER socket.
-void send(zmq::socket_t& socket, const Message& message, const std::string* routing_id = nullptr);
+// Socket settings of section 2 (PROTOCOL.md), before bind or connect:
+//  - ZMQ_MAXMSGSIZE `max_frame_bytes`: a peer cannot make this side allocate more per frame;
+//  - a finite send timeout, so no send blocks for long on a peer that does not read;
+//  - ZMQ_HANDSHAKE_IVL kHandshakeMs: a connection that does not complete its ZMTP (and CURVE)
+//    handshake is dropped soon;
+//  - on a ROUTER, ZMQ_ROUTER_MANDATORY: a message to a peer that is gone, or whose queue is
+//    full past the timeout, fails the send instead of vanishing.
+inline constexpr int kHandshakeMs = 3000;
+inline constexpr int kSendTimeoutMs = 250;
+void harden(zmq::socket_t& socket, int64_t max_frame_bytes);
 
-// Frames as they are (a routing id first on a ROUTER socket), one multipart message.
-void send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames);
+// The largest frame a run of `patches` patches can carry: a chunk of all of them (24 bytes per
+// patch), a SCENE frame or a header, whichever is larger, plus 64 KiB.
+int64_t max_frame_bytes(std::size_t patches);
+
+// Sends `message`, preceded by `routing_id` on a ROUTER socket. False when it could not go: the
+// peer is unknown to the ROUTER (gone) or its queue stayed full for the send timeout.
+bool send(zmq::socket_t& socket, const Message& message, const std::string* routing_id = nullptr);
+
+// Frames as they are (a routing id first on a ROUTER socket), one multipart message; false as
+// for send().
+bool send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames);
 
 // The sending side of an emulated link (coordinator/profile.h): messages wait here until the
 // time the link model says they arrive, then go out in order. Times are seconds on the
@@ -28,13 +45,16 @@ void send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames);
 class DelayQueue {
  public:
   void push(double due, std::vector<std::string> frames);
-  // Sends every message due by `now`; returns the time of the next one (infinity if none).
+  // Sends every message due by `now`; returns the time of the next one (infinity if none). A
+  // message that cannot go (send_frames) is dropped and counted in failed().
   double flush(zmq::socket_t& socket, double now);
+  uint64_t failed() const { return failed_; }
   bool empty() const { return queue_.empty(); }
   void clear() { queue_.clear(); }
 
  private:
   std::deque<std::pair<double, std::vector<std::string>>> queue_;  // due times never decrease
+  uint64_t failed_ = 0;
 };
 
 // Every frame of the next multipart message, or nothing after `timeout_ms` (or when a signal

@@ -233,6 +233,54 @@ TEST(Cluster, MalformedMessagesAreRefusedWhileARunGoesOn) {
   EXPECT_NEAR(area_mean(out.mesh, out.result.radiosity), 2.0, 0.08);
 }
 
+// A frame larger than the run can legally carry (proto::max_frame_bytes: a chunk of every
+// patch, or a SCENE frame, plus 64 KiB) never reaches the coordinator: ZeroMQ drops the
+// sender's connection as soon as the frame's size arrives (ZMQ_MAXMSGSIZE), so a peer cannot
+// make the coordinator allocate it. The attacker sees its connection close; the run completes.
+TEST(Cluster, AnOversizeFrameDropsTheConnection) {
+  RunConfig c = furnace(256);
+  c.exchange_every = 16;
+  c.timeout_s = 60;
+  Outcome out;
+  out.mesh = mesh_scene(c.scene, c.mesh_options);
+  zmq::context_t context;
+  zmq::socket_t router(context, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  proto::harden(router, proto::max_frame_bytes(out.mesh.size()));
+  router.bind("tcp://127.0.0.1:*");
+  std::string endpoint = router.get(zmq::sockopt::last_endpoint);
+  std::atomic<bool> stop{false};
+  std::thread node([&] { node::serve(context, endpoint, {.name = "honest", .stop = &stop}); });
+  bool dropped = false;
+  std::thread attacker([&] {
+    zmq::socket_t s(context, zmq::socket_type::dealer);
+    s.set(zmq::sockopt::linger, 0);
+    ASSERT_EQ(zmq_socket_monitor(s.handle(), "inproc://oversize-monitor", ZMQ_EVENT_DISCONNECTED), 0);
+    zmq::socket_t monitor(context, zmq::socket_type::pair);
+    monitor.connect("inproc://oversize-monitor");
+    s.connect(endpoint);
+    wire::Hello h;
+    h.set_node_name("attacker");
+    proto::send(s, {proto::Command::hello, h, {}});
+    bool welcomed = false;
+    for (int i = 0; i < 50 && !welcomed; ++i)
+      if (auto f = proto::receive(s, 100)) welcomed = proto::decode(*f).command == proto::Command::welcome;
+    ASSERT_TRUE(welcomed);
+    wire::Report r;
+    r.set_run_id(1);
+    r.add_chunks(0);
+    r.add_counts(1);
+    proto::send(s, {proto::Command::report, r, {std::string(proto::max_frame_bytes(out.mesh.size()) + 8, '\0')}});
+    dropped = proto::receive(monitor, 5000).has_value();
+  });
+  out.result = coordinate(router, c, out.mesh);
+  stop = true;
+  node.join();
+  attacker.join();
+  EXPECT_TRUE(dropped) << "the coordinator kept the connection of a peer sending an oversize frame";
+  EXPECT_EQ(out.result.bundles, 256u);
+}
+
 // What a lying node sends after one plausible but far-off report.
 enum class Lie { nan_sum, infinite_error_estimate, count_beyond_bundles };
 
