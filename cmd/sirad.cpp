@@ -20,6 +20,7 @@
 #include "coordinator/live_view.h"
 #include "core/bundle_cl.h"
 #include "node/node.h"
+#include "proto/security.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/mesh.h"
@@ -653,6 +654,17 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
       ->check(CLI::Range(1, 4096))->capture_default_str();
 }
 
+// sirad keygen NAME: a CURVE key pair (proto/security.h); the public key goes to the other side
+// (a node's into the coordinator's allow list, the coordinator's to every node).
+int keygen(const std::string& name) {
+  proto::KeyPair keys = proto::generate_keypair();
+  proto::write_keypair(name, keys);
+  std::printf("wrote %s.key\nwrote %s.key_secret (mode 0600; keep it on this machine)\n"
+              "allow-list line: %s %s\n",
+              name.c_str(), name.c_str(), keys.public_key.c_str(), std::filesystem::path(name).filename().c_str());
+  return 0;
+}
+
 int run(int argc, char** argv) {
   CLI::App app{"sirad: diffuse global illumination by stochastic iteration with bundles of parallel lines"};
   app.require_subcommand(1);
@@ -682,6 +694,9 @@ int run(int argc, char** argv) {
   app.add_subcommand("devices", "List the OpenCL devices");
   std::string profile_path, profile_prefix = "local-";
   int profile_nodes = 4;
+  std::string keygen_name;
+  auto* keygen_cmd = app.add_subcommand("keygen", "Make a CURVE key pair for a TCP cluster: NAME.key (public) and NAME.key_secret (mode 0600)");
+  keygen_cmd->add_option("name", keygen_name, "Path and base name of the two files")->required();
   auto* profile_cmd = app.add_subcommand("profile", "Check an emulation profile; print the link of each node");
   profile_cmd->add_option("file", profile_path, "Profile (YAML)")->required();
   profile_cmd->add_option("--nodes", profile_nodes, "Nodes to list")->check(CLI::Range(1, 4096))->capture_default_str();
@@ -708,6 +723,7 @@ int run(int argc, char** argv) {
     return model_table(model_args);
   }
   if (profile_cmd->parsed()) return profile_table(profile_path, profile_nodes, profile_prefix);
+  if (keygen_cmd->parsed()) return keygen(keygen_name);
   return devices();
 }
 

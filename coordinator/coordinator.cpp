@@ -10,6 +10,7 @@
 #include <map>
 #include <numeric>
 #include <random>
+#include <set>
 
 #include <fmt/format.h>
 
@@ -31,6 +32,7 @@ using Clock = std::chrono::steady_clock;
 // A node as the socket side sees it; what the policy decides about it is Policy::node(index).
 struct Peer {
   std::string id;       // ZeroMQ routing id
+  std::string key;      // its CURVE public key (the ZAP user id; "" without CURVE)
   uint32_t index = 0;   // in the policy (a node that rejoins gets a new one)
   std::string name, device;
   double busy_s = 0, idle_s = 0;
@@ -96,7 +98,8 @@ class Coordinator {
                      policy_.ended_by().c_str(), static_cast<unsigned long long>(policy_.ledger().done_count()));
         schedule();
       }
-      auto frames = proto::receive(router_, wait_ms(now));
+      std::string key;
+      auto frames = proto::receive(router_, wait_ms(now), &key);
       if (!frames || frames->size() < 2) continue;
       std::string id = frames->front();
       Message m;
@@ -107,11 +110,14 @@ class Coordinator {
         continue;
       }
       try {
-        handle(id, m);
+        handle(id, key, m);
       } catch (const Error& e) {
         if (config_.strict) throw;
         log(id, e.what());
         error(id, e.what());
+        // A quarantine sticks to the node's key (under CURVE), not only to its routing id.
+        if (auto it = peers_.find(id); it != peers_.end() && policy_.node(it->second.index).quarantined && !key.empty())
+          quarantined_keys_.insert(key);
       }
     }
     // FINAL is in from every live node; let the last shaped messages (STOPs) go out.
@@ -271,8 +277,11 @@ class Coordinator {
     proto::send(router_, {Command::error, e, {}}, &id);
   }
 
-  void handle(const std::string& id, const Message& m) {
-    if (m.command == Command::hello) return hello(id, std::get<wire::Hello>(m.header));
+  void handle(const std::string& id, const std::string& key, const Message& m) {
+    if (m.command == Command::hello) {
+      if (!key.empty() && quarantined_keys_.count(key)) fail("HELLO from the key of a quarantined node: refused");
+      return hello(id, key, std::get<wire::Hello>(m.header));
+    }
     auto it = peers_.find(id);
     if (it == peers_.end()) fail("{} before HELLO", proto::command_name(m.command));
     Peer& p = it->second;
@@ -295,7 +304,7 @@ class Coordinator {
 
   // A new node, or one that lost its run (it restarted, or the emulation disconnected it): it
   // joins with a fresh index; a former entry's last state stays in the estimate.
-  void hello(const std::string& id, const wire::Hello& h) {
+  void hello(const std::string& id, const std::string& key, const wire::Hello& h) {
     if (auto it = peers_.find(id); it != peers_.end()) {
       Peer& old = it->second;
       const NodeState& n = policy_.node(old.index);
@@ -312,6 +321,7 @@ class Coordinator {
     }
     Peer& p = peers_[id];
     p.id = id;
+    p.key = key;
     p.index = policy_.join();
     p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : h.node_name();
     if (h.has_device()) p.device = h.device().name();
@@ -467,6 +477,7 @@ class Coordinator {
   wire::Run run_;
   std::map<std::string, Peer> peers_;
   std::vector<Peer> departed_;
+  std::set<std::string> quarantined_keys_;
   Clock::time_point start_ = Clock::now();
   uint64_t bytes_in_ = 0, bytes_out_ = 0, final_bytes_ = 0, crossings_ = 0;
 };

@@ -4,6 +4,7 @@
 //     --out NAME --exchange-every I|end --exchange-fraction S --topology star|ring
 //     --mode sync|async --profile FILE --min-nodes P --chunks C --endpoint-file FILE
 //     --timeout SECONDS --heartbeat-ms MS --liveness N --status-json FILE --check-config]
+//     [--curve-secret FILE --allow FILE | --insecure]   (one of them over tcp://)
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -17,6 +18,7 @@
 #include "core/bundle.h"
 #include "core/error.h"
 #include "core/results.h"
+#include "proto/security.h"
 #include "proto/transport.h"
 
 using namespace sirad;
@@ -25,14 +27,14 @@ int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
   std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
                           rule = "chain", directions = "auto", control_variate = "on", endpoint_file, status_json, profile,
-                          balance = "on";
+                          balance = "on", curve_secret, allow_file;
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
   double fraction = 1.0, timeout = 0, time_limit = 0, target_error = 0, shots_per_bundle = kDefaultShotsPerBundle;
   int shot_resolution = 0;
   int min_nodes = 1, chunks = 16, width = 512, height = 512, heartbeat_ms = 1000, liveness = 3;
-  bool check_config = false, quiet = false, network_bandwidth = false;
+  bool check_config = false, quiet = false, network_bandwidth = false, insecure = false;
   app.add_option("scene", scene_spec, "Built-in scene (cornell, furnace) or an .obj file")->required();
   app.add_option("--listen", listen, "ZeroMQ endpoint to bind")->capture_default_str();
   app.add_option("--bundles", bundles, "Bundles in the run")->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
@@ -71,6 +73,12 @@ int main(int argc, char** argv) {
   app.add_option("--liveness", liveness, "Heartbeats a node may miss before it is dead")->check(CLI::Range(1, 100))->capture_default_str();
   app.add_flag("--bandwidth-by-network", network_bandwidth,
                "The network limits bandwidth (tc); do not emulate the profile's up/down rates");
+  auto* secret_opt = app.add_option("--curve-secret", curve_secret,
+                                    "This coordinator's CURVE secret key file (NAME.key_secret from sirad keygen; mode 0600)");
+  auto* allow_opt = app.add_option("--allow", allow_file, "Allow list: the node public keys admitted, one Z85 key (and a name) per line");
+  secret_opt->needs(allow_opt);
+  allow_opt->needs(secret_opt);
+  app.add_flag("--insecure", insecure, "Over TCP without CURVE: no authentication, no encryption (says so on start)");
   app.add_flag("--check-config", check_config, "Check the flags, scene, profile and output place; run nothing");
   app.add_flag("-q,--quiet", quiet, "No progress view");
   try {
@@ -113,6 +121,14 @@ int main(int argc, char** argv) {
     if (!profile.empty()) rc.profile = emulation::load_profile(profile);
     rc.emulate_bandwidth = !network_bandwidth;
     proto::check_endpoint("--listen", listen, true);
+    proto::check_security(listen, !curve_secret.empty(), insecure, "--curve-secret and --allow");
+    std::optional<proto::KeyPair> keys;
+    proto::AllowList allow;
+    if (!curve_secret.empty()) {
+      keys = proto::load_secret_key(curve_secret);
+      allow = proto::load_allow_list(allow_file);
+      if (allow.empty()) fail("{}: the allow list admits no node", allow_file);
+    }
     if (check_config) {
       std::printf("sirad-coordinator: config ok: %s, %zu patches, %lld bundles, exchange every %s, S %g, %s, %s%s%s\n",
                   scene_spec.c_str(), mesh.size(), static_cast<long long>(bundles), exchange_every.c_str(), fraction,
@@ -124,16 +140,22 @@ int main(int argc, char** argv) {
     rc.status = std::ref(reporter);
 
     zmq::context_t context;
+    std::optional<proto::ZapHandler> zap;  // before the bind: libzmq admits everyone without one
+    if (keys) zap.emplace(context, allow);
     zmq::socket_t router(context, zmq::socket_type::router);
     router.set(zmq::sockopt::linger, 0);
+    proto::harden(router, proto::max_frame_bytes(mesh.size()));
+    if (keys) proto::make_curve_server(router, *keys);
     try {
       router.bind(listen);
     } catch (const zmq::error_t& e) {
       fail("--listen {}: {}", listen, e.what());
     }
     std::string bound = router.get(zmq::sockopt::last_endpoint);
-    std::fprintf(stderr, "sirad-coordinator: %s: %zu patches, %lld bundles; listening on %s\n", scene_spec.c_str(),
-                 mesh.size(), static_cast<long long>(bundles), bound.c_str());
+    std::fprintf(stderr, "sirad-coordinator: %s: %zu patches, %lld bundles; listening on %s%s\n", scene_spec.c_str(),
+                 mesh.size(), static_cast<long long>(bundles), bound.c_str(),
+                 keys ? fmt::format(" (CURVE, {} node keys allowed)", allow.size()).c_str() : "");
+    if (insecure) std::fprintf(stderr, "%s\n", proto::insecure_warning("sirad-coordinator", bound).c_str());
     if (!endpoint_file.empty()) {
       AtomicFile f(endpoint_file);
       f.write(bound.data(), bound.size());

@@ -1,5 +1,6 @@
 // sirad-node: a worker that serves runs from a coordinator until stopped (SIGINT/SIGTERM).
 //   sirad-node --connect tcp://HOST:5555 [--device D] [--name NAME] [--check-config]
+//     [--curve-secret FILE --server-key FILE | --insecure]   (one of them over tcp://)
 #include <csignal>
 #include <cstdio>
 
@@ -22,11 +23,18 @@ int main(int argc, char** argv) {
   char host[256] = "node";
   ::gethostname(host, sizeof(host) - 1);
   std::string name = host;
+  sirad::node::NodeOptions options;
   app.add_option("--connect", endpoint, "Coordinator endpoint, e.g. tcp://host:5555")->required();
   app.add_option("--device", device, "OpenCL device: P:D or part of its name (env SIRAD_DEVICE)");
   app.add_option("--name", name, "Name shown by the coordinator")->capture_default_str();
-  bool check_config = false;
-  app.add_flag("--check-config", check_config, "Check the flags and the OpenCL device; connect to nothing");
+  std::string curve_secret, server_key;
+  bool check_config = false, insecure = false;
+  auto* secret_opt = app.add_option("--curve-secret", curve_secret, "This node's CURVE secret key file (NAME.key_secret from sirad keygen; mode 0600)");
+  auto* server_opt = app.add_option("--server-key", server_key, "The coordinator's CURVE public key file (its NAME.key)");
+  secret_opt->needs(server_opt);
+  server_opt->needs(secret_opt);
+  app.add_flag("--insecure", insecure, "Over TCP without CURVE: no authentication, no encryption (says so on start)");
+  app.add_flag("--check-config", check_config, "Check the flags, keys and the OpenCL device; connect to nothing");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -37,6 +45,11 @@ int main(int argc, char** argv) {
   }
   try {
     sirad::proto::check_endpoint("--connect", endpoint, false);
+    sirad::proto::check_security(endpoint, !curve_secret.empty(), insecure, "--curve-secret and --server-key");
+    if (!curve_secret.empty()) {
+      options.curve_keys = sirad::proto::load_secret_key(curve_secret);
+      options.server_key = sirad::proto::load_public_key(server_key);
+    }
     if (check_config) {
       sirad::DeviceInfo d = sirad::describe_device(sirad::select_device(device));
       std::printf("sirad-node: config ok: %s -> %s, device %s / %s\n", name.c_str(), endpoint.c_str(),
@@ -49,9 +62,13 @@ int main(int argc, char** argv) {
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
+  if (insecure) std::fprintf(stderr, "%s\n", sirad::proto::insecure_warning("sirad-node", endpoint).c_str());
+  options.name = name;
+  options.device = device;
+  options.stop = &stop;
   try {
     zmq::context_t context;
-    sirad::node::serve(context, endpoint, {.name = name, .device = device, .stop = &stop});
+    sirad::node::serve(context, endpoint, options);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad-node: error: %s\n", e.what());
     return 1;

@@ -109,6 +109,7 @@ class Node {
     socket_->set(zmq::sockopt::reconnect_ivl, options_.reconnect_ms);
     socket_->set(zmq::sockopt::reconnect_ivl_max, options_.reconnect_max_ms);
     proto::harden(*socket_, options_.max_frame_bytes);
+    if (!options_.server_key.empty()) proto::make_curve_client(*socket_, options_.curve_keys, options_.server_key);
     socket_->connect(endpoint_);
   }
 

@@ -8,6 +8,8 @@
 
 #include <zmq.hpp>
 
+#include "proto/security.h"
+
 namespace sirad::node {
 
 struct NodeOptions {
@@ -21,6 +23,10 @@ struct NodeOptions {
   // The largest frame this node accepts (ZMQ_MAXMSGSIZE; said in HELLO): 1 GiB, a chunk of
   // 44 M patches.
   int64_t max_frame_bytes = int64_t{1} << 30;
+  // CURVE (proto/security.h): the node's key pair and the coordinator's public key. Empty
+  // server_key: none (inproc, or a TCP cluster run with --insecure).
+  proto::KeyPair curve_keys;
+  std::string server_key;
 };
 
 // Serves runs until `stop` is set or the coordinator sends BYE. Throws sirad::Error on a local

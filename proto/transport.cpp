@@ -76,7 +76,7 @@ double DelayQueue::flush(zmq::socket_t& socket, double now) {
   return queue_.empty() ? std::numeric_limits<double>::infinity() : queue_.front().first;
 }
 
-std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms) {
+std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms, std::string* user_id) {
   zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
   try {
     if (zmq::poll(&item, 1, std::chrono::milliseconds(timeout_ms)) == 0) return std::nullopt;
@@ -89,6 +89,10 @@ std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeo
   do {
     if (!socket.recv(part)) return std::nullopt;
     frames.emplace_back(part.to_string());
+    if (user_id && frames.size() == 1) {
+      const char* user = zmq_msg_gets(part.handle(), "User-Id");  // NULL without ZAP
+      *user_id = user ? user : "";
+    }
   } while (part.more());
   return frames;
 }

@@ -58,8 +58,9 @@ class DelayQueue {
 };
 
 // Every frame of the next multipart message, or nothing after `timeout_ms` (or when a signal
-// interrupts the wait).
-std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms);
+// interrupts the wait). `user_id`, if given, gets the message's ZAP user id (the sender's
+// CURVE public key, proto/security.h), or "" without one.
+std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms, std::string* user_id = nullptr);
 
 // The bytes of doubles, and back (little-endian, as the spec's bulk frames).
 std::string pack(const std::vector<double>& values);

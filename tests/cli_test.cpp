@@ -39,9 +39,12 @@ class Cli : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
 
   // Runs `sirad ARGS` in the test's directory; captures stdout, stderr and the exit status.
-  Outcome sirad(const std::string& args, const std::string& env = "") {
+  Outcome sirad(const std::string& args, const std::string& env = "") { return program(SIRAD_BINARY, args, env); }
+
+  // Runs `binary ARGS` as sirad() does.
+  Outcome program(const std::string& binary, const std::string& args, const std::string& env = "") {
     std::string out = (dir_ / "stdout.txt").string(), err = (dir_ / "stderr.txt").string();
-    std::string cmd = "cd '" + dir_.string() + "' && " + env + " '" + SIRAD_BINARY + "' " + args + " >'" + out +
+    std::string cmd = "cd '" + dir_.string() + "' && " + env + " '" + binary + "' " + args + " >'" + out +
                       "' 2>'" + err + "' </dev/null";
     int raw = std::system(cmd.c_str());
     Outcome r{WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw), slurp(out), slurp(err)};
@@ -67,12 +70,12 @@ class Cli : public ::testing::Test {
     }
   }
 
-  // A failure: non-zero exit, exactly one line on stderr starting "sirad: error:" and naming
+  // A failure: non-zero exit, exactly one line on stderr starting "PROGRAM: error:" and naming
   // `what`, nothing written.
-  void expect_error(const Outcome& r, const std::string& what) {
+  void expect_error(const Outcome& r, const std::string& what, const std::string& program = "sirad") {
     EXPECT_NE(r.status, 0);
     EXPECT_LT(r.status, 128) << "crashed";
-    EXPECT_EQ(r.err.rfind("sirad: error:", 0), 0u) << r.err;
+    EXPECT_EQ(r.err.rfind(program + ": error:", 0), 0u) << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_NE(r.err.find(what), std::string::npos) << "expected '" << what << "' in: " << r.err;
     expect_no_outputs();
@@ -294,6 +297,43 @@ TEST_F(Cli, NonsensicalFlags) {
   expect_error(sirad("render cornell --out no/such/dir/x --bundles 2"), "no/such/dir");
   expect_error(sirad("render cornell --nodes 2 --exchange-every often"), "--exchange-every");
   expect_error(sirad("render cornell --nodes 2 --topology mesh"), "--topology");
+}
+
+// CURVE keys (issue 6): keygen writes a public file and a secret one readable by its owner only,
+// never overwrites, and the key files it writes are accepted; over TCP both programs need keys
+// or an explicit --insecure (which says so on start); a secret key others may read, a broken
+// key, a malformed allow list and keys together with --insecure are each one line.
+TEST_F(Cli, KeysAndTheInsecureFlag) {
+  Outcome k = sirad("keygen coord");
+  ASSERT_EQ(k.status, 0) << k.err;
+  EXPECT_EQ(fs::status(dir_ / "coord.key_secret").permissions() & fs::perms::all, fs::perms::owner_read | fs::perms::owner_write);
+  EXPECT_TRUE(fs::exists(dir_ / "coord.key"));
+  expect_error(sirad("keygen coord"), "coord.key: exists");
+  ASSERT_EQ(sirad("keygen n1").status, 0);
+  std::string line = k.out.substr(k.out.find("allow-list line: ") + 17);
+  write("allow", "# the farm\n" + line.substr(0, line.find('\n')) + "\n");
+  const std::string coordinator = SIRAD_COORDINATOR_BINARY, node = SIRAD_NODE_BINARY;
+  const std::string listen = "furnace --patches 50 --listen tcp://127.0.0.1:5555 --check-config";
+  EXPECT_EQ(program(coordinator, listen + " --curve-secret coord.key_secret --allow allow").status, 0);
+  expect_error(program(coordinator, listen), "--insecure", "sirad-coordinator");
+  expect_error(program(coordinator, listen + " --insecure --curve-secret coord.key_secret --allow allow"), "choose one",
+               "sirad-coordinator");
+  write("bad-allow", "not-a-key node-a\n");
+  expect_error(program(coordinator, listen + " --curve-secret coord.key_secret --allow bad-allow"), "bad-allow:1:",
+               "sirad-coordinator");
+  const std::string connect = "--connect tcp://127.0.0.1:5555 --check-config";
+  EXPECT_EQ(program(node, connect + " --curve-secret n1.key_secret --server-key coord.key").status, 0);
+  expect_error(program(node, connect), "--insecure", "sirad-node");
+  fs::permissions(dir_ / "n1.key_secret", fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read | fs::perms::others_read);
+  expect_error(program(node, connect + " --curve-secret n1.key_secret --server-key coord.key"), "mode 0644", "sirad-node");
+  write("broken.key_secret", "metadata\ncurve\n    public-key = \"short\"\n");
+  fs::permissions(dir_ / "broken.key_secret", fs::perms::owner_read | fs::perms::owner_write);
+  expect_error(program(node, connect + " --curve-secret broken.key_secret --server-key coord.key"), "broken.key_secret:3:",
+               "sirad-node");
+  Outcome insecure = program(node, connect + " --insecure");
+  EXPECT_EQ(insecure.status, 0) << insecure.err;
+  // Over inproc or ipc no keys are needed; the embedded default has none.
+  EXPECT_EQ(program(node, "--connect ipc:///tmp/sirad-x --check-config").status, 0);
 }
 
 // Emulation profiles and the run-ending flags: bad ones are one line naming file, line and key.

@@ -18,6 +18,7 @@
 #include "core/error.h"
 #include "core/metrics.h"
 #include "node/node.h"
+#include "proto/security.h"
 #include "proto/transport.h"
 
 namespace sirad::cluster {
@@ -279,6 +280,45 @@ TEST(Cluster, AnOversizeFrameDropsTheConnection) {
   attacker.join();
   EXPECT_TRUE(dropped) << "the coordinator kept the connection of a peer sending an oversize frame";
   EXPECT_EQ(out.result.bundles, 256u);
+}
+
+// CURVE over TCP (proto/security.h): the coordinator admits only the node keys of its allow
+// list. An allowed node runs the whole budget; a node with a key not on the list is refused at
+// the handshake (the ZAP handler counts it) and a node holding an allowed key but trusting the
+// wrong server key never completes its handshake: neither appears in the run or its result.
+TEST(Cluster, OnlyNodesWithAnAllowedKeyTakePartOverCurve) {
+  RunConfig c = furnace(256);
+  c.exchange_every = 16;
+  c.timeout_s = 60;
+  Outcome out;
+  out.mesh = mesh_scene(c.scene, c.mesh_options);
+  proto::KeyPair server = proto::generate_keypair(), allowed = proto::generate_keypair(),
+                 stranger = proto::generate_keypair(), impostor_server = proto::generate_keypair();
+  zmq::context_t context;
+  auto zap = std::make_unique<proto::ZapHandler>(context, proto::AllowList{{allowed.public_key, "allowed"}});
+  zmq::socket_t router(context, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  proto::make_curve_server(router, server);
+  router.bind("tcp://127.0.0.1:*");
+  std::string endpoint = router.get(zmq::sockopt::last_endpoint);
+  std::atomic<bool> stop{false};
+  std::vector<std::thread> nodes;
+  auto start = [&](const char* name, const proto::KeyPair& keys, const std::string& server_key) {
+    nodes.emplace_back([&, name, keys, server_key] {
+      node::serve(context, endpoint, {.name = name, .stop = &stop, .curve_keys = keys, .server_key = server_key});
+    });
+  };
+  start("allowed", allowed, server.public_key);
+  start("stranger", stranger, server.public_key);
+  start("fooled", allowed, impostor_server.public_key);
+  out.result = coordinate(router, c, out.mesh);
+  stop = true;
+  for (auto& t : nodes) t.join();
+  ASSERT_EQ(out.result.nodes.size(), 1u);
+  EXPECT_EQ(out.result.nodes[0].name, "allowed");
+  EXPECT_EQ(out.result.nodes[0].bundles, 256u);
+  EXPECT_GE(zap->refused(), 1u) << "the stranger's handshake reached the ZAP handler and was refused";
+  EXPECT_NEAR(area_mean(out.mesh, out.result.radiosity), 2.0, 0.0097 * std::sqrt(1024.0 / 256) * 4);
 }
 
 // What a lying node sends after one plausible but far-off report.

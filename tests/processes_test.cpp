@@ -100,7 +100,7 @@ std::vector<glm::vec3> ply_radiosity(const fs::path& path) {
 int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coordinator_args) {
   std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY};
   args.insert(args.end(), coordinator_args.begin(), coordinator_args.end());
-  for (std::string a : std::vector<std::string>{"--listen", "tcp://127.0.0.1:*", "--endpoint-file",
+  for (std::string a : std::vector<std::string>{"--listen", "tcp://127.0.0.1:*", "--insecure", "--endpoint-file",
                                                 (dir / "endpoint").string(), "--min-nodes", fmt::format("{}", nodes),
                                                 "--timeout", "120", "-q"})
     args.push_back(a);
@@ -111,7 +111,7 @@ int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coord
   std::vector<std::unique_ptr<Child>> children;
   for (int i = 0; i < nodes; ++i)
     children.push_back(std::make_unique<Child>(
-        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--name", fmt::format("p{}", i)},
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", fmt::format("p{}", i)},
         dir / fmt::format("node{}.log", i)));
   int status = coordinator.wait(150);
   for (auto& n : children) {
@@ -121,15 +121,32 @@ int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coord
   return status;
 }
 
-// Coordinator plus 3 node processes over loopback TCP: the run completes with every bundle
-// done once (the per-node counts add up to K, the ledger refuses repeats), the outputs are
-// written, the nodes stop cleanly on SIGTERM, and the furnace's mean is 2 within 4 standard
-// deviations of a 512-bundle chain average (0.0097 * sqrt(1024 / 512) * 4 = 0.055).
+// `sirad keygen NAME` in `dir`; returns the allow-list line it prints.
+std::string keygen(const fs::path& dir, const std::string& name) {
+  Child k({SIRAD_BINARY, "keygen", (dir / name).string()}, dir / (name + ".keygen.log"));
+  EXPECT_EQ(k.wait(30), 0);
+  std::string log = slurp(dir / (name + ".keygen.log"));
+  auto at = log.find("allow-list line: ");
+  EXPECT_NE(at, std::string::npos) << log;
+  return at == std::string::npos ? "" : log.substr(at + 17, log.find('\n', at) - at - 17);
+}
+
+// Coordinator plus 3 node processes over loopback TCP with CURVE (keys from `sirad keygen`, the
+// nodes' public keys in the allow list): the run completes with every bundle done once (the
+// per-node counts add up to K, the ledger refuses repeats), the outputs are written, the nodes
+// stop cleanly on SIGTERM, and the furnace's mean is 2 within 4 standard deviations of a
+// 512-bundle chain average (0.0097 * sqrt(1024 / 512) * 4 = 0.055).
 TEST(Processes, CoordinatorAndThreeNodesOverTcp) {
   fs::path dir = fs::temp_directory_path() / fmt::format("sirad_proc_{}", ::getpid());
   fs::remove_all(dir);
   fs::create_directories(dir);
-  Child coordinator({SIRAD_COORDINATOR_BINARY, "furnace", "--listen", "tcp://127.0.0.1:*", "--endpoint-file",
+  keygen(dir, "coordinator");
+  {
+    std::ofstream allow(dir / "allow");
+    for (int i = 0; i < 3; ++i) allow << keygen(dir, fmt::format("p{}", i)) << "\n";
+  }
+  Child coordinator({SIRAD_COORDINATOR_BINARY, "furnace", "--listen", "tcp://127.0.0.1:*", "--curve-secret",
+                     (dir / "coordinator.key_secret").string(), "--allow", (dir / "allow").string(), "--endpoint-file",
                      (dir / "endpoint").string(), "--bundles", "512", "--patches", "300", "--min-nodes", "3",
                      "--exchange-every", "16", "--out", (dir / "furnace").string(), "--width", "16", "--height", "16",
                      "--timeout", "120"},
@@ -141,7 +158,9 @@ TEST(Processes, CoordinatorAndThreeNodesOverTcp) {
   std::vector<std::unique_ptr<Child>> nodes;
   for (int i = 0; i < 3; ++i)
     nodes.push_back(std::make_unique<Child>(
-        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--name", fmt::format("p{}", i)},
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--name", fmt::format("p{}", i), "--curve-secret",
+                                 (dir / fmt::format("p{}.key_secret", i)).string(), "--server-key",
+                                 (dir / "coordinator.key").string()},
         dir / fmt::format("node{}.log", i)));
   ASSERT_EQ(coordinator.wait(150), 0) << slurp(dir / "coordinator.log");
   std::string log = slurp(dir / "coordinator.log");
@@ -182,14 +201,15 @@ TEST(Processes, EmbeddedDefaultEqualsTcpClusterBitForBit) {
   embedded.insert(embedded.end(), run.begin(), run.end());
   Child e(embedded, dir / "embedded.log");
   ASSERT_EQ(e.wait(120), 0) << slurp(dir / "embedded.log");
-  std::vector<std::string> coord = {SIRAD_COORDINATOR_BINARY, "cornell", "--listen", "tcp://127.0.0.1:*", "-q",
+  std::vector<std::string> coord = {SIRAD_COORDINATOR_BINARY, "cornell", "--listen", "tcp://127.0.0.1:*", "--insecure", "-q",
                                     "--endpoint-file", (dir / "endpoint").string(), "--out", (dir / "tcp").string(),
                                     "--timeout", "120"};
   coord.insert(coord.end(), run.begin(), run.end());
   Child coordinator(coord, dir / "coordinator.log");
   for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  Child node({SIRAD_NODE_BINARY, "--connect", slurp(dir / "endpoint"), "--name", "tcp-node"}, dir / "node.log");
+  Child node({SIRAD_NODE_BINARY, "--connect", slurp(dir / "endpoint"), "--insecure", "--name", "tcp-node"}, dir / "node.log");
   ASSERT_EQ(coordinator.wait(150), 0) << slurp(dir / "coordinator.log");
+  EXPECT_NE(slurp(dir / "coordinator.log").find("WARNING: --insecure"), std::string::npos) << "it says so on start";
   std::string a = slurp(dir / "embedded.ply"), b = slurp(dir / "tcp.ply");
   ASSERT_GT(a.size(), 1000u);
   EXPECT_TRUE(a == b) << "the embedded default and the TCP cluster differ";
