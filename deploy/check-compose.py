@@ -3,7 +3,8 @@
 invocation of the built binaries. Runs `docker-compose config` (which validates the file and
 resolves variables and paths), then each service's command with --check-config, the binary
 taken from BUILD_DIR, bind-mount targets mapped to their sources on this machine and named
-volumes to a scratch directory.
+volumes to a scratch directory. Services run in the order their depends_on gives; the image's
+`sirad-make-keys` is deploy/make-keys.sh (it makes the keys the others then check).
     deploy/check-compose.py BUILD_DIR deploy/docker-compose.yml [PROJECT_DIR]
 PROJECT_DIR (default: the compose file's folder) anchors its relative paths.
 """
@@ -16,6 +17,24 @@ import tempfile
 import yaml  # python3-yaml, a dependency of Debian's docker-compose
 
 
+def ordered(services):
+    """Service names, each after those it depends on."""
+    done, out = set(), []
+    def visit(name, path):
+        if name in done:
+            return
+        if name in path:
+            sys.exit(f"depends_on cycle through {name}")
+        depends = services[name].get("depends_on", {})
+        for dep in (depends if isinstance(depends, (list, dict)) else []):
+            visit(dep, path | {name})
+        done.add(name)
+        out.append(name)
+    for name in services:
+        visit(name, set())
+    return out
+
+
 def main():
     if len(sys.argv) not in (3, 4):
         sys.exit("usage: check-compose.py BUILD_DIR COMPOSE_FILE [PROJECT_DIR]")
@@ -26,7 +45,8 @@ def main():
     services = yaml.safe_load(resolved)["services"]
     scratch = tempfile.mkdtemp(prefix="sirad-compose-")
     failed = 0
-    for name, service in services.items():
+    for name in ordered(services):
+        service = services[name]
         command = service.get("command")
         if command is None:
             print(f"{name}: no command", file=sys.stderr)
@@ -50,13 +70,18 @@ def main():
                 if arg == target or arg.startswith(target + "/"):
                     return source + arg[len(target):]
             return arg
-        binary = os.path.join(build, args[0])
-        if not os.access(binary, os.X_OK):
-            print(f"{name}: {args[0]} is not a sirad binary in {build}", file=sys.stderr)
-            failed += 1
-            continue
-        run = [binary] + [local(a) for a in args[1:]] + ["--check-config"]
-        result = subprocess.run(run, capture_output=True, text=True)
+        env = dict(os.environ)
+        if args[0] == "sirad-make-keys":
+            run = [os.path.join(os.path.dirname(os.path.abspath(__file__)), "make-keys.sh")] + [local(a) for a in args[1:]]
+            env["SIRAD"] = os.path.join(build, "sirad")
+        else:
+            binary = os.path.join(build, args[0])
+            if not os.access(binary, os.X_OK):
+                print(f"{name}: {args[0]} is not a sirad binary in {build}", file=sys.stderr)
+                failed += 1
+                continue
+            run = [binary] + [local(a) for a in args[1:]] + ["--check-config"]
+        result = subprocess.run(run, capture_output=True, text=True, env=env)
         out = (result.stdout + result.stderr).strip()
         print(f"{name}: {out}")
         if result.returncode != 0:

@@ -8,6 +8,8 @@
 # RATE: one tbf rate on every node's uplink. --profile: each node's up and down rates from the
 # profile (nodes are named netns-node0, netns-node1, ...) as tbf on both ends of its link, and
 # the coordinator emulates the rest of the profile (speed, latency, jitter, loss, disconnects).
+# Every link runs CURVE: keys for the coordinator and each node are made in OUT.keys
+# (deploy/make-keys.sh), the nodes' public keys form the coordinator's allow list.
 # Needs root (ip netns, veth, tc). Exits 77 where namespaces are not allowed.
 set -euo pipefail
 
@@ -71,9 +73,14 @@ add_host() {  # name index
 add_host coord 0
 for ((i = 0; i < nodes; i++)); do add_host "node$i" $((i + 1)); done
 
+keys="$out.keys"
+names=(); for ((i = 0; i < nodes; i++)); do names+=("netns-node$i"); done
+SIRAD="$build/sirad" "$(dirname "$0")/make-keys.sh" "$keys" "${names[@]}"
+
 endpoint="tcp://$subnet.1:5555"
 scene=$1; shift
 ip netns exec "$p-coord" "$build/sirad-coordinator" "$scene" --listen "$endpoint" --min-nodes "$nodes" \
+  --curve-secret "$keys/coordinator.key_secret" --allow "$keys/allow" \
   --out "$out" --timeout 300 --status-json "$out.status.json" ${profile:+--profile "$profile" --bandwidth-by-network} -q "$@" &
 coordinator=$!
 pids+=("$coordinator")
@@ -81,7 +88,8 @@ pids+=("$coordinator")
 # starts once the coordinator's status lists the one before (or after 30 s).
 status_file="$out.status.json"
 for ((i = 0; i < nodes; i++)); do
-  ip netns exec "$p-node$i" "$build/sirad-node" --connect "$endpoint" --name "netns-node$i" &
+  ip netns exec "$p-node$i" "$build/sirad-node" --connect "$endpoint" --name "netns-node$i" \
+    --curve-secret "$keys/netns-node$i.key_secret" --server-key "$keys/coordinator.key" &
   pids+=("$!")
   for ((t = 0; t < 300; t++)); do
     [[ -f "$status_file" && $(grep -o '"name"' "$status_file" | wc -l) -gt $i ]] && break
