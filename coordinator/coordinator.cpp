@@ -128,6 +128,7 @@ class Coordinator {
     for (const Peer* p : all_peers()) {
       const NodeState& n = policy_.node(p->index);
       result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why});
+      for (const Range& r : policy_.ledger().done_by(p->index)) result.ledger.push_back({p->index, p->name, r});
     }
     result.exchange_bytes_in = bytes_in_;
     result.exchange_bytes_out = bytes_out_;
@@ -544,6 +545,16 @@ std::string traffic_line(const RunResult& r) {
   return fmt::format("exchange traffic: {} exchanges, {} B up, {} B down ({} B up, {} B down per exchange); final states {} B",
                      r.exchanges, r.exchange_bytes_in, r.exchange_bytes_out, r.exchange_bytes_in / e,
                      r.exchange_bytes_out / e, r.final_bytes);
+}
+
+std::string ledger_csv(const RunResult& r) {
+  std::string out = "node,name,first,last\n";
+  for (const LedgerEntry& e : r.ledger) {
+    std::string name = e.name;  // a CSV field: quoted, quotes doubled
+    for (std::size_t at = name.find('"'); at != std::string::npos; at = name.find('"', at + 2)) name.insert(at, 1, '"');
+    out += fmt::format("{},\"{}\",{},{}\n", e.node, name, e.range.first, e.range.last);
+  }
+  return out;
 }
 
 std::string node_lines(const RunResult& r) {

@@ -69,9 +69,17 @@ struct NodeReport {
   std::string quarantined;        // why it was quarantined (empty: it was not)
 };
 
+// One range of the ledger's record: node `node` (its index in the run, `name`) ran [first, last).
+struct LedgerEntry {
+  uint32_t node = 0;
+  std::string name;
+  Range range;
+};
+
 struct RunResult {
   std::vector<glm::vec3> radiosity;  // the count-weighted estimate per patch
   std::vector<NodeReport> nodes;
+  std::vector<LedgerEntry> ledger;   // who ran which accepted bundles, by node then index
   uint64_t exchange_bytes_in = 0, exchange_bytes_out = 0;  // REPORT and UPDATE bulk
   uint64_t final_bytes = 0;                                // FINAL bulk (the end states)
   uint32_t exchanges = 0;
@@ -102,6 +110,9 @@ Attributes run_attributes(const RunConfig& config, const RunResult& result, cons
 // "exchange traffic: E exchanges, X B up, Y B down (x B up, y B down per exchange); final
 // states Z B" (bulk bytes: 24 per patch of each chunk sent).
 std::string traffic_line(const RunResult& result);
+
+// The ledger as CSV: "node,name,first,last", a row per range (written by --ledger).
+std::string ledger_csv(const RunResult& result);
 
 // One line per node: "node NAME: B bundles, E exchanges, busy Xs, idle Ys[, dead | , quarantined: WHY]".
 std::string node_lines(const RunResult& result);

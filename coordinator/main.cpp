@@ -27,7 +27,7 @@ int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
   std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
                           rule = "chain", directions = "auto", control_variate = "on", endpoint_file, status_json, profile,
-                          balance = "on", curve_secret, allow_file;
+                          balance = "on", curve_secret, allow_file, ledger;
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
@@ -63,6 +63,7 @@ int main(int argc, char** argv) {
   app.add_option("--height", height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
   app.add_option("--endpoint-file", endpoint_file, "Write the bound endpoint here (for scripts: tcp://*:0 picks a port)");
   app.add_option("--status-json", status_json, "Rewrite this file with the run's status every second");
+  app.add_option("--ledger", ledger, "At the end, write which node ran which bundle indices (CSV: node,name,first,last)");
   app.add_option("--timeout", timeout, "Fail if the run takes longer (seconds; 0: never)")->check(CLI::NonNegativeNumber);
   app.add_option("--time-limit", time_limit, "End the run early after this long (seconds; 0: never)")->check(CLI::NonNegativeNumber);
   app.add_option("--target-error", target_error,
@@ -171,6 +172,10 @@ int main(int argc, char** argv) {
     ResultFiles files = write_results(out, mesh, result.radiosity, ro, cluster::run_attributes(rc, result, mesh, scene_spec));
     std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
                 std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
+    if (!ledger.empty()) {
+      write_file_atomic(ledger, cluster::ledger_csv(result));
+      std::printf("wrote %s\n", std::filesystem::absolute(ledger).c_str());
+    }
     std::fputs(cluster::node_lines(result).c_str(), stdout);
     std::printf("%s\n", cluster::traffic_line(result).c_str());
     std::printf("patches %zu, bundles %lld, grid %d, nodes %zu, %.2f s, %.1f bundles/s, %.3g line crossings/s\n",
