@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include "coordinator/checkpoint.h"
 #include "core/bundle.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
@@ -28,6 +29,12 @@ using proto::Command;
 using proto::Message;
 
 using Clock = std::chrono::steady_clock;
+
+// Refused because the coordinator does not know the sender in its run (never joined, declared
+// dead, or this coordinator was restarted): the ERROR asks it to say HELLO again.
+struct Rejoin : Error {
+  using Error::Error;
+};
 
 // A node as the socket side sees it; what the policy decides about it is Policy::node(index).
 struct Peer {
@@ -77,13 +84,24 @@ class Coordinator {
     run_.set_bundles(config.bundles);
     run_.set_target_patches(config.mesh_options.target_patches);
     run_.set_max_edge(config.mesh_options.max_edge);
+    if (config.resume) resume(*config.resume);
   }
 
   RunResult run() {
-    start_ = Clock::now();
-    auto last_status = start_;
+    start_ = Clock::now() - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(resumed_s_));
+    auto last_status = Clock::now(), last_checkpoint = Clock::now();
     while (!policy_.done()) {
       auto now = Clock::now();
+      if (config_.interrupt && config_.interrupt->load()) {
+        if (config_.checkpoint.empty()) fail("interrupted after {} bundles (no --checkpoint)", policy_.ledger().done_count());
+        checkpoint();
+        fail("interrupted after {} bundles; checkpoint in {}: continue with --resume {}", policy_.ledger().done_count(),
+             config_.checkpoint, config_.checkpoint);
+      }
+      if (!config_.checkpoint.empty() && seconds(now - last_checkpoint) >= config_.checkpoint_every_s) {
+        checkpoint();
+        last_checkpoint = now;
+      }
       if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
         last_status = now;
         config_.status(snapshot());
@@ -114,7 +132,7 @@ class Coordinator {
       } catch (const Error& e) {
         if (config_.strict) throw;
         log(id, e.what());
-        error(id, e.what());
+        error(id, e.what(), dynamic_cast<const Rejoin*>(&e) != nullptr);
         // A quarantine sticks to the node's key (under CURVE), not only to its routing id.
         if (auto it = peers_.find(id); it != peers_.end() && policy_.node(it->second.index).quarantined && !key.empty())
           quarantined_keys_.insert(key);
@@ -270,9 +288,10 @@ class Coordinator {
     p.queue.push(p.down.deliver(clock(now), bytes), std::move(frames));
     p.queue.flush(router_, clock(now));
   }
-  void error(const std::string& id, const std::string& reason) {
+  void error(const std::string& id, const std::string& reason, bool rejoin = false) {
     wire::Error e;
     e.set_reason(reason);
+    e.set_rejoin(rejoin);
     auto it = peers_.find(id);
     if (it != peers_.end() && !policy_.node(it->second.index).dead) return send(it->second, {Command::error, e, {}});
     proto::send(router_, {Command::error, e, {}}, &id);
@@ -284,11 +303,11 @@ class Coordinator {
       return hello(id, key, std::get<wire::Hello>(m.header));
     }
     auto it = peers_.find(id);
-    if (it == peers_.end()) fail("{} before HELLO", proto::command_name(m.command));
+    if (it == peers_.end()) throw Rejoin(fmt::format("{} before HELLO", proto::command_name(m.command)));
     Peer& p = it->second;
     const NodeState& n = policy_.node(p.index);
     if (n.quarantined) fail("{} from a quarantined node ({})", proto::command_name(m.command), n.why);
-    if (n.dead) fail("{} from a node declared dead; say HELLO to rejoin", proto::command_name(m.command));
+    if (n.dead) throw Rejoin(fmt::format("{} from a node declared dead; say HELLO to rejoin", proto::command_name(m.command)));
     p.last_seen = Clock::now();
     switch (m.command) {
       case Command::ready: ready(p, std::get<wire::Ready>(m.header)); break;
@@ -470,6 +489,65 @@ class Coordinator {
     }
   }
 
+  // Everything accepted so far, into config_.checkpoint (atomically).
+  void checkpoint() {
+    wire::Checkpoint c;
+    c.set_magic(kCheckpointMagic);
+    c.set_version(kCheckpointVersion);
+    *c.mutable_run() = run_;
+    c.set_balance(config_.balance);
+    c.set_time_limit_s(config_.time_limit_s);
+    c.set_target_error(config_.target_error);
+    put_snapshot(c, policy_.snapshot());
+    for (const Peer* p : all_peers()) {
+      wire::CheckpointNode* n = c.mutable_nodes(static_cast<int>(p->index));
+      n->set_name(p->name);
+      n->set_busy_s(p->busy_s);
+      n->set_idle_s(p->idle_s);
+      n->set_key(p->key);
+    }
+    c.set_elapsed_s(seconds(Clock::now() - start_));
+    c.set_crossings(crossings_);
+    c.set_bytes_in(bytes_in_);
+    c.set_bytes_out(bytes_out_);
+    c.set_final_bytes(final_bytes_);
+    for (const std::string& k : quarantined_keys_) c.add_quarantined_keys(k);
+    write_checkpoint(config_.checkpoint, c);
+  }
+
+  // A checkpointed run, continued: its nodes (departed: their processes rejoin as new nodes),
+  // its ledger and counters; the scene and the chunks must be the same.
+  void resume(const wire::Checkpoint& c) {
+    if (c.run().scene_hash() != mesh_.hash)
+      fail("the checkpoint is of scene {}, this scene meshes to {}", c.run().scene_hash(), mesh_.hash);
+    if (!std::equal(c.run().chunk_starts().begin(), c.run().chunk_starts().end(), run_.chunk_starts().begin(),
+                    run_.chunk_starts().end()))
+      fail("the checkpoint's chunks differ from this run's");
+    policy_.restore(snapshot_of(c));
+    run_.set_exchange_every(policy_.exchange_every());
+    run_.set_exchange_fraction(policy_.fraction());
+    for (int i = 0; i < c.nodes_size(); ++i) {
+      const wire::CheckpointNode& n = c.nodes(i);
+      Peer p;
+      p.index = static_cast<uint32_t>(i);
+      p.id = fmt::format("checkpointed-{}", i);
+      p.name = n.name();
+      p.key = n.key();
+      p.busy_s = n.busy_s();
+      p.idle_s = n.idle_s();
+      departed_.push_back(std::move(p));
+    }
+    resumed_s_ = c.elapsed_s();
+    crossings_ = c.crossings();
+    bytes_in_ = c.bytes_in();
+    bytes_out_ = c.bytes_out();
+    final_bytes_ = c.final_bytes();
+    quarantined_keys_.insert(c.quarantined_keys().begin(), c.quarantined_keys().end());
+    std::fprintf(stderr, "sirad-coordinator: resumed after %.1f s: %llu of %llu bundles done by %d nodes; the rest to run\n",
+                 resumed_s_, static_cast<unsigned long long>(policy_.ledger().done_count()),
+                 static_cast<unsigned long long>(config_.bundles), c.nodes_size());
+  }
+
   zmq::socket_t& router_;
   const RunConfig& config_;
   const PatchMesh& mesh_;
@@ -479,6 +557,7 @@ class Coordinator {
   std::map<std::string, Peer> peers_;
   std::vector<Peer> departed_;
   std::set<std::string> quarantined_keys_;
+  double resumed_s_ = 0;  // the run's time before a resume
   Clock::time_point start_ = Clock::now();
   uint64_t bytes_in_ = 0, bytes_out_ = 0, final_bytes_ = 0, crossings_ = 0;
 };

@@ -21,6 +21,7 @@
 #include "core/output.h"
 #include "core/scene.h"
 #include "core/solver.h"
+#include "proto/codec.h"
 
 namespace sirad::cluster {
 
@@ -55,6 +56,14 @@ struct RunConfig {
   const std::atomic<bool>* abort = nullptr;  // set: the run fails at once (a local node died)
   bool strict = false;          // a node's ERROR ends the run (the embedded default: its nodes
                                 // are this process's own threads)
+  // The checkpoint (coordinator/checkpoint.h): written atomically to `checkpoint` every
+  // checkpoint_every_s and when `interrupt` is set ("" : none).
+  std::string checkpoint;
+  double checkpoint_every_s = 10;
+  const std::atomic<bool>* interrupt = nullptr;  // set (SIGTERM): checkpoint, then the run throws
+  // Continue this checkpointed run (read_checkpoint; apply_checkpoint gave `config` its
+  // settings): its nodes' states and the ledger as accepted, the rest of the budget to run.
+  const wire::Checkpoint* resume = nullptr;
   std::function<void(uint64_t done, uint64_t total)> progress;  // called as bundles complete
   std::function<void(const Status&)> status;  // called every status_every_s, and at the end
   double status_every_s = 1.0;
@@ -118,10 +127,12 @@ std::string ledger_csv(const RunResult& result);
 std::string node_lines(const RunResult& result);
 
 // Serves one run of `mesh` (meshed from config.scene with config.mesh_options) until every
-// bundle is done and every node's final state is in. Malformed or unexpected messages are
+// bundle is done and every node's final state is in (or continues config.resume; its scene hash
+// and chunks must match `mesh`). Malformed or unexpected messages are
 // refused and logged; the run goes on. A node silent for `liveness` heartbeat intervals is
 // declared dead: its outstanding grant returns to the budget and its last accepted state stays
-// in the estimate. Throws sirad::Error on the timeout.
+// in the estimate. Throws sirad::Error on the timeout, and when `interrupt` is set (after the
+// checkpoint, if any, is written).
 RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh);
 
 }  // namespace sirad::cluster

@@ -117,6 +117,28 @@ uint64_t Ledger::revoke(uint32_t node) {
   return n;
 }
 
+Ledger Ledger::from_record(uint64_t bundles, const std::map<uint32_t, std::vector<Range>>& done) {
+  Ledger l(bundles);
+  std::vector<Range> all;
+  for (const auto& [node, ranges] : done)
+    for (const Range& r : ranges) {
+      if (r.last <= r.first || r.last > bundles) fail("ledger: node {} range [{}, {}) outside 0..{}", node, r.first, r.last, bundles);
+      all.push_back(r);
+      l.done_[node].push_back(r);
+      l.done_count_ += r.size();
+    }
+  std::sort(all.begin(), all.end(), [](const Range& a, const Range& b) { return a.first < b.first; });
+  l.free_.clear();
+  uint64_t at = 0;
+  for (const Range& r : all) {
+    if (r.first < at) fail("ledger: bundle {} is done twice", r.first);
+    if (r.first > at) l.free_.push_back({at, r.first});
+    at = r.last;
+  }
+  if (at < bundles) l.free_.push_back({at, bundles});
+  return l;
+}
+
 std::vector<Range> Ledger::done_by(uint32_t node) const {
   auto it = done_.find(node);
   return it == done_.end() ? std::vector<Range>{} : merged(it->second);

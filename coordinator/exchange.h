@@ -46,6 +46,9 @@ class Ledger {
   uint64_t revoke(uint32_t node);
   // The indices `node` has done, merged and sorted (the ledger's record: who ran what).
   std::vector<Range> done_by(uint32_t node) const;
+  // A ledger from its record alone (a resumed run: nothing is granted, everything not done is
+  // free). Throws sirad::Error for ranges that are empty, beyond the budget or overlap.
+  static Ledger from_record(uint64_t bundles, const std::map<uint32_t, std::vector<Range>>& done);
   uint64_t bundles() const { return bundles_; }
   uint64_t done_count() const { return done_count_; }
   uint64_t outstanding(uint32_t node) const;

@@ -5,13 +5,17 @@
 //     --mode sync|async --profile FILE --min-nodes P --chunks C --endpoint-file FILE
 //     --timeout SECONDS --heartbeat-ms MS --liveness N --status-json FILE --check-config]
 //     [--curve-secret FILE --allow FILE | --insecure]   (one of them over tcp://)
+//     [--checkpoint FILE --checkpoint-every SECONDS] [--resume CHECKPOINT]
+#include <atomic>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
 
 #include <CLI/CLI.hpp>
 
+#include "coordinator/checkpoint.h"
 #include "coordinator/coordinator.h"
 #include "coordinator/live_view.h"
 #include "core/atomic_file.h"
@@ -23,11 +27,17 @@
 
 using namespace sirad;
 
+namespace {
+std::atomic<bool> interrupted{false};
+void on_signal(int) { interrupted = true; }
+}  // namespace
+
 int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
   std::string scene_spec, listen = "tcp://*:5555", out, exchange_every = "end", topology = "star", mode = "async",
                           rule = "chain", directions = "auto", control_variate = "on", endpoint_file, status_json, profile,
-                          balance = "on", curve_secret, allow_file, ledger;
+                          balance = "on", curve_secret, allow_file, ledger, checkpoint, resume;
+  double checkpoint_every = 10;
   int64_t bundles = 1000, patches = 10000;
   std::optional<int> grid;
   uint64_t seed = 1;
@@ -80,6 +90,12 @@ int main(int argc, char** argv) {
   secret_opt->needs(allow_opt);
   allow_opt->needs(secret_opt);
   app.add_flag("--insecure", insecure, "Over TCP without CURVE: no authentication, no encryption (says so on start)");
+  app.add_option("--checkpoint", checkpoint,
+                 "Write the run's checkpoint here (atomically) every --checkpoint-every seconds and on SIGTERM/SIGINT");
+  app.add_option("--checkpoint-every", checkpoint_every, "Seconds between checkpoints")
+      ->check(CLI::Range(0.1, 86400.0))->capture_default_str();
+  app.add_option("--resume", resume,
+                 "Continue the run of this checkpoint (its settings; the same scene), checkpointing to it unless --checkpoint");
   app.add_flag("--check-config", check_config, "Check the flags, scene, profile and output place; run nothing");
   app.add_flag("-q,--quiet", quiet, "No progress view");
   try {
@@ -96,8 +112,6 @@ int main(int argc, char** argv) {
     cluster::RunConfig rc;
     rc.scene = load_scene(scene_spec);
     rc.mesh_options.target_patches = static_cast<std::size_t>(patches);
-    PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
-    if (!mesh.camera) mesh.camera = default_camera(rc.scene);
     rc.bundles = static_cast<uint64_t>(bundles);
     rc.seed = seed;
     rc.grid = grid.value_or(0);
@@ -121,6 +135,19 @@ int main(int argc, char** argv) {
     rc.liveness = static_cast<uint32_t>(liveness);
     if (!profile.empty()) rc.profile = emulation::load_profile(profile);
     rc.emulate_bandwidth = !network_bandwidth;
+    std::optional<wire::Checkpoint> resumed;
+    if (!resume.empty()) {
+      resumed = cluster::read_checkpoint(resume);
+      cluster::apply_checkpoint(rc, *resumed);  // the run's settings are the checkpoint's
+      rc.resume = &*resumed;
+      if (checkpoint.empty()) checkpoint = resume;
+    }
+    rc.checkpoint = checkpoint;
+    rc.checkpoint_every_s = checkpoint_every;
+    PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
+    if (!mesh.camera) mesh.camera = default_camera(rc.scene);
+    if (resumed && resumed->run().scene_hash() != mesh.hash)
+      fail("{}: the checkpoint is of scene {}; {} meshes to {}", resume, resumed->run().scene_hash(), scene_spec, mesh.hash);
     proto::check_endpoint("--listen", listen, true);
     proto::check_security(listen, !curve_secret.empty(), insecure, "--curve-secret and --allow");
     std::optional<proto::KeyPair> keys;
@@ -162,6 +189,9 @@ int main(int argc, char** argv) {
       f.write(bound.data(), bound.size());
       f.commit();
     }
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    rc.interrupt = &interrupted;
     auto start = std::chrono::steady_clock::now();
     cluster::RunResult result = cluster::coordinate(router, rc, mesh);
     reporter.finish();

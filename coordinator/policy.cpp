@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 
 #include <fmt/format.h>
@@ -98,6 +99,52 @@ const char* NodeState::state() const {
 Policy::Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight)
     : config_(config), starts_(starts), weight_(std::move(weight)), ledger_(config.bundles), aggregate_(std::move(starts), 0) {
   if (config_.grant_unit == 0) config_.grant_unit = 1;
+}
+
+PolicySnapshot Policy::snapshot() const {
+  PolicySnapshot s;
+  for (uint32_t n = 0; n < nodes(); ++n) {
+    NodeRecord r;
+    r.state = nodes_[n];
+    for (uint32_t c = 0; c < aggregate_.chunks(); ++c) r.parts.push_back(aggregate_.state(n, c));
+    r.done = ledger_.done_by(n);
+    s.nodes.push_back(std::move(r));
+  }
+  s.exchange_every = config_.exchange_every;
+  s.fraction = config_.fraction;
+  s.exchange_why = exchange_why_;
+  s.exchanges = exchanges_;
+  s.reports = reports_;
+  s.closing = closing_;
+  s.ended_by = ended_by_;
+  return s;
+}
+
+void Policy::restore(const PolicySnapshot& s) {
+  if (nodes() != 0) fail("restore: the run already has nodes");
+  if (s.exchange_every == kExchangeAuto || !(s.fraction > 0 && s.fraction <= 1)) fail("restore: invalid exchange setting");
+  std::map<uint32_t, std::vector<Range>> done;
+  for (uint32_t n = 0; n < s.nodes.size(); ++n) {
+    const NodeRecord& r = s.nodes[n];
+    join();
+    if (r.parts.size() != aggregate_.chunks()) fail("restore: node {} has {} chunks, the run {}", n, r.parts.size(), aggregate_.chunks());
+    for (uint32_t c = 0; c < aggregate_.chunks(); ++c) aggregate_.set(n, c, r.parts[c].sum, r.parts[c].count);
+    NodeState& p = nodes_[n];
+    p = r.state;
+    p.ready = true;
+    p.dead = true;
+    p.grants.clear();
+    done[n] = r.done;
+  }
+  ledger_ = Ledger::from_record(config_.bundles, done);
+  config_.exchange_every = s.exchange_every;
+  config_.fraction = s.fraction;
+  exchange_why_ = s.exchange_why;
+  exchanges_ = s.exchanges;
+  reports_ = last_error_check_ = s.reports;
+  closing_ = s.closing;
+  ended_by_ = s.ended_by;
+  started_ = true;  // min_nodes gated the first grant of the run, long ago
 }
 
 uint32_t Policy::join() {

@@ -134,10 +134,37 @@ struct Exchange {
   std::vector<Aggregate::Part> parts;
 };
 
+// What a checkpoint keeps of a node (coordinator/checkpoint.h): its counters, its last state of
+// every chunk, and the ledger's record of the bundles it ran.
+struct NodeRecord {
+  NodeState state;
+  std::vector<Aggregate::Part> parts;  // per chunk
+  std::vector<Range> done;
+};
+
+// The policy's state between messages, all a resumed run needs (Policy::restore).
+struct PolicySnapshot {
+  std::vector<NodeRecord> nodes;
+  uint32_t exchange_every = 0;  // as in force (what auto chose)
+  double fraction = 1.0;
+  std::string exchange_why;
+  uint32_t exchanges = 0;
+  uint64_t reports = 0;
+  bool closing = false;
+  std::string ended_by;
+};
+
 class Policy {
  public:
   // `starts`: chunk_starts of the mesh; `weight`: error_weights of the mesh.
   Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight);
+
+  PolicySnapshot snapshot() const;
+  // Continues a checkpointed run (before any join): every node of `s` is in again with its
+  // counters, states and done bundles, but dead (its process belongs to the coordinator that
+  // stopped; it rejoins as a new node), its grants back in the budget. Throws sirad::Error for
+  // a snapshot that does not fit this run (chunk sizes, bundle ranges).
+  void restore(const PolicySnapshot& s);
 
   uint32_t join();  // a new node (not ready yet); its index
   uint32_t nodes() const { return static_cast<uint32_t>(nodes_.size()); }

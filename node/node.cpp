@@ -189,6 +189,10 @@ class Node {
     if ((!state_ && !pending_) || Clock::now() - last_heard_ <= heartbeat_ * liveness_) return;
     std::fprintf(stderr, "sirad-node %s: coordinator silent for %.1f s; leaving the run\n", options_.name.c_str(),
                  seconds(Clock::now() - last_heard_));
+    leave_run();
+  }
+
+  void leave_run() {
     state_.reset();
     pending_.reset();
     queue_.clear();
@@ -204,10 +208,17 @@ class Node {
       case Command::update: update(std::get<wire::Update>(m.header), m.bulk); break;
       case Command::stop: stop(); break;
       case Command::heartbeat: break;
-      case Command::error:
-        std::fprintf(stderr, "sirad-node %s: coordinator: %s\n", options_.name.c_str(),
-                     std::get<wire::Error>(m.header).reason().c_str());
+      case Command::error: {
+        const wire::Error& e = std::get<wire::Error>(m.header);
+        std::fprintf(stderr, "sirad-node %s: coordinator: %s\n", options_.name.c_str(), e.reason().c_str());
+        // It does not know this node in its run (declared dead, or the coordinator restarted):
+        // leave the run and join again.
+        if (e.rejoin() && (state_ || pending_)) {
+          leave_run();
+          hello();
+        }
         break;
+      }
       default: error(fmt::format("unexpected {}", proto::command_name(m.command)));
     }
   }

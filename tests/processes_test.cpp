@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <cstdlib>
 #include <cstdio>
@@ -446,6 +447,81 @@ TEST(Processes, AKilledNodeRestartsAndRejoinsWithoutCountingTwice) {
   EXPECT_EQ(p1.size(), 2u) << r.log;
   for (const auto& [index, n] : p1) EXPECT_GT(n, 0u) << "p1 as node " << index;
   fs::remove_all(dir);
+}
+
+// Waits (up to `seconds`) until the status JSON says at least `bundles` are done; returns them.
+uint64_t wait_for_bundles(const fs::path& status, uint64_t bundles, double seconds) {
+  for (int i = 0; i < seconds * 40 && bundles_done(status) < bundles; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  return bundles_done(status);
+}
+
+// The coordinator dies and is resumed from its checkpoint, twice, while 3 node processes keep
+// running and reconnect on their own: first kill -9 (the periodic checkpoint, every 0.2 s),
+// then SIGTERM (it writes a checkpoint and exits non-zero, saying how to resume). The last
+// coordinator finishes with exactly K bundles, every index once in its ledger (the nodes of
+// every incarnation), each node process in the run 3 times (it rejoined each new coordinator
+// as a new node), and the furnace unbiased within 4 sd of a K-bundle chain average
+// (0.0097 sqrt(1024 / K) 4). Sync exchanges over 10 ms links make the run last seconds.
+TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
+  const uint64_t K = 8192;
+  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_resume_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir / "wan.yaml") << "defaults:\n  latency_ms: 10\n";
+  auto coordinator = [&](const std::string& listen, std::vector<std::string> extra, int n) {
+    std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY, "furnace", "--listen", listen, "--insecure",
+                                     "--endpoint-file", (dir / "endpoint").string(), "--timeout", "120",
+                                     "--heartbeat-ms", "200", "--status-json", (dir / "status.json").string(),
+                                     "--checkpoint", (dir / "run.checkpoint").string(), "--checkpoint-every", "0.2",
+                                     "--ledger", (dir / "ledger.csv").string(), "--profile", (dir / "wan.yaml").string(),
+                                     "--out", (dir / "furnace").string(), "--width", "16", "--height", "16", "-q"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    fs::remove(dir / "status.json");
+    return std::make_unique<Child>(args, dir / fmt::format("coordinator{}.log", n));
+  };
+  auto first = coordinator("tcp://127.0.0.1:*", {"--patches", "300", "--bundles", std::to_string(K), "--exchange-every",
+                                                 "16", "--mode", "sync", "--min-nodes", "3"},
+                           0);
+  for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const std::string endpoint = slurp(dir / "endpoint");
+  std::vector<std::unique_ptr<Child>> nodes;
+  for (int i = 0; i < 3; ++i)
+    nodes.push_back(std::make_unique<Child>(
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", fmt::format("p{}", i)},
+        dir / fmt::format("node{}.log", i)));
+  uint64_t at_kill = wait_for_bundles(dir / "status.json", K / 4, 60);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // a checkpoint after the status
+  first->kill9();
+  ASSERT_EQ(first->wait(10), 128 + SIGKILL);
+  ASSERT_TRUE(fs::exists(dir / "run.checkpoint"));
+  ASSERT_LT(at_kill, K) << "the kill came after the run";
+  // The same endpoint; the settings come from the checkpoint.
+  auto second = coordinator(endpoint, {"--resume", (dir / "run.checkpoint").string()}, 1);
+  uint64_t at_term = wait_for_bundles(dir / "status.json", at_kill + K / 8, 60);
+  second->terminate();
+  EXPECT_NE(second->wait(30), 0);
+  std::string log1 = slurp(dir / "coordinator1.log");
+  EXPECT_NE(log1.find("resumed after"), std::string::npos) << log1;
+  EXPECT_NE(log1.find("interrupted after"), std::string::npos) << log1;
+  EXPECT_NE(log1.find("--resume"), std::string::npos) << log1;
+  ASSERT_LT(at_term, K) << "the SIGTERM came after the run";
+  auto third = coordinator(endpoint, {"--resume", (dir / "run.checkpoint").string()}, 2);
+  ASSERT_EQ(third->wait(150), 0) << slurp(dir / "coordinator2.log");
+  std::string log = slurp(dir / "coordinator2.log");
+  std::printf("coordinator killed at %llu, terminated at %llu of %llu bundles\n", static_cast<unsigned long long>(at_kill),
+              static_cast<unsigned long long>(at_term), static_cast<unsigned long long>(K));
+  EXPECT_NE(log.find(fmt::format("bundles {},", K)), std::string::npos) << log;
+  std::vector<LedgerRow> ledger = read_ledger(dir / "ledger.csv");
+  expect_every_index_once(ledger, K);
+  std::map<std::string, std::set<uint32_t>> entries;  // each process's node indices
+  for (const LedgerRow& row : ledger) entries[row.name].insert(row.node);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(entries[fmt::format("p{}", i)].size(), 3u) << "p" << i << " in each incarnation\n" << log;
+  std::vector<glm::vec3> radiosity = ply_radiosity(dir / "furnace.ply");
+  double sum = 0.0;
+  for (const auto& v : radiosity) sum += v.x;
+  EXPECT_NEAR(sum / static_cast<double>(radiosity.size()), 2.0, 0.0097 * std::sqrt(1024.0 / K) * 4);
+  for (auto& n : nodes) n->terminate();
+  if (!HasFailure()) fs::remove_all(dir);
 }
 
 }  // namespace

@@ -1,0 +1,155 @@
+// sirad: the coordinator's checkpoint file (see checkpoint.h).
+#include "coordinator/checkpoint.h"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "proto/transport.h"
+
+namespace sirad::cluster {
+
+void write_checkpoint(const std::string& path, const wire::Checkpoint& c) {
+  std::string bytes;
+  if (!c.SerializeToString(&bytes)) fail("{}: cannot encode the checkpoint", path);
+  write_file_atomic(path, bytes);
+}
+
+wire::Checkpoint read_checkpoint(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("{}: cannot read the checkpoint", path);
+  std::ostringstream s;
+  s << in.rdbuf();
+  wire::Checkpoint c;
+  if (!c.ParseFromString(s.str()) || c.magic() != kCheckpointMagic) fail("{}: not a sirad checkpoint", path);
+  if (c.version() != kCheckpointVersion)
+    fail("{}: checkpoint version {}; this sirad reads version {}", path, c.version(), kCheckpointVersion);
+  const wire::Run& run = c.run();
+  const uint32_t chunks = static_cast<uint32_t>(run.chunk_starts_size());
+  if (run.patches() == 0 || chunks == 0 || chunks > proto::kMaxChunks || run.chunk_starts(0) != 0)
+    fail("{}: the run's chunks are malformed", path);
+  for (uint32_t i = 1; i < chunks; ++i)
+    if (run.chunk_starts(static_cast<int>(i)) <= run.chunk_starts(static_cast<int>(i) - 1) ||
+        run.chunk_starts(static_cast<int>(i)) >= run.patches())
+      fail("{}: chunk {} starts out of order", path, i);
+  if (run.bundles() == 0 || !(run.exchange_fraction() > 0 && run.exchange_fraction() <= 1) ||
+      run.exchange_every() == kExchangeAuto)
+    fail("{}: the run's bundles or exchange setting are invalid", path);
+  for (int n = 0; n < c.nodes_size(); ++n) {
+    const wire::CheckpointNode& node = c.nodes(n);
+    if (node.counts_size() != static_cast<int>(chunks) || node.sums().size() != 24 * static_cast<std::size_t>(run.patches()))
+      fail("{}: node {} ({}) has {} counts and {} bytes of sums for {} chunks of {} patches", path, n, node.name(),
+           node.counts_size(), node.sums().size(), chunks, run.patches());
+    for (const wire::Range& r : node.done())
+      if (r.last() <= r.first() || r.last() > run.bundles())
+        fail("{}: node {} ran bundles [{}, {}) outside 0..{}", path, n, r.first(), r.last(), run.bundles());
+  }
+  if (!std::isfinite(c.elapsed_s()) || c.elapsed_s() < 0) fail("{}: elapsed time {} is invalid", path, c.elapsed_s());
+  try {
+    snapshot_of(c);  // the ledger's ranges disjoint, the sums finite and within their counts
+  } catch (const Error& e) {
+    fail("{}: {}", path, e.what());
+  }
+  return c;
+}
+
+void apply_checkpoint(RunConfig& config, const wire::Checkpoint& c) {
+  const wire::Run& r = c.run();
+  config.bundles = r.bundles();
+  config.seed = r.seed();
+  config.grid = static_cast<int>(r.grid());
+  config.rule = parse_update_rule(r.rule());
+  config.burn_in = r.burn_in();
+  config.directions = r.directions().empty() ? Directions::random : parse_directions(r.directions());
+  config.control_variate = !r.no_control_variate();
+  config.shots_per_bundle = r.shots_per_bundle();
+  config.shot_resolution = static_cast<int>(r.shot_resolution());
+  config.exchange_every = r.exchange_every();
+  config.fraction = r.exchange_fraction();
+  config.topology = parse_topology(r.topology());
+  config.mode = parse_mode(r.mode());
+  config.chunks = static_cast<uint32_t>(r.chunk_starts_size());
+  config.balance = c.balance();
+  config.time_limit_s = c.time_limit_s();
+  config.target_error = c.target_error();
+  config.mesh_options.target_patches = r.target_patches();
+  config.mesh_options.max_edge = r.max_edge();
+}
+
+void put_snapshot(wire::Checkpoint& c, const PolicySnapshot& s) {
+  c.mutable_run()->set_exchange_every(s.exchange_every);
+  c.mutable_run()->set_exchange_fraction(s.fraction);
+  c.set_exchange_why(s.exchange_why);
+  c.set_exchanges(s.exchanges);
+  c.set_reports(s.reports);
+  c.set_closing(s.closing);
+  c.set_ended_by(s.ended_by);
+  c.clear_nodes();
+  for (const NodeRecord& r : s.nodes) {
+    wire::CheckpointNode* n = c.add_nodes();
+    n->set_bundles(r.state.bundles);
+    n->set_exchanges(r.state.exchanges);
+    n->set_error(r.state.error);
+    n->set_error_bundles(r.state.error_bundles);
+    n->set_quarantined(r.state.quarantined);
+    n->set_why(r.state.why);
+    std::string sums;
+    for (const Aggregate::Part& p : r.parts) {
+      n->add_counts(p.count);
+      sums += proto::pack(p.sum);
+    }
+    n->set_sums(std::move(sums));
+    for (const Range& d : r.done) {
+      wire::Range* w = n->add_done();
+      w->set_first(d.first);
+      w->set_last(d.last);
+    }
+  }
+}
+
+PolicySnapshot snapshot_of(const wire::Checkpoint& c) {
+  PolicySnapshot s;
+  const wire::Run& run = c.run();
+  s.exchange_every = run.exchange_every();
+  s.fraction = run.exchange_fraction();
+  s.exchange_why = c.exchange_why();
+  s.exchanges = c.exchanges();
+  s.reports = c.reports();
+  s.closing = c.closing();
+  s.ended_by = c.ended_by();
+  const std::vector<uint32_t> starts(run.chunk_starts().begin(), run.chunk_starts().end());
+  std::map<uint32_t, std::vector<Range>> done;
+  for (int i = 0; i < c.nodes_size(); ++i) {
+    const wire::CheckpointNode& n = c.nodes(i);
+    NodeRecord r;
+    r.state.bundles = n.bundles();
+    r.state.exchanges = n.exchanges();
+    r.state.error = n.error();
+    r.state.error_bundles = n.error_bundles();
+    r.state.quarantined = n.quarantined();
+    r.state.why = n.why();
+    const std::vector<double> all = proto::unpack(n.sums());
+    for (std::size_t k = 0; k < starts.size(); ++k) {
+      const uint32_t first = starts[k], last = k + 1 < starts.size() ? starts[k + 1] : run.patches();
+      Aggregate::Part p;
+      p.sum.assign(all.begin() + 3 * static_cast<std::ptrdiff_t>(first), all.begin() + 3 * static_cast<std::ptrdiff_t>(last));
+      p.count = n.counts(static_cast<int>(k));
+      r.parts.push_back(std::move(p));
+    }
+    for (const wire::Range& d : n.done()) r.done.push_back({d.first(), d.last()});
+    done[static_cast<uint32_t>(i)] = r.done;
+    s.nodes.push_back(std::move(r));
+  }
+  Ledger::from_record(run.bundles(), done);  // throws for overlapping ranges
+  // The sums: as Aggregate::set checks them (finite, within count x FLT_MAX).
+  std::vector<uint32_t> bounds = starts;
+  bounds.push_back(run.patches());
+  Aggregate check(bounds, static_cast<uint32_t>(s.nodes.size()));
+  for (uint32_t n = 0; n < s.nodes.size(); ++n)
+    for (uint32_t k = 0; k < s.nodes[n].parts.size(); ++k) check.check(n, k, s.nodes[n].parts[k].sum, s.nodes[n].parts[k].count);
+  return s;
+}
+
+}  // namespace sirad::cluster

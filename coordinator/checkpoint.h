@@ -1,0 +1,37 @@
+// sirad: the coordinator's checkpoint (issue 6): everything a run has accepted, so a
+// coordinator that stops (SIGTERM, a crash, a reboot) can be resumed with `--resume FILE`:
+// the run's settings and scene hash, every node's last state per chunk (sums and counts), its
+// counters and the ledger's record of the bundles it ran, and the run's counters. The file is a
+// protobuf message (wire::Checkpoint in proto/sirad.proto), replaced atomically.
+#pragma once
+#include <string>
+
+#include "coordinator/coordinator.h"
+#include "coordinator/policy.h"
+#include "proto/codec.h"
+
+namespace sirad::cluster {
+
+inline constexpr const char* kCheckpointMagic = "sirad checkpoint";
+inline constexpr uint32_t kCheckpointVersion = 1;
+
+// Writes `c` to `path` atomically (a temporary renamed over it): a crash mid-write leaves the
+// previous checkpoint whole.
+void write_checkpoint(const std::string& path, const wire::Checkpoint& c);
+
+// Reads a checkpoint and checks it hangs together (magic, version, chunk boundaries, every
+// node's counts and sums sized to the run, bundle ranges within the budget); anything else is
+// one error naming the file and what is wrong.
+wire::Checkpoint read_checkpoint(const std::string& path);
+
+// The settings of the checkpointed run into `config` (bundles, seed, grid, rule, burn-in,
+// directions, control variate, first shot, exchange period and fraction as in force,
+// topology, mode, chunks, balance, time limit, target error, meshing): a resumed run is the
+// same run. The rest of `config` (timeouts, heartbeats, profile, status) stays as given.
+void apply_checkpoint(RunConfig& config, const wire::Checkpoint& c);
+
+// The policy's part of a checkpoint, both ways (names, times and keys are the coordinator's).
+void put_snapshot(wire::Checkpoint& c, const PolicySnapshot& s);
+PolicySnapshot snapshot_of(const wire::Checkpoint& c);
+
+}  // namespace sirad::cluster
