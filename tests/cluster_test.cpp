@@ -179,9 +179,12 @@ TEST(Cluster, RingAndStarBothRun) {
 }
 
 // Hostile traffic during a real run: a raw ZeroMQ client sends a truncated message, a wrong
-// version, an unknown command, a header that does not parse, a REPORT before HELLO and a
-// REPORT for a grant it never held. Each is refused (an ERROR comes back where the peer is
-// known or the message parsed) and the run completes with every bundle, unbiased.
+// version, an unknown command, a header that does not parse, a REPORT before HELLO, then
+// (known now) a REPORT for a grant it never held, bulk frames missing, extra or not whole
+// doubles, a header over 64 KiB, READY for another run, FINAL without STOP and a command only a
+// coordinator sends. Each is refused (the frames by the decoder, which logs them; the rest
+// answered with ERROR, the one before HELLO asking it to say HELLO) and the run completes with
+// every bundle, unbiased.
 TEST(Cluster, MalformedMessagesAreRefusedWhileARunGoesOn) {
   RunConfig c = furnace(256);
   c.exchange_every = 16;
@@ -217,10 +220,33 @@ TEST(Cluster, MalformedMessagesAreRefusedWhileARunGoesOn) {
     h.set_node_name("attacker");
     proto::send(s, {proto::Command::hello, h, {}});
     proto::send(s, {proto::Command::report, r, {}});        // a grant it never held
-    int errors = 0;
-    for (int i = 0; i < 50 && errors < 2; ++i)
-      if (auto f = proto::receive(s, 100)) errors += proto::decode(*f).command == proto::Command::error;
-    EXPECT_EQ(errors, 2) << "REPORT before HELLO and the foreign grant answer ERROR";
+    wire::Report chunks = r;
+    chunks.add_chunks(0);
+    chunks.add_chunks(1);
+    chunks.add_counts(1);
+    chunks.add_counts(1);
+    const std::string header = [&] { std::string h; chunks.SerializeToString(&h); return h; }();
+    raw({"SIRAD1", std::string(1, '\x06'), header, std::string(24, '\0')});                           // a bulk frame missing
+    raw({"SIRAD1", std::string(1, '\x06'), header, std::string(24, '\0'), std::string(24, '\0'),
+         std::string(24, '\0')});                                                                      // one too many
+    raw({"SIRAD1", std::string(1, '\x06'), header, std::string(24, '\0'), std::string(23, '\0')}); // not whole doubles
+    raw({"SIRAD1", std::string(1, '\x0A'), std::string(70 * 1024, 'x')});                              // header over 64 KiB
+    wire::Ready other;
+    other.set_run_id(12345);
+    proto::send(s, {proto::Command::ready, other, {}});     // READY for another run
+    proto::send(s, {proto::Command::final_state, r, {}});   // FINAL without STOP
+    wire::Grant g;
+    proto::send(s, {proto::Command::grant, g, {}});         // a coordinator's command
+    int errors = 0, rejoin = 0;
+    for (int i = 0; i < 50 && errors < 5; ++i)
+      if (auto f = proto::receive(s, 100)) {
+        proto::Message m = proto::decode(*f);
+        if (m.command != proto::Command::error) continue;
+        ++errors;
+        rejoin += std::get<wire::Error>(m.header).rejoin();
+      }
+    EXPECT_EQ(errors, 5) << "REPORT before HELLO, the foreign grant, READY for another run, FINAL without STOP and GRANT answer ERROR";
+    EXPECT_EQ(rejoin, 1) << "only the REPORT before HELLO asks for a HELLO";
   });
   c.min_nodes = 1;
   c.timeout_s = 60;
