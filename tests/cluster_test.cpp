@@ -3,6 +3,7 @@
 // policy followed (period I, fraction S, star and ring, sync and async).
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -345,6 +346,49 @@ TEST(Cluster, OnlyNodesWithAnAllowedKeyTakePartOverCurve) {
   EXPECT_EQ(out.result.nodes[0].bundles, 256u);
   EXPECT_GE(zap->refused(), 1u) << "the stranger's handshake reached the ZAP handler and was refused";
   EXPECT_NEAR(area_mean(out.mesh, out.result.radiosity), 2.0, 0.0097 * std::sqrt(1024.0 / 256) * 4);
+}
+
+// A node with no run says HELLO with a back-off while no coordinator answers: here from 50 ms
+// doubling to 400 ms (the defaults are 1 s to 32 s). A silent ROUTER records when each HELLO
+// arrives: the gaps grow 50, 100, 200, 400, 400 ms (lower bounds: a loaded machine only
+// stretches them). Once it answers (a WELCOME without a run), the back-off starts over: the next
+// two HELLOs come 50 to 100 ms apart, not the 400 ms it had reached.
+TEST(Cluster, NodeSaysHelloWithBackOffUntilACoordinatorAnswers) {
+  zmq::context_t context;
+  zmq::socket_t router(context, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  router.bind("inproc://hello-backoff");
+  std::atomic<bool> stop{false};
+  std::thread node([&] {
+    node::serve(context, "inproc://hello-backoff",
+                {.name = "patient", .stop = &stop, .reconnect_ms = 50, .reconnect_max_ms = 400});
+  });
+  using Clock = std::chrono::steady_clock;
+  auto next_hello = [&](std::string* id) -> Clock::time_point {
+    for (int i = 0; i < 100; ++i)
+      if (auto f = proto::receive(router, 50)) {
+        *id = f->front();
+        if (proto::decode({f->begin() + 1, f->end()}).command == proto::Command::hello) return Clock::now();
+      }
+    ADD_FAILURE() << "no HELLO within 5 s";
+    return Clock::now();
+  };
+  std::string id;
+  std::vector<Clock::time_point> at{next_hello(&id)};  // the first, at start
+  for (int i = 0; i < 5; ++i) at.push_back(next_hello(&id));
+  const double expected[] = {50, 100, 200, 400, 400};
+  for (int i = 0; i < 5; ++i) {
+    double gap = std::chrono::duration<double, std::milli>(at[i + 1] - at[i]).count();
+    EXPECT_GT(gap, 0.8 * expected[i]) << "gap " << i;
+  }
+  wire::Welcome w;  // no run: "no run in progress"
+  w.set_heartbeat_ms(1000);
+  proto::send(router, {proto::Command::welcome, w, {}}, &id);
+  auto first = next_hello(&id), second = next_hello(&id);
+  double gap = std::chrono::duration<double, std::milli>(second - first).count();
+  EXPECT_LT(gap, 300) << "the back-off starts over once a coordinator answers (it was at 400 ms)";
+  stop = true;
+  node.join();
 }
 
 // What a lying node sends after one plausible but far-off report.
