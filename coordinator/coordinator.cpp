@@ -99,8 +99,12 @@ class Coordinator {
              config_.checkpoint, config_.checkpoint);
       }
       if (!config_.checkpoint.empty() && seconds(now - last_checkpoint) >= config_.checkpoint_every_s) {
-        checkpoint();
         last_checkpoint = now;
+        try {
+          checkpoint();
+        } catch (const Error& e) {  // a full disk must not end the run; the last good file stays
+          std::fprintf(stderr, "sirad-coordinator: checkpoint not written: %s; the run goes on\n", e.what());
+        }
       }
       if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
         last_status = now;
