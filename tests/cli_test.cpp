@@ -336,6 +336,16 @@ TEST_F(Cli, KeysAndTheInsecureFlag) {
   EXPECT_EQ(program(node, "--connect ipc:///tmp/sirad-x --check-config").status, 0);
 }
 
+// --resume with a file that is not a checkpoint, or none, is one line naming the file.
+TEST_F(Cli, ResumeRefusesWhatIsNotACheckpoint) {
+  const std::string coordinator = SIRAD_COORDINATOR_BINARY;
+  write("junk.checkpoint", "this is not a checkpoint");
+  expect_error(program(coordinator, "furnace --listen tcp://127.0.0.1:5555 --insecure --check-config --resume junk.checkpoint"),
+               "junk.checkpoint: not a sirad checkpoint", "sirad-coordinator");
+  expect_error(program(coordinator, "furnace --listen tcp://127.0.0.1:5555 --insecure --check-config --resume none.checkpoint"),
+               "none.checkpoint: cannot read the checkpoint", "sirad-coordinator");
+}
+
 // Emulation profiles and the run-ending flags: bad ones are one line naming file, line and key.
 TEST_F(Cli, BadProfilesAndEndingFlags) {
   write("slow.yaml", "defaults:\n  speed: 0\n");
