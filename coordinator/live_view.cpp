@@ -108,7 +108,8 @@ std::vector<std::string> live_lines(const Status& s, int columns) {
   std::vector<size_t> tail_w(5, 0);
   for (const auto& n : s.nodes) {
     Row r{ascii(n.name), ascii(n.device),
-          {n.state == "dead" ? "DEAD" : ascii(n.state), fmt::format("{} bundles", n.bundles),
+          {n.state == "dead" ? "DEAD" : n.state == "quarantined" ? "QUARANTINED" : ascii(n.state),
+           fmt::format("{} bundles", n.bundles),
            fmt::format("{:.1f}/s", n.rate), fmt::format("idle {}", duration(n.idle_s, true)),
            fmt::format("{} ago", duration(n.last_seen_s, true))}};
     name_w = std::max(name_w, r.name.size());
@@ -135,7 +136,7 @@ std::vector<std::string> live_lines(const Status& s, int columns) {
   }
 
   for (const auto& r : rows) {
-    bool dead = r.tail[0] == "DEAD";
+    bool dead = r.tail[0] == "DEAD" || r.tail[0] == "QUARANTINED";
     std::string line = fmt::format("{} {}", dead ? '!' : ' ', fit(r.name, name_w));
     if (device_w > 0) line += fmt::format("  {}", fit(r.device, device_w));
     for (size_t j = 0; j < tail_w.size(); ++j)
@@ -148,9 +149,13 @@ std::vector<std::string> live_lines(const Status& s, int columns) {
 
 std::string plain_line(const Status& s) {
   size_t dead = std::count_if(s.nodes.begin(), s.nodes.end(), [](const auto& n) { return n.state == "dead"; });
+  size_t quarantined = std::count_if(s.nodes.begin(), s.nodes.end(), [](const auto& n) { return n.state == "quarantined"; });
+  std::string out;
+  if (dead > 0) out = fmt::format("{} dead", dead);
+  if (quarantined > 0) out += fmt::format("{}{} quarantined", out.empty() ? "" : ", ", quarantined);
   return fmt::format("sirad: {}/{} bundles, {:.1f} bundles/s, {}, {} node{}{}", s.bundles_done, s.bundles,
                      run_rate(s), error_text(s), s.nodes.size(), s.nodes.size() == 1 ? "" : "s",
-                     dead > 0 ? fmt::format(" ({} dead)", dead) : std::string());
+                     out.empty() ? std::string() : " (" + out + ")");
 }
 
 std::string redraw(int previous_lines, const std::vector<std::string>& lines) {

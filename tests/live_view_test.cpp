@@ -69,6 +69,18 @@ TEST(LiveViewLines, ErrorIsNaUntilThereIsAnEstimate) {
   EXPECT_EQ(plain_line(s), "sirad: 412/1000 bundles, 87.3 bundles/s, error 0.46%, 3 nodes (1 dead)");
 }
 
+// A quarantined node is flagged like a dead one in its row and counted apart in the plain line.
+TEST(LiveViewLines, QuarantinedNodesAreFlagged) {
+  Status s = three_nodes();
+  s.nodes[1].state = "quarantined";
+  s.nodes[1].why = "chunk 0 value 3 is nan";
+  std::vector<std::string> lines = live_lines(s, 200);
+  EXPECT_EQ(lines[2].rfind("! gpu-box-2", 0), 0u) << lines[2];
+  EXPECT_NE(lines[2].find("QUARANTINED"), std::string::npos) << lines[2];
+  EXPECT_EQ(plain_line(s), "sirad: 412/1000 bundles, 87.3 bundles/s, error 2.31%, 3 nodes (1 dead, 1 quarantined)");
+  EXPECT_NE(to_json(s).find("\"why\": \"chunk 0 value 3 is nan\""), std::string::npos);
+}
+
 TEST(LiveViewLines, EtaFromTheRunRate) {
   Status s = three_nodes();
   auto bar = [&] { return live_lines(s, 200)[0]; };
