@@ -89,9 +89,11 @@ std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeo
   do {
     if (!socket.recv(part)) return std::nullopt;
     frames.emplace_back(part.to_string());
-    if (user_id && frames.size() == 1) {
-      const char* user = zmq_msg_gets(part.handle(), "User-Id");  // NULL without ZAP
-      *user_id = user ? user : "";
+    // The ZAP user id rides on the frames that came through the pipe (a ROUTER's routing-id
+    // frame is made locally and has none): the last frame that carries it.
+    if (user_id) {
+      if (frames.size() == 1) user_id->clear();
+      if (const char* user = zmq_msg_gets(part.handle(), "User-Id")) *user_id = user;  // NULL without ZAP
     }
   } while (part.more());
   return frames;

@@ -391,6 +391,95 @@ TEST(Cluster, NodeSaysHelloWithBackOffUntilACoordinatorAnswers) {
   node.join();
 }
 
+// Under CURVE a quarantine sticks to the key: a liar with an allowed key sends NaN, is
+// quarantined, and comes back on a new socket (a new routing id) with the same key: its HELLO
+// is refused. Another allowed key is still welcome. The honest node finishes the run.
+TEST(Cluster, AQuarantineSticksToTheCurveKey) {
+  RunConfig c = furnace(2048);
+  c.exchange_every = 16;
+  c.timeout_s = 60;
+  c.min_nodes = 2;
+  Outcome out;
+  out.mesh = mesh_scene(c.scene, c.mesh_options);
+  proto::KeyPair server = proto::generate_keypair(), honest = proto::generate_keypair(), liar = proto::generate_keypair(),
+                 other = proto::generate_keypair();
+  zmq::context_t context;
+  proto::ZapHandler zap(context, {{honest.public_key, "honest"}, {liar.public_key, "liar"}, {other.public_key, "other"}});
+  zmq::socket_t router(context, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  proto::make_curve_server(router, server);
+  router.bind("tcp://127.0.0.1:*");
+  const std::string endpoint = router.get(zmq::sockopt::last_endpoint);
+  std::atomic<bool> stop{false};
+  std::thread node([&] {
+    node::serve(context, endpoint, {.name = "honest", .stop = &stop, .curve_keys = honest, .server_key = server.public_key});
+  });
+  auto dealer = [&](const proto::KeyPair& keys) {
+    auto s = std::make_unique<zmq::socket_t>(context, zmq::socket_type::dealer);
+    s->set(zmq::sockopt::linger, 0);
+    proto::make_curve_client(*s, keys, server.public_key);
+    s->connect(endpoint);
+    return s;
+  };
+  auto hello = [&](zmq::socket_t& s, const char* name) {
+    wire::Hello h;
+    h.set_node_name(name);
+    proto::send(s, {proto::Command::hello, h, {}});
+  };
+  // The first answer to a HELLO that is WELCOME or ERROR.
+  auto answer = [&](zmq::socket_t& s) {
+    for (int i = 0; i < 100; ++i)
+      if (auto f = proto::receive(s, 100)) {
+        proto::Message m = proto::decode(*f);
+        if (m.command == proto::Command::welcome || m.command == proto::Command::error) return m;
+      }
+    return proto::Message{};
+  };
+  bool refused = false, other_welcome = false;
+  std::thread attacker([&] {
+    auto s = dealer(liar);
+    hello(*s, "liar");
+    proto::Message w = answer(*s);
+    ASSERT_EQ(w.command, proto::Command::welcome);
+    wire::Run run = std::get<wire::Welcome>(w.header).run();
+    wire::Ready ready;
+    ready.set_run_id(run.run_id());
+    proto::send(*s, {proto::Command::ready, ready, {}});
+    for (int i = 0; i < 100; ++i)
+      if (auto f = proto::receive(*s, 100)) {
+        proto::Message m = proto::decode(*f);
+        if (m.command != proto::Command::grant) continue;
+        const auto& g = std::get<wire::Grant>(m.header);
+        wire::Report r;
+        r.set_run_id(run.run_id());
+        r.set_grant_id(g.grant_id());
+        *r.mutable_done() = g.ranges();
+        r.add_chunks(0);
+        r.add_counts(1);
+        std::size_t n = run.chunk_starts_size() > 1 ? run.chunk_starts(1) : run.patches();
+        proto::send(*s, {proto::Command::report, r, {proto::pack(std::vector<double>(3 * n, std::nan("")))}});
+        break;
+      }
+    ASSERT_EQ(answer(*s).command, proto::Command::error);  // quarantined
+    s.reset();
+    auto again = dealer(liar);  // a new routing id, the same key
+    hello(*again, "liar-again");
+    refused = answer(*again).command == proto::Command::error;
+    auto fresh = dealer(other);
+    hello(*fresh, "other");
+    other_welcome = answer(*fresh).command == proto::Command::welcome;
+  });
+  out.result = coordinate(router, c, out.mesh);
+  stop = true;
+  node.join();
+  attacker.join();
+  EXPECT_TRUE(refused) << "the quarantined key came back on a new socket";
+  EXPECT_TRUE(other_welcome);
+  EXPECT_FALSE(test::node_named(out.result, "liar").quarantined.empty());
+  EXPECT_EQ(test::node_named(out.result, "honest").bundles, 2048u);
+  for (const auto& n : out.result.nodes) EXPECT_NE(n.name, "liar-again");
+}
+
 // What a lying node sends after one plausible but far-off report.
 enum class Lie { nan_sum, infinite_error_estimate, count_beyond_bundles };
 
