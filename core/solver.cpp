@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/error.h"
 
@@ -184,6 +185,13 @@ void Solver::update_average_state() {
 void Solver::absorb(std::size_t first, std::span<const glm::dvec3> others, uint64_t others_count) {
   if (first > mesh_.size() || others.size() > mesh_.size() - first)
     fail("absorb: patches [{}, {}) outside the mesh's {}", first, first + others.size(), mesh_.size());
+  // The others' sums as the coordinator checks every node's (cluster::Aggregate::check): finite
+  // and within count x FLT_MAX; checked before any is taken.
+  const double limit = static_cast<double>(others_count) * static_cast<double>(std::numeric_limits<float>::max());
+  for (std::size_t i = 0; i < others.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite(others[i][k]) || std::fabs(others[i][k]) > limit)
+        fail("absorb: patch {} value {} for {} bundles", first + i, others[i][k], others_count);
   for (std::size_t i = 0; i < others.size(); ++i) {
     others_sum_[first + i] = others[i];
     others_count_[first + i] = others_count;

@@ -289,6 +289,15 @@ TEST(SolverExchange, AbsorbMakesTheAverageInputTheUnionOfSamples) {
   EXPECT_DOUBLE_EQ(a.state()[first].x, (a.sum()[first].x + b.sum()[first].x) / 41.0);
   EXPECT_DOUBLE_EQ(a.state()[0].x, a.sum()[0].x / 11.0);
   EXPECT_THROW(a.absorb(mesh.size() - 1, std::span(b.sum()).subspan(0, 2), 1), Error);
+  // An UPDATE no coordinator can send (NaN, or beyond count x FLT_MAX) is refused whole: the
+  // state is as before.
+  std::vector<glm::dvec3> bad(b.sum().begin(), b.sum().begin() + 4);
+  bad[2].y = std::nan("");
+  auto kept = a.state();
+  EXPECT_THROW(a.absorb(0, bad, 30), Error);
+  bad[2].y = 1e41;  // 30 x FLT_MAX is 1.02e40
+  EXPECT_THROW(a.absorb(0, bad, 30), Error);
+  EXPECT_EQ(0, std::memcmp(kept.data(), a.state().data(), kept.size() * sizeof(kept[0])));
 
   Solver c(mesh, *engine, {.seed = 3, .grid = 24});
   for (uint64_t k = 0; k < 5; ++k) c.step(k);
