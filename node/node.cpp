@@ -257,6 +257,13 @@ class Node {
   // Scene chunks in order; the last one completes the scene: mesh it, check the hash, start.
   void scene(const wire::SceneChunk& c, const std::string& bytes) {
     if (!pending_ || c.offset() != scene_bytes_.size()) return error("SCENE out of order");
+    // No scene file sirad reads is larger (core/scene.cpp); a claim beyond it is refused before
+    // the node buffers it.
+    constexpr uint64_t kMaxSceneBytes = uint64_t{1} << 31;
+    if (c.total_bytes() > kMaxSceneBytes) {
+      pending_.reset();
+      return error(fmt::format("SCENE of {} bytes (at most {})", c.total_bytes(), kMaxSceneBytes));
+    }
     scene_bytes_ += bytes;
     if (!c.last()) return;
     try {
