@@ -109,6 +109,8 @@ int main(int argc, char** argv) {
   try {
     if (out.empty()) out = std::filesystem::path(scene_spec).stem().string();
     check_output_name(out);
+    if (!ledger.empty()) check_output_name(ledger, "--ledger");
+    if (!checkpoint.empty()) check_output_name(checkpoint, "--checkpoint");
     cluster::RunConfig rc;
     rc.scene = load_scene(scene_spec);
     rc.mesh_options.target_patches = static_cast<std::size_t>(patches);
@@ -137,6 +139,11 @@ int main(int argc, char** argv) {
     rc.emulate_bandwidth = !network_bandwidth;
     std::optional<wire::Checkpoint> resumed;
     if (!resume.empty()) {
+      // The run's settings are the checkpoint's: a flag that would change them is a mistake.
+      for (const char* flag : {"--bundles", "--patches", "--grid", "--seed", "--rule", "--directions", "--control-variate",
+                               "--shots-per-bundle", "--shot-resolution", "--exchange-every", "--exchange-fraction",
+                               "--topology", "--mode", "--balance", "--chunks", "--time-limit", "--target-error"})
+        if (app.count(flag) > 0) fail("{} with --resume: a resumed run keeps the checkpoint's settings", flag);
       resumed = cluster::read_checkpoint(resume);
       cluster::apply_checkpoint(rc, *resumed);  // the run's settings are the checkpoint's
       rc.resume = &*resumed;

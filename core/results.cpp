@@ -9,13 +9,13 @@
 
 namespace sirad {
 
-void check_output_name(const std::string& name) {
-  if (name.empty()) fail("--out: empty output name");
+void check_output_name(const std::string& name, const std::string& flag) {
+  if (name.empty()) fail("{}: empty output name", flag);
   std::filesystem::path dir = std::filesystem::path(name).parent_path();
   if (dir.empty()) dir = ".";
   std::error_code ec;
-  if (!std::filesystem::is_directory(dir, ec)) fail("--out {}: directory '{}' does not exist", name, dir.string());
-  if (::access(dir.c_str(), W_OK) != 0) fail("--out {}: directory '{}' is not writable", name, dir.string());
+  if (!std::filesystem::is_directory(dir, ec)) fail("{} {}: directory '{}' does not exist", flag, name, dir.string());
+  if (::access(dir.c_str(), W_OK) != 0) fail("{} {}: directory '{}' is not writable", flag, name, dir.string());
 }
 
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,

@@ -19,7 +19,7 @@ struct ResultFiles {
 };
 
 // Fails early, before any work, if NAME's directory does not exist or is not writable.
-void check_output_name(const std::string& name);
+void check_output_name(const std::string& name, const std::string& flag = "--out");
 
 // Renders the view of the mesh's camera and writes the three files atomically.
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,

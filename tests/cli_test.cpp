@@ -336,7 +336,8 @@ TEST_F(Cli, KeysAndTheInsecureFlag) {
   EXPECT_EQ(program(node, "--connect ipc:///tmp/sirad-x --check-config").status, 0);
 }
 
-// --resume with a file that is not a checkpoint, or none, is one line naming the file.
+// --resume with a file that is not a checkpoint, or none, is one line naming the file; a flag
+// that would change the resumed run's settings is refused.
 TEST_F(Cli, ResumeRefusesWhatIsNotACheckpoint) {
   const std::string coordinator = SIRAD_COORDINATOR_BINARY;
   write("junk.checkpoint", "this is not a checkpoint");
@@ -344,6 +345,13 @@ TEST_F(Cli, ResumeRefusesWhatIsNotACheckpoint) {
                "junk.checkpoint: not a sirad checkpoint", "sirad-coordinator");
   expect_error(program(coordinator, "furnace --listen tcp://127.0.0.1:5555 --insecure --check-config --resume none.checkpoint"),
                "none.checkpoint: cannot read the checkpoint", "sirad-coordinator");
+  expect_error(program(coordinator, "furnace --listen tcp://127.0.0.1:5555 --insecure --check-config --resume junk.checkpoint "
+                                    "--bundles 50"),
+               "--bundles with --resume", "sirad-coordinator");
+  expect_error(program(coordinator, "furnace --listen tcp://127.0.0.1:5555 --insecure --check-config --ledger no/such/ledger.csv"),
+               "--ledger no/such/ledger.csv: directory 'no/such' does not exist", "sirad-coordinator");
+  expect_error(program(coordinator, "furnace --listen tcp://127.0.0.1:5555 --insecure --check-config --checkpoint no/such/c"),
+               "--checkpoint no/such/c: directory 'no/such' does not exist", "sirad-coordinator");
 }
 
 // Emulation profiles and the run-ending flags: bad ones are one line naming file, line and key.
