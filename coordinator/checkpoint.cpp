@@ -2,8 +2,6 @@
 #include "coordinator/checkpoint.h"
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -18,12 +16,9 @@ void write_checkpoint(const std::string& path, const wire::Checkpoint& c) {
 }
 
 wire::Checkpoint read_checkpoint(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail("{}: cannot read the checkpoint", path);
-  std::ostringstream s;
-  s << in.rdbuf();
   wire::Checkpoint c;
-  if (!c.ParseFromString(s.str()) || c.magic() != kCheckpointMagic) fail("{}: not a sirad checkpoint", path);
+  if (!c.ParseFromString(read_file_whole(path, "checkpoint")) || c.magic() != kCheckpointMagic)
+    fail("{}: not a sirad checkpoint", path);
   if (c.version() != kCheckpointVersion)
     fail("{}: checkpoint version {}; this sirad reads version {}", path, c.version(), kCheckpointVersion);
   const wire::Run& run = c.run();

@@ -2,16 +2,13 @@
 #include "coordinator/profile.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <cstring>
-#include <fstream>
 #include <limits>
-#include <sstream>
 
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 
 namespace sirad::emulation {
@@ -115,12 +112,7 @@ Profile parse_profile(const std::string& text, const std::string& origin) {
 }
 
 Profile load_profile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail("{}: cannot read the profile: {}", path, std::strerror(errno));
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (text.str().size() > (1 << 20)) fail("{}: a profile of over 1 MiB is not a profile", path);
-  return parse_profile(text.str(), path);
+  return parse_profile(read_file_whole(path, "profile", std::size_t{1} << 20), path);
 }
 
 LinkModel::LinkModel(double mbit, double latency_ms, double jitter_ms, double loss, uint64_t seed)

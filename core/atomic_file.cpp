@@ -4,6 +4,8 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <utility>
 
 #include <fcntl.h>
@@ -63,6 +65,17 @@ void write_file_atomic(const std::string& path, const std::string& text) {
   AtomicFile f(path);
   f.write(text.data(), text.size());
   f.commit();
+}
+
+std::string read_file_whole(const std::string& path, const std::string& what, std::size_t max_bytes) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("{}: cannot read the {}: {}", path, what, std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (max_bytes > 0 && text.str().size() > max_bytes)
+    fail("{}: not a {} (over {})", path, what,
+         max_bytes % (1 << 20) == 0 ? fmt::format("{} MiB", max_bytes >> 20) : fmt::format("{} KiB", max_bytes >> 10));
+  return std::move(text).str();
 }
 
 }  // namespace sirad

@@ -1,4 +1,4 @@
-// sirad: atomic file replacement: output goes to a temporary beside the target, renamed onto it.
+// sirad: whole files: atomic replacement (a temporary beside the target, renamed onto it) and reading.
 #pragma once
 #include <cstddef>
 #include <cstdio>
@@ -33,5 +33,10 @@ class AtomicFile {
 
 // Replaces `path` atomically with `text`.
 void write_file_atomic(const std::string& path, const std::string& text);
+
+// The whole of the file at `path` (a profile, a key file, a checkpoint), or one error:
+// "PATH: cannot read the WHAT: REASON", or, beyond `max_bytes` (0: no bound),
+// "PATH: not a WHAT (over N KiB or MiB)".
+std::string read_file_whole(const std::string& path, const std::string& what, std::size_t max_bytes = 0);
 
 }  // namespace sirad

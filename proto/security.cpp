@@ -6,7 +6,6 @@
 #include <cctype>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <optional>
 #include <sstream>
 #include <vector>
@@ -27,16 +26,6 @@ bool is_z85_key(const std::string& s) {
   if (s.size() != kZ85KeyChars) return false;
   uint8_t raw[32];
   return zmq_z85_decode(raw, s.c_str()) != nullptr;
-}
-
-std::string read_text(const std::string& path, const char* what) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail("{}: cannot read the {}", path, what);
-  std::ostringstream s;
-  s << in.rdbuf();
-  std::string text = s.str();
-  if (text.size() > 64 * 1024) fail("{}: not a {} (over 64 KiB)", path, what);
-  return text;
 }
 
 // The value of `key = "..."` in a certificate (czmq's ZPL), if present; a malformed value is
@@ -100,7 +89,7 @@ KeyPair load_secret_key(const std::string& path) {
   if (::stat(path.c_str(), &st) != 0) fail("{}: cannot read the secret key file", path);
   if ((st.st_mode & 077) != 0)
     fail("{}: secret key file has mode {:04o}; others may read it (chmod 600 {})", path, st.st_mode & 07777, path);
-  std::string text = read_text(path, "secret key file");
+  std::string text = read_file_whole(path, "secret key file", 64 * 1024);
   std::optional<std::string> pub = cert_value(text, "public-key", path), sec = cert_value(text, "secret-key", path);
   if (!sec) fail("{}: no secret-key in the file (is it the .key_secret file?)", path);
   if (!pub) fail("{}: no public-key in the file", path);
@@ -111,7 +100,7 @@ KeyPair load_secret_key(const std::string& path) {
 }
 
 std::string load_public_key(const std::string& path) {
-  std::string text = read_text(path, "public key file");
+  std::string text = read_file_whole(path, "public key file", 64 * 1024);
   if (std::optional<std::string> pub = cert_value(text, "public-key", path)) return *pub;
   std::string trimmed;
   for (char c : text)
@@ -121,7 +110,7 @@ std::string load_public_key(const std::string& path) {
 }
 
 AllowList load_allow_list(const std::string& path) {
-  std::string text = read_text(path, "allow list");
+  std::string text = read_file_whole(path, "allow list", 64 * 1024);
   AllowList out;
   std::istringstream in(text);
   std::string line;
