@@ -51,26 +51,10 @@ wire::Checkpoint read_checkpoint(const std::string& path) {
 }
 
 void apply_checkpoint(RunConfig& config, const wire::Checkpoint& c) {
-  const wire::Run& r = c.run();
-  config.bundles = r.bundles();
-  config.seed = r.seed();
-  config.grid = static_cast<int>(r.grid());
-  config.rule = parse_update_rule(r.rule());
-  config.burn_in = r.burn_in();
-  config.directions = r.directions().empty() ? Directions::random : parse_directions(r.directions());
-  config.control_variate = !r.no_control_variate();
-  config.shots_per_bundle = r.shots_per_bundle();
-  config.shot_resolution = static_cast<int>(r.shot_resolution());
-  config.exchange_every = r.exchange_every();
-  config.fraction = r.exchange_fraction();
-  config.topology = parse_topology(r.topology());
-  config.mode = parse_mode(r.mode());
-  config.chunks = static_cast<uint32_t>(r.chunk_starts_size());
+  apply_run(config, c.run());
   config.balance = c.balance();
   config.time_limit_s = c.time_limit_s();
   config.target_error = c.target_error();
-  config.mesh_options.target_patches = r.target_patches();
-  config.mesh_options.max_edge = r.max_edge();
 }
 
 void put_snapshot(wire::Checkpoint& c, const PolicySnapshot& s) {

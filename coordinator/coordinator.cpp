@@ -18,6 +18,7 @@
 #include "core/bundle.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
+#include "core/error_estimate.h"
 #include "core/scene_io.h"
 #include "proto/transport.h"
 
@@ -567,6 +568,41 @@ class Coordinator {
 };
 
 }  // namespace
+
+void apply_run(RunConfig& config, const wire::Run& r) {
+  config.bundles = r.bundles();
+  config.seed = r.seed();
+  config.grid = static_cast<int>(r.grid());
+  config.rule = parse_update_rule(r.rule());
+  config.burn_in = r.burn_in();
+  config.directions = r.directions().empty() ? Directions::random : parse_directions(r.directions());
+  config.control_variate = !r.no_control_variate();
+  config.shots_per_bundle = r.shots_per_bundle();
+  config.shot_resolution = static_cast<int>(r.shot_resolution());
+  config.exchange_every = r.exchange_every();
+  config.fraction = r.exchange_fraction();
+  config.topology = parse_topology(r.topology());
+  config.mode = parse_mode(r.mode());
+  config.chunks = static_cast<uint32_t>(r.chunk_starts_size());
+  config.mesh_options.target_patches = r.target_patches();
+  config.mesh_options.max_edge = r.max_edge();
+}
+
+SolverOptions node_solver_options(const RunConfig& c, const PatchMesh& mesh, uint32_t index) {
+  SolverOptions so;
+  so.seed = c.seed;
+  so.grid = c.grid == 0 ? auto_grid(mesh) : c.grid;
+  so.rule = c.rule;
+  so.burn_in = c.burn_in;
+  so.directions = c.directions;
+  so.control_variate = c.control_variate;
+  so.chain_id = index;
+  // Its batch means for the error estimate (chain rule; memory-bounded: error_estimate.h).
+  so.track_error = so.rule == UpdateRule::chain && mesh.size() <= kTrackErrorMaxPatches;
+  so.shots_per_bundle = c.shots_per_bundle;
+  so.shot_resolution = c.shot_resolution;
+  return so;
+}
 
 PolicyConfig policy_config(const RunConfig& c, const PatchMesh& mesh, uint32_t min_nodes) {
   if (c.directions == Directions::stratified && c.rule != UpdateRule::chain)

@@ -101,6 +101,16 @@ struct RunResult {
   std::string exchange_why;     // with auto: how it chose
 };
 
+// The settings a wire Run carries (what the coordinator sends in WELCOME and keeps in its
+// checkpoint) into `config`: bundles, seed, grid, rule, burn-in, directions, control variate,
+// first shot, exchange period and fraction, topology, mode, chunks, meshing. Throws
+// sirad::Error for a rule, directions, topology or mode it does not know.
+void apply_run(RunConfig& config, const wire::Run& run);
+
+// The solver options of node `index` in a run of `config` on `mesh`: a node from its WELCOME
+// (apply_run), the virtual-time cluster from its own config.
+SolverOptions node_solver_options(const RunConfig& config, const PatchMesh& mesh, uint32_t index);
+
 // The policy's settings for a run of `config` on `mesh` (checks the sampling settings; the
 // chooser of --exchange-every auto is the driver's to add).
 PolicyConfig policy_config(const RunConfig& config, const PatchMesh& mesh, uint32_t min_nodes);

@@ -14,7 +14,6 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
-#include "core/error_estimate.h"
 #include "core/scene_io.h"
 #include "core/solver.h"
 
@@ -317,21 +316,6 @@ void check_emulation(const EmulateConfig& c, std::size_t patches) {
       fail("emulate: profile{}: node emu-{} disconnects at {} s: disconnects are not emulated in virtual time (use sirad render --nodes)",
            c.run.profile->name.empty() ? "" : " " + c.run.profile->name, n, spec.disconnect_at_s);
   }
-}
-
-SolverOptions node_solver_options(const RunConfig& c, const PatchMesh& mesh, uint32_t index) {
-  SolverOptions so;
-  so.seed = c.seed;
-  so.grid = c.grid == 0 ? auto_grid(mesh) : c.grid;
-  so.rule = c.rule;
-  so.burn_in = c.burn_in;
-  so.directions = c.directions;
-  so.control_variate = c.control_variate;
-  so.chain_id = index;
-  so.track_error = so.rule == UpdateRule::chain && mesh.size() <= kTrackErrorMaxPatches;
-  so.shots_per_bundle = c.shots_per_bundle;
-  so.shot_resolution = c.shot_resolution;
-  return so;
 }
 
 double measure_bundle_seconds(const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots, const SolverOptions& options,

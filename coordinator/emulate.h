@@ -74,9 +74,6 @@ void check_emulation(const EmulateConfig& config, std::size_t patches);
 double measure_bundle_seconds(const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots,
                               const SolverOptions& options, int steps = 9);
 
-// The solver options a node of run `config` uses (node/node.cpp does the same from the wire).
-SolverOptions node_solver_options(const RunConfig& config, const PatchMesh& mesh, uint32_t index);
-
 // Runs the emulated cluster on `mesh` (meshed from config.run.scene). `shots` is needed when
 // the run has a first shot. Throws sirad::Error for settings the emulation cannot model.
 EmulateResult emulate(const EmulateConfig& config, const PatchMesh& mesh, BundleEngine& engine,

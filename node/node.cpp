@@ -13,6 +13,7 @@
 
 #include <fmt/format.h>
 
+#include "coordinator/coordinator.h"
 #include "coordinator/profile.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
@@ -268,26 +269,15 @@ class Node {
     if (!c.last()) return;
     try {
       const wire::Run& run = pending_->run;
+      cluster::RunConfig settings;  // the run's settings as the coordinator has them
+      cluster::apply_run(settings, run);
       Scene scene = decode_scene(scene_bytes_, "scene from coordinator");
-      MeshOptions mo;
-      mo.target_patches = run.target_patches();
-      mo.max_edge = run.max_edge();
-      pending_->mesh = mesh_scene(scene, mo);
+      pending_->mesh = mesh_scene(scene, settings.mesh_options);
       if (pending_->mesh.hash != run.scene_hash())
         fail("meshed scene hash {} differs from the run's {}", pending_->mesh.hash, run.scene_hash());
       pending_->engine = make_cl_engine(pending_->mesh, {.device = options_.device});
-      SolverOptions so;
-      so.seed = run.seed();
-      so.grid = static_cast<int>(run.grid());
-      so.rule = parse_update_rule(run.rule());
-      so.burn_in = run.burn_in();
-      so.directions = run.directions().empty() ? Directions::random : parse_directions(run.directions());
-      so.control_variate = !run.no_control_variate();
-      so.chain_id = pending_->index;
-      // Its batch means go out with each REPORT (chain rule; memory-bounded: error_estimate.h).
-      so.track_error = so.rule == UpdateRule::chain && pending_->mesh.size() <= kTrackErrorMaxPatches;
-      so.shots_per_bundle = run.shots_per_bundle();
-      so.shot_resolution = static_cast<int>(run.shot_resolution());
+      // Its batch means go out with each REPORT under the chain rule (node_solver_options).
+      SolverOptions so = cluster::node_solver_options(settings, pending_->mesh, pending_->index);
       if (so.shots_per_bundle > 0) pending_->shots = make_cl_shot_engine(pending_->mesh, options_.device);
       auto t0 = Clock::now();
       pending_->solver = std::make_unique<Solver>(pending_->mesh, *pending_->engine, so, pending_->shots.get());
