@@ -29,6 +29,7 @@
 #include "core/bundle_cl.h"
 #include "core/scene.h"
 #include "core/solver.h"
+#include "coordinator/status.h"
 
 extern char** environ;
 namespace fs = std::filesystem;
@@ -70,6 +71,8 @@ class Child {
   }
   void terminate() { ::kill(pid_, SIGTERM); }
   void kill9() { ::kill(pid_, SIGKILL); }
+  void pause() { ::kill(pid_, SIGSTOP); }
+  void resume() { ::kill(pid_, SIGCONT); }
   bool started() const { return pid_ > 0; }
 
  private:
@@ -332,15 +335,43 @@ struct KillRun {
   uint64_t done_at_kill = 0;
 };
 
-// A coordinator and 3 node processes (p0, p1, p2) over loopback TCP, heartbeats every 200 ms;
-// once a quarter of the bundles are done, node p1 gets SIGKILL. With `restart`, a new p1
-// process starts once the coordinator has declared the old one dead (the same name, a new
-// routing id: it joins as a new node).
+// The nodes of a --status-json file (none while it does not exist yet).
+std::vector<sirad::cluster::Status::Node> status_nodes(const fs::path& status) {
+  try {
+    return sirad::cluster::read_status(status.string()).nodes;
+  } catch (const std::exception&) {
+    return {};
+  }
+}
+
+// Waits until `event` holds, polling every 25 ms for at most `seconds` (a bound against a hung
+// run, not a timing assumption: every event waited for here must happen). Returns whether it did.
+template <typename F>
+bool wait_until(F event, double seconds) {
+  for (int i = 0; i < seconds * 40; ++i) {
+    if (event()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  return event();
+}
+
+// A coordinator and 3 node processes (p0, p1, p2) over loopback TCP; node p1 gets SIGKILL in
+// the middle of the run. No step races the clock: the run is held open until each event has
+// happened.
+//   1. p0 and p2 join and wait (the run needs 3 nodes), then are stopped (SIGSTOP);
+//   2. p1 joins, the run starts and grants go to all three; p0's and p2's stay outstanding while
+//      they are stopped (heartbeats every 250 ms with a liveness of 100 keep them alive 25 s),
+//      so the run cannot end; p1 works alone until the status shows bundles of its own;
+//   3. p1 is killed; the coordinator declares it dead (its next heartbeat cannot be sent);
+//   4. with `restart`, a new p1 process starts (the same name, a new routing id: it joins as a
+//      new node) and works alone until the status shows its bundles;
+//   5. p0 and p2 continue and the run finishes.
 KillRun run_with_kill(const fs::path& dir, std::vector<std::string> run_args, uint64_t bundles, bool restart) {
+  const fs::path status = dir / "status.json";
   std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY, "--listen", "tcp://127.0.0.1:*", "--insecure",
                                    "--endpoint-file", (dir / "endpoint").string(), "--min-nodes", "3", "--timeout", "120",
-                                   "--heartbeat-ms", "200", "--status-json", (dir / "status.json").string(), "--ledger",
-                                   (dir / "ledger.csv").string(), "--bundles", std::to_string(bundles), "-q"};
+                                   "--heartbeat-ms", "250", "--liveness", "100", "--status-json", status.string(),
+                                   "--ledger", (dir / "ledger.csv").string(), "--bundles", std::to_string(bundles), "-q"};
   args.insert(args.end(), run_args.begin(), run_args.end());
   KillRun out;
   Child coordinator(args, dir / "coordinator.log");
@@ -351,17 +382,34 @@ KillRun run_with_kill(const fs::path& dir, std::vector<std::string> run_args, ui
         std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", fmt::format("p{}", i)},
         dir / log);
   };
-  std::vector<std::unique_ptr<Child>> nodes;
-  for (int i = 0; i < 3; ++i) nodes.push_back(node(i, fmt::format("node{}.log", i)));
-  for (int i = 0; i < 2400 && bundles_done(dir / "status.json") < bundles / 4; ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  // Whether the status lists `count` nodes named `name` and the last of them is in one of `states`
+  // (with bundles, when `working`).
+  auto shows = [&](const std::string& name, std::size_t count, std::set<std::string> states, bool working) {
+    std::vector<sirad::cluster::Status::Node> found;
+    for (const auto& n : status_nodes(status))
+      if (n.name == name) found.push_back(n);
+    return found.size() == count && states.count(found.back().state) && (!working || found.back().bundles > 0);
+  };
+  std::vector<std::unique_ptr<Child>> nodes(3);
+  nodes[0] = node(0, "node0.log");
+  nodes[2] = node(2, "node2.log");
+  EXPECT_TRUE(wait_until([&] { return shows("p0", 1, {"waiting"}, false) && shows("p2", 1, {"waiting"}, false); }, 90))
+      << "p0 and p2 never joined: " << slurp(dir / "coordinator.log");
+  nodes[0]->pause();
+  nodes[2]->pause();
+  nodes[1] = node(1, "node1.log");
+  EXPECT_TRUE(wait_until([&] { return shows("p1", 1, {"working", "waiting"}, true); }, 90)) << "p1 never ran a bundle";
   nodes[1]->kill9();
-  out.done_at_kill = bundles_done(dir / "status.json");
+  out.done_at_kill = bundles_done(status);
+  EXPECT_TRUE(wait_until([&] { return slurp(dir / "coordinator.log").find("p1: declared dead") != std::string::npos; }, 60))
+      << "p1 was never declared dead";
   if (restart) {
-    for (int i = 0; i < 400 && slurp(dir / "coordinator.log").find("p1: declared dead") == std::string::npos; ++i)
-      std::this_thread::sleep_for(std::chrono::milliseconds(25));
     nodes.push_back(node(1, "node1-restarted.log"));
+    EXPECT_TRUE(wait_until([&] { return shows("p1", 2, {"working", "waiting"}, true); }, 90))
+        << "the new p1 never ran a bundle";
   }
+  nodes[0]->resume();
+  nodes[2]->resume();
   out.status = coordinator.wait(150);
   out.log = slurp(dir / "coordinator.log");
   for (auto& n : nodes) n->terminate();
@@ -460,6 +508,7 @@ uint64_t wait_for_bundles(const fs::path& status, uint64_t bundles, double secon
 
 // The coordinator dies and is resumed from its checkpoint, twice, while 3 node processes keep
 // running and reconnect on their own: first kill -9 (the periodic checkpoint, every 0.2 s),
+// with the nodes stopped meanwhile so that the run cannot end before the kill,
 // then SIGTERM (it writes a checkpoint and exits non-zero, saying how to resume). The last
 // coordinator finishes with exactly K bundles, every index once in its ledger (the nodes of
 // every incarnation), each node process in the run 3 times (it rejoined each new coordinator
@@ -474,7 +523,7 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
   auto coordinator = [&](const std::string& listen, std::vector<std::string> extra, int n) {
     std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY, "furnace", "--listen", listen, "--insecure",
                                      "--endpoint-file", (dir / "endpoint").string(), "--timeout", "120",
-                                     "--heartbeat-ms", "200", "--status-json", (dir / "status.json").string(),
+                                     "--heartbeat-ms", "200", "--liveness", "100", "--status-json", (dir / "status.json").string(),
                                      "--checkpoint", (dir / "run.checkpoint").string(), "--checkpoint-every", "0.2",
                                      "--ledger", (dir / "ledger.csv").string(), "--profile", (dir / "wan.yaml").string(),
                                      "--out", (dir / "furnace").string(), "--width", "16", "--height", "16", "-q"};
@@ -493,15 +542,28 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
     nodes.push_back(std::make_unique<Child>(
         std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", fmt::format("p{}", i)},
         dir / fmt::format("node{}.log", i)));
+  // Stops every node (the sync run cannot move on while they are stopped: --liveness keeps them
+  // alive for 20 s) and waits for a checkpoint written after that.
+  auto hold = [&] {
+    for (auto& n : nodes) n->pause();
+    auto before = fs::last_write_time(dir / "run.checkpoint");
+    EXPECT_TRUE(wait_until([&] { return fs::last_write_time(dir / "run.checkpoint") != before; }, 30));
+  };
+  auto release = [&] {
+    for (auto& n : nodes) n->resume();
+  };
   uint64_t at_kill = wait_for_bundles(dir / "status.json", K / 4, 60);
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // a checkpoint after the status
+  ASSERT_TRUE(wait_until([&] { return fs::exists(dir / "run.checkpoint"); }, 30));
+  hold();
   first->kill9();
   ASSERT_EQ(first->wait(10), 128 + SIGKILL);
   ASSERT_TRUE(fs::exists(dir / "run.checkpoint"));
   ASSERT_LT(at_kill, K) << "the kill came after the run";
   // The same endpoint; the settings come from the checkpoint.
   auto second = coordinator(endpoint, {"--resume", (dir / "run.checkpoint").string()}, 1);
+  release();
   uint64_t at_term = wait_for_bundles(dir / "status.json", at_kill + K / 8, 60);
+  hold();
   second->terminate();
   EXPECT_NE(second->wait(30), 0);
   std::string log1 = slurp(dir / "coordinator1.log");
@@ -510,6 +572,7 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
   EXPECT_NE(log1.find("--resume"), std::string::npos) << log1;
   ASSERT_LT(at_term, K) << "the SIGTERM came after the run";
   auto third = coordinator(endpoint, {"--resume", (dir / "run.checkpoint").string()}, 2);
+  release();
   ASSERT_EQ(third->wait(150), 0) << slurp(dir / "coordinator2.log");
   std::string log = slurp(dir / "coordinator2.log");
   std::printf("coordinator killed at %llu, terminated at %llu of %llu bundles\n", static_cast<unsigned long long>(at_kill),
