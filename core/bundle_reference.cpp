@@ -101,21 +101,26 @@ class ReferenceEngine final : public BundleEngine {
         }
     }
 
-    // Sort each line by depth along +w (ties: the patch facing -w first, then by index).
-    for (auto& line : lines)
+    // Sort each line by depth along +w, then order the faces at one place (depths within the
+    // tie of the first of a run): those towards -w first, the later patch first, then those
+    // towards +w, the later patch last (DESIGN.md section 1, "Coincident faces").
+    auto rank = [](const Crossing& c) {
+      return c.front_pos ? (uint64_t{1} << 32) | c.patch : (uint64_t{1} << 32) - 1 - c.patch;
+    };
+    for (auto& line : lines) {
       std::sort(line.begin(), line.end(), [](const Crossing& a, const Crossing& c) {
         if (a.depth != c.depth) return a.depth < c.depth;
         if (a.front_pos != c.front_pos) return !a.front_pos;
         return a.patch < c.patch;
       });
-    // Two coincident faces (one thin wall) whose rounded depths came out towards +w first:
-    // the face towards -w goes first, so each looks outwards.
-    for (auto& line : lines)
-      for (std::size_t k = 0; k + 1 < line.size(); ++k)
-        if (line[k].front_pos && !line[k + 1].front_pos && line[k + 1].depth - line[k].depth <= b.depth_tie) {
-          std::swap(line[k], line[k + 1]);
-          ++k;
-        }
+      for (std::size_t k = 0; k + 1 < line.size();) {
+        std::size_t e = k + 1;
+        while (e < line.size() && line[e].depth - line[k].depth <= b.depth_tie) ++e;
+        std::stable_sort(line.begin() + static_cast<std::ptrdiff_t>(k), line.begin() + static_cast<std::ptrdiff_t>(e),
+                         [&](const Crossing& a, const Crossing& c) { return rank(a) < rank(c); });
+        k = e;
+      }
+    }
 
     // Gather, visiting lines in row-major order (the order each kernel work-item sums in).
     const glm::vec4 background(b.background[0], b.background[1], b.background[2], 0.0f);

@@ -16,6 +16,7 @@
 #include <embree3/rtcore.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <charconv>
 #include <chrono>
@@ -198,13 +199,19 @@ std::vector<Emitter> find_emitters(const PatchMesh& mesh) {
 
 // Embree scene of all patches (one triangle geometry, primID = patch index), robust mode so
 // that rays do not slip between adjacent triangles.
+//
+// Coincident faces follow the rule of the bundles (DESIGN.md section 1, "Coincident faces"):
+// surfaces closer than `tie` along a ray are one place; there a face that shows the ray its front
+// is seen before any that shows its back (the two sides of a thin wall), and of faces that face
+// the same way the later patch is on top (a rug laid on a floor at zero gap): the one below is
+// covered and sees the back of the one on top.
 class RayScene {
  public:
-  explicit RayScene(const PatchMesh& mesh) {
+  RayScene(const PatchMesh& mesh, double tie) : mesh_(mesh), tie_(tie) {
     device_ = rtcNewDevice(nullptr);
     if (!device_) fail("reference: cannot create an Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
     scene_ = rtcNewScene(device_);
-    rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
     rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
     RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
@@ -229,33 +236,78 @@ class RayScene {
   RayScene(const RayScene&) = delete;
   RayScene& operator=(const RayScene&) = delete;
 
-  // The nearest patch along org + t dir, t > 0, or -1.
-  int64_t nearest(const dvec3& org, const dvec3& dir) const {
+  // The patch a ray from org along dir sees (t > 0): the front face it meets first, or -1 when
+  // it meets a back face first or leaves the scene (it then brings the background).
+  int64_t seen(const dvec3& org, const dvec3& dir) const {
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh;
-    set_ray(rh.ray, org, dir, std::numeric_limits<float>::infinity());
+    set_ray(rh.ray, org, dir, 0.0f, std::numeric_limits<float>::infinity());
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &ctx, &rh);
-    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : static_cast<int64_t>(rh.hit.primID);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
+    // Every face within the tie of the nearest hit is at that place; the latest facing the ray
+    // is seen.
+    Hits near = hits_on(org, dir, std::max(0.0, static_cast<double>(rh.ray.tfar) - tie_),
+                        static_cast<double>(rh.ray.tfar) + tie_);
+    int64_t best = -1;
+    for (uint32_t k = 0; k < near.n; ++k)
+      if (glm::dot(dvec3(mesh_.normal[near.prim[k]]), dir) < 0.0) best = std::max<int64_t>(best, near.prim[k]);
+    return best;
+  }
+  // Whether the point x of patch i lies under a later patch at the same place facing the same
+  // way (it then sees that patch's back, and no light reaches it).
+  bool covered(uint32_t i, const dvec3& x) const {
+    const dvec3 n(mesh_.normal[i]);
+    Hits h = hits_on(x - n * tie_, n, 0.0, 2.0 * tie_);
+    for (uint32_t k = 0; k < h.n; ++k)
+      if (h.prim[k] > i && glm::dot(dvec3(mesh_.normal[h.prim[k]]), n) > 0.0) return true;
+    return false;
   }
   // Whether anything lies on the segment org + t (to - org), 0 <= t < 1.
   bool blocked(const dvec3& org, const dvec3& to) const {
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRay r;
-    set_ray(r, org, to - org, 1.0f);
+    set_ray(r, org, to - org, 0.0f, 1.0f);
     rtcOccluded1(scene_, &ctx, &r);
     return r.tfar < 0.0f;
   }
 
  private:
-  static void set_ray(RTCRay& r, const dvec3& org, const dvec3& dir, float tfar) {
+  // The patches met on org + t dir, t0 <= t <= t1 (the first 16, each once).
+  struct Hits {
+    RTCIntersectContext ctx;  // first: Embree hands the filter this address
+    uint32_t n = 0;
+    std::array<uint32_t, 16> prim{};
+  };
+  static void collect(const RTCFilterFunctionNArguments* args) {
+    auto* h = reinterpret_cast<Hits*>(args->context);
+    for (unsigned r = 0; r < args->N; ++r) {
+      if (args->valid[r] == 0) continue;
+      uint32_t prim = RTCHitN_primID(args->hit, args->N, r);
+      if (h->n < h->prim.size() && std::find(h->prim.begin(), h->prim.begin() + h->n, prim) == h->prim.begin() + h->n)
+        h->prim[h->n++] = prim;
+      args->valid[r] = 0;  // refused: the traversal goes on to the next hit
+    }
+  }
+  Hits hits_on(const dvec3& org, const dvec3& dir, double t0, double t1) const {
+    Hits h;
+    rtcInitIntersectContext(&h.ctx);
+    h.ctx.filter = &RayScene::collect;
+    RTCRayHit rh;
+    set_ray(rh.ray, org, dir, static_cast<float>(t0), static_cast<float>(t1));
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene_, &h.ctx, &rh);
+    return h;
+  }
+  static void set_ray(RTCRay& r, const dvec3& org, const dvec3& dir, float tnear, float tfar) {
     r.org_x = static_cast<float>(org.x);
     r.org_y = static_cast<float>(org.y);
     r.org_z = static_cast<float>(org.z);
-    r.tnear = 0.0f;
+    r.tnear = tnear;
     r.dir_x = static_cast<float>(dir.x);
     r.dir_y = static_cast<float>(dir.y);
     r.dir_z = static_cast<float>(dir.z);
@@ -265,6 +317,8 @@ class RayScene {
     r.id = 0;
     r.flags = 0;
   }
+  const PatchMesh& mesh_;
+  double tie_;
   RTCDevice device_;
   RTCScene scene_;
 };
@@ -291,11 +345,14 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
   const int R = o.batches;
   const int rays_b = o.rays_per_patch / R, points_b = o.light_samples / R;
   const std::vector<Emitter> emitters = find_emitters(mesh);
-  RayScene rays(mesh);
   // Ray origins leave the surface along its normal by eps: a few hundred float ulps of the
   // scene's coordinates, so a ray never re-hits its own patch or the back-to-back twin of a
   // thin wall, and far below any patch size (its effect on a form factor is O(eps / distance)).
+  // Faces closer than eps are one place (the coincident-face rule, RayScene): at least the
+  // bundles' depth tie (1e-5 of the scene's radius), so the two agree on every gap a scene
+  // means to be one, and far below any gap meant to let light through.
   const double eps = 1e-5 * (static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center)));
+  RayScene rays(mesh, eps);
 
   std::vector<std::vector<Row>> rows(static_cast<std::size_t>(R), std::vector<Row>(n));
   std::vector<std::vector<dvec3>> direct(static_cast<std::size_t>(R), std::vector<dvec3>(n, dvec3(0.0)));
@@ -325,9 +382,8 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
           for (int k = 0; k < rays_b; ++k) {
             dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
             dvec3 d = cosine_direction(nx, dirs[static_cast<std::size_t>(k)][0], dirs[static_cast<std::size_t>(k)][1]);
-            int64_t j = rays.nearest(x + nx * eps, d);
-            bool front = j >= 0 && glm::dot(dvec3(mesh.normal[static_cast<std::size_t>(j)]), d) < 0.0;
-            hits.push_back(front ? static_cast<uint32_t>(j) : kBackground);
+            int64_t j = rays.covered(static_cast<uint32_t>(i), x) ? -1 : rays.seen(x + nx * eps, d);
+            hits.push_back(j >= 0 ? static_cast<uint32_t>(j) : kBackground);
           }
           local += static_cast<uint64_t>(rays_b);
           std::sort(hits.begin(), hits.end());
@@ -360,6 +416,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
             for (int k = 0; k < points_b; ++k) {
               dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
               if (glm::dot(L.normal, x - L.p[0]) <= 0.0) continue;  // behind L (or in its plane)
+              if (rays.covered(static_cast<uint32_t>(i), x)) continue;  // under a coincident face
               double fa = polygon_form_factor(x, nx, L.p, 3);
               if (fa <= 0.0) continue;
               dvec3 y = on_triangle(L.p[0], L.p[1], L.p[2], ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);

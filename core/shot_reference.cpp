@@ -39,8 +39,8 @@ double hit(const Ray& r, const glm::dvec3& a, const glm::dvec3& b, const glm::dv
 }
 
 // What a ray sees: the nearest patch at or beyond the near plane (the kernel's depth test on
-// 1 / z, z = the ray parameter since the ray's c component is 1; a face towards the eye wins a
-// depth tie), and how close the runner-up came (relative difference of 1 / z).
+// 1 / z, z = the ray parameter since the ray's c component is 1; on a depth tie a face towards
+// the eye wins over one facing away, and the later patch over an earlier one facing the same way), and how close the runner-up came (relative difference of 1 / z).
 struct Seen {
   uint32_t patch = SIRAD_NO_PATCH;
   bool faces = false;
@@ -60,7 +60,7 @@ Seen trace(const PatchMesh& mesh, const std::vector<glm::vec4>& vertices, const 
     double w = 1.0 / d, wo = 1.0 / best;
     bool take;
     if (seen.patch == SIRAD_NO_PATCH) take = true;
-    else if (std::abs(w - wo) <= static_cast<double>(s.depth_tie) * std::max(w, wo)) take = faces && !seen.faces;
+    else if (std::abs(w - wo) <= static_cast<double>(s.depth_tie) * std::max(w, wo)) take = faces || !seen.faces;
     else take = w > wo;
     // The two nearest hits of all (largest 1 / z), whatever the tie rule picks.
     if (w > w1) {

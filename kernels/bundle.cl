@@ -113,8 +113,8 @@ SIRAD_INLINE float depth_at(const SiradProjected* p, int px, int py) {
 }
 
 /* A crossing's place on its line as one 64-bit key: depth along +w (as an ordered integer;
- * -0 counts as +0), then at equal depth a patch facing -w first (so two back-to-back faces at
- * one place each look outwards), then the patch's position in the band list (patch order).
+ * -0 counts as +0), then the front bit and the patch's position in the band list (patch order),
+ * which order_coincident uses to order the faces at one place.
  * Integer order equals the float order of depths, so no comparison branches on floats. */
 SIRAD_INLINE ulong crossing_key(float depth, uint front_pos, uint q) {
   uint u = as_uint(depth + 0.0f);
@@ -129,17 +129,27 @@ SIRAD_INLINE float key_depth(ulong key) {
   return as_float((u & 0x80000000u) ? (u & 0x7fffffffu) : ~u);
 }
 
-/* Coincident faces: a face towards +w directly followed, within depth_tie, by a face towards
- * -w is the two faces of one thin wall, whose rounded depths came out in the wrong order:
- * put the -w face first so that each looks outwards. */
+/* Coincident faces (DESIGN.md section 1): crossings within depth_tie of the first of a run are
+ * one place, whatever the rounding of their depths. Within it the faces towards -w come first,
+ * the later patch first, then the faces towards +w, the later patch last: each face looks
+ * outwards from the place (the two sides of a thin wall), and of faces that face the same way
+ * the later patch is on top (nearest to what they face: a rug laid on a floor hides the floor
+ * under it). The slot is the position in the band list, which is in patch order. */
+SIRAD_INLINE uint tie_rank(ulong key) {
+  return KEY_FRONT(key) ? (0x80000000u | KEY_SLOT(key)) : (0x7fffffffu - KEY_SLOT(key));
+}
 SIRAD_INLINE void order_coincident(__global ulong* s, uint n, float tie) {
-  for (uint k = 0; k + 1 < n; ++k) {
-    if (KEY_FRONT(s[k]) == 1u && KEY_FRONT(s[k + 1]) == 0u && key_depth(s[k + 1]) - key_depth(s[k]) <= tie) {
-      ulong t = s[k];
-      s[k] = s[k + 1];
-      s[k + 1] = t;
-      ++k;
+  for (uint k = 0; k + 1 < n;) {
+    float d0 = key_depth(s[k]);
+    uint e = k + 1;
+    while (e < n && key_depth(s[e]) - d0 <= tie) ++e;
+    for (uint i = k + 1; i < e; ++i) {
+      ulong t = s[i];
+      uint r = tie_rank(t), m = i;
+      for (; m > k && tie_rank(s[m - 1]) > r; --m) s[m] = s[m - 1];
+      s[m] = t;
     }
+    k = e;
   }
 }
 

@@ -234,9 +234,11 @@ __kernel void raster_shot(__global const SiradProjected* restrict projected,
           take = true;
         } else {
           float wo = zrow[x];
-          /* Two faces at one place (a thin wall's two sides): the one facing the eye is
-           * the surface seen; otherwise the nearer (larger 1 / z), the first on a tie. */
-          if (fabs(w - wo) <= tie * fmax(w, wo)) take = (tag & 0x80000000u) && !(old & 0x80000000u);
+          /* Two faces at one place (DESIGN.md section 1, "Coincident faces"): one facing the
+           * eye is seen before one facing away (a thin wall's two sides), and of two facing
+           * the same way the later patch (triangles are listed in patch order) is on top.
+           * Otherwise the nearer (larger 1 / z) is seen. */
+          if (fabs(w - wo) <= tie * fmax(w, wo)) take = (tag & 0x80000000u) || !(old & 0x80000000u);
           else take = w > wo;
         }
         if (take) {

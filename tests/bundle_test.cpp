@@ -8,6 +8,7 @@
 #include "core/bundle_cl.h"
 #include "core/mesh.h"
 #include "core/scene.h"
+#include "tests/coincident_scenes.h"
 
 namespace sirad {
 namespace {
@@ -177,6 +178,21 @@ TEST(BundleKernel, CoincidentFacesOfAThinWallLookOutwards) {
           ASSERT_EQ(r.gathered[j].x, 0.0f) << e->description() << ", bundle " << k << ", patch " << j;
       }
     }
+  }
+}
+
+// The scenes of tests/coincident_test.cpp, bundle for bundle: a zero-thickness wall whose two
+// faces are cut differently, at an oblique angle, with T-junctions; a rug on a floor at zero
+// gap (which face is on top is decided by patch order, never by rounding); a free-standing
+// zero-thickness panel. The kernels and the C++ reference order the faces at one place alike.
+TEST(BundleKernel, MatchesReferenceOnCoincidentFaces) {
+  for (const Scene& scene : {test::two_rooms(0.0, test::oblique(37.0), 3), test::rug_room(0.0, test::oblique(23.0)),
+                             test::panel_room(test::oblique(61.0))}) {
+    SCOPED_TRACE(scene.name);
+    PatchMesh mesh = mesh_scene(scene, {.target_patches = 800});
+    auto cl = make_cl_engine(mesh);
+    auto ref = make_reference_engine(mesh);
+    for (uint64_t k = 0; k < 6; ++k) expect_same_bundle(mesh, *cl, *ref, make_bundle(mesh, 96, 9, k));
   }
 }
 

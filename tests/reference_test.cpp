@@ -17,6 +17,7 @@
 
 #include "core/error.h"
 #include "core/reference.h"
+#include "tests/agreement.h"
 #include "tests/test_util.h"
 
 namespace sirad {
@@ -192,16 +193,8 @@ TEST(ReferenceStandardError, MatchesSpreadOverSeeds) {
 // The bundle solver agrees with the reference. Measure: the area-weighted mean relative
 // difference over the non-emitting patches, all channels, d = sum A (a - r) / sum A r.
 //
-// (1) The bundle transport applied to the reference: if one random transport T* is unbiased
-// for the reference's model, E[E + T* B] = E + T B for any input B, and the reference solves
-// B_ref = E + T B_ref up to its own error e, so E[E + T* B_ref] - B_ref = -(I - T) e, whose
-// aggregate is below the reference's (A_i (T e)_i sums to sum_j A_j e_j g_j with
-// g_j = sum_i rho_i F_ji in [0, rho_max]). This isolates the kernel from the chain's variance
-// (which multiplies it by about (1 + rho) / (1 - rho)) and lets directions be stratified: G
-// replicates, each an m x m stratified set of directions (equal-area map of the sphere, own
-// jitter), replicate g taking the reference's batch solution B_g as input. The replicates are
-// independent (own directions, own reference batch), so d_g = aggregate(E + T*_g B_g - B_g)
-// has mean d and SE = sd(d_g) / sqrt(G), with both the bundles' and the reference's noise in it.
+// (1) The bundle transport applied to the reference (tests/agreement.h: E + T* B_ref against
+// B_ref over stratified directions, replicates per reference batch).
 //
 // (2) The full solver (make_cl_engine + Solver, chain rule, own seeds) against the pooled
 // reference: SE combines the runs' spread, sd(d_s) / sqrt(runs), with the reference's from its
@@ -216,11 +209,10 @@ TEST(ReferenceStandardError, MatchesSpreadOverSeeds) {
 // Over the non-emitting patches (over all of them where every patch emits: the furnace).
 template <typename F>
 dvec3 aggregate(const PatchMesh& mesh, F value) {
-  bool all = true;
-  for (std::size_t j = 0; j < mesh.size() && all; ++j) all = mesh.emits(j);
+  const test::Region all = test::non_emitting(mesh);
   dvec3 sum(0.0);
   for (std::size_t j = 0; j < mesh.size(); ++j)
-    if (all || !mesh.emits(j)) sum += static_cast<double>(mesh.area[j]) * dvec3(value(j));
+    if (all.in[j]) sum += static_cast<double>(mesh.area[j]) * dvec3(value(j));
   return sum;
 }
 
@@ -239,12 +231,7 @@ Compared compared(const Scene& scene, std::size_t patches, const ReferenceOption
   return c;
 }
 
-std::pair<double, double> mean_sd(const std::vector<double>& v) {
-  double m = 0.0, q = 0.0;
-  for (double x : v) m += x / static_cast<double>(v.size());
-  for (double x : v) q += (x - m) * (x - m) / static_cast<double>(v.size() - 1);
-  return {m, std::sqrt(q)};
-}
+using test::mean_sd;
 
 void check_transport(const char* name, const Scene& scene, std::size_t patches, int m) {
   if (const char* env = std::getenv("SIRAD_REFERENCE_STRATA")) m = std::stoi(env);  // longer runs
@@ -252,51 +239,14 @@ void check_transport(const char* name, const Scene& scene, std::size_t patches, 
   const PatchMesh& mesh = c.mesh;
   auto engine = make_cl_engine(mesh);
   const int grid = auto_grid(mesh);
-  const double two_delta = 2.0 * cell_area(mesh, grid);
-  std::vector<double> d;
-  dvec3 channel(0.0);
-  BundleResult result;
-  std::vector<glm::vec4> input(mesh.size());
-  const int G = c.ref.batches;
-  for (int g = 0; g < G; ++g) {
-    const auto& B = c.ref.batch_radiosity[static_cast<std::size_t>(g)];
-    for (std::size_t j = 0; j < mesh.size(); ++j) input[j] = glm::vec4(glm::vec3(B[j]), 0.0f);
-    std::vector<dvec3> sum(mesh.size(), dvec3(0.0));
-    for (int k = 0; k < m * m; ++k) {
-      // Stratum (k / m, k % m) of the equal-area map z = 1 - 2s, phi = 2 pi t, jittered.
-      uint64_t index = static_cast<uint64_t>(g) * static_cast<uint64_t>(m * m) + static_cast<uint64_t>(k);
-      SiradBundle b = make_bundle(mesh, grid, 77, index);
-      BundleDraw jitter = draw_bundle(78, index);
-      double s = (k / m + jitter.jitter_x) / m, t = (k % m + jitter.jitter_y) / m;
-      double z = 1.0 - 2.0 * s, rr = std::sqrt(std::max(0.0, 1.0 - z * z)), phi = 2.0 * std::numbers::pi * t;
-      dvec3 w(rr * std::cos(phi), rr * std::sin(phi), z);
-      double sign = std::copysign(1.0, w.z), a = -1.0 / (sign + w.z), bb = w.x * w.y * a;
-      dvec3 u(1.0 + sign * w.x * w.x * a, sign * bb, -sign * w.x), v(bb, sign + w.y * w.y * a, -w.y);
-      for (int q = 0; q < 3; ++q) {
-        b.u[q] = static_cast<float>(u[q]);
-        b.v[q] = static_cast<float>(v[q]);
-        b.w[q] = static_cast<float>(w[q]);
-      }
-      engine->run(b, input, result);
-      for (std::size_t j = 0; j < mesh.size(); ++j) sum[j] += dvec3(result.gathered[j]);
-    }
-    dvec3 x = aggregate(mesh, [&](std::size_t j) {
-      return dvec3(mesh.emission(j)) +
-             dvec3(mesh.reflectance(j)) * (two_delta / mesh.area[j]) * sum[j] / static_cast<double>(m * m);
-    });
-    dvec3 y = aggregate(mesh, [&](std::size_t j) { return B[j]; });
-    d.push_back((x.x + x.y + x.z - y.x - y.y - y.z) / c.den);
-    channel += (x / y - 1.0) / static_cast<double>(G);
-  }
-  auto [md, sd] = mean_sd(d);
-  const double se = sd / std::sqrt(static_cast<double>(G));
+  test::Agreement a = test::transport_agreement(mesh, c.ref, *engine, grid, m, {test::non_emitting(mesh)})[0];
   std::printf("%s transport (%zu patches, grid %d, %d x %d stratified directions x %d): E + T* B_ref vs B_ref: "
               "%+.4f%% (r %+.3f%% g %+.3f%% b %+.3f%%), SE %.4f%%, d / SE = %+.2f; reference %.1f s, "
               "mean relative SE %.3f%%\n",
-              name, mesh.size(), grid, m, m, G, 100 * md, 100 * channel.x, 100 * channel.y, 100 * channel.z, 100 * se,
-              md / se, c.ref.seconds, 100 * mean_relative_se(mesh, c.ref));
-  EXPECT_LT(se, 0.005 / 3) << name << ": the comparison could not see a 0.5% bias";
-  EXPECT_LT(std::abs(md), 3 * se) << name << ": the bundle transport and the reference disagree beyond their noise";
+              name, mesh.size(), grid, m, m, c.ref.batches, 100 * a.d, 100 * a.channel.x, 100 * a.channel.y,
+              100 * a.channel.z, 100 * a.se, a.d / a.se, c.ref.seconds, 100 * mean_relative_se(mesh, c.ref));
+  EXPECT_LT(a.se, 0.005 / 3) << name << ": the comparison could not see a 0.5% bias";
+  EXPECT_LT(std::abs(a.d), 3 * a.se) << name << ": the bundle transport and the reference disagree beyond their noise";
 }
 
 void check_solver(const char* name, const Scene& scene, std::size_t patches, int runs, double shots_per_bundle = 0.0,

@@ -10,6 +10,7 @@
 #include "core/reference.h"
 #include "core/shot.h"
 #include "test_util.h"
+#include "tests/coincident_scenes.h"
 
 namespace sirad {
 namespace {
@@ -90,6 +91,16 @@ f 9 12 11 10
   std::string mtl = "newmtl lamp\nKd 0 0 0\nKe 1 1 1\nnewmtl grey\nKd 0.5 0.5 0.5\n";
   PatchMesh mesh = mesh_scene(parse_obj("thin.obj", obj, {{"t.mtl", mtl}}), {.target_patches = 300});
   expect_kernel_matches_reference(mesh, 48, 8, 0.05);  // open: most of the hemicube sees nothing
+}
+
+// A rug on a floor at zero gap (the later patch is on top of a depth tie, never rounding) and
+// a zero-thickness wall cut differently on its two sides, at oblique angles.
+TEST(FirstShot, KernelMatchesReferenceOnCoincidentFaces) {
+  for (const Scene& scene : {test::rug_room(0.0, test::oblique(23.0)), test::two_rooms(0.0, test::oblique(37.0), 3)}) {
+    SCOPED_TRACE(scene.name);
+    PatchMesh mesh = mesh_scene(scene, {.target_patches = 400});
+    expect_kernel_matches_reference(mesh, 32, 6);
+  }
 }
 
 TEST(FirstShot, FurnaceIsWatertight) {
