@@ -9,7 +9,9 @@
 //     B_i = E_i + rho_i * (sum_j F_ij B_j + F_i,bg * background)
 // A ray leaving patch i's front hits the nearest patch j (either facing; back faces occlude): if
 // j shows it its front (dot(n_j, dir) < 0) it brings B_j, if its back, the background, as does a
-// ray that leaves the scene.
+// ray that leaves the scene. Faces at one place follow the coincident-face rule of DESIGN.md
+// section 1 (a face showing its front wins over one showing its back; of faces facing the same
+// way the later patch is on top, and a point under it is covered: it gathers the background).
 //
 // Split B = E + Y (Y: reflected radiance). Then Y = D + rho (F Y + F_bg background) with the
 // direct part D_i = rho_i sum_L F_iL E_L over the emitters L. D is estimated from the exact
