@@ -29,6 +29,7 @@
 #include "core/reference.h"
 #include "core/results.h"
 #include "core/scene.h"
+#include "core/scene_check.h"
 #include "core/solver.h"
 
 namespace sirad {
@@ -53,6 +54,7 @@ struct RenderArgs {
   float exposure = 0.0f;
   bool flat = false;
   bool skip_degenerate = false;
+  bool two_sided = false;
   bool quiet = false;
   // The embedded cluster: N local nodes over ZeroMQ inproc (0: the plain single-node solver).
   int nodes = 0;
@@ -130,6 +132,9 @@ void write_outputs(const RenderArgs& a, const std::string& out, const PatchMesh&
               std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
 }
 
+constexpr const char* kTwoSidedHelp =
+    "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL sirad_two_sided 1)";
+
 // The meshing the flags ask for: --patches N, --max-edge L (not both), or about 10000 patches.
 MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<double> max_edge) {
   if (patches && max_edge) fail("--patches and --max-edge exclude each other");
@@ -157,6 +162,7 @@ Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, con
   m.scene = load_scene(spec, import);
   m.mesh = mesh_scene(m.scene, mesh_options);
   if (!m.mesh.camera) m.mesh.camera = default_camera(m.scene);
+  for (const std::string& w : scene_warnings(m.scene, m.mesh)) std::fprintf(stderr, "sirad: warning: %s\n", w.c_str());
   return m;
 }
 
@@ -258,7 +264,7 @@ int render(const RenderArgs& a) {
   if (a.target_error > 0 && a.nodes == 0 && rule != UpdateRule::chain)
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
   std::string out = output_name(a.out, a.scene);
-  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate});
+  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided});
 
   if (a.nodes > 0) {
     // Two or more nodes in this process on PoCL's CPU device would each get a pool of threads
@@ -351,7 +357,7 @@ int emulate(EmulateArgs& e) {
   resolve_directions(a.directions, rule);
   check_first_shot(a.shots_per_bundle, a.shot_resolution);
   std::string out = output_name(a.out, a.scene);
-  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate});
+  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided});
 
   cluster::EmulateConfig ec;
   ec.run = run_config_from(a, scene, mesh_options, rule, std::move(profile));
@@ -535,6 +541,7 @@ struct ReferenceArgs {
   std::optional<double> max_edge;
   ReferenceOptions options;
   std::string out;
+  bool two_sided = false;
   bool quiet = false;
 };
 
@@ -555,6 +562,7 @@ CLI::App* add_reference_command(CLI::App& app, ReferenceArgs& r) {
   cmd->add_option("--seed", r.options.seed, "Seed")->capture_default_str();
   cmd->add_option("--threads", r.options.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
   cmd->add_option("--out", r.out, "Output name: NAME.exr, .png, .ply, .ref.csv (default: scene name)");
+  cmd->add_flag("--two-sided", r.two_sided, kTwoSidedHelp);
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
   return cmd;
 }
@@ -566,7 +574,7 @@ int reference(const ReferenceArgs& r) {
   if (r.options.light_samples < r.options.batches)
     fail("--light-samples {} is below --batches {}", r.options.light_samples, r.options.batches);
   std::string out = output_name(r.out, r.scene);
-  auto [scene, mesh] = load_meshed(r.scene, mesh_options);
+  auto [scene, mesh] = load_meshed(r.scene, mesh_options, {.two_sided = r.two_sided});
   if (!r.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, reference with %d rays and %d light samples per patch, %d batches\n",
                  r.scene.c_str(), mesh.size(), r.options.rays_per_patch, r.options.light_samples, r.options.batches);
@@ -637,6 +645,7 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
   cmd->add_option("--exposure", r.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
   cmd->add_flag("--flat", r.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
   cmd->add_flag("--skip-degenerate", r.skip_degenerate, "Drop zero-area triangles instead of failing");
+  cmd->add_flag("--two-sided", r.two_sided, kTwoSidedHelp);
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
   cmd->add_option("--exchange-every", r.exchange_every, "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)")->capture_default_str();
   cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")

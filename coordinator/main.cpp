@@ -15,6 +15,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/scene_check.h"
 #include "coordinator/checkpoint.h"
 #include "coordinator/coordinator.h"
 #include "coordinator/live_view.h"
@@ -44,9 +45,11 @@ int main(int argc, char** argv) {
   double fraction = 1.0, timeout = 0, time_limit = 0, target_error = 0, shots_per_bundle = kDefaultShotsPerBundle;
   int shot_resolution = 0;
   int min_nodes = 1, chunks = 16, width = 512, height = 512, heartbeat_ms = 1000, liveness = 3;
-  bool check_config = false, quiet = false, network_bandwidth = false, insecure = false;
+  bool check_config = false, quiet = false, network_bandwidth = false, insecure = false, two_sided = false;
   app.add_option("scene", scene_spec, "Built-in scene (cornell, furnace) or an .obj file")->required();
   app.add_option("--listen", listen, "ZeroMQ endpoint to bind")->capture_default_str();
+  app.add_flag("--two-sided", two_sided,
+               "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL sirad_two_sided 1)");
   app.add_option("--bundles", bundles, "Bundles in the run")->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
   app.add_option("--patches", patches, "Mesh to about this many patches")->check(CLI::Range(int64_t{1}, int64_t{1} << 31))->capture_default_str();
   app.add_option("--grid", grid, "Lines per side of a bundle (default: from the patch sizes)")->check(CLI::Range(2, 8192));
@@ -112,7 +115,7 @@ int main(int argc, char** argv) {
     if (!ledger.empty()) check_output_name(ledger, "--ledger");
     if (!checkpoint.empty()) check_output_name(checkpoint, "--checkpoint");
     cluster::RunConfig rc;
-    rc.scene = load_scene(scene_spec);
+    rc.scene = load_scene(scene_spec, {.two_sided = two_sided});
     rc.mesh_options.target_patches = static_cast<std::size_t>(patches);
     rc.bundles = static_cast<uint64_t>(bundles);
     rc.seed = seed;
@@ -154,7 +157,9 @@ int main(int argc, char** argv) {
     PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
     if (!mesh.camera) mesh.camera = default_camera(rc.scene);
     if (resumed && resumed->run().scene_hash() != mesh.hash)
-      fail("{}: the checkpoint is of scene {}; {} meshes to {}", resume, resumed->run().scene_hash(), scene_spec, mesh.hash);
+      fail("{}: the checkpoint is of scene {}; {} meshes to {} (the same file, --patches and --two-sided?)", resume,
+           resumed->run().scene_hash(), scene_spec, mesh.hash);
+    for (const std::string& w : scene_warnings(rc.scene, mesh)) std::fprintf(stderr, "sirad-coordinator: warning: %s\n", w.c_str());
     proto::check_endpoint("--listen", listen, true);
     proto::check_security(listen, !curve_secret.empty(), insecure, "--curve-secret and --allow");
     std::optional<proto::KeyPair> keys;

@@ -13,8 +13,6 @@
 // error describes); its O(R / n) bias is negligible.
 #include "core/reference.h"
 
-#include <embree3/rtcore.h>
-
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -32,65 +30,12 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/rays.h"
 
 namespace sirad {
 namespace {
 
 using glm::dvec3;
-
-// splitmix64 as a stream: passes BigCrush, tiny state, keyed per (seed, patch, batch, purpose)
-// so results do not depend on the thread count.
-struct Rng {
-  uint64_t s;
-  static uint64_t mix(uint64_t z) {
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-  }
-  Rng(uint64_t seed, uint64_t a, uint64_t b, uint64_t c)
-      : s(mix(mix(mix(seed ^ 0x5eed5eed5eedULL) ^ a) + b * 0x9e3779b97f4a7c15ULL) ^ (c << 56)) {}
-  uint64_t next() { return mix(s += 0x9e3779b97f4a7c15ULL); }
-  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0, 1)
-};
-
-// n stratified points in the unit square: an m x m jittered grid (m = floor(sqrt n)), the rest
-// uniform, in random order (so that pairing two such sets is a random permutation).
-void stratified_square(int n, Rng& rng, std::vector<std::array<double, 2>>& out) {
-  out.resize(static_cast<std::size_t>(n));
-  int m = static_cast<int>(std::sqrt(static_cast<double>(n)));
-  while ((m + 1) * (m + 1) <= n) ++m;
-  int k = 0;
-  for (int a = 0; a < m; ++a)
-    for (int b = 0; b < m; ++b) out[static_cast<std::size_t>(k++)] = {(a + rng.uniform()) / m, (b + rng.uniform()) / m};
-  for (; k < n; ++k) out[static_cast<std::size_t>(k)] = {rng.uniform(), rng.uniform()};
-  for (int i = n - 1; i > 0; --i) std::swap(out[static_cast<std::size_t>(i)], out[rng.next() % static_cast<uint64_t>(i + 1)]);
-}
-
-// Area-preserving map of the unit square onto the triangle (continuous, so strata stay strata).
-dvec3 on_triangle(const dvec3& a, const dvec3& b, const dvec3& c, double s, double t) {
-  double r = std::sqrt(s);
-  return a * (1.0 - r) + b * (r * (1.0 - t)) + c * (r * t);
-}
-
-// Cosine-distributed direction about n (Malley: concentric disk, lifted to the hemisphere).
-dvec3 cosine_direction(const dvec3& n, double s, double t) {
-  double a = 2.0 * s - 1.0, b = 2.0 * t - 1.0, r, phi;
-  if (a == 0.0 && b == 0.0) {
-    r = 0.0;
-    phi = 0.0;
-  } else if (std::abs(a) > std::abs(b)) {
-    r = a;
-    phi = (std::numbers::pi / 4.0) * (b / a);
-  } else {
-    r = b;
-    phi = (std::numbers::pi / 2.0) - (std::numbers::pi / 4.0) * (a / b);
-  }
-  double x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0, 1.0 - x * x - y * y));
-  // Duff et al., "Building an orthonormal basis, revisited".
-  double sign = std::copysign(1.0, n.z), e = -1.0 / (sign + n.z), f = n.x * n.y * e;
-  dvec3 u(1.0 + sign * n.x * n.x * e, sign * f, -sign * n.x), v(f, sign + n.y * n.y * e, -n.y);
-  return u * x + v * y + n * z;
-}
 
 // The form factor from a point x with unit normal n to the part of the polygon p[0..count)
 // in front of x's tangent plane (n . (y - x) > 0): Lambert's contour formula,
@@ -197,132 +142,6 @@ std::vector<Emitter> find_emitters(const PatchMesh& mesh) {
   return out;
 }
 
-// Embree scene of all patches (one triangle geometry, primID = patch index), robust mode so
-// that rays do not slip between adjacent triangles.
-//
-// Coincident faces follow the rule of the bundles (DESIGN.md section 1, "Coincident faces"):
-// surfaces closer than `tie` along a ray are one place; there a face that shows the ray its front
-// is seen before any that shows its back (the two sides of a thin wall), and of faces that face
-// the same way the later patch is on top (a rug laid on a floor at zero gap): the one below is
-// covered and sees the back of the one on top.
-class RayScene {
- public:
-  RayScene(const PatchMesh& mesh, double tie) : mesh_(mesh), tie_(tie) {
-    device_ = rtcNewDevice(nullptr);
-    if (!device_) fail("reference: cannot create an Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
-    scene_ = rtcNewScene(device_);
-    rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
-    rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
-    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                          3 * sizeof(float), mesh.vertices.size()));
-    auto* ix = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                              3 * sizeof(unsigned), mesh.size()));
-    if (!v || !ix) fail("reference: Embree could not allocate the scene buffers");
-    for (std::size_t k = 0; k < mesh.vertices.size(); ++k)
-      for (int c = 0; c < 3; ++c) v[3 * k + c] = mesh.vertices[k][c];
-    for (std::size_t j = 0; j < mesh.size(); ++j)
-      for (int c = 0; c < 3; ++c) ix[3 * j + c] = mesh.patches[j][c];
-    rtcCommitGeometry(g);
-    rtcAttachGeometry(scene_, g);
-    rtcReleaseGeometry(g);
-    rtcCommitScene(scene_);
-    if (rtcGetDeviceError(device_) != RTC_ERROR_NONE) fail("reference: Embree failed to build the scene");
-  }
-  ~RayScene() {
-    rtcReleaseScene(scene_);
-    rtcReleaseDevice(device_);
-  }
-  RayScene(const RayScene&) = delete;
-  RayScene& operator=(const RayScene&) = delete;
-
-  // The patch a ray from org along dir sees (t > 0): the front face it meets first, or -1 when
-  // it meets a back face first or leaves the scene (it then brings the background).
-  int64_t seen(const dvec3& org, const dvec3& dir) const {
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRayHit rh;
-    set_ray(rh.ray, org, dir, 0.0f, std::numeric_limits<float>::infinity());
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene_, &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
-    // Every face within the tie of the nearest hit is at that place; the latest facing the ray
-    // is seen.
-    Hits near = hits_on(org, dir, std::max(0.0, static_cast<double>(rh.ray.tfar) - tie_),
-                        static_cast<double>(rh.ray.tfar) + tie_);
-    int64_t best = -1;
-    for (uint32_t k = 0; k < near.n; ++k)
-      if (glm::dot(dvec3(mesh_.normal[near.prim[k]]), dir) < 0.0) best = std::max<int64_t>(best, near.prim[k]);
-    return best;
-  }
-  // Whether the point x of patch i lies under a later patch at the same place facing the same
-  // way (it then sees that patch's back, and no light reaches it).
-  bool covered(uint32_t i, const dvec3& x) const {
-    const dvec3 n(mesh_.normal[i]);
-    Hits h = hits_on(x - n * tie_, n, 0.0, 2.0 * tie_);
-    for (uint32_t k = 0; k < h.n; ++k)
-      if (h.prim[k] > i && glm::dot(dvec3(mesh_.normal[h.prim[k]]), n) > 0.0) return true;
-    return false;
-  }
-  // Whether anything lies on the segment org + t (to - org), 0 <= t < 1.
-  bool blocked(const dvec3& org, const dvec3& to) const {
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRay r;
-    set_ray(r, org, to - org, 0.0f, 1.0f);
-    rtcOccluded1(scene_, &ctx, &r);
-    return r.tfar < 0.0f;
-  }
-
- private:
-  // The patches met on org + t dir, t0 <= t <= t1 (the first 16, each once).
-  struct Hits {
-    RTCIntersectContext ctx;  // first: Embree hands the filter this address
-    uint32_t n = 0;
-    std::array<uint32_t, 16> prim{};
-  };
-  static void collect(const RTCFilterFunctionNArguments* args) {
-    auto* h = reinterpret_cast<Hits*>(args->context);
-    for (unsigned r = 0; r < args->N; ++r) {
-      if (args->valid[r] == 0) continue;
-      uint32_t prim = RTCHitN_primID(args->hit, args->N, r);
-      if (h->n < h->prim.size() && std::find(h->prim.begin(), h->prim.begin() + h->n, prim) == h->prim.begin() + h->n)
-        h->prim[h->n++] = prim;
-      args->valid[r] = 0;  // refused: the traversal goes on to the next hit
-    }
-  }
-  Hits hits_on(const dvec3& org, const dvec3& dir, double t0, double t1) const {
-    Hits h;
-    rtcInitIntersectContext(&h.ctx);
-    h.ctx.filter = &RayScene::collect;
-    RTCRayHit rh;
-    set_ray(rh.ray, org, dir, static_cast<float>(t0), static_cast<float>(t1));
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene_, &h.ctx, &rh);
-    return h;
-  }
-  static void set_ray(RTCRay& r, const dvec3& org, const dvec3& dir, float tnear, float tfar) {
-    r.org_x = static_cast<float>(org.x);
-    r.org_y = static_cast<float>(org.y);
-    r.org_z = static_cast<float>(org.z);
-    r.tnear = tnear;
-    r.dir_x = static_cast<float>(dir.x);
-    r.dir_y = static_cast<float>(dir.y);
-    r.dir_z = static_cast<float>(dir.z);
-    r.time = 0.0f;
-    r.tfar = tfar;
-    r.mask = 0xffffffffu;
-    r.id = 0;
-    r.flags = 0;
-  }
-  const PatchMesh& mesh_;
-  double tie_;
-  RTCDevice device_;
-  RTCScene scene_;
-};
-
 // One batch's system: sparse rows of F (patch, weight), the background weight, the direct part.
 struct Row {
   std::vector<std::pair<uint32_t, float>> entries;
@@ -416,6 +235,9 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
             for (int k = 0; k < points_b; ++k) {
               dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
               if (glm::dot(L.normal, x - L.p[0]) <= 0.0) continue;  // behind L (or in its plane)
+              // A point on the back of an emitter (its twin: the other side of one two-sided face)
+              // receives nothing from it, though rounding may put it a hair in front.
+              if (glm::dot(L.normal, nx) < -0.9999 && glm::dot(L.normal, x - L.p[0]) <= eps) continue;
               if (rays.covered(static_cast<uint32_t>(i), x)) continue;  // under a coincident face
               double fa = polygon_form_factor(x, nx, L.p, 3);
               if (fa <= 0.0) continue;

@@ -35,6 +35,7 @@ namespace fs = std::filesystem;
 constexpr std::uintmax_t kMaxFileBytes = std::uintmax_t{1} << 31;  // 2 GiB
 constexpr std::size_t kMaxVertices = std::size_t{1} << 26;
 constexpr std::size_t kMaxTriangles = std::size_t{1} << 26;
+constexpr std::size_t kMaxObjects = std::size_t{1} << 20;
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
 constexpr float kDefaultReflectance = 0.8f;  // faces without `usemtl`
 
@@ -146,6 +147,7 @@ class ObjParser {
     std::array<uint32_t, 3> v;
     uint32_t line;
     uint32_t slot;  // index into slots_, or kNone without `usemtl`
+    uint32_t object;  // index into objects_
   };
 
   template <typename... Args>
@@ -183,6 +185,14 @@ class ObjParser {
                          [&](const auto& m) { return m.first == file; }))
           mtllibs_.emplace_back(file, line_);
       }
+    } else if (key == "o" || key == "g") {
+      // An object or group: its name (the rest of the line) names the faces that follow.
+      std::string name(trim(s.substr(1)));
+      if (name.empty()) name = "(unnamed)";
+      if (objects_.size() >= kMaxObjects) error("more than {} objects", kMaxObjects);
+      auto it = std::find(objects_.begin(), objects_.end(), name);
+      object_ = static_cast<uint32_t>(it - objects_.begin());
+      if (it == objects_.end()) objects_.push_back(name);
     } else if (!is_identifier(key)) {
       // Other OBJ statements (vt, vn, g, o, s, l, ...) carry nothing a radiosity scene uses.
       error("not an OBJ statement: '{}'", printable(key));
@@ -232,7 +242,7 @@ class ObjParser {
     if (triangles_.size() + (count - 2) > kMaxTriangles)
       error("more than {} triangles", kMaxTriangles);
     for (std::size_t i = 1; i + 1 < count; ++i)
-      triangles_.push_back({{face_[0], face_[i], face_[i + 1]}, line_, slot_});
+      triangles_.push_back({{face_[0], face_[i], face_[i + 1]}, line_, slot_, object_});
   }
 
   void usemtl(const std::string& name) {
@@ -286,6 +296,8 @@ class ObjParser {
   std::vector<std::string> slots_;  // material names in order of first `usemtl`
   std::unordered_map<std::string, uint32_t> slot_of_;
   uint32_t slot_ = kNone;
+  std::vector<std::string> objects_{"(unnamed)"};
+  uint32_t object_ = 0;
   std::vector<std::pair<std::string, uint32_t>> mtllibs_;  // file and line, first mention
   std::optional<Camera> camera_;
 };
@@ -298,6 +310,7 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
     std::string file;
   };
   std::unordered_map<std::string, Defined> defined;
+  std::map<std::string, std::string> texture_notes;  // by material name
   for (const auto& [file, line] : mtllibs_) {
     const auto [label, text] = source(file, line);
     if (text.find('\0') != std::string::npos) fail("{}: binary data, not MTL text", label);
@@ -310,10 +323,20 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
     for (const auto& m : materials) {
       const std::string name = material_name(m.name);
       if (name.empty()) continue;  // tinyobjloader's unnamed default
-      defined.try_emplace(name, Defined{{name,
-                                         {m.diffuse[0], m.diffuse[1], m.diffuse[2]},
-                                         {m.emission[0], m.emission[1], m.emission[2]}},
-                                        label});
+      Material material{name, {m.diffuse[0], m.diffuse[1], m.diffuse[2]}, {m.emission[0], m.emission[1], m.emission[2]}};
+      if (auto it = m.unknown_parameter.find("sirad_two_sided"); it != m.unknown_parameter.end()) {
+        const std::string v(trim(it->second));
+        if (v != "0" && v != "1")
+          fail("{}: material '{}': sirad_two_sided must be 0 or 1 (got '{}')", label, printable(name), printable(v));
+        material.two_sided = v == "1";
+      }
+      std::string textures;
+      for (const std::string* t : {&m.diffuse_texname, &m.emissive_texname})
+        if (!t->empty()) textures += (textures.empty() ? "" : ", ") + printable(*t);
+      if (!textures.empty())
+        texture_notes.emplace(name, fmt::format("{}: material '{}': texture maps are not read ({}); its Kd and Ke "
+                                                "are used as they are", label, printable(name), textures));
+      defined.try_emplace(name, Defined{material, label});
     }
   }
 
@@ -322,6 +345,7 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
   Scene scene;
   scene.name = name_;
   scene.camera = camera_;
+  scene.objects = objects_;
   std::vector<uint32_t> index_of_slot(slots_.size(), kNone);
   uint32_t default_index = kNone;
   std::size_t skipped = 0;
@@ -353,10 +377,13 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
                 printable(slots_[raw.slot]));
         validate_material(it->second.material, it->second.file);
         scene.materials.push_back(it->second.material);
+        if (auto note = texture_notes.find(slots_[raw.slot]); note != texture_notes.end())
+          scene.warnings.push_back(note->second);
       }
     }
     t.material = index;
     t.source_line = raw.line;
+    t.object = raw.object;
     scene.triangles.push_back(t);
   }
 
@@ -421,6 +448,20 @@ std::string read_file(const fs::path& path, const std::string& label) {
 
 }  // namespace
 
+void add_back_faces(Scene& scene);
+
+namespace {
+
+// The import options that apply after parsing: --two-sided.
+Scene with_options(Scene scene, const ImportOptions& options) {
+  if (options.two_sided)
+    for (Material& m : scene.materials) m.two_sided = true;
+  add_back_faces(scene);
+  return scene;
+}
+
+}  // namespace
+
 Scene parse_obj(const std::string& name, const std::string& obj_text,
                 const std::vector<std::pair<std::string, std::string>>& mtl_files,
                 const ImportOptions& options) {
@@ -429,14 +470,28 @@ Scene parse_obj(const std::string& name, const std::string& obj_text,
       if (mtl_name == file) return std::pair{mtl_name, text};
     fail("{}:{}: material library '{}' not provided", name, line, printable(file));
   };
-  return import_obj(name, obj_text, source, options);
+  return with_options(import_obj(name, obj_text, source, options), options);
+}
+
+void add_back_faces(Scene& scene) {
+  std::vector<Triangle> out;
+  out.reserve(scene.triangles.size());
+  for (const Triangle& t : scene.triangles) {
+    out.push_back(t);
+    if (!scene.materials[t.material].two_sided) continue;
+    Triangle back = t;
+    std::swap(back.p[1], back.p[2]);
+    out.push_back(back);
+  }
+  if (out.size() > kMaxTriangles) fail("{}: more than {} triangles with the back faces of two-sided materials", scene.name, kMaxTriangles);
+  scene.triangles = std::move(out);
 }
 
 Scene load_scene(const std::string& spec, const ImportOptions& options) {
-  if (spec == "cornell") return builtin_cornell();
-  if (spec == "furnace") return builtin_furnace();
-  if (spec == "bright-room") return builtin_bright_room();
-  if (spec == "three-lights") return builtin_three_lights();
+  if (spec == "cornell") return with_options(builtin_cornell(), options);
+  if (spec == "furnace") return with_options(builtin_furnace(), options);
+  if (spec == "bright-room") return with_options(builtin_bright_room(), options);
+  if (spec == "three-lights") return with_options(builtin_three_lights(), options);
   const fs::path path(spec);
   std::string extension = path.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
@@ -450,7 +505,7 @@ Scene load_scene(const std::string& spec, const ImportOptions& options) {
       const fs::path mtl = dir / file;
       return std::pair{mtl.string(), read_file(mtl, mtl.string())};
     };
-    return import_obj(spec, text, source, options);
+    return with_options(import_obj(spec, text, source, options), options);
   });
 }
 

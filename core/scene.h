@@ -17,6 +17,10 @@ struct Material {
   std::string name;
   glm::vec3 reflectance{0.0f};
   glm::vec3 emission{0.0f};
+  // Both sides of its faces receive, reflect and emit, as Cycles treats every mesh (MTL
+  // `sirad_two_sided 1`, or --two-sided for all): load_scene gives each such triangle a
+  // reversed twin at the same place (DESIGN.md section 1, "Two-sided surfaces").
+  bool two_sided = false;
 };
 
 // A pinhole camera. `vfov_deg` is the full vertical field of view; the image aspect comes from
@@ -33,6 +37,7 @@ struct Triangle {
   std::array<glm::vec3, 3> p;
   uint32_t material = 0;  // index into Scene::materials
   uint32_t source_line = 0;  // 1-based line of the face in its file (0 if not from a file)
+  uint32_t object = 0;       // index into Scene::objects
 };
 
 struct Scene {
@@ -41,11 +46,17 @@ struct Scene {
   std::vector<Triangle> triangles;
   std::optional<Camera> camera;     // from the file's `# sirad camera` line or built-in
   glm::vec3 background{0.0f};       // radiance seen by a line that leaves the scene
+  // Object names (OBJ `o` or `g`; "(unnamed)" before any), for messages about parts of a scene.
+  std::vector<std::string> objects{"(unnamed)"};
+  // What the importer read but does not use (a texture map, ...), one line each, to be shown.
+  std::vector<std::string> warnings;
 };
 
 struct ImportOptions {
   // Zero-area triangles are an error by default (bad input); with this they are dropped.
   bool skip_degenerate = false;
+  // Every material two-sided (Material::two_sided), whatever the file says.
+  bool two_sided = false;
 };
 
 // Loads `spec`: a built-in name ("cornell", "furnace", "bright-room", "three-lights") or a path to an .obj file (its .mtl
@@ -59,6 +70,10 @@ Scene load_scene(const std::string& spec, const ImportOptions& options = {});
 Scene parse_obj(const std::string& name, const std::string& obj_text,
                 const std::vector<std::pair<std::string, std::string>>& mtl_files,
                 const ImportOptions& options = {});
+
+// Gives every triangle of a two-sided material a reversed twin right after it (same place,
+// opposite normal, same material): each side then has a value of its own, as in Cycles.
+void add_back_faces(Scene& scene);
 
 // The built-in scenes. `furnace`: a closed cube (side 1, inward normals), every face E = 1,
 // rho = 0.5, so B = 2 exactly everywhere.

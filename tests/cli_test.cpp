@@ -253,6 +253,33 @@ TEST_F(Cli, SameSeedGivesBitwiseIdenticalFiles) {
         << ext;
 }
 
+// A room made from a cube with its normals out (as a default cube in Blender) and a lamp plane
+// facing the ceiling: without --two-sided the run warns, naming each object, that the room
+// looks inside out and the lamp lights nothing (and the image is black); a texture map is
+// named as not read. With --two-sided (every face both ways, as Cycles) the room is lit and
+// neither orientation warning is given.
+TEST_F(Cli, InsideOutSceneWarnsAndTwoSidedLightsIt) {
+  write("cube.obj",
+        "mtllib cube.mtl\no Room\nusemtl wall\n"
+        "v -2 -2 -2\nv 2 -2 -2\nv 2 2 -2\nv -2 2 -2\nv -2 -2 2\nv 2 -2 2\nv 2 2 2\nv -2 2 2\n"
+        "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 4 8 7 3\nf 1 5 8 4\nf 2 3 7 6\n"
+        "o Lamp\nusemtl lamp\nv -0.5 1.9 -0.5\nv 0.5 1.9 -0.5\nv 0.5 1.9 0.5\nv -0.5 1.9 0.5\nf 9 12 11 10\n");
+  write("cube.mtl", "newmtl wall\nKd 0.8 0.8 0.8\nmap_Kd wood.png\nnewmtl lamp\nKd 0 0 0\nKe 5 5 5\n");
+  Outcome one = sirad("render cube.obj --patches 400 --bundles 32 --width 8 --height 8 --out one -q");
+  ASSERT_EQ(one.status, 0) << one.err;
+  EXPECT_NE(one.err.find("warning: object 'Room' (material 'wall') looks inside out"), std::string::npos) << one.err;
+  EXPECT_NE(one.err.find("warning: object 'Lamp' (material 'lamp') emits but lights nothing"), std::string::npos) << one.err;
+  EXPECT_NE(one.err.find("texture maps are not read (wood.png)"), std::string::npos) << one.err;
+  Outcome two = sirad("render cube.obj --patches 400 --bundles 32 --width 8 --height 8 --out two -q --two-sided");
+  ASSERT_EQ(two.status, 0) << two.err;
+  EXPECT_EQ(two.err.find("inside out"), std::string::npos) << two.err;
+  EXPECT_EQ(two.err.find("lights nothing"), std::string::npos) << two.err;
+  EXPECT_NE(two.err.find("texture maps are not read"), std::string::npos) << two.err;
+  // The error estimate exists only where something is lit: n/a for the black room.
+  EXPECT_NE(one.out.find("error estimate n/a"), std::string::npos) << one.out;
+  EXPECT_EQ(two.out.find("error estimate n/a"), std::string::npos) << two.out;
+}
+
 TEST_F(Cli, MissingSceneFile) { expect_error(sirad("render nothere.obj --bundles 4"), "nothere.obj"); }
 
 TEST_F(Cli, MalformedSceneFile) {
