@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
+#include <set>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -67,7 +69,37 @@ struct RenderArgs {
   std::string status_json;
   std::string profile;
   double time_limit = 0, target_error = 0;
+  std::set<std::string> given;  // the flags given on the command line (long names)
 };
+
+// --target-error without --bundles: the cap it lifts the default of 1000 bundles to.
+constexpr int64_t kTargetErrorCap = 1000000;
+
+// SIGINT / SIGTERM during `sirad render`: the first ends the run with the bundles done so far
+// (the estimate is unbiased at any count) and writes it; a second one ends the process at once
+// (outputs are written atomically: nothing half-written is left).
+std::atomic<int> g_signal{0};
+std::atomic<bool> g_interrupted{false};
+void on_interrupt(int sig) {
+  if (g_signal.exchange(sig) != 0) {
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+    return;
+  }
+  g_interrupted = true;
+}
+void install_interrupt() {
+  std::signal(SIGINT, on_interrupt);
+  std::signal(SIGTERM, on_interrupt);
+}
+std::string interrupted_by() { return g_signal.load() == SIGINT ? "interrupted (SIGINT)" : "interrupted (SIGTERM)"; }
+
+// Refuses the flags of `flags` that were given, with `why` (a flag that has no effect in a mode
+// is an error, never ignored).
+void refuse_given(const RenderArgs& a, std::initializer_list<const char*> flags, const std::string& why) {
+  for (const char* f : flags)
+    if (a.given.count(f)) fail("{} {}", f, why);
+}
 
 // A progress bar on a terminal, a plain line every 10% otherwise.
 class Progress {
@@ -145,10 +177,20 @@ MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<doub
   return o;
 }
 
-// The outputs' name: --out, or the scene's file name without extension; checked before any work.
-std::string output_name(const std::string& out, const std::string& scene) {
-  std::string name = out.empty() ? std::filesystem::path(scene).stem().string() : out;
+// The outputs' name: --out, or the scene's file name without extension; checked before any work:
+// its folder must be writable, and no output (NAME + each of `extensions`) may be the scene file.
+std::string output_name(const std::string& out, const std::string& scene,
+                        std::initializer_list<const char*> extensions = {".exr", ".png", ".ply"}) {
+  namespace fs = std::filesystem;
+  std::string name = out.empty() ? fs::path(scene).stem().string() : out;
   check_output_name(name);
+  std::error_code ec;
+  if (fs::is_regular_file(scene, ec))
+    for (const char* ext : extensions) {
+      fs::path output = name + ext;
+      if (fs::exists(output, ec) && fs::equivalent(output, scene, ec))
+        fail("{}: the output {} would overwrite the scene file; choose another name with --out", scene, output.string());
+    }
   return name;
 }
 
@@ -194,6 +236,32 @@ cluster::RunConfig run_config_from(const RenderArgs& a, const Scene& scene, cons
   return rc;
 }
 
+// The bundle cap: --bundles, or with --target-error and no --bundles, kTargetErrorCap.
+int64_t bundle_cap(const RenderArgs& a) {
+  return a.target_error > 0 && !a.given.count("--bundles") ? kTargetErrorCap : a.bundles;
+}
+
+// What a run that stopped at its bundle cap short of its --target-error says: on stdout, and as
+// sirad.ended_by in the EXR ("" when it met the target or had none).
+std::string short_of_target(const RenderArgs& a, const std::string& ended_by, double estimate) {
+  if (!(a.target_error > 0) || ended_by != "budget") return "";
+  return fmt::format("bundle cap {} reached short of the target error {} (estimate {})", bundle_cap(a), a.target_error,
+                     estimate >= 0 ? fmt::format("{:.4f}", estimate) : std::string("n/a"));
+}
+
+// The last line of a render that did not simply run its budget, and the exit status: an
+// interrupted run wrote the result of the bundles done and exits 128 + the signal.
+int finish_line(const std::string& ended_by, const std::string& short_of, int64_t done) {
+  if (!short_of.empty()) std::printf("ended short of the target: %s\n", short_of.c_str());
+  else if (ended_by != "budget") std::printf("ended early: %s\n", ended_by.c_str());
+  if (g_interrupted) {
+    std::printf("interrupted after %lld bundles: the outputs hold the result of those (unbiased, with less "
+                "precision); a second signal ends sirad at once\n", static_cast<long long>(done));
+    return 128 + g_signal.load();
+  }
+  return 0;
+}
+
 // The embedded default: the coordinator on this thread, N nodes on their own threads, all over
 // ZeroMQ inproc with the same code as a cluster.
 int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, const PatchMesh& mesh,
@@ -223,6 +291,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
     ~StopOnExit() { stop = true; }
   } stop_on_exit{stop};
   rc.abort = &failed;
+  rc.close = &g_interrupted;
   auto start = std::chrono::steady_clock::now();
   cluster::StatusReporter reporter(a.quiet, a.status_json);
   rc.status_every_s = 0.25;
@@ -241,21 +310,32 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   stop = true;  // the node threads leave within a poll interval, while the outputs are written
   reporter.finish();
 
-  write_outputs(a, out, mesh, result.radiosity, cluster::run_attributes(rc, result, mesh, a.scene));
+  Attributes attrs = cluster::run_attributes(rc, result, mesh, a.scene);
+  const std::string short_of = short_of_target(a, result.ended_by, result.error_estimate);
+  if (!short_of.empty())
+    for (auto& [key, value] : attrs)
+      if (key == "sirad.ended_by") value = short_of;
+  write_outputs(a, out, mesh, result.radiosity, attrs);
   for (auto& t : threads) t.join();
   std::fputs(cluster::node_lines(result).c_str(), stdout);
   std::printf("%s\n", cluster::traffic_line(result).c_str());
   std::printf("patches %zu, bundles %lld, grid %d, nodes %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n",
               mesh.size(), static_cast<long long>(result.bundles), result.grid, a.nodes, seconds,
               result.bundles / seconds, static_cast<double>(result.crossings) / seconds);
-  if (result.ended_by != "budget") std::printf("ended early: %s\n", result.ended_by.c_str());
-  return 0;
+  return finish_line(result.ended_by, short_of, static_cast<int64_t>(result.bundles));
 }
 
-int render(const RenderArgs& a) {
+int render(RenderArgs a) {
   // Check everything cheap before any work: flags, output place, scene, device.
   MeshOptions mesh_options = mesh_options_from(a.patches, a.max_edge);
   if (!a.profile.empty() && a.nodes == 0) fail("--profile {}: emulation needs a cluster (--nodes N)", a.profile);
+  if (a.nodes == 0)
+    refuse_given(a, {"--exchange-every", "--exchange-fraction", "--topology", "--mode", "--balance", "--chunks", "--status-json"},
+                 "has no effect on one node: it is a cluster setting (--nodes N)");
+  if (a.nodes > 0 && a.target_error > 0 && (a.nodes < 2 || a.exchange_every == "end"))
+    fail("--target-error with --nodes needs 2 or more nodes and --exchange-every (its estimate is the spread of the "
+         "nodes' exchanged states)");
+  a.bundles = bundle_cap(a);
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   UpdateRule rule = parse_update_rule(a.rule);
@@ -265,6 +345,7 @@ int render(const RenderArgs& a) {
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
   std::string out = output_name(a.out, a.scene);
   auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided});
+  install_interrupt();
 
   if (a.nodes > 0) {
     // Two or more nodes in this process on PoCL's CPU device would each get a pool of threads
@@ -304,6 +385,10 @@ int render(const RenderArgs& a) {
   for (int64_t k = 0; k < a.bundles; ++k) {
     solver.step(static_cast<uint64_t>(k));
     done = k + 1;
+    if (g_interrupted && done < a.bundles) {  // after a step: the result has at least one bundle
+      ended_by = interrupted_by();
+      break;
+    }
     double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     progress.update(done, elapsed);
     if (a.time_limit > 0 && elapsed >= a.time_limit && done < a.bundles) {
@@ -327,13 +412,16 @@ int render(const RenderArgs& a) {
   attrs.emplace_back("sirad.shot_resolution", static_cast<int64_t>(solver.shot_resolution()));
   attrs.emplace_back("sirad.shots", static_cast<int64_t>(solver.shots_rendered()));
   if (error >= 0) attrs.emplace_back("sirad.error_estimate", error);
+  if (a.target_error > 0) attrs.emplace_back("sirad.target_error", a.target_error);
+  const std::string short_of = short_of_target(a, ended_by, error);
+  attrs.emplace_back("sirad.ended_by", short_of.empty() ? ended_by : short_of);
   attrs.emplace_back("sirad.device", engine->description());
   write_outputs(a, out, mesh, solver.estimate(), attrs);
   std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s, error estimate %s\n",
-              mesh.size(), static_cast<long long>(done), solver.grid(), seconds, done / seconds,
-              static_cast<double>(solver.crossings()) / seconds, error >= 0 ? fmt::format("{:.4f}", error).c_str() : "n/a");
-  if (ended_by != "budget") std::printf("ended early: %s\n", ended_by.c_str());
-  return 0;
+              mesh.size(), static_cast<long long>(done), solver.grid(), seconds, done / std::max(seconds, 1e-9),
+              static_cast<double>(solver.crossings()) / std::max(seconds, 1e-9),
+              error >= 0 ? fmt::format("{:.4f}", error).c_str() : "n/a");
+  return finish_line(ended_by, short_of, done);
 }
 
 struct EmulateArgs {
@@ -356,6 +444,10 @@ int emulate(EmulateArgs& e) {
   UpdateRule rule = parse_update_rule(a.rule);
   resolve_directions(a.directions, rule);
   check_first_shot(a.shots_per_bundle, a.shot_resolution);
+  if (a.target_error > 0 && (a.nodes < 2 || a.exchange_every == "end"))
+    fail("--target-error on emulate needs 2 or more nodes and --exchange-every (its estimate is the spread of the "
+         "nodes' exchanged states)");
+  a.bundles = bundle_cap(a);
   std::string out = output_name(a.out, a.scene);
   auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided});
 
@@ -618,7 +710,7 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
   cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--bundles", r.bundles, "Bundles (random directions) to run")
+  cmd->add_option("--bundles", r.bundles, "Bundles (random directions) to run; the cap with --target-error (default there: 1000000)")
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
   cmd->add_option("--grid", r.grid, "Lines per side of a bundle (default: from the patch sizes)")
       ->check(CLI::Range(2, 8192));
@@ -721,9 +813,20 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "sirad: error: %s (see sirad --help)\n", e.what());
     return 2;
   }
-  if (render_cmd->parsed()) return render(r);
+  auto given = [](const CLI::App* cmd) {
+    std::set<std::string> out;
+    for (const CLI::Option* o : cmd->get_options())
+      if (o->count() > 0)
+        for (const std::string& name : o->get_lnames()) out.insert("--" + name);
+    return out;
+  };
+  if (render_cmd->parsed()) {
+    r.given = given(render_cmd);
+    return render(r);
+  }
   if (emulate_cmd->parsed()) {
     e.nodes_given = emulate_cmd->count("--nodes") > 0;
+    e.run.given = given(emulate_cmd);
     return emulate(e);
   }
   if (reference_cmd->parsed()) return reference(ref_args);

@@ -116,7 +116,8 @@ class Coordinator {
              config_.bundles);
       if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
       keep_alive(now);
-      if (policy_.check_close(seconds(now - start_))) {
+      if ((config_.close && config_.close->load() && policy_.close("interrupted")) ||
+          policy_.check_close(seconds(now - start_))) {
         std::fprintf(stderr, "sirad-coordinator: %s reached after %llu bundles: finishing the outstanding grants\n",
                      policy_.ended_by().c_str(), static_cast<unsigned long long>(policy_.ledger().done_count()));
         schedule();
@@ -161,6 +162,7 @@ class Coordinator {
     result.grid = static_cast<int>(run_.grid());
     result.bundles = policy_.ledger().done_count();
     result.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
+    result.error_estimate = policy_.error_estimate();
     result.exchange_every = policy_.exchange_every();
     result.fraction = policy_.fraction();
     result.exchange_why = policy_.exchange_why();
@@ -656,6 +658,7 @@ Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMes
       {"sirad.exchange_fraction", r.fraction},
       {"sirad.topology", std::string(c.topology == Topology::star ? "star" : "ring")},
       {"sirad.mode", std::string(c.mode == Mode::sync ? "sync" : "async")},
+      {"sirad.ended_by", r.ended_by},
   };
 }
 

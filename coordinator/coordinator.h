@@ -61,6 +61,9 @@ struct RunConfig {
   std::string checkpoint;
   double checkpoint_every_s = 10;
   const std::atomic<bool>* interrupt = nullptr;  // set (SIGTERM): checkpoint, then the run throws
+  // set (SIGINT on `sirad render --nodes`): the run closes as at a time limit, ended by
+  // "interrupted": no more grants, the outstanding ones finish, the result is what was done.
+  const std::atomic<bool>* close = nullptr;
   // Continue this checkpointed run (read_checkpoint; apply_checkpoint gave `config` its
   // settings): its nodes' states and the ledger as accepted, the rest of the budget to run.
   const wire::Checkpoint* resume = nullptr;
@@ -95,7 +98,8 @@ struct RunResult {
   uint64_t crossings = 0;  // line-patch crossings of all counted bundles
   int grid = 0;            // the run's grid (config.grid, or the auto grid of the mesh)
   uint64_t bundles = 0;    // bundles done (config.bundles unless a time limit or target ended it)
-  std::string ended_by;    // "budget", "time limit" or "target error"
+  std::string ended_by;    // "budget", "time limit", "target error ..." or "interrupted"
+  double error_estimate = -1;  // the spread estimate at the end (Policy::error_estimate; < 0: none)
   uint32_t exchange_every = 0;  // the period and fraction the run used (what auto chose)
   double fraction = 1.0;
   std::string exchange_why;     // with auto: how it chose

@@ -331,6 +331,13 @@ bool Policy::check_close(double elapsed_s) {
   return true;
 }
 
+bool Policy::close(const std::string& why) {
+  if (closing_ || ledger_.finished()) return false;
+  ended_by_ = why;
+  closing_ = true;
+  return true;
+}
+
 bool Policy::ending() const {
   if (ledger_.finished()) return true;
   if (!closing_) return false;

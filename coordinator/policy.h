@@ -199,6 +199,9 @@ class Policy {
   // The time limit (elapsed_s on the driver's clock) or the target error closes the run: no
   // more grants, the outstanding ones finish. True when it closed now; call schedule() next.
   bool check_close(double elapsed_s);
+  // Closes the run now, ended by `why` (an interrupt), as check_close would. False when it was
+  // closing or finished already.
+  bool close(const std::string& why);
   bool closing() const { return closing_; }
   const std::string& ended_by() const { return ended_by_; }
   // Every bundle done, or the run closed and every outstanding grant is in.

@@ -151,11 +151,17 @@ class RayScene {
   // way (it then sees that patch's back, and no light reaches it).
   bool covered(uint32_t i, const glm::dvec3& x) const {
     const glm::dvec3 n(mesh_.normal[i]);
-    // Only hits well inside a face count: a neighbour on the same surface meets the probe at
-    // their shared edge, and covers nothing.
-    Hits h = hits_on(x - n * tie_, n, 0.0, 2.0 * tie_, 1e-5f);
-    for (uint32_t k = 0; k < h.n; ++k)
-      if (h.prim[k] > i && glm::dot(glm::dvec3(mesh_.normal[h.prim[k]]), n) > 0.0) return true;
+    // A neighbour on the same surface (sharing a vertex with patch i) meets the probe only at
+    // their shared edge, and covers nothing: from it only a hit well inside counts.
+    Hits h = hits_on(x - n * tie_, n, 0.0, 2.0 * tie_);
+    const auto& own = mesh_.patches[i];
+    for (uint32_t k = 0; k < h.n; ++k) {
+      const uint32_t p = h.prim[k];
+      if (p <= i || !(glm::dot(glm::dvec3(mesh_.normal[p]), n) > 0.0)) continue;
+      bool neighbour = false;
+      for (uint32_t v : mesh_.patches[p]) neighbour = neighbour || v == own[0] || v == own[1] || v == own[2];
+      if (!neighbour || h.inside[k] >= 1e-5f) return true;
+    }
     return false;
   }
   // Whether anything lies on the segment org + t (to - org), 0 <= t < 1.
@@ -169,13 +175,12 @@ class RayScene {
   }
 
  private:
-  // The patches met on org + t dir, t0 <= t <= t1 (the first 16, each once), at barycentric
-  // coordinates of at least `margin`.
+  // The patches met on org + t dir, t0 <= t <= t1 (the first 16, each once).
   struct Hits {
     RTCIntersectContext ctx;  // first: Embree hands the filter this address
-    float margin = 0.0f;      // the least barycentric coordinate of a hit that counts
     uint32_t n = 0;
     std::array<uint32_t, 16> prim{};
+    std::array<float, 16> inside{};  // the least barycentric coordinate of the hit
   };
   static void collect(const RTCFilterFunctionNArguments* args) {
     auto* h = reinterpret_cast<Hits*>(args->context);
@@ -183,15 +188,15 @@ class RayScene {
       if (args->valid[r] == 0) continue;
       uint32_t prim = RTCHitN_primID(args->hit, args->N, r);
       float u = RTCHitN_u(args->hit, args->N, r), v = RTCHitN_v(args->hit, args->N, r);
-      bool inside = std::min(std::min(u, v), 1.0f - u - v) >= h->margin;
-      if (inside && h->n < h->prim.size() && std::find(h->prim.begin(), h->prim.begin() + h->n, prim) == h->prim.begin() + h->n)
+      if (h->n < h->prim.size() && std::find(h->prim.begin(), h->prim.begin() + h->n, prim) == h->prim.begin() + h->n) {
+        h->inside[h->n] = std::min(std::min(u, v), 1.0f - u - v);
         h->prim[h->n++] = prim;
+      }
       args->valid[r] = 0;  // refused: the traversal goes on to the next hit
     }
   }
-  Hits hits_on(const glm::dvec3& org, const glm::dvec3& dir, double t0, double t1, float margin = 0.0f) const {
+  Hits hits_on(const glm::dvec3& org, const glm::dvec3& dir, double t0, double t1) const {
     Hits h;
-    h.margin = margin;
     rtcInitIntersectContext(&h.ctx);
     h.ctx.filter = &RayScene::collect;
     RTCRayHit rh;

@@ -142,6 +142,53 @@ TEST_F(Cli, OneNodeStopsAtItsTargetError) {
   EXPECT_LE(error->value(), 0.05);
 }
 
+// --target-error without --bundles lifts the default cap of 1000 bundles: 1.5 % on 300 patches
+// takes a few thousand (measured 2,600-4,000). With a --bundles cap it cannot reach, the run
+// says so on stdout and in the EXR (sirad.ended_by), and exits 0 with the result it has.
+TEST_F(Cli, TargetErrorLiftsTheDefaultCapAndSaysWhenItFallsShort) {
+  Outcome r = sirad("render cornell --patches 300 --target-error 0.015 --width 16 --height 16 --out lifted -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("ended early: target error"), std::string::npos) << r.out;
+  {
+    Imf::InputFile exr((dir_ / "lifted.exr").string().c_str());
+    auto* bundles = exr.header().findTypedAttribute<Imf::IntAttribute>("sirad.bundles");
+    ASSERT_NE(bundles, nullptr);
+    EXPECT_GT(bundles->value(), 1000) << "the default cap of 1000 bundles was not lifted";
+  }
+  Outcome s = sirad("render cornell --patches 300 --target-error 0.001 --bundles 64 --width 16 --height 16 --out capped -q");
+  ASSERT_EQ(s.status, 0) << s.err;
+  EXPECT_NE(s.out.find("ended short of the target: bundle cap 64 reached short of the target error 0.001"),
+            std::string::npos) << s.out;
+  Imf::InputFile exr((dir_ / "capped.exr").string().c_str());
+  auto* ended = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.ended_by");
+  ASSERT_NE(ended, nullptr);
+  EXPECT_NE(ended->value().find("short of the target error"), std::string::npos) << ended->value();
+}
+
+// No output ever overwrites the scene file that was read: a scene named like one of the outputs
+// (NAME.ply) is refused before anything is read or written, and stays as it was.
+TEST_F(Cli, OutputsNeverOverwriteTheScene) {
+  write("room.ply", "ply\nformat ascii 1.0\nend_header\n");
+  Outcome r = sirad("render room.ply --bundles 4");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.err.find("would overwrite the scene file"), std::string::npos) << r.err;
+  EXPECT_EQ(slurp((dir_ / "room.ply").string()), "ply\nformat ascii 1.0\nend_header\n");
+}
+
+// A flag that has no effect in a mode is refused, never ignored: cluster settings on one node,
+// a target error that no estimate of the mode can reach (a cluster that never exchanges).
+TEST_F(Cli, FlagsWithoutEffectAreRefused) {
+  for (const char* flag : {"--exchange-every 8", "--exchange-fraction 0.5", "--topology ring", "--mode sync",
+                           "--balance off", "--chunks 4", "--status-json s.json"}) {
+    SCOPED_TRACE(flag);
+    expect_error(sirad(std::string("render furnace --patches 50 --bundles 4 ") + flag), "has no effect on one node");
+  }
+  expect_error(sirad("render furnace --patches 50 --bundles 4 --nodes 2 --target-error 0.1"), "--exchange-every");
+  expect_error(sirad("render furnace --patches 50 --bundles 4 --nodes 1 --exchange-every 4 --target-error 0.1"),
+               "2 or more nodes");
+  expect_error(sirad("emulate furnace --patches 50 --bundles 4 --nodes 2 --target-error 0.1"), "--exchange-every");
+}
+
 TEST_F(Cli, EmbeddedClusterRendersWithTwoNodes) {
   Outcome r = sirad("render cornell --nodes 2 --patches 300 --bundles 40 --exchange-every 10 --width 32 --height 32 "
                     "--status-json status.json");
