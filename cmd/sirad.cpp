@@ -57,6 +57,7 @@ struct RenderArgs {
   bool flat = false;
   bool skip_degenerate = false;
   bool two_sided = false;
+  std::string camera;  // --camera "eye X Y Z look X Y Z up X Y Z fov DEG"
   bool quiet = false;
   // The embedded cluster: N local nodes over ZeroMQ inproc (0: the plain single-node solver).
   int nodes = 0;
@@ -164,6 +165,8 @@ void write_outputs(const RenderArgs& a, const std::string& out, const PatchMesh&
               std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
 }
 
+constexpr const char* kCameraHelp =
+    "The view of the images: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the scene's, else one chosen to see the most)";
 constexpr const char* kTwoSidedHelp =
     "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL sirad_two_sided 1)";
 
@@ -199,12 +202,31 @@ struct Meshed {
   Scene scene;
   PatchMesh mesh;
 };
-Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, const ImportOptions& import = {}) {
+// The camera: --camera (`camera`, checked first), else the scene's, else choose_camera's.
+Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, const ImportOptions& import = {},
+                   const std::string& camera = "", bool quiet = false) {
+  std::optional<Camera> given;
+  if (!camera.empty()) {
+    try {
+      given = parse_camera(camera);
+    } catch (const Error& e) {
+      fail("--camera '{}': {}", camera, e.what());
+    }
+  }
   Meshed m;
   m.scene = load_scene(spec, import);
   m.mesh = mesh_scene(m.scene, mesh_options);
-  if (!m.mesh.camera) m.mesh.camera = default_camera(m.scene);
+  std::string from = "the scene's";
+  if (given) {
+    m.mesh.camera = given;
+    from = "--camera";
+  } else if (!m.mesh.camera) {
+    double seen = 0.0;
+    m.mesh.camera = choose_camera(m.scene, m.mesh, &seen);
+    from = fmt::format("chosen: it sees a surface on {:.0f} % of the view", 100 * seen);
+  }
   for (const std::string& w : scene_warnings(m.scene, m.mesh)) std::fprintf(stderr, "sirad: warning: %s\n", w.c_str());
+  if (!quiet) std::fprintf(stderr, "sirad: camera %s (%s)\n", camera_spec(*m.mesh.camera).c_str(), from.c_str());
   return m;
 }
 
@@ -344,7 +366,8 @@ int render(RenderArgs a) {
   if (a.target_error > 0 && a.nodes == 0 && rule != UpdateRule::chain)
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
   std::string out = output_name(a.out, a.scene);
-  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided});
+  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided},
+                                   a.camera, a.quiet);
   install_interrupt();
 
   if (a.nodes > 0) {
@@ -449,7 +472,8 @@ int emulate(EmulateArgs& e) {
          "nodes' exchanged states)");
   a.bundles = bundle_cap(a);
   std::string out = output_name(a.out, a.scene);
-  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided});
+  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided},
+                                   a.camera, a.quiet);
 
   cluster::EmulateConfig ec;
   ec.run = run_config_from(a, scene, mesh_options, rule, std::move(profile));
@@ -634,6 +658,7 @@ struct ReferenceArgs {
   ReferenceOptions options;
   std::string out;
   bool two_sided = false;
+  std::string camera;
   bool quiet = false;
 };
 
@@ -655,6 +680,7 @@ CLI::App* add_reference_command(CLI::App& app, ReferenceArgs& r) {
   cmd->add_option("--threads", r.options.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
   cmd->add_option("--out", r.out, "Output name: NAME.exr, .png, .ply, .ref.csv (default: scene name)");
   cmd->add_flag("--two-sided", r.two_sided, kTwoSidedHelp);
+  cmd->add_option("--camera", r.camera, kCameraHelp);
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
   return cmd;
 }
@@ -666,7 +692,7 @@ int reference(const ReferenceArgs& r) {
   if (r.options.light_samples < r.options.batches)
     fail("--light-samples {} is below --batches {}", r.options.light_samples, r.options.batches);
   std::string out = output_name(r.out, r.scene);
-  auto [scene, mesh] = load_meshed(r.scene, mesh_options, {.two_sided = r.two_sided});
+  auto [scene, mesh] = load_meshed(r.scene, mesh_options, {.two_sided = r.two_sided}, r.camera, r.quiet);
   if (!r.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, reference with %d rays and %d light samples per patch, %d batches\n",
                  r.scene.c_str(), mesh.size(), r.options.rays_per_patch, r.options.light_samples, r.options.batches);
@@ -738,6 +764,7 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
   cmd->add_flag("--flat", r.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
   cmd->add_flag("--skip-degenerate", r.skip_degenerate, "Drop zero-area triangles instead of failing");
   cmd->add_flag("--two-sided", r.two_sided, kTwoSidedHelp);
+  cmd->add_option("--camera", r.camera, kCameraHelp);
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
   cmd->add_option("--exchange-every", r.exchange_every, "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)")->capture_default_str();
   cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")

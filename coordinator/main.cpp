@@ -48,6 +48,8 @@ int main(int argc, char** argv) {
   bool check_config = false, quiet = false, network_bandwidth = false, insecure = false, two_sided = false;
   app.add_option("scene", scene_spec, "Built-in scene (cornell, furnace) or an .obj file")->required();
   app.add_option("--listen", listen, "ZeroMQ endpoint to bind")->capture_default_str();
+  std::string camera;
+  app.add_option("--camera", camera, "The view of the images: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the scene's, else one chosen to see the most)");
   app.add_flag("--two-sided", two_sided,
                "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL sirad_two_sided 1)");
   app.add_option("--bundles", bundles, "Bundles in the run")->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
@@ -155,7 +157,14 @@ int main(int argc, char** argv) {
     rc.checkpoint = checkpoint;
     rc.checkpoint_every_s = checkpoint_every;
     PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
-    if (!mesh.camera) mesh.camera = default_camera(rc.scene);
+    if (!camera.empty()) {
+      try {
+        mesh.camera = parse_camera(camera);
+      } catch (const Error& e) {
+        fail("--camera '{}': {}", camera, e.what());
+      }
+    }
+    if (!mesh.camera) mesh.camera = choose_camera(rc.scene, mesh);
     if (resumed && resumed->run().scene_hash() != mesh.hash)
       fail("{}: the checkpoint is of scene {}; {} meshes to {} (the same file, --patches and --two-sided?)", resume,
            resumed->run().scene_hash(), scene_spec, mesh.hash);

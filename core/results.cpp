@@ -1,5 +1,6 @@
 // sirad: the EXR, PNG and PLY of a solution, written together.
 #include "core/results.h"
+#include "core/scene.h"
 
 #include <filesystem>
 
@@ -26,7 +27,9 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
   if (!mesh.camera) fail("{}: the mesh carries no camera", name);
   Image image = render_view(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading);
   ResultFiles files{name + ".exr", name + ".png", name + ".ply"};
-  write_exr(files.exr, image, attributes);
+  Attributes with_camera = attributes;
+  with_camera.emplace_back("sirad.camera", camera_spec(*mesh.camera));
+  write_exr(files.exr, image, with_camera);
   write_png(files.png, image, options.exposure);
   write_ply(files.ply, mesh, radiosity);
   return files;

@@ -256,35 +256,12 @@ class ObjParser {
   void comment(std::string_view body) {
     split(body, tokens_);
     if (tokens_.size() < 2 || tokens_[0] != "sirad" || tokens_[1] != "camera") return;
-    const auto bad = [&](const std::string& why) {
-      error("malformed '# sirad camera' line: {}", why);
-    };
-    if (camera_) bad("a second camera line");
-    std::map<std::string_view, glm::vec3> given;
-    for (std::size_t i = 2; i < tokens_.size();) {
-      const std::string_view key = tokens_[i++];
-      const int arity = key == "fov" ? 1 : (key == "eye" || key == "look" || key == "up") ? 3 : 0;
-      if (arity == 0) bad(fmt::format("unknown keyword '{}'", printable(key)));
-      if (given.count(key)) bad(fmt::format("'{}' given twice", key));
-      if (i + arity > tokens_.size())
-        bad(fmt::format("'{}' needs {} number{}", key, arity, arity == 1 ? "" : "s"));
-      glm::vec3 value(0.0f);
-      for (int k = 0; k < arity; ++k, ++i)
-        if (parse_float(tokens_[i], value[k]) != Parsed::ok || !std::isfinite(value[k]))
-          bad(fmt::format("'{}' has a bad number '{}'", key, printable(tokens_[i])));
-      given[key] = value;
+    if (camera_) error("malformed '# sirad camera' line: a second camera line");
+    try {
+      camera_ = parse_camera(body.substr(static_cast<std::size_t>(tokens_[1].data() + tokens_[1].size() - body.data())));
+    } catch (const Error& e) {
+      error("malformed '# sirad camera' line: {}", e.what());
     }
-    for (const char* key : {"eye", "look", "up", "fov"})
-      if (!given.count(key)) bad(fmt::format("missing '{}'", key));
-    Camera camera{given["eye"], given["look"], given["up"], given["fov"].x};
-    if (!(camera.vfov_deg > 0.0f && camera.vfov_deg < 180.0f))
-      bad(fmt::format("fov {} outside (0, 180)", camera.vfov_deg));
-    const glm::dvec3 view = glm::dvec3(camera.look_at) - glm::dvec3(camera.eye);
-    const glm::dvec3 up(camera.up);
-    if (!(glm::length(view) > 0.0)) bad("eye and look are the same point");
-    if (!(glm::length(glm::cross(view, up)) > 1e-6 * glm::length(view) * glm::length(up)))
-      bad("up is zero or parallel to the view direction");
-    camera_ = camera;
   }
 
   std::string name_;
@@ -555,6 +532,39 @@ Scene builtin_furnace() {
 }
 
 std::vector<std::string> builtin_scene_names() { return {"cornell", "furnace", "bright-room", "three-lights"}; }
+
+Camera parse_camera(std::string_view spec) {
+  std::vector<std::string_view> tokens;
+  split(spec, tokens);
+  std::map<std::string_view, glm::vec3> given;
+  for (std::size_t i = 0; i < tokens.size();) {
+    const std::string_view key = tokens[i++];
+    const int arity = key == "fov" ? 1 : (key == "eye" || key == "look" || key == "up") ? 3 : 0;
+    if (arity == 0) fail("unknown keyword '{}'", printable(key));
+    if (given.count(key)) fail("'{}' given twice", key);
+    if (i + arity > tokens.size()) fail("'{}' needs {} number{}", key, arity, arity == 1 ? "" : "s");
+    glm::vec3 value(0.0f);
+    for (int k = 0; k < arity; ++k, ++i)
+      if (parse_float(tokens[i], value[k]) != Parsed::ok || !std::isfinite(value[k]))
+        fail("'{}' has a bad number '{}'", key, printable(tokens[i]));
+    given[key] = value;
+  }
+  for (const char* key : {"eye", "look", "up", "fov"})
+    if (!given.count(key)) fail("missing '{}'", key);
+  Camera camera{given["eye"], given["look"], given["up"], given["fov"].x};
+  if (!(camera.vfov_deg > 0.0f && camera.vfov_deg < 180.0f)) fail("fov {} outside (0, 180)", camera.vfov_deg);
+  const glm::dvec3 view = glm::dvec3(camera.look_at) - glm::dvec3(camera.eye);
+  const glm::dvec3 up(camera.up);
+  if (!(glm::length(view) > 0.0)) fail("eye and look are the same point");
+  if (!(glm::length(glm::cross(view, up)) > 1e-6 * glm::length(view) * glm::length(up)))
+    fail("up is zero or parallel to the view direction");
+  return camera;
+}
+
+std::string camera_spec(const Camera& c) {
+  return fmt::format("eye {} {} {} look {} {} {} up {} {} {} fov {}", c.eye.x, c.eye.y, c.eye.z, c.look_at.x, c.look_at.y,
+                     c.look_at.z, c.up.x, c.up.y, c.up.z, c.vfov_deg);
+}
 
 Camera default_camera(const Scene& scene) {
   Camera camera;

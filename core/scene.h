@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -85,7 +86,15 @@ Scene builtin_bright_room();
 Scene builtin_three_lights();
 std::vector<std::string> builtin_scene_names();
 
-// A camera that frames the scene's bounding box, for scenes that carry none.
+// A camera that frames the scene's bounding box from outside (along +Z), for scenes that carry
+// none (core/scene_check.h choose_camera picks one that sees the most).
 Camera default_camera(const Scene& scene);
+
+// "eye X Y Z look X Y Z up X Y Z fov DEG" (the OBJ comment `# sirad camera ...` and --camera):
+// every part once, finite numbers, fov in (0, 180), a view direction and an up not along it.
+// Throws sirad::Error saying what is wrong (without a place: the caller adds it).
+Camera parse_camera(std::string_view spec);
+// The same form, for messages and the EXR (sirad.camera); parse_camera reads it back.
+std::string camera_spec(const Camera& camera);
 
 }  // namespace sirad

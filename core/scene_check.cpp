@@ -1,7 +1,9 @@
 // sirad: the orientation checks of core/scene_check.h.
 #include "core/scene_check.h"
 
+#include <limits>
 #include <map>
+#include <numbers>
 
 #include <fmt/format.h>
 
@@ -69,6 +71,78 @@ std::vector<std::string> orientation_warnings(const Scene& scene, const PatchMes
                                 name(key.first, key.second), 100 * sees));
   }
   return out;
+}
+
+Camera choose_camera(const Scene& scene, const PatchMesh& mesh, double* seen_share) {
+  Camera fallback = default_camera(scene);
+  if (seen_share) *seen_share = 0.0;
+  if (mesh.size() == 0) return fallback;
+  // Up: +Z where the emitters' area-weighted normal points mostly along -Z, else +Y.
+  glm::dvec3 lamp(0.0);
+  for (std::size_t j = 0; j < mesh.size(); ++j)
+    if (mesh.emits(j)) lamp += static_cast<double>(mesh.area[j]) * glm::dvec3(mesh.normal[j]);
+  const int up_axis = (-lamp.z > std::abs(lamp.x) && -lamp.z > std::abs(lamp.y)) ? 2 : 1;
+  glm::dvec3 up(0.0);
+  up[up_axis] = 1.0;
+  const int h1 = 0, h2 = up_axis == 1 ? 2 : 1;  // the horizontal axes
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const glm::vec3& v : mesh.vertices) {
+    lo = glm::min(lo, glm::dvec3(v));
+    hi = glm::max(hi, glm::dvec3(v));
+  }
+  const glm::dvec3 size = hi - lo, centre = 0.5 * (lo + hi);
+  auto at = [&](double a, double b, double c) {  // a point of the box: fractions along h1, h2, up
+    glm::dvec3 p = lo;
+    p[h1] += a * size[h1];
+    p[h2] += b * size[h2];
+    p[up_axis] += c * size[up_axis];
+    return p;
+  };
+  std::vector<Camera> candidates;
+  const double radius = std::max(0.5 * glm::length(size), 1e-6);
+  for (int axis : {h2, h1})
+    for (double sign : {-1.0, 1.0}) {  // from outside, looking across the box (-h2 first: the old default)
+      Camera c;
+      c.vfov_deg = 40.0f;
+      glm::dvec3 eye = centre;
+      eye[axis] += sign * radius / std::sin(0.5 * c.vfov_deg * std::numbers::pi / 180.0);
+      c.eye = glm::vec3(eye);
+      c.look_at = glm::vec3(centre);
+      c.up = glm::vec3(up);
+      candidates.push_back(c);
+    }
+  for (double a : {0.15, 0.85})
+    for (double b : {0.15, 0.85}) {  // from inside, near an upper corner, across to the far side
+      Camera c;
+      c.vfov_deg = 60.0f;
+      c.eye = glm::vec3(at(a, b, 0.6));
+      c.look_at = glm::vec3(at(1.0 - a, 1.0 - b, 0.35));
+      c.up = glm::vec3(up);
+      candidates.push_back(c);
+    }
+  const double eps = 1e-5 * (static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center)));
+  RayScene rays(mesh, eps, true);
+  constexpr int kSide = 24;
+  Camera best = fallback;
+  double best_share = -1.0;
+  for (const Camera& c : candidates) {
+    const glm::dvec3 eye(c.eye), forward = glm::normalize(glm::dvec3(c.look_at) - eye);
+    const glm::dvec3 right = glm::normalize(glm::cross(forward, glm::dvec3(c.up))), top = glm::cross(right, forward);
+    const double t = std::tan(0.5 * c.vfov_deg * std::numbers::pi / 180.0);
+    int hits = 0;
+    for (int y = 0; y < kSide; ++y)
+      for (int x = 0; x < kSide; ++x) {
+        double u = (2.0 * (x + 0.5) / kSide - 1.0) * t, v = (2.0 * (y + 0.5) / kSide - 1.0) * t;
+        hits += rays.seen(eye, glm::normalize(forward + right * u + top * v)) >= 0;
+      }
+    double share = static_cast<double>(hits) / (kSide * kSide);
+    if (share > best_share + 1e-9) {
+      best_share = share;
+      best = c;
+    }
+  }
+  if (seen_share) *seen_share = best_share;
+  return best;
 }
 
 std::vector<std::string> scene_warnings(const Scene& scene, const PatchMesh& mesh) {

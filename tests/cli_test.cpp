@@ -175,6 +175,37 @@ TEST_F(Cli, OutputsNeverOverwriteTheScene) {
   EXPECT_EQ(slurp((dir_ / "room.ply").string()), "ply\nformat ascii 1.0\nend_header\n");
 }
 
+// The camera: --camera sets the view and is stored in the EXR (sirad.camera) and printed; a
+// scene without a camera line gets one chosen to see the most (a closed room: from inside, where
+// every ray of the view meets a wall's front), printed with how much it sees; a bad --camera is
+// one line naming the flag and what is wrong.
+TEST_F(Cli, CameraFromTheFlagTheSceneOrChosen) {
+  write("room.mtl", kTinyMtl);
+  write("room.obj", kTinyRoom);
+  for (const char* bad : {"'eye 0 0 0 look 0 0 0 up 0 1 0 fov 40'", "'eye 0 0 0 look 0 0 1 up 0 1 0'",
+                          "'eye 0 0 0 look 0 0 1 up 0 1 0 fov 200'", "'eye 0 0 x look 0 0 1 up 0 1 0 fov 40'"}) {
+    SCOPED_TRACE(bad);
+    expect_error(sirad(std::string("render room.obj --bundles 4 --camera ") + bad), "--camera");
+  }
+  Outcome given = sirad("render room.obj --patches 200 --bundles 8 --width 8 --height 8 --out given "
+                        "--camera 'eye 0.5 0.5 0.2 look 0.5 0.5 1 up 0 1 0 fov 50'");
+  ASSERT_EQ(given.status, 0) << given.err;
+  EXPECT_NE(given.err.find("sirad: camera eye 0.5 0.5 0.2 look 0.5 0.5 1 up 0 1 0 fov 50 (--camera)"), std::string::npos)
+      << given.err;
+  {
+    Imf::InputFile exr((dir_ / "given.exr").string().c_str());
+    auto* camera = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.camera");
+    ASSERT_NE(camera, nullptr);
+    EXPECT_EQ(camera->value(), "eye 0.5 0.5 0.2 look 0.5 0.5 1 up 0 1 0 fov 50");
+  }
+  Outcome chosen = sirad("render room.obj --patches 200 --bundles 8 --width 8 --height 8 --out chosen");
+  ASSERT_EQ(chosen.status, 0) << chosen.err;
+  EXPECT_NE(chosen.err.find("(chosen: it sees a surface on 100 % of the view)"), std::string::npos) << chosen.err;
+  Imf::InputFile exr((dir_ / "chosen.exr").string().c_str());
+  auto* camera = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.camera");
+  ASSERT_NE(camera, nullptr);
+}
+
 // A flag that has no effect in a mode is refused, never ignored: cluster settings on one node,
 // a target error that no estimate of the mode can reach (a cluster that never exchanges).
 TEST_F(Cli, FlagsWithoutEffectAreRefused) {

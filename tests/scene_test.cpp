@@ -325,6 +325,16 @@ TEST(SceneErrors, DegenerateTriangles) {
                {"s.obj: scene has no triangles (1 skipped as degenerate)"});
 }
 
+// camera_spec writes what parse_camera reads (the form of --camera and the EXR's sirad.camera).
+TEST(SceneFile, CameraSpecRoundTrips) {
+  Camera c = *builtin_cornell().camera;
+  Camera back = parse_camera(camera_spec(c));
+  EXPECT_EQ(back.eye, c.eye);
+  EXPECT_EQ(back.look_at, c.look_at);
+  EXPECT_EQ(back.up, c.up);
+  EXPECT_EQ(back.vfov_deg, c.vfov_deg);
+}
+
 TEST(SceneErrors, MalformedCameraLine) {
   TempDir dir;
   const std::string ok = "eye 0 0 5 look 0 0 0 up 0 1 0 fov 40";
