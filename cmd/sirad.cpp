@@ -154,13 +154,15 @@ Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, 
 }
 
 void write_outputs(const RenderArgs& a, const std::string& out, const PatchMesh& mesh,
-                   const std::vector<glm::vec3>& radiosity, const Attributes& attrs) {
+                   const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from) {
+  attrs.emplace_back("sirad.camera_from", camera_from);
   ResultOptions ro;
   ro.width = a.width;
   ro.height = a.height;
   ro.exposure = a.exposure;
   ro.shading = a.flat ? Shading::flat : Shading::gouraud;
   ResultFiles files = write_results(out, mesh, radiosity, ro, attrs);
+  std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), camera_from.c_str());
   std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
               std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
 }
@@ -201,10 +203,11 @@ std::string output_name(const std::string& out, const std::string& scene,
 struct Meshed {
   Scene scene;
   PatchMesh mesh;
+  std::string camera_from;  // where the camera came from, for the outputs' line and the EXR
 };
 // The camera: --camera (`camera`, checked first), else the scene's, else choose_camera's.
 Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, const ImportOptions& import = {},
-                   const std::string& camera = "", bool quiet = false) {
+                   const std::string& camera = "") {
   std::optional<Camera> given;
   if (!camera.empty()) {
     try {
@@ -226,7 +229,7 @@ Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, con
     from = fmt::format("chosen: it sees a surface on {:.0f} % of the view", 100 * seen);
   }
   for (const std::string& w : scene_warnings(m.scene, m.mesh)) std::fprintf(stderr, "sirad: warning: %s\n", w.c_str());
-  if (!quiet) std::fprintf(stderr, "sirad: camera %s (%s)\n", camera_spec(*m.mesh.camera).c_str(), from.c_str());
+  m.camera_from = from;
   return m;
 }
 
@@ -287,6 +290,7 @@ int finish_line(const std::string& ended_by, const std::string& short_of, int64_
 // The embedded default: the coordinator on this thread, N nodes on their own threads, all over
 // ZeroMQ inproc with the same code as a cluster.
 int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, const PatchMesh& mesh,
+                    const std::string& camera_from,
                     UpdateRule rule, const std::string& out, std::optional<emulation::Profile> profile) {
   cluster::RunConfig rc = run_config_from(a, scene, mesh_options, rule, std::move(profile));
   rc.strict = true;
@@ -337,7 +341,7 @@ int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& 
   if (!short_of.empty())
     for (auto& [key, value] : attrs)
       if (key == "sirad.ended_by") value = short_of;
-  write_outputs(a, out, mesh, result.radiosity, attrs);
+  write_outputs(a, out, mesh, result.radiosity, attrs, camera_from);
   for (auto& t : threads) t.join();
   std::fputs(cluster::node_lines(result).c_str(), stdout);
   std::printf("%s\n", cluster::traffic_line(result).c_str());
@@ -366,8 +370,8 @@ int render(RenderArgs a) {
   if (a.target_error > 0 && a.nodes == 0 && rule != UpdateRule::chain)
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
   std::string out = output_name(a.out, a.scene);
-  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided},
-                                   a.camera, a.quiet);
+  auto [scene, mesh, camera_from] = load_meshed(
+      a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided}, a.camera);
   install_interrupt();
 
   if (a.nodes > 0) {
@@ -378,7 +382,7 @@ int render(RenderArgs a) {
     // 5.2 s against 6.3 s for 1500 bundles (bench/RESULTS.md). Must precede any OpenCL call.
     if (a.nodes >= 2 && a.device.empty() && std::getenv("SIRAD_DEVICE") == nullptr && std::getenv("POCL_DEVICES") == nullptr)
       setenv("POCL_DEVICES", "basic", 0);
-    return render_embedded(a, scene, mesh_options, mesh, rule, out, std::move(profile));
+    return render_embedded(a, scene, mesh_options, mesh, camera_from, rule, out, std::move(profile));
   }
   auto engine = make_cl_engine(mesh, {.device = a.device});
   SolverOptions so;
@@ -439,7 +443,7 @@ int render(RenderArgs a) {
   const std::string short_of = short_of_target(a, ended_by, error);
   attrs.emplace_back("sirad.ended_by", short_of.empty() ? ended_by : short_of);
   attrs.emplace_back("sirad.device", engine->description());
-  write_outputs(a, out, mesh, solver.estimate(), attrs);
+  write_outputs(a, out, mesh, solver.estimate(), attrs, camera_from);
   std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s, error estimate %s\n",
               mesh.size(), static_cast<long long>(done), solver.grid(), seconds, done / std::max(seconds, 1e-9),
               static_cast<double>(solver.crossings()) / std::max(seconds, 1e-9),
@@ -472,8 +476,8 @@ int emulate(EmulateArgs& e) {
          "nodes' exchanged states)");
   a.bundles = bundle_cap(a);
   std::string out = output_name(a.out, a.scene);
-  auto [scene, mesh] = load_meshed(a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided},
-                                   a.camera, a.quiet);
+  auto [scene, mesh, camera_from] = load_meshed(
+      a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided}, a.camera);
 
   cluster::EmulateConfig ec;
   ec.run = run_config_from(a, scene, mesh_options, rule, std::move(profile));
@@ -494,7 +498,7 @@ int emulate(EmulateArgs& e) {
   attrs.emplace_back("sirad.virtual_wall_s", r.wall_s);
   attrs.emplace_back("sirad.bundle_s", r.bundle_s);
   if (r.error_estimate >= 0) attrs.emplace_back("sirad.error_estimate", r.error_estimate);
-  write_outputs(a, out, mesh, r.run.radiosity, attrs);
+  write_outputs(a, out, mesh, r.run.radiosity, attrs, camera_from);
   if (!e.nodes_csv.empty()) write_file_atomic(e.nodes_csv, cluster::nodes_csv(r));
   if (!e.timeline.empty()) write_file_atomic(e.timeline, cluster::timeline_csv(r));
   // Every node up to 32; beyond, the spread of their utilisation.
@@ -692,7 +696,7 @@ int reference(const ReferenceArgs& r) {
   if (r.options.light_samples < r.options.batches)
     fail("--light-samples {} is below --batches {}", r.options.light_samples, r.options.batches);
   std::string out = output_name(r.out, r.scene);
-  auto [scene, mesh] = load_meshed(r.scene, mesh_options, {.two_sided = r.two_sided}, r.camera, r.quiet);
+  auto [scene, mesh, camera_from] = load_meshed(r.scene, mesh_options, {.two_sided = r.two_sided}, r.camera);
   if (!r.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, reference with %d rays and %d light samples per patch, %d batches\n",
                  r.scene.c_str(), mesh.size(), r.options.rays_per_patch, r.options.light_samples, r.options.batches);
@@ -712,7 +716,7 @@ int reference(const ReferenceArgs& r) {
       {"sirad.batches", static_cast<int64_t>(r.options.batches)},
       {"sirad.seed", std::to_string(r.options.seed)},
   };
-  write_outputs(a, out, mesh, radiosity, attrs);
+  write_outputs(a, out, mesh, radiosity, attrs, camera_from);
   const std::string csv = out + ".ref.csv";
   write_reference(csv, mesh, s, r.options);
   std::printf("wrote %s\n", std::filesystem::absolute(csv).c_str());

@@ -39,6 +39,11 @@ std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
 Image render_view(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity,
                   const Camera& camera, int width, int height, Shading shading);
 
+// render_view with s x s samples per pixel, averaged (a box filter over each pixel's square, in
+// linear radiance): the same framing, without jagged edges. s = 1 is render_view.
+Image render_view_antialiased(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const Camera& camera,
+                              int width, int height, Shading shading, int samples_per_side);
+
 void write_exr(const std::string& path, const Image& image, const Attributes& attributes);
 // Tone map: pixel * 2^exposure, clamped to [0, 1], sRGB-encoded, 8 bits.
 void write_png(const std::string& path, const Image& image, float exposure = 0.0f);

@@ -236,4 +236,25 @@ Image render_view(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity
   return raster.take();
 }
 
+Image render_view_antialiased(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const Camera& camera,
+                              int width, int height, Shading shading, int samples_per_side) {
+  const int s = samples_per_side;
+  if (s < 1 || s > 16) fail("cannot render view: {} samples per pixel side (1..16)", s);
+  if (s == 1) return render_view(mesh, radiosity, camera, width, height, shading);
+  Image fine = render_view(mesh, radiosity, camera, width * s, height * s, shading);
+  Image out;
+  out.width = width;
+  out.height = height;
+  out.pixels.assign(static_cast<std::size_t>(width) * height, glm::vec3(0.0f));
+  const float w = 1.0f / static_cast<float>(s * s);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      glm::vec3 sum(0.0f);
+      for (int j = 0; j < s; ++j)
+        for (int i = 0; i < s; ++i) sum += fine.at(x * s + i, y * s + j);
+      out.at(x, y) = sum * w;
+    }
+  return out;
+}
+
 }  // namespace sirad

@@ -2,6 +2,7 @@
 #include "core/results.h"
 #include "core/scene.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include <unistd.h>
@@ -25,7 +26,9 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
   if (options.width < 1 || options.height < 1 || options.width > 16384 || options.height > 16384)
     fail("image size {}x{} outside 1..16384", options.width, options.height);
   if (!mesh.camera) fail("{}: the mesh carries no camera", name);
-  Image image = render_view(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading);
+  int s = options.samples_per_side;
+  if (s == 0) s = std::clamp(4096 / std::max(options.width, options.height), 1, 4);
+  Image image = render_view_antialiased(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading, s);
   ResultFiles files{name + ".exr", name + ".png", name + ".ply"};
   Attributes with_camera = attributes;
   with_camera.emplace_back("sirad.camera", camera_spec(*mesh.camera));

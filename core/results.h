@@ -12,6 +12,9 @@ struct ResultOptions {
   int width = 512, height = 512;
   Shading shading = Shading::gouraud;
   float exposure = 0.0f;
+  // Samples per pixel side for the images (anti-aliasing); 0: 4 (16 per pixel) up to 1024
+  // pixels a side, fewer above (the finer image stays within 4096 a side), 1 above 2048.
+  int samples_per_side = 0;
 };
 
 struct ResultFiles {

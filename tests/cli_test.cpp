@@ -175,7 +175,8 @@ TEST_F(Cli, OutputsNeverOverwriteTheScene) {
   EXPECT_EQ(slurp((dir_ / "room.ply").string()), "ply\nformat ascii 1.0\nend_header\n");
 }
 
-// The camera: --camera sets the view and is stored in the EXR (sirad.camera) and printed; a
+// The camera: --camera sets the view and is stored in the EXR (sirad.camera, and where it came
+// from in sirad.camera_from) and printed with the outputs; a
 // scene without a camera line gets one chosen to see the most (a closed room: from inside, where
 // every ray of the view meets a wall's front), printed with how much it sees; a bad --camera is
 // one line naming the flag and what is wrong.
@@ -190,8 +191,8 @@ TEST_F(Cli, CameraFromTheFlagTheSceneOrChosen) {
   Outcome given = sirad("render room.obj --patches 200 --bundles 8 --width 8 --height 8 --out given "
                         "--camera 'eye 0.5 0.5 0.2 look 0.5 0.5 1 up 0 1 0 fov 50'");
   ASSERT_EQ(given.status, 0) << given.err;
-  EXPECT_NE(given.err.find("sirad: camera eye 0.5 0.5 0.2 look 0.5 0.5 1 up 0 1 0 fov 50 (--camera)"), std::string::npos)
-      << given.err;
+  EXPECT_NE(given.out.find("camera eye 0.5 0.5 0.2 look 0.5 0.5 1 up 0 1 0 fov 50 (--camera)\n"), std::string::npos)
+      << given.out;
   {
     Imf::InputFile exr((dir_ / "given.exr").string().c_str());
     auto* camera = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.camera");
@@ -200,7 +201,7 @@ TEST_F(Cli, CameraFromTheFlagTheSceneOrChosen) {
   }
   Outcome chosen = sirad("render room.obj --patches 200 --bundles 8 --width 8 --height 8 --out chosen");
   ASSERT_EQ(chosen.status, 0) << chosen.err;
-  EXPECT_NE(chosen.err.find("(chosen: it sees a surface on 100 % of the view)"), std::string::npos) << chosen.err;
+  EXPECT_NE(chosen.out.find("(chosen: it sees a surface on 100 % of the view)"), std::string::npos) << chosen.out;
   Imf::InputFile exr((dir_ / "chosen.exr").string().c_str());
   auto* camera = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.camera");
   ASSERT_NE(camera, nullptr);

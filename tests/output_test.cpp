@@ -254,6 +254,33 @@ TEST(OutputRender, FlatPatchAtCentreAndBackgroundAtCorners) {
   }
 }
 
+// Anti-aliasing: 4 x 4 samples per pixel are the mean of the 4x finer image's 4 x 4 block (the
+// same framing: a pixel's samples tile its square), and along the triangle's slanted edges
+// pixels take values strictly between the triangle's and the background's, where one sample
+// per pixel gives only the two (jagged edges). Interior pixels keep the patch's value.
+TEST(OutputRender, AntialiasingAveragesSamplesOverEachPixel) {
+  MeshBuilder b;
+  b.patch(b.vertex({-1, -1, 0}), b.vertex({1, -1, 0}), b.vertex({0, 1, 0}));
+  b.mesh.background = glm::vec3(0.0f);
+  const Camera camera{{0, 0, 5}, {0, 0, 0}, {0, 1, 0}, 60.0f};
+  const Image fine = render_view(b.mesh, {glm::vec3(1)}, camera, 4 * 32, 4 * 24, Shading::flat);
+  const Image aa = render_view_antialiased(b.mesh, {glm::vec3(1)}, camera, 32, 24, Shading::flat, 4);
+  const Image one = render_view(b.mesh, {glm::vec3(1)}, camera, 32, 24, Shading::flat);
+  int between = 0;
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 32; ++x) {
+      glm::vec3 sum(0.0f);
+      for (int j = 0; j < 4; ++j)
+        for (int i = 0; i < 4; ++i) sum += fine.at(4 * x + i, 4 * y + j);
+      expect_near(aa.at(x, y), sum / 16.0f, 1e-6f);
+      between += aa.at(x, y).x > 0.0f && aa.at(x, y).x < 1.0f;
+      EXPECT_TRUE(one.at(x, y).x == 0.0f || one.at(x, y).x == 1.0f);
+    }
+  EXPECT_GT(between, 20) << "edge pixels with partial coverage";
+  EXPECT_EQ(aa.at(16, 12), glm::vec3(1.0f));
+  EXPECT_THROW(render_view_antialiased(b.mesh, {glm::vec3(1)}, camera, 32, 24, Shading::flat, 0), Error);
+}
+
 TEST(OutputRender, BackFacesAreCulled) {
   MeshBuilder b;
   b.patch(b.vertex({-1, -1, 0}), b.vertex({1, -1, 0}), b.vertex({0, 1, 0}));
