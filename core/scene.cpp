@@ -25,6 +25,7 @@
 
 #include "core/error.h"
 #include "core/resources.h"
+#include "core/scene_gltf.h"
 
 namespace sirad {
 namespace {
@@ -473,8 +474,9 @@ Scene load_scene(const std::string& spec, const ImportOptions& options) {
   std::string extension = path.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (extension == ".gltf" || extension == ".glb") return with_options(guarded(spec, [&] { return import_gltf(spec, options); }), options);
   if (extension != ".obj")
-    fail("{}: unsupported scene format (supported: .obj, built-ins: cornell, furnace, bright-room, three-lights)", spec);
+    fail("{}: unsupported scene format (supported: .obj, .gltf, .glb; built-ins: cornell, furnace, bright-room, three-lights)", spec);
   return guarded(spec, [&] {
     const std::string text = read_file(path, spec);
     const fs::path dir = path.parent_path();

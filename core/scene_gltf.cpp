@@ -1,0 +1,393 @@
+// sirad: glTF 2.0 scenes (.gltf and .glb) through tinygltf (Debian's libtinygltf-dev: a small,
+// maintained reader of the whole format, .glb and embedded or external buffers and images
+// included; assimp would bring a hundred formats and their attack surface for one).
+//
+// What is read: the default scene's node tree with its transforms (matrix or TRS), every
+// triangle primitive (modes TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN) of its meshes, in metres
+// and Y-up as glTF defines; per material pbrMetallicRoughness.baseColorFactor as the diffuse
+// reflectance (times the mean linear colour of a baseColorTexture, said in a warning),
+// emissiveFactor times KHR_materials_emissive_strength as emitted radiance, doubleSided as
+// Material::two_sided (Blender exports doubleSided unless backface culling is on: as Cycles
+// renders it); the first perspective camera in the tree as the scene's camera. Punctual lights
+// (KHR_lights_punctual) are refused: sirad's light comes from emitting surfaces. Everything is
+// validated as the OBJ reader validates: one line naming the file and the element.
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <glm/geometric.hpp>
+#include <glm/mat4x4.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include "core/error.h"
+#include "core/scene.h"
+#include "core/scene_gltf.h"
+
+namespace sirad {
+
+namespace {
+
+constexpr std::size_t kMaxTriangles = std::size_t{1} << 26;
+constexpr std::size_t kMaxNodes = std::size_t{1} << 20;
+constexpr uintmax_t kMaxFileBytes = uintmax_t{2} << 30;
+constexpr float kDefaultReflectance = 0.8f;  // a primitive without a material, as OBJ faces without usemtl
+
+double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
+
+class GltfReader {
+ public:
+  GltfReader(std::string path, const tinygltf::Model& model) : path_(std::move(path)), m_(model) {}
+
+  Scene read(const ImportOptions& options) {
+    scene_.name = path_;
+    scene_.objects.clear();
+    for (const auto& ext : m_.extensionsRequired)
+      if (ext != "KHR_materials_emissive_strength" && ext != "KHR_materials_unlit" && ext != "KHR_texture_transform")
+        fail("{}: requires the glTF extension {}, which sirad does not read", path_, ext);
+    if (!m_.lights.empty())
+      fail("{}: has {} punctual light{} (KHR_lights_punctual), which sirad cannot use: its light comes from emitting "
+           "surfaces (give a mesh an emissive material, e.g. Blender's Emission strength)",
+           path_, m_.lights.size(), m_.lights.size() == 1 ? "" : "s");
+    if (m_.scenes.empty()) fail("{}: no scene", path_);
+    const int which = m_.defaultScene >= 0 ? m_.defaultScene : 0;
+    if (which >= static_cast<int>(m_.scenes.size())) fail("{}: default scene {} does not exist", path_, which);
+    // The node tree, depth first, each node once (a file whose children form a cycle is refused).
+    std::vector<char> seen(m_.nodes.size(), 0);
+    struct Item {
+      int node;
+      glm::dmat4 parent;
+    };
+    std::vector<Item> stack;
+    const auto& roots = m_.scenes[static_cast<std::size_t>(which)].nodes;
+    for (auto it = roots.rbegin(); it != roots.rend(); ++it) stack.push_back({*it, glm::dmat4(1.0)});
+    std::size_t visited = 0;
+    while (!stack.empty()) {
+      Item item = stack.back();
+      stack.pop_back();
+      if (item.node < 0 || item.node >= static_cast<int>(m_.nodes.size())) fail("{}: node {} does not exist", path_, item.node);
+      if (seen[static_cast<std::size_t>(item.node)]) fail("{}: node {} is reached twice (a cycle or a shared child)", path_, item.node);
+      seen[static_cast<std::size_t>(item.node)] = 1;
+      if (++visited > kMaxNodes) fail("{}: more than {} nodes", path_, kMaxNodes);
+      const tinygltf::Node& n = m_.nodes[static_cast<std::size_t>(item.node)];
+      const glm::dmat4 world = item.parent * local(n, item.node);
+      if (n.mesh >= 0) mesh(n, item.node, world, options);
+      if (n.camera >= 0 && !scene_.camera) camera(n, item.node, world);
+      for (auto it = n.children.rbegin(); it != n.children.rend(); ++it) stack.push_back({*it, world});
+    }
+    if (scene_.objects.empty()) scene_.objects.push_back("(unnamed)");
+    if (scene_.triangles.empty()) {
+      if (skipped_ > 0) fail("{}: scene has no triangles ({} skipped as degenerate)", path_, skipped_);
+      fail("{}: scene has no triangles", path_);
+    }
+    bool emits = false;
+    for (const Material& mat : scene_.materials) emits = emits || mat.emission.x > 0 || mat.emission.y > 0 || mat.emission.z > 0;
+    if (!emits) fail("{}: scene has no emitter (no material with an emissiveFactor above 0)", path_);
+    return scene_;
+  }
+
+ private:
+  std::string where(int node) const {
+    const auto& n = m_.nodes[static_cast<std::size_t>(node)];
+    return n.name.empty() ? fmt::format("node {}", node) : fmt::format("node {} '{}'", node, n.name);
+  }
+
+  glm::dmat4 local(const tinygltf::Node& n, int node) const {
+    if (!n.matrix.empty()) {
+      if (n.matrix.size() != 16) fail("{}: {}: matrix has {} numbers, not 16", path_, where(node), n.matrix.size());
+      glm::dmat4 m;
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) m[c][r] = n.matrix[static_cast<std::size_t>(4 * c + r)];  // column-major
+      for (double v : n.matrix)
+        if (!std::isfinite(v)) fail("{}: {}: matrix is not finite", path_, where(node));
+      return m;
+    }
+    glm::dmat4 t(1.0), r(1.0), s(1.0);
+    if (!n.translation.empty()) {
+      if (n.translation.size() != 3) fail("{}: {}: translation is not 3 numbers", path_, where(node));
+      t = glm::translate(glm::dmat4(1.0), glm::dvec3(n.translation[0], n.translation[1], n.translation[2]));
+    }
+    if (!n.rotation.empty()) {
+      if (n.rotation.size() != 4) fail("{}: {}: rotation is not 4 numbers", path_, where(node));
+      glm::dquat q(n.rotation[3], n.rotation[0], n.rotation[1], n.rotation[2]);  // glTF: x, y, z, w
+      if (!(glm::length(q) > 0.0)) fail("{}: {}: rotation is not a unit quaternion", path_, where(node));
+      r = glm::mat4_cast(glm::normalize(q));
+    }
+    if (!n.scale.empty()) {
+      if (n.scale.size() != 3) fail("{}: {}: scale is not 3 numbers", path_, where(node));
+      s = glm::scale(glm::dmat4(1.0), glm::dvec3(n.scale[0], n.scale[1], n.scale[2]));
+    }
+    glm::dmat4 m = t * r * s;
+    for (int c = 0; c < 4; ++c)
+      for (int k = 0; k < 4; ++k)
+        if (!std::isfinite(m[c][k])) fail("{}: {}: transform is not finite", path_, where(node));
+    return m;
+  }
+
+  // The bytes of accessor `index` checked against its buffer: element e's component k is at
+  // data + e * stride + k * component size.
+  struct View {
+    const unsigned char* data = nullptr;
+    std::size_t count = 0, stride = 0;
+    int component = 0, components = 0;
+  };
+  View view(int index, const std::string& what) const {
+    if (index < 0 || index >= static_cast<int>(m_.accessors.size())) fail("{}: {}: accessor {} does not exist", path_, what, index);
+    const tinygltf::Accessor& a = m_.accessors[static_cast<std::size_t>(index)];
+    if (a.sparse.isSparse) fail("{}: {}: sparse accessors are not supported", path_, what);
+    if (a.bufferView < 0 || a.bufferView >= static_cast<int>(m_.bufferViews.size()))
+      fail("{}: {}: accessor {} has no buffer view", path_, what, index);
+    const tinygltf::BufferView& bv = m_.bufferViews[static_cast<std::size_t>(a.bufferView)];
+    if (bv.buffer < 0 || bv.buffer >= static_cast<int>(m_.buffers.size())) fail("{}: {}: buffer {} does not exist", path_, what, bv.buffer);
+    const auto& buffer = m_.buffers[static_cast<std::size_t>(bv.buffer)].data;
+    View v;
+    v.component = tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(a.componentType));
+    v.components = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(a.type));
+    if (v.component <= 0 || v.components <= 0) fail("{}: {}: accessor {} has a bad type", path_, what, index);
+    const int stride = a.ByteStride(bv);
+    if (stride <= 0) fail("{}: {}: accessor {} has a bad byte stride", path_, what, index);
+    v.stride = static_cast<std::size_t>(stride);
+    v.count = a.count;
+    const std::size_t element = static_cast<std::size_t>(v.component) * static_cast<std::size_t>(v.components);
+    if (bv.byteOffset > buffer.size() || bv.byteLength > buffer.size() - bv.byteOffset)
+      fail("{}: {}: buffer view {} runs past its buffer", path_, what, a.bufferView);
+    if (v.count > 0) {
+      if (a.byteOffset > bv.byteLength || (v.count - 1) > (bv.byteLength - a.byteOffset) / v.stride ||
+          a.byteOffset + (v.count - 1) * v.stride + element > bv.byteLength)
+        fail("{}: {}: accessor {} runs past its buffer view", path_, what, index);
+    }
+    v.data = buffer.data() + bv.byteOffset + a.byteOffset;
+    return v;
+  }
+
+  uint32_t material(int index) {
+    auto it = material_of_.find(index);
+    if (it != material_of_.end()) return it->second;
+    Material mat;
+    if (index < 0) {
+      mat = {"default", glm::vec3(kDefaultReflectance), glm::vec3(0.0f)};
+    } else {
+      if (index >= static_cast<int>(m_.materials.size())) fail("{}: material {} does not exist", path_, index);
+      const tinygltf::Material& g = m_.materials[static_cast<std::size_t>(index)];
+      mat.name = g.name.empty() ? fmt::format("material {}", index) : g.name;
+      const std::string what = fmt::format("material '{}'", mat.name);
+      const auto& base = g.pbrMetallicRoughness.baseColorFactor;
+      if (base.size() != 4) fail("{}: {}: baseColorFactor is not 4 numbers", path_, what);
+      glm::dvec3 rho(base[0], base[1], base[2]);
+      if (int t = g.pbrMetallicRoughness.baseColorTexture.index; t >= 0) rho *= texture_mean(t, what);
+      const auto& e = g.emissiveFactor;
+      if (e.size() != 3) fail("{}: {}: emissiveFactor is not 3 numbers", path_, what);
+      double strength = 1.0;
+      if (auto ext = g.extensions.find("KHR_materials_emissive_strength"); ext != g.extensions.end()) {
+        const tinygltf::Value& v = ext->second.Get("emissiveStrength");
+        if (!v.IsNumber()) fail("{}: {}: KHR_materials_emissive_strength without a number", path_, what);
+        strength = v.GetNumberAsDouble();
+      }
+      glm::dvec3 emission = glm::dvec3(e[0], e[1], e[2]) * strength;
+      for (int k = 0; k < 3; ++k) {
+        if (!(rho[k] >= 0.0 && rho[k] <= 1.0)) fail("{}: {}: base colour {} outside [0, 1]", path_, what, rho[k]);
+        if (!std::isfinite(emission[k]) || emission[k] > 3.0e38) fail("{}: {}: emission {} is not finite", path_, what, emission[k]);
+        if (emission[k] < 0.0) fail("{}: {}: emission {} is negative", path_, what, emission[k]);
+      }
+      if (g.emissiveTexture.index >= 0)
+        scene_.warnings.push_back(fmt::format("{}: {}: its emissive texture is not read; emissiveFactor is used", path_, what));
+      mat.reflectance = glm::vec3(rho);
+      mat.emission = glm::vec3(emission);
+      mat.two_sided = g.doubleSided;
+    }
+    const auto slot = static_cast<uint32_t>(scene_.materials.size());
+    scene_.materials.push_back(mat);
+    material_of_[index] = slot;
+    return slot;
+  }
+
+  // The mean linear colour of texture `t`'s image (sRGB-encoded, as glTF's base colour is), with
+  // a warning that the texture is reduced to it; 1 (and a warning) when its image is not there.
+  glm::dvec3 texture_mean(int t, const std::string& what) {
+    const auto source = t < static_cast<int>(m_.textures.size()) ? m_.textures[static_cast<std::size_t>(t)].source : -1;
+    if (source < 0 || source >= static_cast<int>(m_.images.size())) {
+      scene_.warnings.push_back(fmt::format("{}: {}: its base colour texture has no image; baseColorFactor is used", path_, what));
+      return glm::dvec3(1.0);
+    }
+    const tinygltf::Image& im = m_.images[static_cast<std::size_t>(source)];
+    const std::size_t pixels = static_cast<std::size_t>(std::max(im.width, 0)) * static_cast<std::size_t>(std::max(im.height, 0));
+    if (pixels == 0 || im.component < 3 || (im.bits != 8 && im.bits != 16) ||
+        im.image.size() < pixels * static_cast<std::size_t>(im.component) * static_cast<std::size_t>(im.bits / 8)) {
+      scene_.warnings.push_back(fmt::format("{}: {}: its base colour texture '{}' could not be read; baseColorFactor is used",
+                                            path_, what, im.uri.empty() ? im.name : im.uri));
+      return glm::dvec3(1.0);
+    }
+    glm::dvec3 sum(0.0);
+    const double max = im.bits == 8 ? 255.0 : 65535.0;
+    for (std::size_t p = 0; p < pixels; ++p)
+      for (int c = 0; c < 3; ++c) {
+        std::size_t at = (p * static_cast<std::size_t>(im.component) + static_cast<std::size_t>(c)) * static_cast<std::size_t>(im.bits / 8);
+        double v = im.bits == 8 ? im.image[at] : (im.image[at] | (im.image[at + 1] << 8));
+        sum[c] += srgb_to_linear(v / max);
+      }
+    glm::dvec3 mean = sum / static_cast<double>(pixels);
+    scene_.warnings.push_back(fmt::format("{}: {}: its base colour texture is reduced to its mean colour ({:.3f} {:.3f} {:.3f}): "
+                                          "radiosity is per patch", path_, what, mean.x, mean.y, mean.z));
+    return mean;
+  }
+
+  void mesh(const tinygltf::Node& n, int node, const glm::dmat4& world, const ImportOptions& options) {
+    if (n.mesh >= static_cast<int>(m_.meshes.size())) fail("{}: {}: mesh {} does not exist", path_, where(node), n.mesh);
+    const tinygltf::Mesh& mesh = m_.meshes[static_cast<std::size_t>(n.mesh)];
+    const uint32_t object = static_cast<uint32_t>(scene_.objects.size());
+    scene_.objects.push_back(!n.name.empty() ? n.name : !mesh.name.empty() ? mesh.name : fmt::format("node {}", node));
+    // A transform that mirrors (negative determinant) turns counter-clockwise into clockwise.
+    const bool mirrored = glm::determinant(glm::dmat3(world)) < 0.0;
+    for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
+      const tinygltf::Primitive& prim = mesh.primitives[p];
+      const std::string what = fmt::format("{} primitive {}", where(node), p);
+      if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != TINYGLTF_MODE_TRIANGLE_STRIP && prim.mode != TINYGLTF_MODE_TRIANGLE_FAN)
+        fail("{}: {}: mode {} is points or lines, not a surface", path_, what, prim.mode);
+      auto pos = prim.attributes.find("POSITION");
+      if (pos == prim.attributes.end()) fail("{}: {}: no POSITION", path_, what);
+      View v = view(pos->second, what + " POSITION");
+      const auto& acc = m_.accessors[static_cast<std::size_t>(pos->second)];
+      if (acc.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT || v.components != 3)
+        fail("{}: {}: POSITION is not float VEC3", path_, what);
+      std::vector<glm::vec3> points(v.count);
+      for (std::size_t i = 0; i < v.count; ++i) {
+        float xyz[3];
+        std::memcpy(xyz, v.data + i * v.stride, sizeof xyz);
+        glm::dvec4 q = world * glm::dvec4(xyz[0], xyz[1], xyz[2], 1.0);
+        for (int k = 0; k < 3; ++k)
+          if (!std::isfinite(q[k]) || std::abs(q[k]) > 1e30) fail("{}: {}: vertex {} is not finite", path_, what, i);
+        points[i] = glm::vec3(q);
+      }
+      std::vector<uint32_t> index;
+      if (prim.indices >= 0) {
+        View iv = view(prim.indices, what + " indices");
+        if (iv.components != 1) fail("{}: {}: indices are not scalars", path_, what);
+        index.resize(iv.count);
+        for (std::size_t i = 0; i < iv.count; ++i) {
+          const unsigned char* at = iv.data + i * iv.stride;
+          uint32_t k = 0;
+          if (iv.component == 1) k = at[0];
+          else if (iv.component == 2) k = static_cast<uint32_t>(at[0] | (at[1] << 8));
+          else std::memcpy(&k, at, 4);
+          if (k >= points.size()) fail("{}: {}: index {} out of range ({} vertices)", path_, what, k, points.size());
+          index[i] = k;
+        }
+      } else {
+        index.resize(points.size());
+        for (std::size_t i = 0; i < index.size(); ++i) index[i] = static_cast<uint32_t>(i);
+      }
+      const uint32_t mat = material(prim.material);
+      auto add = [&](uint32_t a, uint32_t b, uint32_t c) {
+        if (mirrored) std::swap(b, c);
+        Triangle t;
+        t.p = {points[a], points[b], points[c]};
+        t.material = mat;
+        t.object = object;
+        glm::dvec3 e = glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]));
+        if (!(glm::length(e) > 0.0)) {
+          if (!options.skip_degenerate)
+            fail("{}: {}: degenerate triangle (zero area) with vertices {}, {}, {} (--skip-degenerate drops them)", path_,
+                 what, a, b, c);
+          ++skipped_;
+          return;
+        }
+        if (scene_.triangles.size() >= kMaxTriangles) fail("{}: more than {} triangles", path_, kMaxTriangles);
+        scene_.triangles.push_back(t);
+      };
+      if (prim.mode == TINYGLTF_MODE_TRIANGLES) {
+        if (index.size() % 3 != 0) fail("{}: {}: {} indices are not whole triangles", path_, what, index.size());
+        for (std::size_t i = 0; i + 2 < index.size(); i += 3) add(index[i], index[i + 1], index[i + 2]);
+      } else if (prim.mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
+        for (std::size_t i = 0; i + 2 < index.size(); ++i)
+          if (i % 2 == 0) add(index[i], index[i + 1], index[i + 2]);
+          else add(index[i + 1], index[i], index[i + 2]);
+      } else {
+        for (std::size_t i = 1; i + 1 < index.size(); ++i) add(index[0], index[i], index[i + 1]);
+      }
+    }
+  }
+
+  // glTF cameras look along their node's -Z with +Y up; yfov is the vertical field of view.
+  void camera(const tinygltf::Node& n, int node, const glm::dmat4& world) {
+    if (n.camera >= static_cast<int>(m_.cameras.size())) fail("{}: {}: camera {} does not exist", path_, where(node), n.camera);
+    const tinygltf::Camera& c = m_.cameras[static_cast<std::size_t>(n.camera)];
+    if (c.type != "perspective") {
+      scene_.warnings.push_back(fmt::format("{}: {}: camera '{}' is {}, not perspective: not used", path_, where(node), c.name, c.type));
+      return;
+    }
+    const double fov = c.perspective.yfov * 180.0 / std::numbers::pi;
+    if (!(fov > 0.0 && fov < 180.0)) fail("{}: {}: camera yfov {} outside (0, pi)", path_, where(node), c.perspective.yfov);
+    glm::dvec3 eye(world * glm::dvec4(0, 0, 0, 1)), forward(world * glm::dvec4(0, 0, -1, 0)), up(world * glm::dvec4(0, 1, 0, 0));
+    if (!(glm::length(forward) > 0.0) || !(glm::length(glm::cross(forward, up)) > 0.0))
+      fail("{}: {}: camera transform has no view direction", path_, where(node));
+    Camera cam;
+    cam.eye = glm::vec3(eye);
+    cam.look_at = glm::vec3(eye + glm::normalize(forward));
+    cam.up = glm::vec3(glm::normalize(up));
+    cam.vfov_deg = static_cast<float>(fov);
+    scene_.camera = cam;
+  }
+
+  std::string path_;
+  const tinygltf::Model& m_;
+  Scene scene_;
+  std::map<int, uint32_t> material_of_;
+  std::size_t skipped_ = 0;
+};
+
+// Every file tinygltf reads (the scene, external buffers and images): a regular file of at most
+// 2 GiB, whatever a hostile file's URIs name (a device, a FIFO, a huge file).
+bool read_bounded(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    if (err) *err += "'" + path + "' is not a regular file\n";
+    return false;
+  }
+  const uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec || size > kMaxFileBytes) {
+    if (err) *err += "'" + path + "' is larger than 2 GiB\n";
+    return false;
+  }
+  return tinygltf::ReadWholeFile(out, err, path, nullptr);
+}
+
+bool no_write(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+  if (err) *err += "sirad does not write through the glTF reader\n";
+  return false;
+}
+
+}  // namespace
+
+Scene import_gltf(const std::string& path, const ImportOptions& options) {
+  std::error_code ec;
+  const uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) fail("{}: cannot read: {}", path, ec.message());
+  if (size > kMaxFileBytes) fail("{}: file is larger than 2 GiB", path);
+  tinygltf::TinyGLTF loader;
+  loader.SetFsCallbacks({&tinygltf::FileExists, &tinygltf::ExpandFilePath, &read_bounded, &no_write, nullptr});
+  tinygltf::Model model;
+  std::string err, warn;
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  bool ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+  auto first_line = [](std::string s) {
+    s = s.substr(0, s.find('\n'));
+    for (char& c : s)
+      if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7f) c = '?';
+    return s.size() > 300 ? s.substr(0, 300) + "..." : s;
+  };
+  if (!ok) fail("{}: not a readable glTF file: {}", path, first_line(err.empty() ? warn : err));
+  Scene scene = GltfReader(path, model).read(options);
+  if (!warn.empty()) scene.warnings.push_back(fmt::format("{}: {}", path, first_line(warn)));
+  return scene;
+}
+
+}  // namespace sirad
