@@ -163,8 +163,7 @@ void write_outputs(const RenderArgs& a, const std::string& out, const PatchMesh&
   ro.shading = a.flat ? Shading::flat : Shading::gouraud;
   ResultFiles files = write_results(out, mesh, radiosity, ro, attrs);
   std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), camera_from.c_str());
-  std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
-              std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
+  std::fputs(wrote_lines(files).c_str(), stdout);
 }
 
 constexpr const char* kCameraHelp =
@@ -185,7 +184,7 @@ MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<doub
 // The outputs' name: --out, or the scene's file name without extension; checked before any work:
 // its folder must be writable, and no output (NAME + each of `extensions`) may be the scene file.
 std::string output_name(const std::string& out, const std::string& scene,
-                        std::initializer_list<const char*> extensions = {".exr", ".png", ".ply"}) {
+                        std::initializer_list<const char*> extensions = {".exr", ".png", ".ply", ".glb"}) {
   namespace fs = std::filesystem;
   std::string name = out.empty() ? fs::path(scene).stem().string() : out;
   check_output_name(name);

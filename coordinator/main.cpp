@@ -221,8 +221,7 @@ int main(int argc, char** argv) {
     ro.width = width;
     ro.height = height;
     ResultFiles files = write_results(out, mesh, result.radiosity, ro, cluster::run_attributes(rc, result, mesh, scene_spec));
-    std::printf("wrote %s\nwrote %s\nwrote %s\n", std::filesystem::absolute(files.exr).c_str(),
-                std::filesystem::absolute(files.png).c_str(), std::filesystem::absolute(files.ply).c_str());
+    std::fputs(wrote_lines(files).c_str(), stdout);
     if (!ledger.empty()) {
       write_file_atomic(ledger, cluster::ledger_csv(result));
       std::printf("wrote %s\n", std::filesystem::absolute(ledger).c_str());

@@ -309,6 +309,11 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
 
   // Step 4: scene data, bounds and the content hash.
   mesh.materials = scene.materials;
+  mesh.objects = scene.objects;
+  mesh.triangle_object.resize(scene.triangles.size());
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i)
+    mesh.triangle_object[i] = scene.triangles[i].object < scene.objects.size() ? scene.triangles[i].object : 0;
+  if (mesh.objects.empty()) mesh.objects.push_back("(unnamed)");
   mesh.background = scene.background;
   mesh.camera = scene.camera;
   bound(mesh, scene.name);

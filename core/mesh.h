@@ -28,6 +28,8 @@ struct PatchMesh {
   std::vector<float> area;                        // per patch, > 0
   std::vector<uint32_t> material;                 // per patch, index into materials
   std::vector<uint32_t> source_triangle;          // per patch, index of the input triangle
+  std::vector<uint32_t> triangle_object;          // per input triangle, index into objects
+  std::vector<std::string> objects;               // object names (Scene::objects), for outputs
   std::vector<Material> materials;
   glm::vec3 background{0.0f};
   std::optional<Camera> camera;

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <utility>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -117,31 +118,15 @@ class RayScene {
   RayScene& operator=(const RayScene&) = delete;
 
   // The patch a ray from org along dir meets first (t > 0), whichever side, or -1.
-  int64_t nearest(const glm::dvec3& org, const glm::dvec3& dir) const {
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRayHit rh;
-    set_ray(rh.ray, org, dir, 0.0f, std::numeric_limits<float>::infinity());
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene_, &ctx, &rh);
-    return rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : static_cast<int64_t>(rh.hit.primID);
-  }
+  int64_t nearest(const glm::dvec3& org, const glm::dvec3& dir) const { return first_hit(org, dir).first; }
   // The patch a ray from org along dir sees (t > 0): the front face it meets first, or -1 when
   // it meets a back face first or leaves the scene (it then brings the background).
   int64_t seen(const glm::dvec3& org, const glm::dvec3& dir) const {
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRayHit rh;
-    set_ray(rh.ray, org, dir, 0.0f, std::numeric_limits<float>::infinity());
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene_, &ctx, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
+    auto [first, t] = first_hit(org, dir);
+    if (first < 0) return -1;
     // Every face within the tie of the nearest hit is at that place; the latest facing the ray
     // is seen.
-    Hits near = hits_on(org, dir, std::max(0.0, static_cast<double>(rh.ray.tfar) - tie_),
-                        static_cast<double>(rh.ray.tfar) + tie_);
+    Hits near = hits_on(org, dir, std::max(0.0, t - tie_), t + tie_);
     int64_t best = -1;
     for (uint32_t k = 0; k < near.n; ++k)
       if (glm::dot(glm::dvec3(mesh_.normal[near.prim[k]]), dir) < 0.0) best = std::max<int64_t>(best, near.prim[k]);
@@ -175,6 +160,18 @@ class RayScene {
   }
 
  private:
+  // The nearest patch on org + t dir, t > 0, and its t (-1 and infinity: none).
+  std::pair<int64_t, double> first_hit(const glm::dvec3& org, const glm::dvec3& dir) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh;
+    set_ray(rh.ray, org, dir, 0.0f, std::numeric_limits<float>::infinity());
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene_, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return {-1, std::numeric_limits<double>::infinity()};
+    return {static_cast<int64_t>(rh.hit.primID), static_cast<double>(rh.ray.tfar)};
+  }
   // The patches met on org + t dir, t0 <= t <= t1 (the first 16, each once).
   struct Hits {
     RTCIntersectContext ctx;  // first: Embree hands the filter this address

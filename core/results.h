@@ -18,13 +18,16 @@ struct ResultOptions {
 };
 
 struct ResultFiles {
-  std::string exr, png, ply;
+  std::string exr, png, ply, glb;
 };
+
+// "wrote PATH" for each file, absolute, one a line.
+std::string wrote_lines(const ResultFiles& files);
 
 // Fails early, before any work, if NAME's directory does not exist or is not writable.
 void check_output_name(const std::string& name, const std::string& flag = "--out");
 
-// Renders the view of the mesh's camera and writes the three files atomically.
+// Renders the view of the mesh's camera and writes NAME.exr, .png, .ply and .glb atomically.
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
                           const std::vector<glm::vec3>& radiosity, const ResultOptions& options,
                           const Attributes& attributes);

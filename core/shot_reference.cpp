@@ -40,7 +40,8 @@ double hit(const Ray& r, const glm::dvec3& a, const glm::dvec3& b, const glm::dv
 
 // What a ray sees: the nearest patch at or beyond the near plane (the kernel's depth test on
 // 1 / z, z = the ray parameter since the ray's c component is 1; on a depth tie a face towards
-// the eye wins over one facing away, and the later patch over an earlier one facing the same way), and how close the runner-up came (relative difference of 1 / z).
+// the eye wins over one facing away, and the later patch over an earlier one facing the same
+// way), and how close the runner-up came (relative difference of 1 / z).
 struct Seen {
   uint32_t patch = SIRAD_NO_PATCH;
   bool faces = false;

@@ -104,12 +104,8 @@ inline Scene two_rooms(double gap, glm::dmat3 rotation, int strips = 1) {
   return o.scene(fmt::format("two-rooms gap {}", gap), kMtl);
 }
 
-// A closed room 4 x 3 x 4 m with a large ceiling lamp and a free-standing zero-thickness panel
-// (2 x 1.6 m of material `panel`, turned 30 degrees about y, its front tilted 50 degrees up towards
-// the lamp): its front as a 2 x 2 grid of
-// rectangles, its back as one rectangle split along the other diagonal.
-inline Scene panel_room(glm::dmat3 rotation) {
-  ObjBuilder o(rotation);
+// The floor (material `floor`), ceiling and walls (`wall`) of a closed room 4 x 3 x 4 m, facing in.
+inline void room_shell(ObjBuilder& o) {
   const double W = 4, H = 3, D = 4;
   o.material("floor");
   o.quad({0, 0, 0}, {0, 0, D}, {W, 0, D}, {W, 0, 0});
@@ -119,6 +115,15 @@ inline Scene panel_room(glm::dmat3 rotation) {
   o.wall_x(W, 0, H, 0, D, false);
   o.quad({0, 0, 0}, {W, 0, 0}, {W, H, 0}, {0, H, 0});
   o.quad({0, 0, D}, {0, H, D}, {W, H, D}, {W, 0, D});
+}
+
+// A closed room 4 x 3 x 4 m with a large ceiling lamp and a free-standing zero-thickness panel
+// (2 x 1.6 m of material `panel`, turned 30 degrees about y, its front tilted 50 degrees up towards
+// the lamp): its front as a 2 x 2 grid of rectangles, its back as one rectangle split along the
+// other diagonal.
+inline Scene panel_room(glm::dmat3 rotation) {
+  ObjBuilder o(rotation);
+  room_shell(o);
   o.material("panel");
   // The panel in its own frame (u across, v up, normal n), centred at (2, 1.3, 2).
   double a = 30 * std::numbers::pi / 180, t = 50 * std::numbers::pi / 180;
@@ -139,15 +144,7 @@ inline Scene panel_room(glm::dmat3 rotation) {
 // both facing up.
 inline Scene rug_room(double gap, glm::dmat3 rotation) {
   ObjBuilder o(rotation);
-  const double W = 4, H = 3, D = 4;
-  o.material("floor");
-  o.quad({0, 0, 0}, {0, 0, D}, {W, 0, D}, {W, 0, 0});
-  o.material("wall");
-  o.quad({0, H, 0}, {W, H, 0}, {W, H, D}, {0, H, D});
-  o.wall_x(0, 0, H, 0, D, true);
-  o.wall_x(W, 0, H, 0, D, false);
-  o.quad({0, 0, 0}, {W, 0, 0}, {W, H, 0}, {0, H, 0});
-  o.quad({0, 0, D}, {0, H, D}, {W, H, D}, {W, 0, D});
+  room_shell(o);
   o.material("big_lamp");
   o.quad({0.8, 2.95, 0.8}, {3.2, 2.95, 0.8}, {3.2, 2.95, 3.2}, {0.8, 2.95, 3.2});
   o.material("rug");

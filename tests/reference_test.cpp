@@ -440,7 +440,7 @@ TEST_F(ReferenceCli, BadInputIsOneLine) {
   expect_one_line_error(sirad("reference cornell --rays 4 --batches 8"), "--rays 4 is below --batches 8");
   expect_one_line_error(sirad("reference cornell --patches 100 --max-edge 10"), "exclude each other");
   expect_one_line_error(sirad("reference no_such_scene.obj"), "no_such_scene.obj");
-  expect_one_line_error(sirad("reference scene.gltf"), "unsupported scene format");
+  expect_one_line_error(sirad("reference scene.fbx"), "unsupported scene format");
   for (const auto& e : fs::directory_iterator(dir_)) ADD_FAILURE() << "left behind: " << e.path();
 }
 

@@ -264,8 +264,8 @@ TEST(SceneErrors, FilesThatAreNotScenes) {
                                                                    11));
   expect_parts(error_of([&] { load_scene(garbage); }), {"garbage.obj:1: binary data"});
   expect_parts(
-      error_of([&] { load_scene(dir.path("model.glb")); }),
-      {"model.glb: unsupported scene format (supported: .obj, built-ins: cornell, furnace, bright-room, three-lights)"});
+      error_of([&] { load_scene(dir.path("model.fbx")); }),
+      {"model.fbx: unsupported scene format (supported: .obj, .gltf, .glb; built-ins: cornell, furnace, bright-room, three-lights)"});
   expect_parts(error_of([&] { load_scene("cornel"); }), {"cornel: unsupported scene format"});
 }
 

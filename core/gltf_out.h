@@ -1,0 +1,24 @@
+// sirad: NAME.glb, the solution as binary glTF 2.0 for any viewer and for Blender's importer.
+// One mesh per object of the input (its name kept), one primitive per material; per vertex
+// COLOR_0 = the radiance times 2^exposure clamped to [0, 1] (linear, as glTF's colours are) and
+// _RADIANCE = the radiance itself (float, unclamped); a vertex is shared only by the corners
+// corner_radiosity gives one value (one smooth surface of one material), so creases and material
+// borders stay sharp. Materials are KHR_materials_unlit with a white base colour: viewers show
+// the lighting as solved. Back faces stay one-sided (doubleSided false), as the solution is; a
+// two-sided surface carries both sides as two faces. The camera of the images is a camera node.
+#pragma once
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/mesh.h"
+#include "core/output.h"
+
+namespace sirad {
+
+// Writes `path` atomically. `aspect`: the images' width / height (the camera's aspect ratio).
+void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity,
+               float exposure, double aspect);
+
+}  // namespace sirad
