@@ -2,6 +2,7 @@
 #include "core/output.h"
 
 #include <algorithm>
+#include <unordered_map>
 #include <array>
 #include <bit>
 #include <cerrno>
@@ -273,7 +274,7 @@ void write_png(const std::string& path, const Image& image, float exposure) {
 }
 
 void write_ply(const std::string& path, const PatchMesh& mesh,
-               const std::vector<glm::vec3>& radiosity) {
+               const std::vector<glm::vec3>& radiosity, float exposure) {
   // Step 1: validate what the body refers to.
   if (radiosity.size() != mesh.size())
     fail("cannot write {}: {} radiosity values for {} patches", path, radiosity.size(),
@@ -296,7 +297,40 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
                   [](char c) { return static_cast<unsigned char>(c) <= ' '; }))
     fail("cannot write {}: scene hash '{}' contains blanks or control characters", path, mesh.hash);
 
-  // Step 2: the header.
+  if (!std::isfinite(exposure)) fail("cannot write {}: exposure is not finite", path);
+
+  // Step 2: the vertices: one per welded position and corner value, in order of first use.
+  const auto corners = corner_radiosity(mesh, radiosity);
+  struct Corner {
+    uint32_t vertex;
+    glm::vec3 value;
+    bool operator==(const Corner& o) const {
+      return vertex == o.vertex && std::memcmp(&value, &o.value, sizeof value) == 0;
+    }
+  };
+  struct CornerHash {
+    std::size_t operator()(const Corner& c) const {
+      uint32_t bits[3];
+      std::memcpy(bits, &c.value, sizeof bits);
+      return (static_cast<std::size_t>(c.vertex) * 0x9e3779b97f4a7c15ULL) ^ (bits[0] * 0x85ebca6bULL) ^
+             (bits[1] * 0xc2b2ae35ULL) ^ bits[2];
+    }
+  };
+  std::unordered_map<Corner, uint32_t, CornerHash> index_of;
+  std::vector<Corner> order;
+  std::vector<std::array<uint32_t, 3>> faces(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j)
+    for (int k = 0; k < 3; ++k) {
+      Corner c{mesh.patches[j][static_cast<std::size_t>(k)], corners[j][static_cast<std::size_t>(k)]};
+      auto [it, added] = index_of.try_emplace(c, static_cast<uint32_t>(order.size()));
+      if (added) order.push_back(c);
+      faces[j][static_cast<std::size_t>(k)] = it->second;
+    }
+  if (order.size() > static_cast<std::size_t>(std::numeric_limits<int32_t>::max()))
+    fail("cannot write {}: {} vertices do not fit PLY int indices", path, order.size());
+  const double scale = std::exp2(static_cast<double>(exposure));
+
+  // Step 3: the header.
   std::string header = fmt::format(
       "ply\n"
       "format binary_little_endian 1.0\n"
@@ -305,15 +339,18 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
       "property float x\n"
       "property float y\n"
       "property float z\n"
+      "property uchar red\n"
+      "property uchar green\n"
+      "property uchar blue\n"
       "element face {}\n"
       "property list uchar int vertex_indices\n",
-      mesh.hash, mesh.vertices.size(), mesh.size());
+      mesh.hash, order.size(), mesh.size());
   for (const char* quantity : {"radiosity", "reflectance", "emission"})
     for (const char* channel : {"r", "g", "b"})
       header += fmt::format("property float {}_{}\n", quantity, channel);
   header += "end_header\n";
 
-  // Step 3: the body, in chunks: vertices, then one face per patch in patch order.
+  // Step 4: the body, in chunks: vertices, then one face per patch in patch order.
   AtomicFile file(path);
   file.write(header.data(), header.size());
   std::vector<unsigned char> chunk;
@@ -323,13 +360,14 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
     chunk.clear();
   };
   constexpr std::size_t chunk_bytes = 1 << 16;
-  for (const glm::vec3& v : mesh.vertices) {
-    put_le(chunk, v);
+  for (const Corner& c : order) {
+    put_le(chunk, mesh.vertices[c.vertex]);
+    for (int k = 0; k < 3; ++k) chunk.push_back(tone_map(c.value[k], scale));
     flush_chunk(chunk_bytes);
   }
   for (std::size_t j = 0; j < mesh.size(); ++j) {
     chunk.push_back(3);
-    for (uint32_t v : mesh.patches[j]) put_le(chunk, static_cast<int32_t>(v));
+    for (uint32_t v : faces[j]) put_le(chunk, static_cast<int32_t>(v));
     put_le(chunk, radiosity[j]);
     put_le(chunk, mesh.reflectance(j));
     put_le(chunk, mesh.emission(j));

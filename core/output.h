@@ -47,7 +47,12 @@ Image render_view_antialiased(const PatchMesh& mesh, const std::vector<glm::vec3
 void write_exr(const std::string& path, const Image& image, const Attributes& attributes);
 // Tone map: pixel * 2^exposure, clamped to [0, 1], sRGB-encoded, 8 bits.
 void write_png(const std::string& path, const Image& image, float exposure = 0.0f);
+// The PLY of DESIGN.md section 4: one face per patch in patch order with its radiosity,
+// reflectance and emission; a vertex per welded position and corner value (corner_radiosity:
+// shared within one smooth surface of one material, split at creases and material borders)
+// with red green blue = the tone map of the PNG (times 2^exposure, clamped, sRGB bytes), the
+// vertex colours Blender's PLY importer shows.
 void write_ply(const std::string& path, const PatchMesh& mesh,
-               const std::vector<glm::vec3>& radiosity);
+               const std::vector<glm::vec3>& radiosity, float exposure = 0.0f);
 
 }  // namespace sirad

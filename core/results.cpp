@@ -42,7 +42,7 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
   with_camera.emplace_back("sirad.camera", camera_spec(*mesh.camera));
   write_exr(files.exr, image, with_camera);
   write_png(files.png, image, options.exposure);
-  write_ply(files.ply, mesh, radiosity);
+  write_ply(files.ply, mesh, radiosity, options.exposure);
   write_glb(files.glb, mesh, radiosity, options.exposure, static_cast<double>(options.width) / options.height);
   return files;
 }

@@ -2,7 +2,7 @@
 # The round trip with Blender, headless: Blender builds a room and exports it as glTF
 # (tests/data/blender/make_room.py), sirad solves it and writes the .glb of the solution, and
 # Blender imports that and checks every object came back with its colours
-# (deploy/blender/check_import.py). Skipped (exit 0, says so) where Blender is not installed;
+# (deploy/blender/check_import.py), and the .ply with its vertex colours. Skipped (exit 0, says so) where Blender is not installed;
 # CI does not need it. Usage: deploy/blender-roundtrip.sh [BUILD_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,3 +19,6 @@ blender -b --factory-startup --python tests/data/blender/make_room.py -- "$work"
 blender -b --factory-startup --python deploy/blender/check_import.py -- "$work/solved.glb" Room Lamp Block 2>&1 |
   grep -E "vertices|ROUND TRIP" | tee "$work/import.log"
 grep -q "ROUND TRIP OK" "$work/import.log"
+blender -b --factory-startup --python deploy/blender/check_import.py -- "$work/solved.ply" 2>&1 |
+  grep -E "vertices|ROUND TRIP" | tee "$work/import-ply.log"
+grep -q "ROUND TRIP OK" "$work/import-ply.log"

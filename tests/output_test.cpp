@@ -709,10 +709,13 @@ TEST_F(OutputPly, HeaderAndBody) {
       "ply\n"
       "format binary_little_endian 1.0\n"
       "comment sirad scene hash 0123456789abcdef0123456789abcdef\n"
-      "element vertex 4\n"
+      "element vertex 6\n"
       "property float x\n"
       "property float y\n"
       "property float z\n"
+      "property uchar red\n"
+      "property uchar green\n"
+      "property uchar blue\n"
       "element face 2\n"
       "property list uchar int vertex_indices\n"
       "property float radiosity_r\n"
@@ -727,15 +730,22 @@ TEST_F(OutputPly, HeaderAndBody) {
       "end_header\n";
   ASSERT_GE(bytes.size(), expected_header.size());
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + expected_header.size()), expected_header);
-  ASSERT_EQ(bytes.size(), expected_header.size() + 4 * 12 + 2 * (1 + 12 + 36));
-
+  // The two patches have different materials: their corners are not shared (6 vertices, not
+  // the 4 welded ones), each vertex has its patch's value as the PNG's sRGB bytes.
+  ASSERT_EQ(bytes.size(), expected_header.size() + 6 * 15 + 2 * (1 + 12 + 36));
+  auto srgb_byte = [](float v) {
+    double x = std::clamp(static_cast<double>(v), 0.0, 1.0);
+    return static_cast<int>(std::lround(255.0 * (x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055)));
+  };
   std::size_t at = expected_header.size();
-  for (const glm::vec3& v : b.mesh.vertices)
-    for (int c = 0; c < 3; ++c) EXPECT_EQ(get_le<float>(bytes, at), v[c]);
+  for (std::size_t j = 0; j < 2; ++j)
+    for (int k = 0; k < 3; ++k) {
+      for (int c = 0; c < 3; ++c) EXPECT_EQ(get_le<float>(bytes, at), b.mesh.vertices[b.mesh.patches[j][k]][c]);
+      for (int c = 0; c < 3; ++c) EXPECT_EQ(int(bytes.at(at++)), srgb_byte(radiosity[j][c])) << j << " " << k << " " << c;
+    }
   for (std::size_t j = 0; j < 2; ++j) {
     EXPECT_EQ(bytes.at(at++), 3);
-    for (int k = 0; k < 3; ++k)
-      EXPECT_EQ(get_le<int32_t>(bytes, at), int32_t(b.mesh.patches[j][k]));
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(get_le<int32_t>(bytes, at), int32_t(3 * j + k));
     for (const glm::vec3& v : {radiosity[j], b.mesh.reflectance(j), b.mesh.emission(j)})
       for (int c = 0; c < 3; ++c) EXPECT_EQ(get_le<float>(bytes, at), v[c]);
   }

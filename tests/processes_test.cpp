@@ -90,8 +90,9 @@ std::string slurp(const fs::path& p) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-// The per-face radiosity of a PLY written by sirad (after the header: float vertices, then per
-// face: uchar 3, three ints, nine floats: radiosity, reflectance, emission).
+// The per-face radiosity of a PLY written by sirad (after the header: vertices of three floats
+// and three colour bytes, then per face: uchar 3, three ints, nine floats: radiosity,
+// reflectance, emission).
 std::vector<glm::vec3> ply_radiosity(const fs::path& path) {
   std::string ply = slurp(path);
   auto header_end = ply.find("end_header\n") + 11;
@@ -100,7 +101,7 @@ std::vector<glm::vec3> ply_radiosity(const fs::path& path) {
     return std::stoull(ply.substr(at + 9 + element.size()));
   };
   uint64_t vertices = count_of("vertex"), faces = count_of("face");
-  const char* p = ply.data() + header_end + vertices * 12;
+  const char* p = ply.data() + header_end + vertices * 15;
   std::vector<glm::vec3> out(faces);
   for (uint64_t f = 0; f < faces; ++f) {
     std::memcpy(&out[f], p + 1 + 12, 12);

@@ -1,6 +1,9 @@
-# Imports a sirad .glb into Blender (headless) and checks what Blender sees: every expected
-# object, with the solved colours as a colour attribute on its vertices, not all black.
+# Imports a sirad .glb (or .ply) into Blender (headless) and checks what Blender sees: every
+# expected object (a .ply is one object, named after the file), with the solved colours as a
+# colour attribute on its vertices, not all black.
 #   blender -b --factory-startup --python deploy/blender/check_import.py -- FILE.glb NAME [NAME ...]
+#   blender -b --factory-startup --python deploy/blender/check_import.py -- FILE.ply
+import os
 import sys
 import bpy
 
@@ -10,7 +13,11 @@ bpy.ops.object.select_all(action="SELECT")
 bpy.ops.object.delete()
 # import_shading: the default "NORMALS" fails in Debian 12's Blender 3.4 with its numpy 1.24
 # (np.bool); "SMOOTH" takes the other path and loses nothing here (the file has no normals).
-bpy.ops.import_scene.gltf(filepath=path, import_shading="SMOOTH")
+if path.endswith(".ply"):
+    bpy.ops.import_mesh.ply(filepath=path)
+    names = names or [os.path.splitext(os.path.basename(path))[0]]
+else:
+    bpy.ops.import_scene.gltf(filepath=path, import_shading="SMOOTH")
 found = {o.name: o for o in bpy.data.objects if o.type == "MESH"}
 bad = []
 for name in names:
