@@ -146,7 +146,7 @@ class Coordinator {
     }
     // FINAL is in from every live node; let the last shaped messages (STOPs) go out.
     for (auto& [id, p] : peers_) p.queue.flush(router_, std::numeric_limits<double>::infinity());
-    if (config_.status) config_.status(snapshot());
+    if (config_.status) config_.status(snapshot(true));
     RunResult result;
     result.radiosity = policy_.radiosity();
     for (const Peer* p : all_peers()) {
@@ -205,9 +205,15 @@ class Coordinator {
     return out;
   }
 
-  Status snapshot() const {
+  // The status now; `last`: the run's last, which says how it ended.
+  Status snapshot(bool last = false) const {
     auto now = Clock::now();
     Status s;
+    s.target_error = config_.target_error;
+    if (last) {
+      s.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
+      if (s.ended_by == "budget" && config_.target_error > 0) s.ended_by = "bundle cap reached short of the target error";
+    }
     s.bundles_done = policy_.ledger().done_count();
     s.bundles = config_.bundles;
     s.elapsed_s = seconds(now - start_);

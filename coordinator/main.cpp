@@ -119,7 +119,10 @@ int main(int argc, char** argv) {
     cluster::RunConfig rc;
     rc.scene = load_scene(scene_spec, {.two_sided = two_sided});
     rc.mesh_options.target_patches = static_cast<std::size_t>(patches);
-    rc.bundles = static_cast<uint64_t>(bundles);
+    // --target-error without --bundles lifts the default cap, as `sirad render` does.
+    rc.bundles = static_cast<uint64_t>(target_error > 0 && app.count("--bundles") == 0 ? 1000000 : bundles);
+    if (target_error > 0 && exchange_every == "end" && resume.empty())
+      fail("--target-error needs --exchange-every (its estimate is the spread of the nodes' exchanged states)");
     rc.seed = seed;
     rc.grid = grid.value_or(0);
     rc.rule = parse_update_rule(rule);

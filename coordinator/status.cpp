@@ -39,9 +39,11 @@ std::string to_json(const Status& s) {
   return fmt::format("{{\"bundles_done\": {}, \"bundles\": {}, \"elapsed_s\": {:.3f}, \"bundles_per_s\": {:.3f}, "
                      "\"error_estimate\": {}, \"exchanges\": {}, \"bytes_in\": {}, \"bytes_out\": {}, "
                      "\"exchange_every\": {}, \"exchange_fraction\": {}, \"mode\": {}, \"topology\": {}, "
-                     "\"nodes\": [{}]}}\n",
+                     "\"target_error\": {}, \"ended_by\": {}, \"nodes\": [{}]}}\n",
                      s.bundles_done, s.bundles, s.elapsed_s, rate, error, s.exchanges, s.bytes_in, s.bytes_out,
-                     s.exchange_every, s.exchange_fraction, json_string(s.mode), json_string(s.topology), nodes);
+                     s.exchange_every, s.exchange_fraction, json_string(s.mode), json_string(s.topology),
+                     s.target_error > 0 ? fmt::format("{:.6g}", s.target_error) : "null",
+                     s.ended_by.empty() ? "null" : json_string(s.ended_by), nodes);
 }
 
 namespace {
@@ -79,6 +81,7 @@ Status read_status(const std::string& path) {
   s.exchange_fraction = field<double>(root, "exchange_fraction", path, "");
   s.mode = field<std::string>(root, "mode", path, "");
   s.topology = field<std::string>(root, "topology", path, "");
+  if (root["ended_by"] && !root["ended_by"].IsNull()) s.ended_by = field<std::string>(root, "ended_by", path, "");
   const YAML::Node nodes = root["nodes"];
   if (!nodes || !nodes.IsSequence()) fail("{}: 'nodes' is missing or not a list", path);
   for (std::size_t i = 0; i < nodes.size(); ++i) {

@@ -20,6 +20,10 @@ struct Status {
   uint64_t exchange_every = 0;
   double exchange_fraction = 1.0;
   std::string mode, topology;
+  double target_error = 0;  // --target-error (0: none)
+  // How the run ended, in the last status of a run ("" while it runs): "budget", "time limit",
+  // "target error (...)", "interrupted", or "bundle cap reached short of the target error".
+  std::string ended_by;
   struct Node {
     std::string name;
     std::string device;        // as the node described it in HELLO

@@ -163,6 +163,14 @@ TEST_F(Cli, TargetErrorLiftsTheDefaultCapAndSaysWhenItFallsShort) {
   auto* ended = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.ended_by");
   ASSERT_NE(ended, nullptr);
   EXPECT_NE(ended->value().find("short of the target error"), std::string::npos) << ended->value();
+  // The cluster says it in its status JSON too.
+  Outcome c = sirad("render cornell --patches 300 --nodes 2 --exchange-every 4 --target-error 0.000001 --bundles 64 "
+                    "--width 16 --height 16 --out cluster --status-json status.json -q");
+  ASSERT_EQ(c.status, 0) << c.err;
+  EXPECT_NE(c.out.find("ended short of the target"), std::string::npos) << c.out;
+  const std::string status = slurp((dir_ / "status.json").string());
+  EXPECT_NE(status.find("\"ended_by\": \"bundle cap reached short of the target error\""), std::string::npos) << status;
+  EXPECT_NE(status.find("\"target_error\": 1e-06"), std::string::npos) << status;
 }
 
 // No output ever overwrites the scene file that was read: a scene named like one of the outputs
