@@ -44,7 +44,7 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   EXPECT_EQ(to_json(s),
             "{\"bundles_done\": 3, \"bundles\": 10, \"elapsed_s\": 1.500, \"bundles_per_s\": 2.000, \"error_estimate\": null, "
             "\"exchanges\": 0, \"bytes_in\": 0, \"bytes_out\": 0, \"exchange_every\": 0, \"exchange_fraction\": 1, "
-            "\"mode\": \"\", \"topology\": \"\", \"nodes\": [{\"name\": \"a\\\"b\\\\c\\u000ad\", "
+            "\"mode\": \"\", \"topology\": \"\", \"target_error\": null, \"ended_by\": null, \"nodes\": [{\"name\": \"a\\\"b\\\\c\\u000ad\", "
             "\"device\": \"\", \"state\": \"\", \"bundles\": 3, \"exchanges\": 1, \"last_seen_s\": 0.250, "
             "\"bundles_per_s\": 0.000, \"busy_s\": 0.000, \"idle_s\": 0.000}]}\n");
   // It reads back (sirad model --from-run), the escaped name included.
