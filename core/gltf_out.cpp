@@ -8,7 +8,6 @@
 #include <cstring>
 #include <map>
 #include <sstream>
-#include <unordered_map>
 
 #include <fmt/format.h>
 #include <glm/geometric.hpp>
@@ -76,48 +75,22 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
     tinygltf::Mesh gm;
     gm.name = object < mesh.objects.size() ? mesh.objects[object] : fmt::format("object {}", object);
     for (const auto& [material, patches] : by_material) {
-      // A vertex per welded position and corner value: corners share one only where
-      // corner_radiosity gave them one value (one smooth surface of one material).
-      struct Key {
-        uint32_t vertex;
-        float r, g, b;
-        bool operator==(const Key& o) const {
-          return vertex == o.vertex && std::memcmp(&r, &o.r, 4) == 0 && std::memcmp(&g, &o.g, 4) == 0 &&
-                 std::memcmp(&b, &o.b, 4) == 0;
-        }
-      };
-      struct Hash {
-        std::size_t operator()(const Key& k) const {
-          uint32_t bits[3];
-          std::memcpy(bits, &k.r, 4);
-          std::memcpy(bits + 1, &k.g, 4);
-          std::memcpy(bits + 2, &k.b, 4);
-          return (static_cast<std::size_t>(k.vertex) * 0x9e3779b97f4a7c15ULL) ^ (bits[0] * 0x85ebca6bULL) ^
-                 (bits[1] * 0xc2b2ae35ULL) ^ bits[2];
-        }
-      };
-      std::unordered_map<Key, uint32_t, Hash> index_of;
+      // A vertex per welded position and corner value (split_corners).
+      std::vector<uint32_t> welded;
+      std::vector<glm::vec3> value;
+      const std::vector<uint32_t> indices = split_corners(mesh, corners, patches, welded, value);
       std::vector<float> position, colour, radiance;
-      std::vector<uint32_t> indices;
       std::vector<double> lo(3, 1e300), hi(3, -1e300);
-      for (uint32_t j : patches)
-        for (int k = 0; k < 3; ++k) {
-          const uint32_t v = mesh.patches[j][k];
-          const glm::vec3 c = corners[j][k];
-          auto [it, added] = index_of.try_emplace(Key{v, c.x, c.y, c.z}, static_cast<uint32_t>(index_of.size()));
-          if (added) {
-            for (int a = 0; a < 3; ++a) {
-              const float p = mesh.vertices[v][a];
-              position.push_back(p);
-              lo[static_cast<std::size_t>(a)] = std::min(lo[static_cast<std::size_t>(a)], static_cast<double>(p));
-              hi[static_cast<std::size_t>(a)] = std::max(hi[static_cast<std::size_t>(a)], static_cast<double>(p));
-              radiance.push_back(c[a]);
-              colour.push_back(std::clamp(c[a] * scale, 0.0f, 1.0f));
-            }
-          }
-          indices.push_back(it->second);
+      for (std::size_t v = 0; v < welded.size(); ++v)
+        for (int a = 0; a < 3; ++a) {
+          const float p = mesh.vertices[welded[v]][a];
+          position.push_back(p);
+          lo[static_cast<std::size_t>(a)] = std::min(lo[static_cast<std::size_t>(a)], static_cast<double>(p));
+          hi[static_cast<std::size_t>(a)] = std::max(hi[static_cast<std::size_t>(a)], static_cast<double>(p));
+          radiance.push_back(value[v][a]);
+          colour.push_back(std::clamp(value[v][a] * scale, 0.0f, 1.0f));
         }
-      const std::size_t vertices = index_of.size();
+      const std::size_t vertices = welded.size();
       tinygltf::Primitive prim;
       prim.mode = TINYGLTF_MODE_TRIANGLES;
       prim.material = static_cast<int>(material);

@@ -273,6 +273,40 @@ void write_png(const std::string& path, const Image& image, float exposure) {
   file.commit();
 }
 
+std::vector<uint32_t> split_corners(const PatchMesh& mesh, const std::vector<std::array<glm::vec3, 3>>& corners,
+                                    const std::vector<uint32_t>& patches, std::vector<uint32_t>& vertex,
+                                    std::vector<glm::vec3>& value) {
+  struct Corner {
+    uint32_t vertex;
+    glm::vec3 value;
+    bool operator==(const Corner& o) const { return vertex == o.vertex && std::memcmp(&value, &o.value, sizeof value) == 0; }
+  };
+  struct CornerHash {
+    std::size_t operator()(const Corner& c) const {
+      uint32_t bits[3];
+      std::memcpy(bits, &c.value, sizeof bits);
+      return (static_cast<std::size_t>(c.vertex) * 0x9e3779b97f4a7c15ULL) ^ (bits[0] * 0x85ebca6bULL) ^
+             (bits[1] * 0xc2b2ae35ULL) ^ bits[2];
+    }
+  };
+  std::unordered_map<Corner, uint32_t, CornerHash> index_of;
+  std::vector<uint32_t> out;
+  out.reserve(3 * patches.size());
+  vertex.clear();
+  value.clear();
+  for (uint32_t j : patches)
+    for (int k = 0; k < 3; ++k) {
+      Corner c{mesh.patches[j][static_cast<std::size_t>(k)], corners[j][static_cast<std::size_t>(k)]};
+      auto [it, added] = index_of.try_emplace(c, static_cast<uint32_t>(vertex.size()));
+      if (added) {
+        vertex.push_back(c.vertex);
+        value.push_back(c.value);
+      }
+      out.push_back(it->second);
+    }
+  return out;
+}
+
 void write_ply(const std::string& path, const PatchMesh& mesh,
                const std::vector<glm::vec3>& radiosity, float exposure) {
   // Step 1: validate what the body refers to.
@@ -300,34 +334,12 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
   if (!std::isfinite(exposure)) fail("cannot write {}: exposure is not finite", path);
 
   // Step 2: the vertices: one per welded position and corner value, in order of first use.
-  const auto corners = corner_radiosity(mesh, radiosity);
-  struct Corner {
-    uint32_t vertex;
-    glm::vec3 value;
-    bool operator==(const Corner& o) const {
-      return vertex == o.vertex && std::memcmp(&value, &o.value, sizeof value) == 0;
-    }
-  };
-  struct CornerHash {
-    std::size_t operator()(const Corner& c) const {
-      uint32_t bits[3];
-      std::memcpy(bits, &c.value, sizeof bits);
-      return (static_cast<std::size_t>(c.vertex) * 0x9e3779b97f4a7c15ULL) ^ (bits[0] * 0x85ebca6bULL) ^
-             (bits[1] * 0xc2b2ae35ULL) ^ bits[2];
-    }
-  };
-  std::unordered_map<Corner, uint32_t, CornerHash> index_of;
-  std::vector<Corner> order;
-  std::vector<std::array<uint32_t, 3>> faces(mesh.size());
-  for (std::size_t j = 0; j < mesh.size(); ++j)
-    for (int k = 0; k < 3; ++k) {
-      Corner c{mesh.patches[j][static_cast<std::size_t>(k)], corners[j][static_cast<std::size_t>(k)]};
-      auto [it, added] = index_of.try_emplace(c, static_cast<uint32_t>(order.size()));
-      if (added) order.push_back(c);
-      faces[j][static_cast<std::size_t>(k)] = it->second;
-    }
-  if (order.size() > static_cast<std::size_t>(std::numeric_limits<int32_t>::max()))
-    fail("cannot write {}: {} vertices do not fit PLY int indices", path, order.size());
+  std::vector<uint32_t> all(mesh.size()), vertex;
+  for (std::size_t j = 0; j < mesh.size(); ++j) all[j] = static_cast<uint32_t>(j);
+  std::vector<glm::vec3> value;
+  const std::vector<uint32_t> faces = split_corners(mesh, corner_radiosity(mesh, radiosity), all, vertex, value);
+  if (vertex.size() > static_cast<std::size_t>(std::numeric_limits<int32_t>::max()))
+    fail("cannot write {}: {} vertices do not fit PLY int indices", path, vertex.size());
   const double scale = std::exp2(static_cast<double>(exposure));
 
   // Step 3: the header.
@@ -344,7 +356,7 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
       "property uchar blue\n"
       "element face {}\n"
       "property list uchar int vertex_indices\n",
-      mesh.hash, order.size(), mesh.size());
+      mesh.hash, vertex.size(), mesh.size());
   for (const char* quantity : {"radiosity", "reflectance", "emission"})
     for (const char* channel : {"r", "g", "b"})
       header += fmt::format("property float {}_{}\n", quantity, channel);
@@ -360,14 +372,14 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
     chunk.clear();
   };
   constexpr std::size_t chunk_bytes = 1 << 16;
-  for (const Corner& c : order) {
-    put_le(chunk, mesh.vertices[c.vertex]);
-    for (int k = 0; k < 3; ++k) chunk.push_back(tone_map(c.value[k], scale));
+  for (std::size_t v = 0; v < vertex.size(); ++v) {
+    put_le(chunk, mesh.vertices[vertex[v]]);
+    for (int k = 0; k < 3; ++k) chunk.push_back(tone_map(value[v][k], scale));
     flush_chunk(chunk_bytes);
   }
   for (std::size_t j = 0; j < mesh.size(); ++j) {
     chunk.push_back(3);
-    for (uint32_t v : faces[j]) put_le(chunk, static_cast<int32_t>(v));
+    for (int k = 0; k < 3; ++k) put_le(chunk, static_cast<int32_t>(faces[3 * j + static_cast<std::size_t>(k)]));
     put_le(chunk, radiosity[j]);
     put_le(chunk, mesh.reflectance(j));
     put_le(chunk, mesh.emission(j));

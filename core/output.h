@@ -34,6 +34,14 @@ enum class Shading { gouraud, flat };
 std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
                                                        const std::vector<glm::vec3>& radiosity);
 
+// The vertices of `patches` (in that order) for a format with one value per vertex: one per
+// welded position and corner value (corners with one value share one: a smooth surface of one
+// material; creases and material borders split). `vertex` and `value` get each new vertex's
+// welded index and value, in order of first use; returns 3 vertex indices per patch.
+std::vector<uint32_t> split_corners(const PatchMesh& mesh, const std::vector<std::array<glm::vec3, 3>>& corners,
+                                    const std::vector<uint32_t>& patches, std::vector<uint32_t>& vertex,
+                                    std::vector<glm::vec3>& value);
+
 // Renders the mesh from `camera` with a z-buffer; pixels that see no front face show the
 // background (back faces are culled, as the solver treats them).
 Image render_view(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity,
