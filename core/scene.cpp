@@ -26,6 +26,7 @@
 #include "core/error.h"
 #include "core/resources.h"
 #include "core/scene_gltf.h"
+#include "core/scene_ply.h"
 
 namespace sirad {
 namespace {
@@ -475,8 +476,9 @@ Scene load_scene(const std::string& spec, const ImportOptions& options) {
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (extension == ".gltf" || extension == ".glb") return with_options(guarded(spec, [&] { return import_gltf(spec, options); }), options);
+  if (extension == ".ply") return with_options(guarded(spec, [&] { return import_ply(spec, options); }), options);
   if (extension != ".obj")
-    fail("{}: unsupported scene format (supported: .obj, .gltf, .glb; built-ins: cornell, furnace, bright-room, three-lights)", spec);
+    fail("{}: unsupported scene format (supported: .obj, .gltf, .glb, .ply; built-ins: cornell, furnace, bright-room, three-lights)", spec);
   return guarded(spec, [&] {
     const std::string text = read_file(path, spec);
     const fs::path dir = path.parent_path();

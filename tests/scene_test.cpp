@@ -265,7 +265,7 @@ TEST(SceneErrors, FilesThatAreNotScenes) {
   expect_parts(error_of([&] { load_scene(garbage); }), {"garbage.obj:1: binary data"});
   expect_parts(
       error_of([&] { load_scene(dir.path("model.fbx")); }),
-      {"model.fbx: unsupported scene format (supported: .obj, .gltf, .glb; built-ins: cornell, furnace, bright-room, three-lights)"});
+      {"model.fbx: unsupported scene format (supported: .obj, .gltf, .glb, .ply; built-ins: cornell, furnace, bright-room, three-lights)"});
   expect_parts(error_of([&] { load_scene("cornel"); }), {"cornel: unsupported scene format"});
 }
 

@@ -1,0 +1,304 @@
+// sirad: PLY scenes (core/scene_ply.h). Debian packages no PLY library (assimp reads PLY but
+// drops the per-face properties that carry emission), so this is a small reader of the format
+// written by hand, strict about what it reads: the header's elements and properties, then
+// ascii, binary_little_endian or binary_big_endian bodies, every count bounded by the file's
+// size before anything is allocated.
+//
+// What a face's material is: its float properties reflectance_r/g/b and emission_r/g/b when
+// present (sirad's own PLY, so a solution's PLY is a scene again), else the face's or its first
+// vertex's red/green/blue (bytes / 255, sRGB-decoded; floats as they are) as reflectance, else
+// 0.8. Faces with equal properties share one material. Polygons are fan-triangulated.
+#include "core/scene_ply.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <fmt/format.h>
+#include <glm/geometric.hpp>
+
+#include "core/error.h"
+
+namespace sirad {
+
+namespace {
+
+constexpr std::size_t kMaxTriangles = std::size_t{1} << 26;
+constexpr std::size_t kMaxVertices = std::size_t{1} << 26;
+constexpr uintmax_t kMaxFileBytes = uintmax_t{2} << 30;
+
+enum class Type { i8, u8, i16, u16, i32, u32, f32, f64 };
+
+struct Property {
+  std::string name;
+  Type type = Type::f32;
+  bool list = false;
+  Type count_type = Type::u8;
+};
+
+struct Element {
+  std::string name;
+  std::size_t count = 0;
+  std::vector<Property> properties;
+  int find(const std::string& n) const {
+    for (std::size_t i = 0; i < properties.size(); ++i)
+      if (properties[i].name == n) return static_cast<int>(i);
+    return -1;
+  }
+};
+
+std::size_t size_of(Type t) {
+  switch (t) {
+    case Type::i8: case Type::u8: return 1;
+    case Type::i16: case Type::u16: return 2;
+    case Type::i32: case Type::u32: case Type::f32: return 4;
+    case Type::f64: return 8;
+  }
+  return 0;
+}
+
+bool parse_type(const std::string& s, Type& t) {
+  static const std::map<std::string, Type> names = {
+      {"char", Type::i8},    {"int8", Type::i8},   {"uchar", Type::u8},   {"uint8", Type::u8},
+      {"short", Type::i16},  {"int16", Type::i16}, {"ushort", Type::u16}, {"uint16", Type::u16},
+      {"int", Type::i32},    {"int32", Type::i32}, {"uint", Type::u32},   {"uint32", Type::u32},
+      {"float", Type::f32},  {"float32", Type::f32}, {"double", Type::f64}, {"float64", Type::f64}};
+  auto it = names.find(s);
+  if (it == names.end()) return false;
+  t = it->second;
+  return true;
+}
+
+double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
+
+// Reads values from the body: ascii tokens or binary in either byte order.
+class Body {
+ public:
+  Body(const std::string& path, const std::string& data, std::size_t at, int format)
+      : path_(path), data_(data), at_(at), format_(format) {}
+  double value(Type t, const char* what) {
+    if (format_ == 0) return ascii(what);
+    const std::size_t n = size_of(t);
+    if (data_.size() - at_ < n) fail("{}: the file ends inside {}", path_, what);
+    unsigned char b[8];
+    std::memcpy(b, data_.data() + at_, n);
+    at_ += n;
+    if (format_ == 2) std::reverse(b, b + n);
+    switch (t) {
+      case Type::i8: return static_cast<int8_t>(b[0]);
+      case Type::u8: return b[0];
+      case Type::i16: { int16_t v; std::memcpy(&v, b, 2); return v; }
+      case Type::u16: { uint16_t v; std::memcpy(&v, b, 2); return v; }
+      case Type::i32: { int32_t v; std::memcpy(&v, b, 4); return v; }
+      case Type::u32: { uint32_t v; std::memcpy(&v, b, 4); return v; }
+      case Type::f32: { float v; std::memcpy(&v, b, 4); return v; }
+      case Type::f64: { double v; std::memcpy(&v, b, 8); return v; }
+    }
+    return 0.0;
+  }
+
+ private:
+  double ascii(const char* what) {
+    while (at_ < data_.size() && std::isspace(static_cast<unsigned char>(data_[at_]))) ++at_;
+    if (at_ >= data_.size()) fail("{}: the file ends inside {}", path_, what);
+    std::size_t end = at_;
+    while (end < data_.size() && !std::isspace(static_cast<unsigned char>(data_[end]))) ++end;
+    const std::string token = data_.substr(at_, std::min<std::size_t>(end - at_, 64));
+    at_ = end;
+    char* stop = nullptr;
+    double v = std::strtod(token.c_str(), &stop);
+    if (token.empty() || stop != token.c_str() + token.size()) fail("{}: {}: '{}' is not a number", path_, what, token);
+    return v;
+  }
+  const std::string& path_;
+  const std::string& data_;
+  std::size_t at_;
+  int format_;  // 0 ascii, 1 little endian, 2 big endian
+};
+
+}  // namespace
+
+Scene import_ply(const std::string& path, const ImportOptions& options) {
+  std::error_code ec;
+  const uintmax_t file_size = std::filesystem::file_size(path, ec);
+  if (ec) fail("{}: cannot read: {}", path, ec.message());
+  if (file_size > kMaxFileBytes) fail("{}: file is larger than 2 GiB", path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail("{}: cannot open", path);
+  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+
+  // The header.
+  const std::size_t end = data.find("end_header");
+  if (data.rfind("ply", 0) != 0 || end == std::string::npos || end > 1 << 20) fail("{}: not a PLY file (no ply ... end_header)", path);
+  std::size_t body = data.find('\n', end);
+  if (body == std::string::npos) fail("{}: nothing after end_header", path);
+  ++body;
+  std::istringstream header(data.substr(0, end));
+  std::string line;
+  int format = -1, line_no = 0;
+  std::vector<Element> elements;
+  while (std::getline(header, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream words(line);
+    std::string key;
+    words >> key;
+    auto bad = [&](const std::string& why) { fail("{}: header line {}: {}", path, line_no, why); };
+    if (key.empty() || key == "ply" || key == "comment" || key == "obj_info") continue;
+    if (key == "format") {
+      std::string f, version;
+      words >> f >> version;
+      format = f == "ascii" ? 0 : f == "binary_little_endian" ? 1 : f == "binary_big_endian" ? 2 : -2;
+      if (format == -2) bad(fmt::format("unknown format '{}'", f.substr(0, 40)));
+    } else if (key == "element") {
+      Element e;
+      long long count = -1;
+      words >> e.name >> count;
+      if (e.name.empty() || count < 0 || static_cast<uintmax_t>(count) > file_size) bad("element needs a name and a count the file can hold");
+      e.count = static_cast<std::size_t>(count);
+      elements.push_back(e);
+    } else if (key == "property") {
+      if (elements.empty()) bad("property before any element");
+      Property p;
+      std::string t;
+      words >> t;
+      if (t == "list") {
+        std::string ct, it;
+        words >> ct >> it >> p.name;
+        p.list = true;
+        if (!parse_type(ct, p.count_type) || !parse_type(it, p.type)) bad("unknown list type");
+      } else {
+        words >> p.name;
+        if (!parse_type(t, p.type)) bad(fmt::format("unknown type '{}'", t.substr(0, 40)));
+      }
+      if (p.name.empty()) bad("property without a name");
+      elements.back().properties.push_back(p);
+    } else {
+      bad(fmt::format("unknown keyword '{}'", key.substr(0, 40)));
+    }
+  }
+  if (format < 0) fail("{}: no format line", path);
+
+  // The body, element by element; only vertex and face are kept.
+  Body reader(path, data, body, format);
+  std::vector<glm::vec3> positions, vertex_colour;
+  bool vertex_has_colour = false;
+  struct Face {
+    std::vector<uint32_t> v;
+    glm::vec3 reflectance{-1.0f}, emission{0.0f};
+  };
+  std::vector<Face> faces;
+  std::size_t triangles = 0;
+  for (const Element& e : elements) {
+    const bool is_vertex = e.name == "vertex", is_face = e.name == "face";
+    const int x = e.find("x"), y = e.find("y"), z = e.find("z");
+    const int r = e.find("red"), g = e.find("green"), b = e.find("blue");
+    const int idx = std::max(e.find("vertex_indices"), e.find("vertex_index"));
+    int refl[3] = {e.find("reflectance_r"), e.find("reflectance_g"), e.find("reflectance_b")};
+    int emis[3] = {e.find("emission_r"), e.find("emission_g"), e.find("emission_b")};
+    if (is_vertex) {
+      if (x < 0 || y < 0 || z < 0) fail("{}: the vertex element has no x, y and z", path);
+      if (e.count > kMaxVertices) fail("{}: more than {} vertices", path, kMaxVertices);
+      vertex_has_colour = r >= 0 && g >= 0 && b >= 0;
+    }
+    if (is_face) {
+      if (idx < 0 || !e.properties[static_cast<std::size_t>(idx)].list) fail("{}: the face element has no vertex_indices list", path);
+    }
+    for (std::size_t i = 0; i < e.count; ++i) {
+      glm::dvec3 p(0.0), colour(-1.0), rho(-1.0), em(0.0);
+      bool has_rho = refl[0] >= 0 && refl[1] >= 0 && refl[2] >= 0, has_em = emis[0] >= 0 && emis[1] >= 0 && emis[2] >= 0;
+      Face f;
+      for (std::size_t k = 0; k < e.properties.size(); ++k) {
+        const Property& prop = e.properties[k];
+        const std::string what = fmt::format("{} {} property {}", e.name, i, prop.name);
+        if (prop.list) {
+          const double n = reader.value(prop.count_type, what.c_str());
+          if (!(n >= 0 && n <= 1 << 16)) fail("{}: {}: list of {} entries", path, what, n);
+          for (int m = 0; m < static_cast<int>(n); ++m) {
+            const double v = reader.value(prop.type, what.c_str());
+            if (is_face && static_cast<int>(k) == idx) {
+              if (!(v >= 0 && v < static_cast<double>(positions.size())))
+                fail("{}: face {}: vertex index {} out of range ({} vertices)", path, i, v, positions.size());
+              f.v.push_back(static_cast<uint32_t>(v));
+            }
+          }
+          continue;
+        }
+        const double v = reader.value(prop.type, what.c_str());
+        const int ki = static_cast<int>(k);
+        if (ki == x) p.x = v;
+        if (ki == y) p.y = v;
+        if (ki == z) p.z = v;
+        const double c = prop.type == Type::u8 ? srgb_to_linear(v / 255.0) : v;
+        if (ki == r) colour.x = c;
+        if (ki == g) colour.y = c;
+        if (ki == b) colour.z = c;
+        for (int c3 = 0; c3 < 3; ++c3) {
+          if (ki == refl[c3]) rho[c3] = v;
+          if (ki == emis[c3]) em[c3] = v;
+        }
+      }
+      if (is_vertex) {
+        for (int c3 = 0; c3 < 3; ++c3)
+          if (!std::isfinite(p[c3]) || std::abs(p[c3]) > 1e30) fail("{}: vertex {} has a non-finite coordinate", path, i);
+        positions.push_back(glm::vec3(p));
+        vertex_colour.push_back(glm::vec3(colour));
+      }
+      if (is_face) {
+        if (f.v.size() < 3) fail("{}: face {} has {} vertices, needs at least 3", path, i, f.v.size());
+        triangles += f.v.size() - 2;
+        if (triangles > kMaxTriangles) fail("{}: more than {} triangles", path, kMaxTriangles);
+        if (has_rho) f.reflectance = glm::vec3(rho);
+        else if (r >= 0 && g >= 0 && b >= 0) f.reflectance = glm::vec3(colour);
+        else if (vertex_has_colour) f.reflectance = vertex_colour[f.v[0]];
+        if (has_em) f.emission = glm::vec3(em);
+        faces.push_back(std::move(f));
+      }
+    }
+  }
+  if (positions.empty() || faces.empty()) fail("{}: no vertex and face elements", path);
+
+  Scene scene;
+  scene.name = path;
+  scene.objects = {std::filesystem::path(path).stem().string()};
+  std::map<std::tuple<float, float, float, float, float, float>, uint32_t> material_of;
+  std::size_t skipped = 0;
+  for (std::size_t i = 0; i < faces.size(); ++i) {
+    const Face& f = faces[i];
+    glm::vec3 rho = f.reflectance.x < 0 ? glm::vec3(0.8f) : f.reflectance;
+    for (int c = 0; c < 3; ++c) {
+      if (!(rho[c] >= 0.0f && rho[c] <= 1.0f)) fail("{}: face {}: reflectance {} outside [0, 1]", path, i, rho[c]);
+      if (!std::isfinite(f.emission[c]) || f.emission[c] < 0.0f || f.emission[c] > 3e38f)
+        fail("{}: face {}: emission {} is negative or not finite", path, i, f.emission[c]);
+    }
+    auto key = std::make_tuple(rho.x, rho.y, rho.z, f.emission.x, f.emission.y, f.emission.z);
+    auto [it, added] = material_of.try_emplace(key, static_cast<uint32_t>(scene.materials.size()));
+    if (added) scene.materials.push_back({fmt::format("ply material {}", scene.materials.size()), rho, f.emission});
+    for (std::size_t k = 1; k + 1 < f.v.size(); ++k) {
+      Triangle t;
+      t.p = {positions[f.v[0]], positions[f.v[k]], positions[f.v[k + 1]]};
+      t.material = it->second;
+      if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) {
+        if (!options.skip_degenerate) fail("{}: face {}: degenerate triangle (zero area) (--skip-degenerate drops them)", path, i);
+        ++skipped;
+        continue;
+      }
+      scene.triangles.push_back(t);
+    }
+  }
+  if (scene.triangles.empty()) fail("{}: scene has no triangles ({} skipped as degenerate)", path, skipped);
+  bool emits = false;
+  for (const Material& m : scene.materials) emits = emits || m.emission.x > 0 || m.emission.y > 0 || m.emission.z > 0;
+  if (!emits) fail("{}: scene has no emitter (no face with emission_r/g/b above 0)", path);
+  return scene;
+}
+
+}  // namespace sirad
