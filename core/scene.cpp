@@ -191,12 +191,14 @@ class ObjParser {
       // An object or group: its name (the rest of the line) names the faces that follow.
       std::string name(trim(s.substr(1)));
       if (name.empty()) name = "(unnamed)";
-      if (objects_.size() >= kMaxObjects) error("more than {} objects", kMaxObjects);
-      auto it = std::find(objects_.begin(), objects_.end(), name);
-      object_ = static_cast<uint32_t>(it - objects_.begin());
-      if (it == objects_.end()) objects_.push_back(name);
+      auto [it, added] = object_of_.try_emplace(name, static_cast<uint32_t>(objects_.size()));
+      if (added) {
+        if (objects_.size() >= kMaxObjects) error("more than {} objects", kMaxObjects);
+        objects_.push_back(name);
+      }
+      object_ = it->second;
     } else if (!is_identifier(key)) {
-      // Other OBJ statements (vt, vn, g, o, s, l, ...) carry nothing a radiosity scene uses.
+      // Other OBJ statements (vt, vn, s, l, ...) carry nothing a radiosity scene uses.
       error("not an OBJ statement: '{}'", printable(key));
     }
   }
@@ -276,6 +278,7 @@ class ObjParser {
   std::unordered_map<std::string, uint32_t> slot_of_;
   uint32_t slot_ = kNone;
   std::vector<std::string> objects_{"(unnamed)"};
+  std::unordered_map<std::string, uint32_t> object_of_{{"(unnamed)", 0}};
   uint32_t object_ = 0;
   std::vector<std::pair<std::string, uint32_t>> mtllibs_;  // file and line, first mention
   std::optional<Camera> camera_;

@@ -41,6 +41,15 @@ constexpr std::size_t kMaxNodes = std::size_t{1} << 20;
 constexpr uintmax_t kMaxFileBytes = uintmax_t{2} << 30;
 constexpr float kDefaultReflectance = 0.8f;  // a primitive without a material, as OBJ faces without usemtl
 
+// A name from the file as it may appear in messages and outputs: control bytes replaced by '?'
+// and at most 200 bytes.
+std::string clean(const std::string& name) {
+  std::string out = name.substr(0, 200);
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7f) c = '?';
+  return out;
+}
+
 double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
 
 class GltfReader {
@@ -52,7 +61,7 @@ class GltfReader {
     scene_.objects.clear();
     for (const auto& ext : m_.extensionsRequired)
       if (ext != "KHR_materials_emissive_strength" && ext != "KHR_materials_unlit" && ext != "KHR_texture_transform")
-        fail("{}: requires the glTF extension {}, which sirad does not read", path_, ext);
+        fail("{}: requires the glTF extension {}, which sirad does not read", path_, clean(ext));
     if (!m_.lights.empty())
       fail("{}: has {} punctual light{} (KHR_lights_punctual), which sirad cannot use: its light comes from emitting "
            "surfaces (give a mesh an emissive material, e.g. Blender's Emission strength)",
@@ -97,7 +106,7 @@ class GltfReader {
  private:
   std::string where(int node) const {
     const auto& n = m_.nodes[static_cast<std::size_t>(node)];
-    return n.name.empty() ? fmt::format("node {}", node) : fmt::format("node {} '{}'", node, n.name);
+    return n.name.empty() ? fmt::format("node {}", node) : fmt::format("node {} '{}'", node, clean(n.name));
   }
 
   glm::dmat4 local(const tinygltf::Node& n, int node) const {
@@ -177,7 +186,7 @@ class GltfReader {
     } else {
       if (index >= static_cast<int>(m_.materials.size())) fail("{}: material {} does not exist", path_, index);
       const tinygltf::Material& g = m_.materials[static_cast<std::size_t>(index)];
-      mat.name = g.name.empty() ? fmt::format("material {}", index) : g.name;
+      mat.name = g.name.empty() ? fmt::format("material {}", index) : clean(g.name);
       const std::string what = fmt::format("material '{}'", mat.name);
       const auto& base = g.pbrMetallicRoughness.baseColorFactor;
       if (base.size() != 4) fail("{}: {}: baseColorFactor is not 4 numbers", path_, what);
@@ -222,7 +231,7 @@ class GltfReader {
     if (pixels == 0 || im.component < 3 || (im.bits != 8 && im.bits != 16) ||
         im.image.size() < pixels * static_cast<std::size_t>(im.component) * static_cast<std::size_t>(im.bits / 8)) {
       scene_.warnings.push_back(fmt::format("{}: {}: its base colour texture '{}' could not be read; baseColorFactor is used",
-                                            path_, what, im.uri.empty() ? im.name : im.uri));
+                                            path_, what, clean(im.uri.empty() ? im.name : im.uri)));
       return glm::dvec3(1.0);
     }
     glm::dvec3 sum(0.0);
@@ -243,7 +252,7 @@ class GltfReader {
     if (n.mesh >= static_cast<int>(m_.meshes.size())) fail("{}: {}: mesh {} does not exist", path_, where(node), n.mesh);
     const tinygltf::Mesh& mesh = m_.meshes[static_cast<std::size_t>(n.mesh)];
     const uint32_t object = static_cast<uint32_t>(scene_.objects.size());
-    scene_.objects.push_back(!n.name.empty() ? n.name : !mesh.name.empty() ? mesh.name : fmt::format("node {}", node));
+    scene_.objects.push_back(clean(!n.name.empty() ? n.name : !mesh.name.empty() ? mesh.name : fmt::format("node {}", node)));
     // A transform that mirrors (negative determinant) turns counter-clockwise into clockwise.
     const bool mirrored = glm::determinant(glm::dmat3(world)) < 0.0;
     for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
@@ -320,7 +329,7 @@ class GltfReader {
     if (n.camera >= static_cast<int>(m_.cameras.size())) fail("{}: {}: camera {} does not exist", path_, where(node), n.camera);
     const tinygltf::Camera& c = m_.cameras[static_cast<std::size_t>(n.camera)];
     if (c.type != "perspective") {
-      scene_.warnings.push_back(fmt::format("{}: {}: camera '{}' is {}, not perspective: not used", path_, where(node), c.name, c.type));
+      scene_.warnings.push_back(fmt::format("{}: {}: camera '{}' is {}, not perspective: not used", path_, where(node), clean(c.name), clean(c.type)));
       return;
     }
     const double fov = c.perspective.yfov * 180.0 / std::numbers::pi;

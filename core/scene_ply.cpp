@@ -77,6 +77,14 @@ bool parse_type(const std::string& s, Type& t) {
   return true;
 }
 
+// Text from the file as it may appear in a message: control bytes replaced by '?', at most 40.
+std::string clean(const std::string& text) {
+  std::string out = text.substr(0, 40);
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7f) c = '?';
+  return out;
+}
+
 double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
 
 // Reads values from the body: ascii tokens or binary in either byte order.
@@ -115,7 +123,7 @@ class Body {
     at_ = end;
     char* stop = nullptr;
     double v = std::strtod(token.c_str(), &stop);
-    if (token.empty() || stop != token.c_str() + token.size()) fail("{}: {}: '{}' is not a number", path_, what, token);
+    if (token.empty() || stop != token.c_str() + token.size()) fail("{}: {}: '{}' is not a number", path_, what, clean(token));
     return v;
   }
   const std::string& path_;
@@ -157,7 +165,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
       std::string f, version;
       words >> f >> version;
       format = f == "ascii" ? 0 : f == "binary_little_endian" ? 1 : f == "binary_big_endian" ? 2 : -2;
-      if (format == -2) bad(fmt::format("unknown format '{}'", f.substr(0, 40)));
+      if (format == -2) bad(fmt::format("unknown format '{}'", clean(f)));
     } else if (key == "element") {
       Element e;
       long long count = -1;
@@ -177,12 +185,12 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
         if (!parse_type(ct, p.count_type) || !parse_type(it, p.type)) bad("unknown list type");
       } else {
         words >> p.name;
-        if (!parse_type(t, p.type)) bad(fmt::format("unknown type '{}'", t.substr(0, 40)));
+        if (!parse_type(t, p.type)) bad(fmt::format("unknown type '{}'", clean(t)));
       }
       if (p.name.empty()) bad("property without a name");
       elements.back().properties.push_back(p);
     } else {
-      bad(fmt::format("unknown keyword '{}'", key.substr(0, 40)));
+      bad(fmt::format("unknown keyword '{}'", clean(key)));
     }
   }
   if (format < 0) fail("{}: no format line", path);
@@ -218,7 +226,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
       Face f;
       for (std::size_t k = 0; k < e.properties.size(); ++k) {
         const Property& prop = e.properties[k];
-        const std::string what = fmt::format("{} {} property {}", e.name, i, prop.name);
+        const std::string what = fmt::format("{} {} property {}", clean(e.name), i, clean(prop.name));
         if (prop.list) {
           const double n = reader.value(prop.count_type, what.c_str());
           if (!(n >= 0 && n <= 1 << 16)) fail("{}: {}: list of {} entries", path, what, n);
