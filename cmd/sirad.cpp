@@ -204,7 +204,7 @@ struct Meshed {
   PatchMesh mesh;
   std::string camera_from;  // where the camera came from, for the outputs' line and the EXR
 };
-// The camera: --camera (`camera`, checked first), else the scene's, else choose_camera's.
+// The camera: --camera (`camera`, checked first), else the scene's, else one chosen (check_scene).
 Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, const ImportOptions& import = {},
                    const std::string& camera = "") {
   std::optional<Camera> given;
@@ -218,17 +218,9 @@ Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, con
   Meshed m;
   m.scene = load_scene(spec, import);
   m.mesh = mesh_scene(m.scene, mesh_options);
-  std::string from = "the scene's";
-  if (given) {
-    m.mesh.camera = given;
-    from = "--camera";
-  } else if (!m.mesh.camera) {
-    double seen = 0.0;
-    m.mesh.camera = choose_camera(m.scene, m.mesh, &seen);
-    from = fmt::format("chosen: it sees a surface on {:.0f} % of the view", 100 * seen);
-  }
-  for (const std::string& w : scene_warnings(m.scene, m.mesh)) std::fprintf(stderr, "sirad: warning: %s\n", w.c_str());
-  m.camera_from = from;
+  SceneCheck check = check_scene(m.scene, m.mesh, given);
+  for (const std::string& w : check.warnings) std::fprintf(stderr, "sirad: warning: %s\n", w.c_str());
+  m.camera_from = check.camera_from;
   return m;
 }
 
@@ -454,7 +446,6 @@ struct EmulateArgs {
   RenderArgs run;
   double bundle_ms = 0;
   std::string nodes_csv, timeline;
-  bool nodes_given = false;
 };
 
 // `sirad emulate`: the virtual-time cluster (coordinator/emulate.h) on this machine's device.
@@ -463,7 +454,7 @@ int emulate(EmulateArgs& e) {
   MeshOptions mesh_options = mesh_options_from(a.patches, a.max_edge);
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
-  if (!e.nodes_given) {
+  if (!a.given.count("--nodes")) {
     if (!profile || profile->nodes.empty()) fail("emulate: give --nodes N (or a --profile with node entries)");
     a.nodes = static_cast<int>(profile->nodes.size());
   }
@@ -855,7 +846,6 @@ int run(int argc, char** argv) {
     return render(r);
   }
   if (emulate_cmd->parsed()) {
-    e.nodes_given = emulate_cmd->count("--nodes") > 0;
     e.run.given = given(emulate_cmd);
     return emulate(e);
   }

@@ -160,18 +160,19 @@ int main(int argc, char** argv) {
     rc.checkpoint = checkpoint;
     rc.checkpoint_every_s = checkpoint_every;
     PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
+    std::optional<Camera> given;
     if (!camera.empty()) {
       try {
-        mesh.camera = parse_camera(camera);
+        given = parse_camera(camera);
       } catch (const Error& e) {
         fail("--camera '{}': {}", camera, e.what());
       }
     }
-    if (!mesh.camera) mesh.camera = choose_camera(rc.scene, mesh);
+    const SceneCheck check = check_scene(rc.scene, mesh, given);
     if (resumed && resumed->run().scene_hash() != mesh.hash)
       fail("{}: the checkpoint is of scene {}; {} meshes to {} (the same file, --patches and --two-sided?)", resume,
            resumed->run().scene_hash(), scene_spec, mesh.hash);
-    for (const std::string& w : scene_warnings(rc.scene, mesh)) std::fprintf(stderr, "sirad-coordinator: warning: %s\n", w.c_str());
+    for (const std::string& w : check.warnings) std::fprintf(stderr, "sirad-coordinator: warning: %s\n", w.c_str());
     proto::check_endpoint("--listen", listen, true);
     proto::check_security(listen, !curve_secret.empty(), insecure, "--curve-secret and --allow");
     std::optional<proto::KeyPair> keys;

@@ -77,6 +77,13 @@ inline glm::dvec3 cosine_direction(const glm::dvec3& n, double s, double t) {
   return u * x + v * y + n * z;
 }
 
+// How far a ray's origin leaves its surface, and how close faces are to count as one place: a
+// few hundred float ulps of the scene's coordinates (1e-5 of their magnitude), at least the
+// bundles' depth tie, far below any patch size or any gap a scene means to let light through.
+inline double ray_offset(const PatchMesh& mesh) {
+  return 1e-5 * (static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center)));
+}
+
 // Embree scene of all patches (one triangle geometry, primID = patch index), robust mode so
 // that rays do not slip between adjacent triangles.
 //

@@ -170,7 +170,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
   // Faces closer than eps are one place (the coincident-face rule, RayScene): at least the
   // bundles' depth tie (1e-5 of the scene's radius), so the two agree on every gap a scene
   // means to be one, and far below any gap meant to let light through.
-  const double eps = 1e-5 * (static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center)));
+  const double eps = ray_offset(mesh);
   RayScene rays(mesh, eps);
 
   std::vector<std::vector<Row>> rows(static_cast<std::size_t>(R), std::vector<Row>(n));

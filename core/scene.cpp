@@ -26,6 +26,7 @@
 #include "core/error.h"
 #include "core/resources.h"
 #include "core/scene_gltf.h"
+#include "core/scene_import.h"
 #include "core/scene_ply.h"
 
 namespace sirad {
@@ -34,27 +35,18 @@ namespace {
 namespace fs = std::filesystem;
 
 // Limits against hostile input. Real radiosity scenes are orders of magnitude smaller.
-constexpr std::uintmax_t kMaxFileBytes = std::uintmax_t{1} << 31;  // 2 GiB
-constexpr std::size_t kMaxVertices = std::size_t{1} << 26;
-constexpr std::size_t kMaxTriangles = std::size_t{1} << 26;
+using import::kDefaultReflectance;
+using import::kMaxFileBytes;
+using import::kMaxTriangles;
+using import::kMaxVertices;
+using import::printable;
+using import::read_file;
 constexpr std::size_t kMaxObjects = std::size_t{1} << 20;
 constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
-constexpr float kDefaultReflectance = 0.8f;  // faces without `usemtl`
 
 // Supplies an MTL file named by `mtllib` on OBJ line `line`: its label for messages, its text.
 using MtlSource =
     std::function<std::pair<std::string, std::string>(const std::string& file, uint32_t line)>;
-
-// Text from a file made safe for a one-line message: at most 40 bytes, non-printables as '?'.
-std::string printable(std::string_view s) {
-  std::string out;
-  for (char ch : s.substr(0, 40)) {
-    const auto c = static_cast<unsigned char>(ch);
-    out += (c >= 0x20 && c < 0x7f) ? ch : '?';
-  }
-  if (s.size() > 40) out += "...";
-  return out;
-}
 
 bool is_blank(char c) { return c == ' ' || c == '\t'; }
 
@@ -404,7 +396,13 @@ Scene import_obj(const std::string& name, std::string_view text, const MtlSource
 }
 
 // A whole regular file, at most 2 GiB; never blocks on FIFOs or devices.
-std::string read_file(const fs::path& path, const std::string& label) {
+
+}  // namespace
+
+namespace import {
+
+std::string read_file(const std::filesystem::path& path, const std::string& label) {
+  namespace fs = std::filesystem;
   std::error_code ec;
   const fs::file_status status = fs::status(path, ec);
   if (status.type() == fs::file_type::not_found) fail("{}: no such file", label);
@@ -428,7 +426,26 @@ std::string read_file(const fs::path& path, const std::string& label) {
   return text;
 }
 
-}  // namespace
+std::string printable(std::string_view s) {
+  std::string out;
+  for (char ch : s.substr(0, 40)) {
+    const auto c = static_cast<unsigned char>(ch);
+    out += (c >= 0x20 && c < 0x7f) ? ch : '?';
+  }
+  if (s.size() > 40) out += "...";
+  return out;
+}
+
+std::string without_controls(std::string_view s, std::size_t max) {
+  std::string out(s.substr(0, max));
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7f) c = '?';
+  return out;
+}
+
+double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
+
+}  // namespace import
 
 void add_back_faces(Scene& scene);
 

@@ -87,7 +87,7 @@ Scene builtin_three_lights();
 std::vector<std::string> builtin_scene_names();
 
 // A camera that frames the scene's bounding box from outside (along +Z), for scenes that carry
-// none (core/scene_check.h choose_camera picks one that sees the most).
+// none (core/scene_check.h check_scene picks one that sees the most).
 Camera default_camera(const Scene& scene);
 
 // "eye X Y Z look X Y Z up X Y Z fov DEG" (the OBJ comment `# sirad camera ...` and --camera):

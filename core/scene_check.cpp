@@ -20,14 +20,12 @@ struct Sides {
   bool emits = false;
 };
 
-}  // namespace
-
-std::vector<std::string> orientation_warnings(const Scene& scene, const PatchMesh& mesh) {
+// Objects that look inside out and emitters that light nothing: one line each, naming the object
+// (OBJ `o`/`g`) and material. A few cosine rays from both sides of (a sample of) the patches.
+std::vector<std::string> orientation_warnings(const Scene& scene, const PatchMesh& mesh, const RayScene& rays) {
   constexpr std::size_t kMaxPatches = 20000;  // a sample of that many patches, evenly spaced
   constexpr int kRays = 16;                   // per side of a patch
-  if (mesh.size() == 0) return {};
-  const double eps = 1e-5 * (static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center)));
-  RayScene rays(mesh, eps, true);
+  const double eps = ray_offset(mesh);
   std::map<std::pair<uint32_t, uint32_t>, Sides> parts;  // (object, material)
   const std::size_t stride = (mesh.size() + kMaxPatches - 1) / kMaxPatches;
   std::vector<std::array<double, 2>> pts, dirs;
@@ -73,10 +71,12 @@ std::vector<std::string> orientation_warnings(const Scene& scene, const PatchMes
   return out;
 }
 
-Camera choose_camera(const Scene& scene, const PatchMesh& mesh, double* seen_share) {
+// A camera for a scene that carries none: of a few candidate views (framing the bounding box
+// from outside along each horizontal axis, and from inside it near each upper corner looking
+// across), the one whose view sees a front face on the most of 24 x 24 rays. Up is +Y, or +Z
+// where the emitters face -Z (a Z-up export with ceiling lamps). `seen_share`: that share.
+Camera choose_camera(const Scene& scene, const PatchMesh& mesh, const RayScene& rays, double& seen_share) {
   Camera fallback = default_camera(scene);
-  if (seen_share) *seen_share = 0.0;
-  if (mesh.size() == 0) return fallback;
   // Up: +Z where the emitters' area-weighted normal points mostly along -Z, else +Y.
   glm::dvec3 lamp(0.0);
   for (std::size_t j = 0; j < mesh.size(); ++j)
@@ -120,8 +120,6 @@ Camera choose_camera(const Scene& scene, const PatchMesh& mesh, double* seen_sha
       c.up = glm::vec3(up);
       candidates.push_back(c);
     }
-  const double eps = 1e-5 * (static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center)));
-  RayScene rays(mesh, eps, true);
   constexpr int kSide = 24;
   Camera best = fallback;
   double best_share = -1.0;
@@ -141,13 +139,32 @@ Camera choose_camera(const Scene& scene, const PatchMesh& mesh, double* seen_sha
       best = c;
     }
   }
-  if (seen_share) *seen_share = best_share;
+  seen_share = best_share;
   return best;
 }
 
-std::vector<std::string> scene_warnings(const Scene& scene, const PatchMesh& mesh) {
-  std::vector<std::string> out = scene.warnings;
-  for (std::string& w : orientation_warnings(scene, mesh)) out.push_back(std::move(w));
+}  // namespace
+
+SceneCheck check_scene(const Scene& scene, PatchMesh& mesh, const std::optional<Camera>& camera) {
+  SceneCheck out;
+  out.warnings = scene.warnings;
+  if (camera) {
+    mesh.camera = camera;
+    out.camera_from = "--camera";
+  } else if (mesh.camera) {
+    out.camera_from = "the scene's";
+  }
+  if (mesh.size() == 0) {
+    if (!mesh.camera) mesh.camera = default_camera(scene);
+    return out;
+  }
+  const RayScene rays(mesh, ray_offset(mesh), true);  // one quick build for both checks
+  if (!mesh.camera) {
+    double seen = 0.0;
+    mesh.camera = choose_camera(scene, mesh, rays, seen);
+    out.camera_from = fmt::format("chosen: it sees a surface on {:.0f} % of the view", 100 * seen);
+  }
+  for (std::string& w : orientation_warnings(scene, mesh, rays)) out.warnings.push_back(std::move(w));
   return out;
 }
 

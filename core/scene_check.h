@@ -4,6 +4,7 @@
 // left facing the ceiling). One-sided faces are sirad's model (DESIGN.md section 1); Cycles
 // treats every mesh as two-sided, so a scene from Blender often needs --two-sided.
 #pragma once
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,17 +13,19 @@
 
 namespace sirad {
 
-// One line per problem, naming the object (OBJ `o`/`g`) and material. A few cosine rays from
-// both sides of (a sample of) the patches, cast with Embree; deterministic.
-std::vector<std::string> orientation_warnings(const Scene& scene, const PatchMesh& mesh);
-
-// A camera for a scene that carries none: of a few candidate views (framing the bounding box
-// from outside along each horizontal axis, and from inside it near each upper corner looking
-// across), the one whose view sees a front face on the most of 24 x 24 rays. Up is +Y, or +Z
-// where the emitters face -Z (a Z-up export with ceiling lamps). `seen` (optional): that share.
-Camera choose_camera(const Scene& scene, const PatchMesh& mesh, double* seen = nullptr);
-
-// Everything to warn about before a run: the importer's notes (Scene::warnings) and the above.
-std::vector<std::string> scene_warnings(const Scene& scene, const PatchMesh& mesh);
+// What a run settles and checks about its scene before any work, with one ray scene (Embree)
+// for both: the camera of the images, and the warnings to show.
+struct SceneCheck {
+  std::string camera_from;            // "--camera", "the scene's" or "chosen: ..." (how much it sees)
+  std::vector<std::string> warnings;  // the importer's notes (Scene::warnings), then one line per
+                                      // object that looks inside out and per emitter that lights
+                                      // nothing, naming the object (OBJ `o`/`g`) and material
+};
+// Sets mesh.camera: `camera` (--camera) if given, else the scene's, else the candidate view
+// (framing the bounding box from outside along each horizontal axis, or from inside it near an
+// upper corner looking across) that sees a front face on most of 24 x 24 rays, up +Y, or +Z
+// where the emitters face -Z. The orientation checks cast 16 cosine rays from each side of up
+// to 20,000 patches. Deterministic.
+SceneCheck check_scene(const Scene& scene, PatchMesh& mesh, const std::optional<Camera>& camera);
 
 }  // namespace sirad

@@ -17,6 +17,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <string>
@@ -31,26 +32,19 @@
 #include "core/error.h"
 #include "core/scene.h"
 #include "core/scene_gltf.h"
+#include "core/scene_import.h"
 
 namespace sirad {
 
 namespace {
 
-constexpr std::size_t kMaxTriangles = std::size_t{1} << 26;
+using import::kDefaultReflectance;
+using import::kMaxTriangles;
+using import::srgb_to_linear;
 constexpr std::size_t kMaxNodes = std::size_t{1} << 20;
-constexpr uintmax_t kMaxFileBytes = uintmax_t{2} << 30;
-constexpr float kDefaultReflectance = 0.8f;  // a primitive without a material, as OBJ faces without usemtl
 
-// A name from the file as it may appear in messages and outputs: control bytes replaced by '?'
-// and at most 200 bytes.
-std::string clean(const std::string& name) {
-  std::string out = name.substr(0, 200);
-  for (char& c : out)
-    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7f) c = '?';
-  return out;
-}
-
-double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
+// A name from the file as it may appear in messages and outputs.
+std::string clean(const std::string& name) { return import::without_controls(name, 200); }
 
 class GltfReader {
  public:
@@ -352,20 +346,18 @@ class GltfReader {
   std::size_t skipped_ = 0;
 };
 
-// Every file tinygltf reads (the scene, external buffers and images): a regular file of at most
-// 2 GiB, whatever a hostile file's URIs name (a device, a FIFO, a huge file).
+// Every file tinygltf reads beside the scene (external buffers and images) is read as the scene
+// is (import::read_file: a regular file of at most 2 GiB), whatever a hostile file's URIs name
+// (a device, a FIFO, a huge file).
 bool read_bounded(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    if (err) *err += "'" + path + "' is not a regular file\n";
+  try {
+    const std::string bytes = import::read_file(path, path);
+    out->assign(bytes.begin(), bytes.end());
+    return true;
+  } catch (const Error& e) {
+    if (err) *err += std::string(e.what()) + "\n";
     return false;
   }
-  const uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec || size > kMaxFileBytes) {
-    if (err) *err += "'" + path + "' is larger than 2 GiB\n";
-    return false;
-  }
-  return tinygltf::ReadWholeFile(out, err, path, nullptr);
 }
 
 bool no_write(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
@@ -376,22 +368,23 @@ bool no_write(std::string* err, const std::string&, const std::vector<unsigned c
 }  // namespace
 
 Scene import_gltf(const std::string& path, const ImportOptions& options) {
-  std::error_code ec;
-  const uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec) fail("{}: cannot read: {}", path, ec.message());
-  if (size > kMaxFileBytes) fail("{}: file is larger than 2 GiB", path);
+  const std::string bytes = import::read_file(path, path);
+  if (bytes.size() > std::numeric_limits<unsigned int>::max()) fail("{}: file is larger than 2 GiB", path);
   tinygltf::TinyGLTF loader;
   loader.SetFsCallbacks({&tinygltf::FileExists, &tinygltf::ExpandFilePath, &read_bounded, &no_write, nullptr});
   tinygltf::Model model;
   std::string err, warn;
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  bool ok = ext == ".glb" ? loader.LoadBinaryFromFile(&model, &err, &warn, path) : loader.LoadASCIIFromFile(&model, &err, &warn, path);
-  auto first_line = [](std::string s) {
-    s = s.substr(0, s.find('\n'));
-    for (char& c : s)
-      if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7f) c = '?';
-    return s.size() > 300 ? s.substr(0, 300) + "..." : s;
+  // External buffers and images are found beside the file (tinygltf wants an absolute folder).
+  const std::string dir = std::filesystem::absolute(std::filesystem::path(path)).parent_path().string();
+  const auto size = static_cast<unsigned int>(bytes.size());
+  bool ok = ext == ".glb"
+                ? loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()), size, dir)
+                : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), size, dir);
+  auto first_line = [](const std::string& s) {
+    const std::string line = s.substr(0, s.find('\n'));
+    return import::without_controls(line, 300) + (line.size() > 300 ? "..." : "");
   };
   if (!ok) fail("{}: not a readable glTF file: {}", path, first_line(err.empty() ? warn : err));
   Scene scene = GltfReader(path, model).read(options);

@@ -15,7 +15,6 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
@@ -26,14 +25,15 @@
 #include <glm/geometric.hpp>
 
 #include "core/error.h"
+#include "core/scene_import.h"
 
 namespace sirad {
 
 namespace {
 
-constexpr std::size_t kMaxTriangles = std::size_t{1} << 26;
-constexpr std::size_t kMaxVertices = std::size_t{1} << 26;
-constexpr uintmax_t kMaxFileBytes = uintmax_t{2} << 30;
+using import::kMaxTriangles;
+using import::kMaxVertices;
+using import::srgb_to_linear;
 
 enum class Type { i8, u8, i16, u16, i32, u32, f32, f64 };
 
@@ -77,15 +77,8 @@ bool parse_type(const std::string& s, Type& t) {
   return true;
 }
 
-// Text from the file as it may appear in a message: control bytes replaced by '?', at most 40.
-std::string clean(const std::string& text) {
-  std::string out = text.substr(0, 40);
-  for (char& c : out)
-    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) == 0x7f) c = '?';
-  return out;
-}
-
-double srgb_to_linear(double c) { return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4); }
+// Text from the file as it may appear in a message.
+std::string clean(const std::string& text) { return import::without_controls(text, 40); }
 
 // Reads values from the body: ascii tokens or binary in either byte order.
 class Body {
@@ -135,13 +128,8 @@ class Body {
 }  // namespace
 
 Scene import_ply(const std::string& path, const ImportOptions& options) {
-  std::error_code ec;
-  const uintmax_t file_size = std::filesystem::file_size(path, ec);
-  if (ec) fail("{}: cannot read: {}", path, ec.message());
-  if (file_size > kMaxFileBytes) fail("{}: file is larger than 2 GiB", path);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail("{}: cannot open", path);
-  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string data = import::read_file(path, path);
+  const std::size_t file_size = data.size();
 
   // The header.
   const std::size_t end = data.find("end_header");
@@ -281,7 +269,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
   std::size_t skipped = 0;
   for (std::size_t i = 0; i < faces.size(); ++i) {
     const Face& f = faces[i];
-    glm::vec3 rho = f.reflectance.x < 0 ? glm::vec3(0.8f) : f.reflectance;
+    glm::vec3 rho = f.reflectance.x < 0 ? glm::vec3(import::kDefaultReflectance) : f.reflectance;
     for (int c = 0; c < 3; ++c) {
       if (!(rho[c] >= 0.0f && rho[c] <= 1.0f)) fail("{}: face {}: reflectance {} outside [0, 1]", path, i, rho[c]);
       if (!std::isfinite(f.emission[c]) || f.emission[c] < 0.0f || f.emission[c] > 3e38f)

@@ -258,11 +258,15 @@ TEST(Coincident, RugAtZeroGapCoversTheFloor) {
   }
   EXPECT_GT(lines, 1000u) << "lines did cross the floor under the rug";
   for (std::size_t j = 0; j < s.mesh.size(); ++j)
-    if (under.in[j]) EXPECT_EQ(s.ref.radiosity[j], dvec3(0.0)) << "reference, patch " << j;
+    if (under.in[j]) {
+      EXPECT_EQ(s.ref.radiosity[j], dvec3(0.0)) << "reference, patch " << j;
+    }
   auto shots = make_cl_shot_engine(s.mesh);
   ShotSums d = run_shots(s.mesh, *shots, 64, 3, 0, 64, Stream::shots, true);
   for (std::size_t j = 0; j < s.mesh.size(); ++j)
-    if (under.in[j]) EXPECT_EQ(d.direct[j], dvec3(0.0)) << "first shot, patch " << j;
+    if (under.in[j]) {
+      EXPECT_EQ(d.direct[j], dvec3(0.0)) << "first shot, patch " << j;
+    }
   auto regions = rug_regions(s.mesh, rot);
   expect_transport_agrees("rug at zero gap", s, regions, 48);
   expect_direct_agrees("rug at zero gap", s, regions, 512);
