@@ -33,7 +33,7 @@
 //                                 A B A B; stat median, min, max, and coordinate_median (until
 //                                 coordinate() returns) and join_median (stop + join + teardown:
 //                                 up to one node poll interval, --node-poll-ms, 100 as in
-//                                 render_embedded)
+//                                 the embedded driver)
 //              embedded_ratio     stat median_ratio (median B / median A), paired_ratio (median
 //                                 of B_i / A_i, with its quartiles), paired_diff (median of
 //                                 B_i - A_i, s) and paired_diff_coordinate (the same, B until
@@ -75,8 +75,8 @@
 #include <glm/vec3.hpp>
 #include <zmq.hpp>
 
-#include "coordinator/coordinator.h"
-#include "coordinator/exchange.h"
+#include "cluster/exchange.h"
+#include "cmd/embedded.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/mesh.h"
@@ -84,7 +84,6 @@
 #include "core/solver.h"
 #include "core/scene_io.h"
 #include "core/solver.h"
-#include "node/node.h"
 #include "proto/codec.h"
 #include "proto/transport.h"
 
@@ -305,50 +304,22 @@ struct ClusterRun {
   double total_s = 0, coordinate_s = 0, join_s = 0;
 };
 
-// Like render_embedded: the scene meshed here, then the coordinator on this thread and `nodes`
-// node threads; timed from before the meshing to the end of the teardown.
+// The embedded driver (cmd/embedded.h), as `sirad render --nodes` runs it: the scene meshed
+// here, then the coordinator on this thread and `nodes` node threads; timed from before the
+// meshing to the end of the teardown.
 int g_node_poll_ms = 100;  // NodeOptions::poll_ms of the node threads (100: as render_embedded)
 
 ClusterRun run_cluster(cluster::RunConfig rc, int nodes, const std::string& device, int serial) {
   ClusterRun out;
   auto t0 = Clock::now();
-  {
-    PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
-    const std::string endpoint = fmt::format("inproc://bench-cluster-{}", serial);
-    zmq::context_t context;
-    zmq::socket_t router(context, zmq::socket_type::router);
-    router.set(zmq::sockopt::linger, 0);
-    router.bind(endpoint);
-    std::atomic<bool> stop{false}, failed{false};
-    std::vector<std::string> errors(static_cast<std::size_t>(nodes));
-    std::vector<std::thread> threads;
-    for (int i = 0; i < nodes; ++i)
-      threads.emplace_back([&, i] {
-        try {
-          node::serve(context, endpoint,
-                      {.name = fmt::format("local-{}", i), .device = device, .stop = &stop, .poll_ms = g_node_poll_ms});
-        } catch (const std::exception& e) {
-          errors[static_cast<std::size_t>(i)] = e.what();
-          failed = true;
-        }
-      });
-    rc.min_nodes = static_cast<uint32_t>(nodes);
-    rc.strict = true;
-    rc.abort = &failed;
-    rc.timeout_s = 600;
-    try {
-      out.result = cluster::coordinate(router, rc, mesh);
-    } catch (...) {
-      stop = true;
-      for (auto& t : threads) t.join();
-      for (const auto& e : errors)
-        if (!e.empty()) fail("node: {}", e);
-      throw;
-    }
-    out.coordinate_s = seconds_since(t0);
-    stop = true;
-    for (auto& t : threads) t.join();
-  }
+  PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
+  const double mesh_s = seconds_since(t0);
+  rc.min_nodes = static_cast<uint32_t>(nodes);
+  rc.timeout_s = 600;
+  embedded::Outcome o = embedded::run(rc, mesh, {.nodes = nodes, .endpoint = fmt::format("inproc://bench-cluster-{}", serial),
+                                                 .device = device, .poll_ms = g_node_poll_ms});
+  out.result = std::move(o.result);
+  out.coordinate_s = mesh_s + o.coordinate_s;
   out.total_s = seconds_since(t0);
   out.join_s = out.total_s - out.coordinate_s;
   return out;

@@ -1,5 +1,5 @@
 // sirad paper bench: the real-run experiments of bench/paper (issue 5) on the virtual-time
-// cluster (coordinator/emulate.h), CSV on stdout; bench/paper/*.sh run it and plot.
+// cluster (cluster/emulate.h), CSV on stdout; bench/paper/*.sh run it and plot.
 //
 //   sirad_bench_paper fig6   --scene cornell --patches 2000 --seeds 5   (figure 6: error against I
 //                            for 50/100/200 bundles on P = 1, 2, 4, 8, and time against P)
@@ -21,8 +21,9 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
-#include "coordinator/emulate.h"
-#include "coordinator/profile.h"
+#include "cmd/run_flags.h"
+#include "cluster/emulate.h"
+#include "cluster/profile.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/metrics.h"
@@ -110,11 +111,11 @@ int fig6(const Common& c, int seeds, const std::string& totals_s, const std::str
   } else {
     base.rule = UpdateRule::chain;
     base.directions = Directions::stratified;
-    base.shots_per_bundle = kDefaultShotsPerBundle;
+    base.shots_per_bundle = cli::kDefaultShotsPerBundle;
   }
   base.mode = cluster::Mode::sync;
   if (!profile.empty()) base.profile = emulation::load_profile(profile);
-  double bundle_s = cluster::measure_bundle_seconds(s.mesh, *s.engine, s.shots.get(), cluster::node_solver_options(base, s.mesh, 0), 15);
+  double bundle_s = cluster::measure_bundle_seconds(s.mesh, *s.engine, s.shots.get(), cluster::solver_options(base, s.mesh, 0), 15);
   std::fprintf(stderr, "bundle time %.6f s (median of 15)\n", bundle_s);
   std::printf("estimator,total,processors,period,seed,error,virtual_s,bundle_s,exchanges,model_error,model_sd,contraction,sigma_ratio\n");
   for (const std::string& t : split(totals_s))
@@ -158,12 +159,12 @@ int hetero(const Common& c, const std::string& profile_path, double target, int 
   base.scene = s.scene;
   base.mesh_options.target_patches = static_cast<std::size_t>(c.patches);
   base.directions = Directions::stratified;
-  base.shots_per_bundle = kDefaultShotsPerBundle;
+  base.shots_per_bundle = cli::kDefaultShotsPerBundle;
   base.target_error = target;
   base.bundles = cap;
   base.profile = profile;
   const uint32_t P = static_cast<uint32_t>(profile.nodes.size());
-  double bundle_s = cluster::measure_bundle_seconds(s.mesh, *s.engine, s.shots.get(), cluster::node_solver_options(base, s.mesh, 0), 15);
+  double bundle_s = cluster::measure_bundle_seconds(s.mesh, *s.engine, s.shots.get(), cluster::solver_options(base, s.mesh, 0), 15);
   std::fprintf(stderr, "%u nodes, bundle time %.6f s at speed %g (median of 15)\n", P, bundle_s, profile.max_speed());
   std::printf("mode,topology,balance,period,chosen_period,fraction,seed,virtual_s,bundles,error_estimate,error,exchanges,"
               "utilisation_mean,utilisation_min,idle_s_total,ended_by\n");

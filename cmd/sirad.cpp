@@ -1,29 +1,28 @@
-// sirad: the command line. `sirad render SCENE` solves a scene on one OpenCL device and writes
-// NAME.exr, NAME.png and NAME.ply; `sirad devices` lists the OpenCL devices.
+// sirad: the command line. `sirad render SCENE` solves a scene on one OpenCL device (or an
+// embedded cluster of N nodes) and writes NAME.exr, NAME.png, NAME.ply and NAME.glb; `sirad
+// emulate` runs a cluster in virtual time; `sirad devices` lists the OpenCL devices.
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <csignal>
-#include <set>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <optional>
+#include <set>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
-#include <atomic>
-#include <thread>
-
-#include "coordinator/coordinator.h"
-#include "coordinator/emulate.h"
-#include "coordinator/live_view.h"
-#include "core/bundle_cl.h"
-#include "node/node.h"
-#include "proto/security.h"
+#include "cluster/emulate.h"
+#include "cluster/live_view.h"
+#include "cluster/status.h"
+#include "cmd/embedded.h"
+#include "cmd/run_flags.h"
 #include "core/atomic_file.h"
+#include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/model.h"
@@ -33,48 +32,25 @@
 #include "core/scene.h"
 #include "core/scene_check.h"
 #include "core/solver.h"
+#include "proto/security.h"
 
 namespace sirad {
 namespace {
 
+using cli::mesh_options_from;
+
 struct RenderArgs {
   std::string scene;
-  std::optional<int64_t> patches;
-  std::optional<double> max_edge;
-  int64_t bundles = 1000;
-  std::optional<int> grid;
-  uint64_t seed = 1;
-  std::string out;
+  cli::RunFlags run;
+  cli::OutputFlags output;
   std::string device;
-  std::string rule = "chain";
-  std::string directions = "auto";
-  std::string control_variate = "on";
-  std::optional<int> burn_in;
-  double shots_per_bundle = kDefaultShotsPerBundle;
-  int shot_resolution = 0;
-  int width = 512, height = 512;
-  float exposure = 0.0f;
-  bool flat = false;
-  bool skip_degenerate = false;
-  bool two_sided = false;
-  std::string camera;  // --camera "eye X Y Z look X Y Z up X Y Z fov DEG"
   bool quiet = false;
   // The embedded cluster: N local nodes over ZeroMQ inproc (0: the plain single-node solver).
   int nodes = 0;
-  std::string exchange_every = "end";
-  double exchange_fraction = 1.0;
-  std::string topology = "star";
-  std::string mode = "async";
-  std::string balance = "on";
-  int chunks = 16;
   std::string status_json;
   std::string profile;
-  double time_limit = 0, target_error = 0;
   std::set<std::string> given;  // the flags given on the command line (long names)
 };
-
-// --target-error without --bundles: the cap it lifts the default of 1000 bundles to.
-constexpr int64_t kTargetErrorCap = 1000000;
 
 // SIGINT / SIGTERM during `sirad render`: the first ends the run with the bundles done so far
 // (the estimate is unbiased at any count) and writes it; a second one ends the process at once
@@ -97,8 +73,8 @@ std::string interrupted_by() { return g_signal.load() == SIGINT ? "interrupted (
 
 // Refuses the flags of `flags` that were given, with `why` (a flag that has no effect in a mode
 // is an error, never ignored).
-void refuse_given(const RenderArgs& a, std::initializer_list<const char*> flags, const std::string& why) {
-  for (const char* f : flags)
+void refuse_given(const RenderArgs& a, const std::vector<std::string>& flags, const std::string& why) {
+  for (const std::string& f : flags)
     if (a.given.count(f)) fail("{} {}", f, why);
 }
 
@@ -133,52 +109,18 @@ class Progress {
   std::chrono::steady_clock::time_point last_{};
 };
 
-// The header attributes of a single-node run (cluster runs: cluster::run_attributes), then the
-// outputs and their paths on stdout.
-Attributes run_attributes(const RenderArgs& a, const PatchMesh& mesh, int grid, UpdateRule rule, int64_t bundles) {
-  return {
-      {"sirad.version", std::string(SIRAD_VERSION)},
-      {"sirad.scene", a.scene},
-      {"sirad.scene_hash", mesh.hash},
-      {"sirad.patches", static_cast<int64_t>(mesh.size())},
-      {"sirad.bundles", bundles},
-      {"sirad.grid", static_cast<int64_t>(grid)},
-      {"sirad.seed", std::to_string(a.seed)},
-      {"sirad.rule", std::string(to_string(rule))},
-      {"sirad.directions", std::string(to_string(resolve_directions(a.directions, rule)))},
-      {"sirad.control_variate", a.control_variate},
-      {"sirad.nodes", static_cast<int64_t>(std::max(a.nodes, 1))},
-      {"sirad.exchange_every", a.exchange_every},  // single node: as given (nothing is exchanged)
-      {"sirad.exchange_fraction", a.exchange_fraction},
-  };
-}
-
-void write_outputs(const RenderArgs& a, const std::string& out, const PatchMesh& mesh,
+// The outputs and their paths on stdout.
+void write_outputs(const cli::OutputFlags& o, const std::string& out, const PatchMesh& mesh,
                    const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from) {
   attrs.emplace_back("sirad.camera_from", camera_from);
   ResultOptions ro;
-  ro.width = a.width;
-  ro.height = a.height;
-  ro.exposure = a.exposure;
-  ro.shading = a.flat ? Shading::flat : Shading::gouraud;
+  ro.width = o.width;
+  ro.height = o.height;
+  ro.exposure = o.exposure;
+  ro.shading = o.flat ? Shading::flat : Shading::gouraud;
   ResultFiles files = write_results(out, mesh, radiosity, ro, attrs);
   std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), camera_from.c_str());
   std::fputs(wrote_lines(files).c_str(), stdout);
-}
-
-constexpr const char* kCameraHelp =
-    "The view of the images: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the scene's, else one chosen to see the most)";
-constexpr const char* kTwoSidedHelp =
-    "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL sirad_two_sided 1)";
-
-// The meshing the flags ask for: --patches N, --max-edge L (not both), or about 10000 patches.
-MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<double> max_edge) {
-  if (patches && max_edge) fail("--patches and --max-edge exclude each other");
-  MeshOptions o;
-  if (patches) o.target_patches = static_cast<std::size_t>(*patches);
-  else if (max_edge) o.max_edge = *max_edge;
-  else o.target_patches = 10000;
-  return o;
 }
 
 // The outputs' name: --out, or the scene's file name without extension; checked before any work:
@@ -207,14 +149,7 @@ struct Meshed {
 // The camera: --camera (`camera`, checked first), else the scene's, else one chosen (check_scene).
 Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, const ImportOptions& import = {},
                    const std::string& camera = "") {
-  std::optional<Camera> given;
-  if (!camera.empty()) {
-    try {
-      given = parse_camera(camera);
-    } catch (const Error& e) {
-      fail("--camera '{}': {}", camera, e.what());
-    }
-  }
+  std::optional<Camera> given = cli::camera_flag(camera);
   Meshed m;
   m.scene = load_scene(spec, import);
   m.mesh = mesh_scene(m.scene, mesh_options);
@@ -224,44 +159,11 @@ Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, con
   return m;
 }
 
-// The cluster run the flags ask for (the embedded cluster's and the emulation's).
-cluster::RunConfig run_config_from(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, UpdateRule rule,
-                                   std::optional<emulation::Profile> profile) {
-  cluster::RunConfig rc;
-  rc.scene = scene;
-  rc.mesh_options = mesh_options;
-  rc.bundles = static_cast<uint64_t>(a.bundles);
-  rc.seed = a.seed;
-  rc.grid = a.grid.value_or(0);
-  rc.rule = rule;
-  rc.directions = resolve_directions(a.directions, rule);
-  rc.control_variate = a.control_variate == "on";
-  rc.burn_in = a.burn_in.value_or(-1);
-  rc.shots_per_bundle = a.shots_per_bundle;
-  rc.shot_resolution = a.shot_resolution;
-  rc.exchange_every = cluster::parse_exchange_every(a.exchange_every);
-  rc.fraction = a.exchange_fraction;
-  rc.topology = cluster::parse_topology(a.topology);
-  rc.mode = cluster::parse_mode(a.mode);
-  rc.chunks = static_cast<uint32_t>(a.chunks);
-  rc.balance = a.balance == "on";
-  rc.min_nodes = static_cast<uint32_t>(a.nodes);
-  rc.profile = std::move(profile);
-  rc.time_limit_s = a.time_limit;
-  rc.target_error = a.target_error;
-  return rc;
-}
-
-// The bundle cap: --bundles, or with --target-error and no --bundles, kTargetErrorCap.
-int64_t bundle_cap(const RenderArgs& a) {
-  return a.target_error > 0 && !a.given.count("--bundles") ? kTargetErrorCap : a.bundles;
-}
-
 // What a run that stopped at its bundle cap short of its --target-error says: on stdout, and as
 // sirad.ended_by in the EXR ("" when it met the target or had none).
-std::string short_of_target(const RenderArgs& a, const std::string& ended_by, double estimate) {
-  if (!(a.target_error > 0) || ended_by != "budget") return "";
-  return fmt::format("bundle cap {} reached short of the target error {} (estimate {})", bundle_cap(a), a.target_error,
+std::string short_of_target(const cluster::RunSettings& s, const std::string& ended_by, double estimate) {
+  if (!(s.target_error > 0) || ended_by != "budget") return "";
+  return fmt::format("bundle cap {} reached short of the target error {} (estimate {})", s.bundles, s.target_error,
                      estimate >= 0 ? fmt::format("{:.4f}", estimate) : std::string("n/a"));
 }
 
@@ -279,143 +181,104 @@ int finish_line(const std::string& ended_by, const std::string& short_of, int64_
 }
 
 // The embedded default: the coordinator on this thread, N nodes on their own threads, all over
-// ZeroMQ inproc with the same code as a cluster.
-int render_embedded(const RenderArgs& a, const Scene& scene, const MeshOptions& mesh_options, const PatchMesh& mesh,
-                    const std::string& camera_from,
-                    UpdateRule rule, const std::string& out, std::optional<emulation::Profile> profile) {
-  cluster::RunConfig rc = run_config_from(a, scene, mesh_options, rule, std::move(profile));
-  rc.strict = true;
-
-  const std::string endpoint = "inproc://sirad-embedded";
-  zmq::context_t context;
-  zmq::socket_t router(context, zmq::socket_type::router);
-  router.set(zmq::sockopt::linger, 0);
-  router.bind(endpoint);
-  std::atomic<bool> stop{false}, failed{false};
-  std::vector<std::string> node_errors(static_cast<std::size_t>(a.nodes));
-  std::vector<std::jthread> threads;  // joined however this function ends (declared last)
-  for (int i = 0; i < a.nodes; ++i)
-    threads.emplace_back([&, i] {
-      try {
-        node::serve(context, endpoint, {.name = fmt::format("local-{}", i), .device = a.device, .stop = &stop});
-      } catch (const std::exception& e) {
-        node_errors[static_cast<std::size_t>(i)] = e.what();
-        failed = true;
-      }
-    });
-  struct StopOnExit {  // destroyed before `threads`: however this ends, the nodes are told first
-    std::atomic<bool>& stop;
-    ~StopOnExit() { stop = true; }
-  } stop_on_exit{stop};
-  rc.abort = &failed;
+// ZeroMQ inproc with the same code as a cluster (cmd/embedded.h).
+int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, const Meshed& m, const std::string& out,
+                    std::optional<emulation::Profile> profile) {
+  cluster::RunConfig rc;
+  static_cast<cluster::RunSettings&>(rc) = settings;
+  rc.scene = m.scene;
+  rc.min_nodes = static_cast<uint32_t>(a.nodes);
+  rc.profile = std::move(profile);
   rc.close = &g_interrupted;
-  auto start = std::chrono::steady_clock::now();
   cluster::StatusReporter reporter(a.quiet, a.status_json);
   rc.status_every_s = 0.25;
   rc.status = std::ref(reporter);
-  cluster::RunResult result;
-  try {
-    result = cluster::coordinate(router, rc, mesh);
-  } catch (...) {
-    stop = true;
-    for (auto& t : threads) t.join();
-    for (int i = 0; i < a.nodes; ++i)
-      if (!node_errors[static_cast<std::size_t>(i)].empty()) fail("local-{}: {}", i, node_errors[static_cast<std::size_t>(i)]);
-    throw;
-  }
-  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  stop = true;  // the node threads leave within a poll interval, while the outputs are written
-  reporter.finish();
-
-  Attributes attrs = cluster::run_attributes(rc, result, mesh, a.scene);
-  const std::string short_of = short_of_target(a, result.ended_by, result.error_estimate);
-  if (!short_of.empty())
-    for (auto& [key, value] : attrs)
-      if (key == "sirad.ended_by") value = short_of;
-  write_outputs(a, out, mesh, result.radiosity, attrs, camera_from);
-  for (auto& t : threads) t.join();
+  std::string short_of;
+  embedded::Options eo{.nodes = a.nodes, .device = a.device};
+  eo.on_done = [&](const cluster::RunResult& result) {
+    reporter.finish();
+    Attributes attrs = cluster::run_attributes(rc, cluster::outcome_of(result), m.mesh, a.scene, true);
+    short_of = short_of_target(rc, result.ended_by, result.error_estimate);
+    if (!short_of.empty())
+      for (auto& [key, value] : attrs)
+        if (key == "sirad.ended_by") value = short_of;
+    write_outputs(a.output, out, m.mesh, result.radiosity, attrs, m.camera_from);
+  };
+  embedded::Outcome o = embedded::run(rc, m.mesh, eo);
+  const cluster::RunResult& result = o.result;
   std::fputs(cluster::node_lines(result).c_str(), stdout);
   std::printf("%s\n", cluster::traffic_line(result).c_str());
-  std::printf("patches %zu, bundles %lld, grid %d, nodes %d, %.2f s, %.1f bundles/s, %.3g line crossings/s\n",
-              mesh.size(), static_cast<long long>(result.bundles), result.grid, a.nodes, seconds,
-              result.bundles / seconds, static_cast<double>(result.crossings) / seconds);
+  std::printf("%s\n", cluster::summary_line(m.mesh.size(), result.bundles, result.grid, static_cast<uint32_t>(a.nodes),
+                                            o.coordinate_s, result.crossings).c_str());
   return finish_line(result.ended_by, short_of, static_cast<int64_t>(result.bundles));
 }
 
 int render(RenderArgs a) {
   // Check everything cheap before any work: flags, output place, scene, device.
-  MeshOptions mesh_options = mesh_options_from(a.patches, a.max_edge);
   if (!a.profile.empty() && a.nodes == 0) fail("--profile {}: emulation needs a cluster (--nodes N)", a.profile);
-  if (a.nodes == 0)
-    refuse_given(a, {"--exchange-every", "--exchange-fraction", "--topology", "--mode", "--balance", "--chunks", "--status-json"},
-                 "has no effect on one node: it is a cluster setting (--nodes N)");
-  if (a.nodes > 0 && a.target_error > 0 && (a.nodes < 2 || a.exchange_every == "end"))
+  if (a.nodes == 0) {
+    std::vector<std::string> cluster_only = cli::cluster_flag_names();
+    cluster_only.push_back("--status-json");
+    refuse_given(a, cluster_only, "has no effect on one node: it is a cluster setting (--nodes N)");
+  }
+  const cluster::RunSettings settings = cli::settings_from(a.run, a.given);
+  if (a.nodes > 0 && settings.target_error > 0 && (a.nodes < 2 || settings.exchange_every == 0))
     fail("--target-error with --nodes needs 2 or more nodes and --exchange-every (its estimate is the spread of the "
          "nodes' exchanged states)");
-  a.bundles = bundle_cap(a);
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
-  UpdateRule rule = parse_update_rule(a.rule);
-  resolve_directions(a.directions, rule);
-  check_first_shot(a.shots_per_bundle, a.shot_resolution);
-  if (a.target_error > 0 && a.nodes == 0 && rule != UpdateRule::chain)
+  if (settings.target_error > 0 && a.nodes == 0 && settings.rule != UpdateRule::chain)
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
-  std::string out = output_name(a.out, a.scene);
-  auto [scene, mesh, camera_from] = load_meshed(
-      a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided}, a.camera);
+  std::string out = output_name(a.output.out, a.scene);
+  Meshed m = load_meshed(a.scene, settings.mesh_options,
+                         {.skip_degenerate = a.output.skip_degenerate, .two_sided = a.output.two_sided}, a.output.camera);
+  const PatchMesh& mesh = m.mesh;
   install_interrupt();
 
   if (a.nodes > 0) {
     // Two or more nodes in this process on PoCL's CPU device would each get a pool of threads
     // for every kernel: oversubscribed, and woken once per launch. Unless the user chose PoCL's
     // devices or a device, each node gets PoCL's single-threaded CPU device instead (one chain
-    // per core, like one thread per MPI rank). Measured at 20k patches, 2 nodes on 2 cores:
-    // 5.2 s against 6.3 s for 1500 bundles (bench/RESULTS.md). Must precede any OpenCL call.
+    // per core, like one thread per MPI rank; measured in bench/RESULTS.md). Must precede any
+    // OpenCL call.
     if (a.nodes >= 2 && a.device.empty() && std::getenv("SIRAD_DEVICE") == nullptr && std::getenv("POCL_DEVICES") == nullptr)
       setenv("POCL_DEVICES", "basic", 0);
-    return render_embedded(a, scene, mesh_options, mesh, camera_from, rule, out, std::move(profile));
+    return render_embedded(a, settings, m, out, std::move(profile));
   }
   auto engine = make_cl_engine(mesh, {.device = a.device});
-  SolverOptions so;
-  so.seed = a.seed;
-  so.grid = a.grid.value_or(0);
-  so.rule = rule;
-  so.directions = resolve_directions(a.directions, rule);
-  so.control_variate = a.control_variate == "on";
-  so.burn_in = a.burn_in.value_or(-1);
-  so.shots_per_bundle = a.shots_per_bundle;
-  so.shot_resolution = a.shot_resolution;
-  so.track_error = a.target_error > 0 || mesh.size() <= kTrackErrorMaxPatches;
+  SolverOptions so = cluster::solver_options(settings, mesh, 0);
+  so.track_error = settings.target_error > 0 || mesh.size() <= kTrackErrorMaxPatches;
   std::unique_ptr<ShotEngine> shots;
   if (so.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
+  const int64_t bundles = static_cast<int64_t>(settings.bundles);
   if (!a.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, grid %d, %lld bundles (%s rule, %s directions), %g shots per bundle, on %s\n",
-                 a.scene.c_str(), mesh.size(), so.grid ? so.grid : auto_grid(mesh), static_cast<long long>(a.bundles),
-                 to_string(rule), to_string(so.directions), so.shots_per_bundle, engine->description().c_str());
+                 a.scene.c_str(), mesh.size(), so.grid, static_cast<long long>(bundles), to_string(so.rule),
+                 to_string(so.directions), so.shots_per_bundle, engine->description().c_str());
 
   auto start = std::chrono::steady_clock::now();
   Solver solver(mesh, *engine, so, shots.get());
-  Progress progress(a.bundles, a.quiet);
+  Progress progress(bundles, a.quiet);
   // --target-error: the batch-means estimate (core/error_estimate.h), checked every 16 bundles
   // once it is ready (Solver::error_estimate_ready); --time-limit: wall time. --bundles stays the cap.
   std::string ended_by = "budget";
   int64_t done = 0;
-  for (int64_t k = 0; k < a.bundles; ++k) {
+  for (int64_t k = 0; k < bundles; ++k) {
     solver.step(static_cast<uint64_t>(k));
     done = k + 1;
-    if (g_interrupted && done < a.bundles) {  // after a step: the result has at least one bundle
+    if (g_interrupted && done < bundles) {  // after a step: the result has at least one bundle
       ended_by = interrupted_by();
       break;
     }
     double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     progress.update(done, elapsed);
-    if (a.time_limit > 0 && elapsed >= a.time_limit && done < a.bundles) {
+    if (settings.time_limit_s > 0 && elapsed >= settings.time_limit_s && done < bundles) {
       ended_by = "time limit";
       break;
     }
-    if (a.target_error > 0 && done % 16 == 0 && solver.error_estimate_ready()) {
+    if (settings.target_error > 0 && done % 16 == 0 && solver.error_estimate_ready()) {
       double e = solver.error_estimate();
-      if (e >= 0 && e <= a.target_error) {
+      if (e >= 0 && e <= settings.target_error) {
         ended_by = fmt::format("target error (estimate {:.4f})", e);
         break;
       }
@@ -424,21 +287,20 @@ int render(RenderArgs a) {
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   double error = solver.error_estimate();
 
-  Attributes attrs = run_attributes(a, mesh, solver.grid(), rule, done);
+  const std::string short_of = short_of_target(settings, ended_by, error);
+  Attributes attrs = cluster::run_attributes(
+      settings, {static_cast<uint64_t>(done), solver.grid(), 1, 0, 1.0, short_of.empty() ? ended_by : short_of}, mesh, a.scene,
+      false);
   attrs.emplace_back("sirad.burn_in", static_cast<int64_t>(solver.burn_in()));
-  attrs.emplace_back("sirad.shots_per_bundle", so.shots_per_bundle);
   attrs.emplace_back("sirad.shot_resolution", static_cast<int64_t>(solver.shot_resolution()));
   attrs.emplace_back("sirad.shots", static_cast<int64_t>(solver.shots_rendered()));
   if (error >= 0) attrs.emplace_back("sirad.error_estimate", error);
-  if (a.target_error > 0) attrs.emplace_back("sirad.target_error", a.target_error);
-  const std::string short_of = short_of_target(a, ended_by, error);
-  attrs.emplace_back("sirad.ended_by", short_of.empty() ? ended_by : short_of);
+  if (settings.target_error > 0) attrs.emplace_back("sirad.target_error", settings.target_error);
   attrs.emplace_back("sirad.device", engine->description());
-  write_outputs(a, out, mesh, solver.estimate(), attrs, camera_from);
-  std::printf("patches %zu, bundles %lld, grid %d, %.2f s, %.1f bundles/s, %.3g line crossings/s, error estimate %s\n",
-              mesh.size(), static_cast<long long>(done), solver.grid(), seconds, done / std::max(seconds, 1e-9),
-              static_cast<double>(solver.crossings()) / std::max(seconds, 1e-9),
-              error >= 0 ? fmt::format("{:.4f}", error).c_str() : "n/a");
+  write_outputs(a.output, out, mesh, solver.estimate(), attrs, m.camera_from);
+  std::printf("%s\n", cluster::summary_line(mesh.size(), static_cast<uint64_t>(done), solver.grid(), 0, seconds, solver.crossings(),
+                                            fmt::format(", error estimate {}", error >= 0 ? fmt::format("{:.4f}", error) : "n/a"))
+                          .c_str());
   return finish_line(ended_by, short_of, done);
 }
 
@@ -448,47 +310,47 @@ struct EmulateArgs {
   std::string nodes_csv, timeline;
 };
 
-// `sirad emulate`: the virtual-time cluster (coordinator/emulate.h) on this machine's device.
+// `sirad emulate`: the virtual-time cluster (cluster/emulate.h) on this machine's device.
 int emulate(EmulateArgs& e) {
   RenderArgs& a = e.run;
-  MeshOptions mesh_options = mesh_options_from(a.patches, a.max_edge);
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   if (!a.given.count("--nodes")) {
     if (!profile || profile->nodes.empty()) fail("emulate: give --nodes N (or a --profile with node entries)");
     a.nodes = static_cast<int>(profile->nodes.size());
   }
-  UpdateRule rule = parse_update_rule(a.rule);
-  resolve_directions(a.directions, rule);
-  check_first_shot(a.shots_per_bundle, a.shot_resolution);
-  if (a.target_error > 0 && (a.nodes < 2 || a.exchange_every == "end"))
+  const cluster::RunSettings settings = cli::settings_from(a.run, a.given);
+  if (settings.target_error > 0 && (a.nodes < 2 || settings.exchange_every == 0))
     fail("--target-error on emulate needs 2 or more nodes and --exchange-every (its estimate is the spread of the "
          "nodes' exchanged states)");
-  a.bundles = bundle_cap(a);
-  std::string out = output_name(a.out, a.scene);
-  auto [scene, mesh, camera_from] = load_meshed(
-      a.scene, mesh_options, {.skip_degenerate = a.skip_degenerate, .two_sided = a.two_sided}, a.camera);
+  std::string out = output_name(a.output.out, a.scene);
+  Meshed m = load_meshed(a.scene, settings.mesh_options,
+                         {.skip_degenerate = a.output.skip_degenerate, .two_sided = a.output.two_sided}, a.output.camera);
+  const PatchMesh& mesh = m.mesh;
 
   cluster::EmulateConfig ec;
-  ec.run = run_config_from(a, scene, mesh_options, rule, std::move(profile));
+  static_cast<cluster::RunSettings&>(ec.run) = settings;
+  ec.run.scene = m.scene;
+  ec.run.min_nodes = static_cast<uint32_t>(a.nodes);
+  ec.run.profile = std::move(profile);
   ec.nodes = static_cast<uint32_t>(a.nodes);
   ec.bundle_s = e.bundle_ms / 1e3;
   cluster::check_emulation(ec, mesh.size());
   auto engine = make_cl_engine(mesh, {.device = a.device});
   std::unique_ptr<ShotEngine> shots;
-  if (a.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
+  if (settings.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
   if (!a.quiet)
-    std::fprintf(stderr, "sirad emulate: %s: %zu patches, %lld bundles on %u emulated nodes%s, on %s\n", a.scene.c_str(),
-                 mesh.size(), static_cast<long long>(a.bundles), ec.nodes,
+    std::fprintf(stderr, "sirad emulate: %s: %zu patches, %llu bundles on %u emulated nodes%s, on %s\n", a.scene.c_str(),
+                 mesh.size(), static_cast<unsigned long long>(settings.bundles), ec.nodes,
                  a.profile.empty() ? "" : fmt::format(" (profile {})", a.profile).c_str(), engine->description().c_str());
   cluster::EmulateResult r = cluster::emulate(ec, mesh, *engine, shots.get());
 
-  Attributes attrs = cluster::run_attributes(ec.run, r.run, mesh, a.scene);
+  Attributes attrs = cluster::run_attributes(ec.run, cluster::outcome_of(r.run), mesh, a.scene, true);
   attrs.emplace_back("sirad.emulated", std::string("virtual time"));
   attrs.emplace_back("sirad.virtual_wall_s", r.wall_s);
   attrs.emplace_back("sirad.bundle_s", r.bundle_s);
   if (r.error_estimate >= 0) attrs.emplace_back("sirad.error_estimate", r.error_estimate);
-  write_outputs(a, out, mesh, r.run.radiosity, attrs, camera_from);
+  write_outputs(a.output, out, mesh, r.run.radiosity, attrs, m.camera_from);
   if (!e.nodes_csv.empty()) write_file_atomic(e.nodes_csv, cluster::nodes_csv(r));
   if (!e.timeline.empty()) write_file_atomic(e.timeline, cluster::timeline_csv(r));
   // Every node up to 32; beyond, the spread of their utilisation.
@@ -510,7 +372,6 @@ int emulate(EmulateArgs& e) {
   if (!r.exchange_why.empty()) std::printf("--exchange-every auto: %s\n", r.exchange_why.c_str());
   return 0;
 }
-
 
 // The links a profile gives nodes 0..N-1 (named PREFIX0, PREFIX1, ...), one row each: for
 // people checking a profile and for deploy/netns-cluster.sh (tc rates per node).
@@ -650,16 +511,14 @@ struct ReferenceArgs {
   std::optional<int64_t> patches;
   std::optional<double> max_edge;
   ReferenceOptions options;
-  std::string out;
-  bool two_sided = false;
-  std::string camera;
+  cli::OutputFlags output;
   bool quiet = false;
 };
 
 CLI::App* add_reference_command(CLI::App& app, ReferenceArgs& r) {
   auto* cmd = app.add_subcommand("reference", "Independent reference solution (Embree rays, exact direct light); "
                                               "write NAME.exr, .png, .ply and NAME.ref.csv");
-  cmd->add_option("scene", r.scene, "Built-in scene (cornell, furnace, bright-room, three-lights) or an .obj file")->required();
+  cli::add_scene_argument(cmd, r.scene);
   cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
   cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(CLI::PositiveNumber);
@@ -672,9 +531,7 @@ CLI::App* add_reference_command(CLI::App& app, ReferenceArgs& r) {
       ->check(CLI::Range(2, 1024))->capture_default_str();
   cmd->add_option("--seed", r.options.seed, "Seed")->capture_default_str();
   cmd->add_option("--threads", r.options.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
-  cmd->add_option("--out", r.out, "Output name: NAME.exr, .png, .ply, .ref.csv (default: scene name)");
-  cmd->add_flag("--two-sided", r.two_sided, kTwoSidedHelp);
-  cmd->add_option("--camera", r.camera, kCameraHelp);
+  cli::add_output_flags(cmd, r.output);
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
   return cmd;
 }
@@ -685,16 +542,15 @@ int reference(const ReferenceArgs& r) {
     fail("--rays {} is below --batches {}", r.options.rays_per_patch, r.options.batches);
   if (r.options.light_samples < r.options.batches)
     fail("--light-samples {} is below --batches {}", r.options.light_samples, r.options.batches);
-  std::string out = output_name(r.out, r.scene);
-  auto [scene, mesh, camera_from] = load_meshed(r.scene, mesh_options, {.two_sided = r.two_sided}, r.camera);
+  std::string out = output_name(r.output.out, r.scene, {".exr", ".png", ".ply", ".glb", ".ref.csv"});
+  auto [scene, mesh, camera_from] = load_meshed(
+      r.scene, mesh_options, {.skip_degenerate = r.output.skip_degenerate, .two_sided = r.output.two_sided}, r.output.camera);
   if (!r.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, reference with %d rays and %d light samples per patch, %d batches\n",
                  r.scene.c_str(), mesh.size(), r.options.rays_per_patch, r.options.light_samples, r.options.batches);
   ReferenceSolution s = solve_reference(mesh, r.options);
   std::vector<glm::vec3> radiosity(mesh.size());
   for (std::size_t j = 0; j < mesh.size(); ++j) radiosity[j] = glm::vec3(s.radiosity[j]);
-  RenderArgs a;
-  a.scene = r.scene;
   Attributes attrs = {
       {"sirad.version", std::string(SIRAD_VERSION)},
       {"sirad.scene", r.scene},
@@ -706,7 +562,7 @@ int reference(const ReferenceArgs& r) {
       {"sirad.batches", static_cast<int64_t>(r.options.batches)},
       {"sirad.seed", std::to_string(r.options.seed)},
   };
-  write_outputs(a, out, mesh, radiosity, attrs, camera_from);
+  write_outputs(r.output, out, mesh, radiosity, attrs, camera_from);
   const std::string csv = out + ".ref.csv";
   write_reference(csv, mesh, s, r.options);
   std::printf("wrote %s\n", std::filesystem::absolute(csv).c_str());
@@ -725,55 +581,11 @@ int devices() {
 
 // The flags of a run, shared by `render` and `emulate` (the cluster flags: with --nodes).
 void add_run_options(CLI::App* cmd, RenderArgs& r) {
-  cmd->add_option("scene", r.scene, "Built-in scene (cornell, furnace, bright-room, three-lights) or an .obj file")->required();
-  cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
-      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
-  cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")
-      ->check(CLI::PositiveNumber);
-  cmd->add_option("--bundles", r.bundles, "Bundles (random directions) to run; the cap with --target-error (default there: 1000000)")
-      ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))->capture_default_str();
-  cmd->add_option("--grid", r.grid, "Lines per side of a bundle (default: from the patch sizes)")
-      ->check(CLI::Range(2, 8192));
-  cmd->add_option("--seed", r.seed, "Run seed")->capture_default_str();
-  cmd->add_option("--out", r.out, "Output name: writes NAME.exr, NAME.png, NAME.ply (default: scene name)");
+  cli::add_scene_argument(cmd, r.scene);
+  cli::add_run_flags(cmd, r.run);
+  cli::add_output_flags(cmd, r.output);
   cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");
-  cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
-      ->check(CLI::IsMember({"chain", "average"}));
-  cmd->add_option("--directions", r.directions,
-                         "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified")
-      ->check(CLI::IsMember({"auto", "random", "stratified"}))->capture_default_str();
-  cmd->add_option("--control-variate", r.control_variate,
-                         "The transport's constant control variate: on (default) or off (the plain estimator)")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")
-      ->check(CLI::Range(0, 1 << 20));
-  cmd->add_option("--shots-per-bundle", r.shots_per_bundle,
-                         "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
-      ->check(CLI::Range(0.0, 1024.0))->capture_default_str();
-  cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
-      ->check(CLI::Range(0, 2048))->capture_default_str();
-  cmd->add_option("--width", r.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
-  cmd->add_option("--height", r.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
-  cmd->add_option("--exposure", r.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
-  cmd->add_flag("--flat", r.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
-  cmd->add_flag("--skip-degenerate", r.skip_degenerate, "Drop zero-area triangles instead of failing");
-  cmd->add_flag("--two-sided", r.two_sided, kTwoSidedHelp);
-  cmd->add_option("--camera", r.camera, kCameraHelp);
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
-  cmd->add_option("--exchange-every", r.exchange_every, "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)")->capture_default_str();
-  cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")
-      ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
-  cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str();
-  cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str();
-  cmd->add_option("--balance", r.balance, "Grants sized to each node's speed, so unequal nodes finish them together: on or off (every grant I bundles)")
-      ->check(CLI::IsMember({"on", "off"}))->capture_default_str();
-  cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--target-error", r.target_error,
-                         "End the run at this relative error estimate (one node: batch means; --nodes 2+ with --exchange-every: the nodes' spread)")
-      ->check(CLI::Range(0.0, 1.0));
-  cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")
-      ->check(CLI::Range(1, 4096))->capture_default_str();
 }
 
 // sirad keygen NAME: a CURVE key pair (proto/security.h); the public key goes to the other side
@@ -791,7 +603,7 @@ int run(int argc, char** argv) {
   CLI::App app{"sirad: diffuse global illumination by stochastic iteration with bundles of parallel lines"};
   app.require_subcommand(1);
   RenderArgs r;
-  auto* render_cmd = app.add_subcommand("render", "Solve a scene on one OpenCL device; write NAME.exr, .png, .ply");
+  auto* render_cmd = app.add_subcommand("render", "Solve a scene on one OpenCL device (or N embedded nodes); write NAME.exr, .png, .ply, .glb");
   add_run_options(render_cmd, r);
   render_cmd->add_option("--nodes", r.nodes, "Embedded cluster: N local nodes over ZeroMQ inproc (0: single node)")
       ->check(CLI::Range(0, 64));
@@ -834,13 +646,7 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "sirad: error: %s (see sirad --help)\n", e.what());
     return 2;
   }
-  auto given = [](const CLI::App* cmd) {
-    std::set<std::string> out;
-    for (const CLI::Option* o : cmd->get_options())
-      if (o->count() > 0)
-        for (const std::string& name : o->get_lnames()) out.insert("--" + name);
-    return out;
-  };
+  auto given = [](const CLI::App* cmd) { return cli::given_flags(cmd); };
   if (render_cmd->parsed()) {
     r.given = given(render_cmd);
     return render(r);

@@ -14,7 +14,8 @@
 
 #include <fmt/format.h>
 
-#include "coordinator/checkpoint.h"
+#include "cluster/checkpoint.h"
+#include "cluster/exchange_choice.h"
 #include "core/bundle.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
@@ -48,8 +49,7 @@ struct Peer {
   uint64_t first_bundles = 0;  // bundles and busy time at its first report
   double first_busy_s = 0;
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
-  emulation::LinkModel down;  // the emulated coordinator -> node link
-  proto::DelayQueue queue;    // messages on that link
+  proto::ShapedLink down;     // the coordinator -> node link (shaped by the profile)
   bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
 };
 
@@ -57,34 +57,14 @@ class Coordinator {
  public:
   Coordinator(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh)
       : router_(router), config_(config), mesh_(mesh),
-        policy_(policy_config(),
-                 chunk_starts(static_cast<uint32_t>(mesh.size()), std::min<uint32_t>(config.chunks, static_cast<uint32_t>(mesh.size()))),
-                 error_weights(mesh)),
+        policy_(make_policy(config, mesh, config.min_nodes, [this](const std::vector<uint32_t>& ready) { return choose(ready); })),
         scene_bytes_(encode_scene(config.scene)) {
     // A reconnecting node keeps its routing id; the new connection takes it over.
     router_.set(zmq::sockopt::router_handover, 1);
     proto::harden(router_, proto::max_frame_bytes(mesh.size()));
+    run_ = to_wire(config, mesh, policy_.starts());
     std::random_device rd;
     run_.set_run_id((static_cast<uint64_t>(rd()) << 32 | rd()) | 1);  // a stale message names another run
-    run_.set_scene_hash(mesh.hash);
-    run_.set_seed(config.seed);
-    run_.set_grid(static_cast<uint32_t>(config.grid == 0 ? auto_grid(mesh) : config.grid));
-    run_.set_rule(to_string(config.rule));
-    run_.set_burn_in(config.burn_in);
-    run_.set_directions(to_string(config.directions));
-    run_.set_no_control_variate(!config.control_variate);
-    run_.set_shots_per_bundle(config.shots_per_bundle);
-    run_.set_shot_resolution(static_cast<uint32_t>(config.shot_resolution));
-    const auto& starts = policy_.starts();
-    for (std::size_t c = 0; c + 1 < starts.size(); ++c) run_.add_chunk_starts(starts[c]);
-    run_.set_patches(static_cast<uint32_t>(mesh.size()));
-    run_.set_exchange_every(config.exchange_every);
-    run_.set_exchange_fraction(config.fraction);
-    run_.set_topology(config.topology == Topology::star ? "star" : "ring");
-    run_.set_mode(config.mode == Mode::sync ? "sync" : "async");
-    run_.set_bundles(config.bundles);
-    run_.set_target_patches(config.mesh_options.target_patches);
-    run_.set_max_edge(config.mesh_options.max_edge);
     if (config.resume) resume(*config.resume);
   }
 
@@ -145,10 +125,9 @@ class Coordinator {
       }
     }
     // FINAL is in from every live node; let the last shaped messages (STOPs) go out.
-    for (auto& [id, p] : peers_) p.queue.flush(router_, std::numeric_limits<double>::infinity());
+    for (auto& [id, p] : peers_) p.down.flush(router_, std::numeric_limits<double>::infinity());
     if (config_.status) config_.status(snapshot(true));
-    RunResult result;
-    result.radiosity = policy_.radiosity();
+    RunResult result = policy_result(policy_, static_cast<int>(run_.grid()));
     for (const Peer* p : all_peers()) {
       const NodeState& n = policy_.node(p->index);
       result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why});
@@ -157,27 +136,13 @@ class Coordinator {
     result.exchange_bytes_in = bytes_in_;
     result.exchange_bytes_out = bytes_out_;
     result.final_bytes = final_bytes_;
-    result.exchanges = policy_.exchanges();
     result.crossings = crossings_;
-    result.grid = static_cast<int>(run_.grid());
-    result.bundles = policy_.ledger().done_count();
-    result.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
-    result.error_estimate = policy_.error_estimate();
-    result.exchange_every = policy_.exchange_every();
-    result.fraction = policy_.fraction();
-    result.exchange_why = policy_.exchange_why();
     return result;
   }
 
  private:
   static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
   double clock(Clock::time_point t) const { return seconds(t - start_); }
-
-  PolicyConfig policy_config() {
-    PolicyConfig pc = cluster::policy_config(config_, mesh_, config_.min_nodes);
-    if (config_.exchange_every == kExchangeAuto) pc.choose = [this](const std::vector<uint32_t>& ready) { return choose(ready); };
-    return pc;
-  }
 
   // --exchange-every auto: each ready node's bundle time from its READY (its burn-in, slowdown
   // included) and its link's transfer time, the scene from a quick fit on this machine (its
@@ -251,7 +216,7 @@ class Coordinator {
     for (auto& [id, p] : peers_) {
       const NodeState& n = policy_.node(p.index);
       if (n.dead || n.final_in) continue;
-      if (p.unreachable || p.queue.failed() > 0) {
+      if (p.unreachable || p.down.failed() > 0) {
         declare_dead(p, "a message to it could not be sent");
         continue;
       }
@@ -260,13 +225,13 @@ class Coordinator {
         continue;
       }
       if (now - p.last_sent >= interval) send(p, {Command::heartbeat, {}, {}});
-      p.queue.flush(router_, clock(now));
+      p.down.flush(router_, clock(now));
     }
   }
 
   void declare_dead(Peer& p, const std::string& why) {
     uint64_t back = policy_.dead(p.index);
-    p.queue.clear();
+    p.down.clear();
     std::fprintf(stderr, "sirad-coordinator: %s: declared dead (%s); %llu granted bundles return to the budget\n",
                  p.name.c_str(), why.c_str(), static_cast<unsigned long long>(back));
     schedule();  // a sync barrier may have been waiting on it
@@ -275,7 +240,7 @@ class Coordinator {
   // Milliseconds to wait for a message: up to 100, less when an emulated link has one due.
   int wait_ms(Clock::time_point now) {
     double next = std::numeric_limits<double>::infinity();
-    for (auto& [id, p] : peers_) next = std::min(next, p.queue.flush(router_, clock(now)));
+    for (auto& [id, p] : peers_) next = std::min(next, p.down.flush(router_, clock(now)));
     double ms = (next - clock(now)) * 1e3;
     return static_cast<int>(std::clamp(ms, 0.0, 100.0));
   }
@@ -286,20 +251,13 @@ class Coordinator {
                  what.c_str());
   }
 
-  // To a peer, through its emulated link when the profile shapes it.
+  // To a peer, through its link (shaped when the profile says so).
   void send(Peer& p, const Message& m) {
     std::vector<std::string> frames = proto::encode(m);
     frames.insert(frames.begin(), p.id);
     auto now = Clock::now();
     p.last_sent = now;
-    if (!p.down.shaped()) {
-      p.unreachable = p.unreachable || !proto::send_frames(router_, frames);
-      return;
-    }
-    std::size_t bytes = 0;
-    for (const auto& f : frames) bytes += f.size();
-    p.queue.push(p.down.deliver(clock(now), bytes), std::move(frames));
-    p.queue.flush(router_, clock(now));
+    p.unreachable = p.unreachable || !p.down.send(router_, std::move(frames), clock(now));
   }
   void error(const std::string& id, const std::string& reason, bool rejoin = false) {
     wire::Error e;
@@ -367,7 +325,7 @@ class Coordinator {
       emulation::LinkSpec spec = config_.profile->for_node(p.index, p.name);
       if (!config_.emulate_bandwidth) spec.up_mbit = spec.down_mbit = 0;
       uint64_t seed = emulation::link_seed(config_.seed, p.index);
-      p.down = emulation::LinkModel(spec.down_mbit, spec.latency_ms, spec.jitter_ms, spec.loss, seed);
+      p.down = proto::ShapedLink(emulation::LinkModel(spec.down_mbit, spec.latency_ms, spec.jitter_ms, spec.loss, seed));
       wire::Emulation* e = w.mutable_emulation();
       e->set_slowdown(config_.profile->slowdown(spec));
       e->set_latency_ms(spec.latency_ms);
@@ -507,10 +465,7 @@ class Coordinator {
     wire::Checkpoint c;
     c.set_magic(kCheckpointMagic);
     c.set_version(kCheckpointVersion);
-    *c.mutable_run() = run_;
-    c.set_balance(config_.balance);
-    c.set_time_limit_s(config_.time_limit_s);
-    c.set_target_error(config_.target_error);
+    put_settings(c, config_, run_);
     put_snapshot(c, policy_.snapshot());
     for (const Peer* p : all_peers()) {
       wire::CheckpointNode* n = c.mutable_nodes(static_cast<int>(p->index));
@@ -576,123 +531,6 @@ class Coordinator {
 };
 
 }  // namespace
-
-void apply_run(RunConfig& config, const wire::Run& r) {
-  config.bundles = r.bundles();
-  config.seed = r.seed();
-  config.grid = static_cast<int>(r.grid());
-  config.rule = parse_update_rule(r.rule());
-  config.burn_in = r.burn_in();
-  config.directions = r.directions().empty() ? Directions::random : parse_directions(r.directions());
-  config.control_variate = !r.no_control_variate();
-  config.shots_per_bundle = r.shots_per_bundle();
-  config.shot_resolution = static_cast<int>(r.shot_resolution());
-  config.exchange_every = r.exchange_every();
-  config.fraction = r.exchange_fraction();
-  config.topology = parse_topology(r.topology());
-  config.mode = parse_mode(r.mode());
-  config.chunks = static_cast<uint32_t>(r.chunk_starts_size());
-  config.mesh_options.target_patches = r.target_patches();
-  config.mesh_options.max_edge = r.max_edge();
-}
-
-SolverOptions node_solver_options(const RunConfig& c, const PatchMesh& mesh, uint32_t index) {
-  SolverOptions so;
-  so.seed = c.seed;
-  so.grid = c.grid == 0 ? auto_grid(mesh) : c.grid;
-  so.rule = c.rule;
-  so.burn_in = c.burn_in;
-  so.directions = c.directions;
-  so.control_variate = c.control_variate;
-  so.chain_id = index;
-  // Its batch means for the error estimate (chain rule; memory-bounded: error_estimate.h).
-  so.track_error = so.rule == UpdateRule::chain && mesh.size() <= kTrackErrorMaxPatches;
-  so.shots_per_bundle = c.shots_per_bundle;
-  so.shot_resolution = c.shot_resolution;
-  return so;
-}
-
-PolicyConfig policy_config(const RunConfig& c, const PatchMesh& mesh, uint32_t min_nodes) {
-  if (c.directions == Directions::stratified && c.rule != UpdateRule::chain)
-    fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
-  check_first_shot(c.shots_per_bundle, c.shot_resolution);
-  return {.bundles = c.bundles, .exchange_every = c.exchange_every, .fraction = c.fraction, .topology = c.topology,
-          .mode = c.mode, .rule = c.rule, .min_nodes = min_nodes,
-          .grant_unit = grant_unit(mesh, c.directions, c.shots_per_bundle), .time_limit_s = c.time_limit_s,
-          .target_error = c.target_error, .balance = c.balance};
-}
-
-ExchangeSetting auto_setting(const RunConfig& c, const PatchMesh& mesh, const std::vector<NodeCost>& nodes,
-                             uint32_t chunks, BundleEngine* engine) {
-  model::Scene scene;
-  if (c.rule == UpdateRule::average) {
-    try {
-      std::unique_ptr<BundleEngine> own;
-      if (engine == nullptr) {
-        try {
-          own = make_cl_engine(mesh, {});
-        } catch (const std::exception&) {
-          own = make_reference_engine(mesh);
-        }
-        engine = own.get();
-      }
-      scene = quick_scene_fit(mesh, *engine, c.seed);
-    } catch (const Error& e) {
-      ExchangeSetting s = auto_exchange(UpdateRule::chain, scene, nodes, c.mode, c.bundles, chunks, c.time_limit_s);
-      s.why = fmt::format("the scene fit failed ({}); {}", e.what(), s.why);
-      return s;
-    }
-  }
-  return auto_exchange(c.rule, scene, nodes, c.mode, c.bundles, chunks, c.time_limit_s);
-}
-
-Attributes run_attributes(const RunConfig& c, const RunResult& r, const PatchMesh& mesh, const std::string& scene) {
-  return {
-      {"sirad.version", std::string(SIRAD_VERSION)},
-      {"sirad.scene", scene},
-      {"sirad.scene_hash", mesh.hash},
-      {"sirad.patches", static_cast<int64_t>(mesh.size())},
-      {"sirad.bundles", static_cast<int64_t>(r.bundles)},
-      {"sirad.grid", static_cast<int64_t>(r.grid)},
-      {"sirad.seed", std::to_string(c.seed)},
-      {"sirad.rule", std::string(to_string(c.rule))},
-      {"sirad.directions", std::string(to_string(c.directions))},
-      {"sirad.control_variate", std::string(c.control_variate ? "on" : "off")},
-      {"sirad.shots_per_bundle", c.shots_per_bundle},
-      {"sirad.nodes", static_cast<int64_t>(r.nodes.size())},
-      {"sirad.exchange_every", exchange_every_name(r.exchange_every)},
-      {"sirad.exchange_fraction", r.fraction},
-      {"sirad.topology", std::string(c.topology == Topology::star ? "star" : "ring")},
-      {"sirad.mode", std::string(c.mode == Mode::sync ? "sync" : "async")},
-      {"sirad.ended_by", r.ended_by},
-  };
-}
-
-std::string traffic_line(const RunResult& r) {
-  uint64_t e = std::max<uint64_t>(r.exchanges, 1);
-  return fmt::format("exchange traffic: {} exchanges, {} B up, {} B down ({} B up, {} B down per exchange); final states {} B",
-                     r.exchanges, r.exchange_bytes_in, r.exchange_bytes_out, r.exchange_bytes_in / e,
-                     r.exchange_bytes_out / e, r.final_bytes);
-}
-
-std::string ledger_csv(const RunResult& r) {
-  std::string out = "node,name,first,last\n";
-  for (const LedgerEntry& e : r.ledger) {
-    std::string name = e.name;  // a CSV field: quoted, quotes doubled
-    for (std::size_t at = name.find('"'); at != std::string::npos; at = name.find('"', at + 2)) name.insert(at, 1, '"');
-    out += fmt::format("{},\"{}\",{},{}\n", e.node, name, e.range.first, e.range.last);
-  }
-  return out;
-}
-
-std::string node_lines(const RunResult& r) {
-  std::string out;
-  for (const auto& n : r.nodes)
-    out += fmt::format("node {}: {} bundles, {} exchanges, busy {:.2f} s, idle {:.2f} s{}\n", n.name, n.bundles,
-                       n.exchanges, n.busy_s, n.idle_s,
-                       !n.quarantined.empty() ? ", quarantined: " + n.quarantined : n.dead ? ", dead" : "");
-  return out;
-}
 
 RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh) {
   return Coordinator(router, config, mesh).run();

@@ -142,12 +142,12 @@ cl::Device select_device(const std::string& requested) {
   if (std::sscanf(spec.c_str(), "%d:%d%c", &p, &d, &tail) == 2) {
     for (auto& [info, dev] : all)
       if (info.platform == p && info.device == d) return dev;
-    fail("--device {}: no such platform:device (there are: {})", spec, listing());
+    fail("OpenCL device {}: no such platform:device (there are: {})", spec, listing());
   }
   for (auto& [info, dev] : all)
     if (lower(info.platform_name + " / " + info.device_name).find(lower(spec)) != std::string::npos)
       return dev;
-  fail("--device '{}' matches no OpenCL device (there are: {})", spec, listing());
+  fail("OpenCL device '{}' matches none (there are: {})", spec, listing());
 }
 
 cl::Program build_program(const cl::Context& context, const cl::Device& device,

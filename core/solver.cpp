@@ -17,14 +17,6 @@ UpdateRule parse_update_rule(const std::string& name) {
 
 const char* to_string(UpdateRule rule) { return rule == UpdateRule::chain ? "chain" : "average"; }
 
-Directions resolve_directions(const std::string& name, UpdateRule rule) {
-  if (name == "auto") return rule == UpdateRule::chain ? Directions::stratified : Directions::random;
-  Directions d = parse_directions(name);
-  if (d == Directions::stratified && rule != UpdateRule::chain)
-    fail("--directions stratified needs --rule chain (under average it biases the estimate: core/bundle.cpp)");
-  return d;
-}
-
 int auto_burn_in(const PatchMesh& mesh) {
   float rho_max = 0.0f;
   for (const auto& m : mesh.materials) rho_max = std::max({rho_max, m.reflectance.x, m.reflectance.y, m.reflectance.z});
@@ -42,9 +34,9 @@ ShotRange shots_of_step(double x, uint64_t index) {
 }
 
 void check_first_shot(double x, int resolution) {
-  if (!(x >= 0.0) || x > 1024.0) fail("--shots-per-bundle must be in [0, 1024] (got {})", x);
+  if (!(x >= 0.0) || x > 1024.0) fail("shots per bundle must be in [0, 1024] (got {})", x);
   if (resolution != 0 && (resolution < 4 || resolution % 2 != 0 || resolution > 2048))
-    fail("--shot-resolution must be 0 (auto) or even in [4, 2048] (got {})", resolution);
+    fail("shot resolution must be 0 (auto) or even in [4, 2048] (got {})", resolution);
 }
 
 Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options, ShotEngine* shots)
@@ -57,7 +49,7 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
     if (!emitters_.empty()) shots_ = shots;
     shot_resolution_ = options.shot_resolution ? options.shot_resolution : auto_shot_resolution(mesh);
   }
-  if (options.grid < 0 || options.grid == 1) fail("--grid must be at least 2 (got {})", options.grid);
+  if (options.grid < 0 || options.grid == 1) fail("grid must be at least 2 (got {})", options.grid);
   grid_ = options.grid == 0 ? auto_grid(mesh) : options.grid;
   burn_in_ = options.rule == UpdateRule::average ? 0 : (options.burn_in < 0 ? auto_burn_in(mesh) : options.burn_in);
   if (options.directions == Directions::stratified && options.rule != UpdateRule::chain)

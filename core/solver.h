@@ -24,14 +24,8 @@ namespace sirad {
 
 enum class UpdateRule { chain, average };
 
-// The command lines' default first shot: shots per bundle (see SolverOptions).
-inline constexpr double kDefaultShotsPerBundle = 0.25;
 UpdateRule parse_update_rule(const std::string& name);  // "chain" | "average"
 const char* to_string(UpdateRule rule);
-// The command lines' --directions: "auto" (their default) is stratified under the chain rule
-// and random under average (where stratification biases: core/bundle.cpp); "stratified" under
-// average is refused.
-Directions resolve_directions(const std::string& name, UpdateRule rule);
 
 struct SolverOptions {
   uint64_t seed = 1;
@@ -56,7 +50,7 @@ struct ShotRange {
   uint64_t first = 0, count = 0;
 };
 ShotRange shots_of_step(double shots_per_bundle, uint64_t index);
-// Throws sirad::Error naming the flag for shots per bundle outside [0, 1024] or a resolution
+// Throws sirad::Error for shots per bundle outside [0, 1024] or a resolution
 // that is neither 0 (auto) nor even in [4, 8192].
 void check_first_shot(double shots_per_bundle, int shot_resolution);
 

@@ -13,8 +13,9 @@
 
 #include <fmt/format.h>
 
-#include "coordinator/coordinator.h"
-#include "coordinator/profile.h"
+#include "cluster/settings.h"
+#include "cluster/worker.h"
+#include "cluster/profile.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/mesh.h"
@@ -49,7 +50,7 @@ struct RunState {
   PatchMesh mesh;
   std::unique_ptr<BundleEngine> engine;
   std::unique_ptr<ShotEngine> shots;  // the first shot's, when the run has one
-  std::unique_ptr<Solver> solver;
+  std::unique_ptr<cluster::Worker> worker;
 };
 
 class Node {
@@ -128,25 +129,16 @@ class Node {
     send({Command::hello, h, {}});
   }
 
-  // Through the emulated uplink when the run's profile shapes it.
+  // Through the uplink (shaped when the run's profile says so). A message that cannot go (the
+  // coordinator has been unreachable for HWM messages) is dropped: the coordinator declares
+  // this node dead and it rejoins.
   void send(const Message& m) {
     last_sent_ = Clock::now();
-    // A message that cannot go (the coordinator has been unreachable for HWM messages) is
-    // dropped: the coordinator declares this node dead and it rejoins.
-    if (!up_.shaped()) {
-      proto::send(*socket_, m);
-      return;
-    }
-    std::vector<std::string> frames = proto::encode(m);
-    std::size_t bytes = 0;
-    for (const auto& f : frames) bytes += f.size();
-    double now = seconds(last_sent_ - epoch_);
-    queue_.push(up_.deliver(now, bytes), std::move(frames));
-    queue_.flush(*socket_, now);
+    up_.send(*socket_, proto::encode(m), seconds(last_sent_ - epoch_));
   }
 
   int poll_ms() {
-    double next = queue_.flush(*socket_, seconds(Clock::now() - epoch_));
+    double next = up_.flush(*socket_, seconds(Clock::now() - epoch_));
     double ms = (next - seconds(Clock::now() - epoch_)) * 1e3;
     return static_cast<int>(std::clamp(ms, 0.0, static_cast<double>(options_.poll_ms)));
   }
@@ -155,7 +147,7 @@ class Node {
   // if nothing was sent for an interval, and the emulated disconnect. False: disconnected.
   bool tick() {
     auto now = Clock::now();
-    queue_.flush(*socket_, seconds(now - epoch_));
+    up_.flush(*socket_, seconds(now - epoch_));
     if (!state_ && !pending_) return true;
     if (now - last_sent_ >= heartbeat_) send({Command::heartbeat, {}, {}});
     return !(state_ && emulation_.disconnect_at_s() >= 0 && seconds(now - ready_at_) >= emulation_.disconnect_at_s());
@@ -169,7 +161,6 @@ class Node {
                  after >= 0 ? fmt::format("; back in {} s", after).c_str() : " for good");
     disconnected_runs_.insert((state_ ? state_ : pending_)->run.run_id());
     socket_.reset();
-    queue_.clear();
     state_.reset();
     pending_.reset();
     emulation_ = no_emulation();
@@ -196,7 +187,6 @@ class Node {
   void leave_run() {
     state_.reset();
     pending_.reset();
-    queue_.clear();
     emulation_ = no_emulation();
     up_ = {};
   }
@@ -251,8 +241,8 @@ class Node {
       emulation_ = no_emulation();
     }
     if (disconnected_runs_.count(w.run().run_id())) emulation_.set_disconnect_at_s(-1);  // once per run
-    up_ = emulation::LinkModel(emulation_.up_mbit(), emulation_.latency_ms(), emulation_.jitter_ms(), emulation_.loss(),
-                               emulation_.seed());
+    up_ = proto::ShapedLink(emulation::LinkModel(emulation_.up_mbit(), emulation_.latency_ms(), emulation_.jitter_ms(),
+                                                 emulation_.loss(), emulation_.seed()));
   }
 
   // Scene chunks in order; the last one completes the scene: mesh it, check the hash, start.
@@ -269,19 +259,18 @@ class Node {
     if (!c.last()) return;
     try {
       const wire::Run& run = pending_->run;
-      cluster::RunConfig settings;  // the run's settings as the coordinator has them
-      cluster::apply_run(settings, run);
+      const cluster::RunSettings settings = cluster::from_wire(run);  // as the coordinator has them
       Scene scene = decode_scene(scene_bytes_, "scene from coordinator");
       pending_->mesh = mesh_scene(scene, settings.mesh_options);
       if (pending_->mesh.hash != run.scene_hash())
         fail("meshed scene hash {} differs from the run's {}", pending_->mesh.hash, run.scene_hash());
       pending_->engine = make_cl_engine(pending_->mesh, {.device = options_.device});
-      // Its batch means go out with each REPORT under the chain rule (node_solver_options).
-      SolverOptions so = cluster::node_solver_options(settings, pending_->mesh, pending_->index);
-      if (so.shots_per_bundle > 0) pending_->shots = make_cl_shot_engine(pending_->mesh, options_.device);
+      if (settings.shots_per_bundle > 0) pending_->shots = make_cl_shot_engine(pending_->mesh, options_.device);
       auto t0 = Clock::now();
-      pending_->solver = std::make_unique<Solver>(pending_->mesh, *pending_->engine, so, pending_->shots.get());
-      double ms = seconds(Clock::now() - t0) * 1e3 / std::max(1, pending_->solver->burn_in());
+      const std::vector<uint32_t> starts(run.chunk_starts().begin(), run.chunk_starts().end());
+      pending_->worker = std::make_unique<cluster::Worker>(pending_->mesh, *pending_->engine, pending_->shots.get(), settings,
+                                                           pending_->index, starts);
+      double ms = seconds(Clock::now() - t0) * 1e3 / std::max(1, pending_->worker->solver().burn_in());
       state_ = std::move(pending_);
       wire::Ready ready;
       ready.set_run_id(state_->run.run_id());
@@ -304,63 +293,62 @@ class Node {
     wire::Report report;
     report.set_run_id(g.run_id());
     report.set_grant_id(g.grant_id());
-    uint64_t crossings = state_->solver->crossings();
-    for (const auto& r : g.ranges()) {
-      for (uint64_t k = r.first(); k < r.last(); ++k) {
-        auto t0 = Clock::now();
-        state_->solver->step(k);
-        if (!tick()) return;  // disconnected: the loop reconnects
-        auto slow_until = t0 + std::chrono::duration_cast<Clock::duration>((Clock::now() - t0) * emulation_.slowdown());
-        while (Clock::now() < slow_until) {
-          std::this_thread::sleep_for(std::min<Clock::duration>(slow_until - Clock::now(), std::chrono::milliseconds(20)));
-          if (!tick()) return;
-        }
-        if (stopping()) return;
+    cluster::Worker& worker = *state_->worker;
+    const uint64_t crossings = worker.solver().crossings();
+    std::vector<cluster::Range> ranges;
+    for (const auto& r : g.ranges()) ranges.push_back({r.first(), r.last()});
+    // Between bundles: the heartbeat and the emulated disconnect (tick; false: disconnected, the
+    // loop reconnects), the emulated slowdown, and a stop.
+    auto t0 = Clock::now();
+    const bool whole = worker.run(ranges, [&] {
+      if (!tick()) return false;
+      auto slow_until = t0 + std::chrono::duration_cast<Clock::duration>((Clock::now() - t0) * emulation_.slowdown());
+      while (Clock::now() < slow_until) {
+        std::this_thread::sleep_for(std::min<Clock::duration>(slow_until - Clock::now(), std::chrono::milliseconds(20)));
+        if (!tick()) return false;
       }
-      *report.add_done() = r;
-    }
-    report.set_crossings(state_->solver->crossings() - crossings);
+      t0 = Clock::now();
+      return !stopping();
+    });
+    if (!whole) return;
+    for (const auto& r : g.ranges()) *report.add_done() = r;
+    report.set_crossings(worker.solver().crossings() - crossings);
     busy_s_ += seconds(Clock::now() - start);
     report.set_busy_s(busy_s_);
     report.set_idle_s(idle_s_);
     // Only once the batch means are ready (8 batches, each long against the correlations between
     // consecutive estimates): fewer or shorter make an estimate that dips by chance.
-    if (state_->solver->error_estimate_ready()) report.set_error_estimate(state_->solver->error_estimate());
-    Message m{Command::report, {}, chunk_frames(g.report_chunks(), report)};
+    report.set_error_estimate(worker.reported_error());
+    const std::vector<uint32_t> chunks(g.report_chunks().begin(), g.report_chunks().end());
+    std::vector<std::string> bulk;
+    try {
+      bulk = chunk_frames(worker.states(chunks), report);
+    } catch (const Error& e) {
+      return error(fmt::format("GRANT: {}", e.what()));
+    }
+    Message m{Command::report, {}, std::move(bulk)};
     m.header = report;
     send(m);
   }
 
-  // The node's (sum, count) of the named chunks into the report and its bulk frames.
-  template <typename Chunks>
-  std::vector<std::string> chunk_frames(const Chunks& chunks, wire::Report& report) {
+  // The node's (sum, count) of chunks into the report and its bulk frames.
+  static std::vector<std::string> chunk_frames(const std::vector<cluster::ChunkState>& states, wire::Report& report) {
     std::vector<std::string> bulk;
-    const auto& starts = state_->run.chunk_starts();
-    const std::span<const glm::dvec3> sum = state_->solver->sum();
-    for (uint32_t c : chunks) {
-      uint32_t first = starts[c], last = c + 1 < static_cast<uint32_t>(starts.size()) ? starts[c + 1] : state_->run.patches();
-      std::vector<double> v = flatten(sum.subspan(first, last - first));
-      report.add_chunks(c);
-      report.add_counts(state_->solver->bundles());
-      bulk.push_back(proto::pack(v));
+    for (const cluster::ChunkState& s : states) {
+      report.add_chunks(s.chunk);
+      report.add_counts(s.count);
+      bulk.push_back(proto::pack(s.sum));
     }
     return bulk;
   }
 
   void update(const wire::Update& u, const std::vector<std::string>& bulk) {
     if (!state_ || u.run_id() != state_->run.run_id()) return;
-    const auto& starts = state_->run.chunk_starts();
     for (int i = 0; i < u.chunks_size(); ++i) {
-      uint32_t c = u.chunks(i);
-      if (c >= static_cast<uint32_t>(starts.size())) return error("UPDATE names an unknown chunk");
-      uint32_t first = starts[c], last = c + 1 < static_cast<uint32_t>(starts.size()) ? starts[c + 1] : state_->run.patches();
-      std::vector<double> v = proto::unpack(bulk[i]);
-      if (v.size() != 3 * static_cast<std::size_t>(last - first))
-        return error(fmt::format("UPDATE chunk {}: {} values for {} patches", c, v.size(), last - first));
       try {
-        state_->solver->absorb(first, unflatten(v), u.counts(i));
+        state_->worker->absorb(u.chunks(i), proto::unpack(bulk[i]), u.counts(i));
       } catch (const Error& e) {
-        return error(e.what());
+        return error(fmt::format("UPDATE: {}", e.what()));
       }
     }
   }
@@ -371,16 +359,14 @@ class Node {
     final_state.set_run_id(state_->run.run_id());
     final_state.set_busy_s(busy_s_);
     final_state.set_idle_s(idle_s_);
-    std::vector<uint32_t> all(state_->run.chunk_starts_size());
-    for (uint32_t c = 0; c < all.size(); ++c) all[c] = c;
-    Message m{Command::final_state, {}, chunk_frames(all, final_state)};
+    Message m{Command::final_state, {}, chunk_frames(state_->worker->all_states(), final_state)};
     m.header = final_state;
     send(m);
     state_.reset();
     // The FINAL leaves through the emulated link; the next run brings its own.
-    while (!queue_.empty() && !stopping()) {
+    while (!up_.empty() && !stopping()) {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      queue_.flush(*socket_, seconds(Clock::now() - epoch_));
+      up_.flush(*socket_, seconds(Clock::now() - epoch_));
     }
     emulation_ = no_emulation();
     up_ = {};
@@ -401,11 +387,10 @@ class Node {
   uint32_t liveness_ = 3;
   double busy_s_ = 0, idle_s_ = 0;
   bool granted_ = false;  // this run has given a grant (idle: blocked waiting for a message after it)
-  // The run's emulation (coordinator/profile.h): slowdown, uplink, disconnect.
+  // The run's emulation (cluster/profile.h): slowdown, uplink, disconnect.
   wire::Emulation emulation_ = no_emulation();
   std::set<uint64_t> disconnected_runs_;
-  emulation::LinkModel up_;
-  proto::DelayQueue queue_;
+  proto::ShapedLink up_;  // to the coordinator
 };
 
 }  // namespace

@@ -63,12 +63,18 @@ bool send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames) 
   return true;
 }
 
-void DelayQueue::push(double due, std::vector<std::string> frames) {
+bool ShapedLink::send(zmq::socket_t& socket, std::vector<std::string> frames, double now) {
+  if (!model_.shaped()) return send_frames(socket, frames);
+  std::size_t bytes = 0;
+  for (const auto& f : frames) bytes += f.size();
+  double due = model_.deliver(now, bytes);
   if (!queue_.empty()) due = std::max(due, queue_.back().first);
   queue_.emplace_back(due, std::move(frames));
+  flush(socket, now);
+  return true;
 }
 
-double DelayQueue::flush(zmq::socket_t& socket, double now) {
+double ShapedLink::flush(zmq::socket_t& socket, double now) {
   while (!queue_.empty() && queue_.front().first <= now) {
     failed_ += !send_frames(socket, queue_.front().second);
     queue_.pop_front();

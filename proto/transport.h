@@ -7,6 +7,8 @@
 
 #include <zmq.hpp>
 
+#include "proto/link_model.h"
+
 #include "proto/codec.h"
 
 namespace sirad::proto {
@@ -39,20 +41,25 @@ bool send(zmq::socket_t& socket, const Message& message, const std::string* rout
 // for send().
 bool send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames);
 
-// The sending side of an emulated link (coordinator/profile.h): messages wait here until the
-// time the link model says they arrive, then go out in order. Times are seconds on the
-// caller's clock.
-class DelayQueue {
+// One direction of a link as its sender sees it: unshaped, a message goes at once; shaped by
+// a link model (link_model.h: latency, jitter, bandwidth, loss), each waits here until the
+// time the model says it arrives, then goes out in order. Times are seconds on the caller's
+// clock. The coordinator and the node send every message through one, shaped or not.
+class ShapedLink {
  public:
-  void push(double due, std::vector<std::string> frames);
-  // Sends every message due by `now`; returns the time of the next one (infinity if none). A
-  // message that cannot go (send_frames) is dropped and counted in failed().
+  ShapedLink() = default;  // unshaped
+  explicit ShapedLink(emulation::LinkModel model) : model_(model) {}
+  // Sends `frames` now, or queues them until they are due. False: an unshaped send failed (a
+  // queued message that cannot go is dropped and counted in failed()).
+  bool send(zmq::socket_t& socket, std::vector<std::string> frames, double now);
+  // Sends every message due by `now`; returns the time of the next one (infinity if none).
   double flush(zmq::socket_t& socket, double now);
   uint64_t failed() const { return failed_; }
   bool empty() const { return queue_.empty(); }
   void clear() { queue_.clear(); }
 
  private:
+  emulation::LinkModel model_;
   std::deque<std::pair<double, std::vector<std::string>>> queue_;  // due times never decrease
   uint64_t failed_ = 0;
 };

@@ -1,4 +1,4 @@
-// sirad tests: the coordinator's checkpoint (coordinator/checkpoint.h): a policy's state survives
+// sirad tests: the coordinator's checkpoint (cluster/checkpoint.h): a policy's state survives
 // the file, a resumed policy carries on from it, and a damaged file is one clear error.
 #include <filesystem>
 #include <fstream>
@@ -9,7 +9,7 @@
 
 #include <gtest/gtest.h>
 
-#include "coordinator/checkpoint.h"
+#include "cluster/checkpoint.h"
 #include "core/error.h"
 
 namespace sirad::cluster {

@@ -113,7 +113,7 @@ TEST(Cluster, StratifiedDirectionsReachTheNodesAndGrantsAreWholeInterleaves) {
   double mean = area_mean(o.mesh, o.result.radiosity);
   std::printf("3 nodes, stratified directions, furnace: mean %.5f\n", mean);
   EXPECT_NEAR(mean, 2.0, 0.04);
-  auto attrs = run_attributes(c, o.result, o.mesh, "furnace");
+  auto attrs = run_attributes(c, outcome_of(o.result), o.mesh, "furnace", true);
   bool found = false;
   for (const auto& [k, v] : attrs)
     if (k == "sirad.directions") found = std::get<std::string>(v) == "stratified";

@@ -7,9 +7,9 @@
 
 #include <fmt/format.h>
 
-#include "coordinator/coordinator.h"
+#include "cluster/status.h"
+#include "cmd/embedded.h"
 #include "core/scene.h"
-#include "node/node.h"
 
 namespace sirad::cluster::test {
 
@@ -23,27 +23,9 @@ struct Outcome {
 inline Outcome run_cluster(RunConfig config, int nodes, const std::string& endpoint, uint32_t min_nodes = 0) {
   Outcome out;
   out.mesh = mesh_scene(config.scene, config.mesh_options);
-  zmq::context_t context;
-  zmq::socket_t router(context, zmq::socket_type::router);
-  router.set(zmq::sockopt::linger, 0);
-  router.bind(endpoint);
-  std::string connect = router.get(zmq::sockopt::last_endpoint);
-  std::atomic<bool> stop{false};
-  std::vector<std::thread> threads;
-  for (int i = 0; i < nodes; ++i)
-    threads.emplace_back([&, i] { node::serve(context, connect, {.name = fmt::format("n{}", i), .stop = &stop}); });
   config.min_nodes = min_nodes > 0 ? min_nodes : static_cast<uint32_t>(nodes);
-  config.strict = true;
   if (config.timeout_s == 0) config.timeout_s = 120;
-  try {
-    out.result = coordinate(router, config, out.mesh);
-  } catch (...) {
-    stop = true;
-    for (auto& t : threads) t.join();
-    throw;
-  }
-  stop = true;
-  for (auto& t : threads) t.join();
+  out.result = embedded::run(config, out.mesh, {.nodes = nodes, .endpoint = endpoint, .name_prefix = "n"}).result;
   return out;
 }
 

@@ -1,4 +1,4 @@
-// sirad tests: the virtual-time cluster (coordinator/emulate.h): determinism, speed factors,
+// sirad tests: the virtual-time cluster (cluster/emulate.h): determinism, speed factors,
 // many nodes, and agreement with a real cluster over ZeroMQ.
 #include <algorithm>
 #include <cmath>
@@ -8,8 +8,8 @@
 #include <gtest/gtest.h>
 
 #include "cluster_util.h"
-#include "coordinator/emulate.h"
-#include "coordinator/profile.h"
+#include "cluster/emulate.h"
+#include "cluster/profile.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/metrics.h"

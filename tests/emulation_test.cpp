@@ -1,4 +1,4 @@
-// sirad tests: the cluster under an emulation profile (coordinator/profile.h) over real
+// sirad tests: the cluster under an emulation profile (cluster/profile.h) over real
 // ZeroMQ sockets: a slowed node in async mode, a node that drops off (liveness), one that comes
 // back, and links whose latency and bandwidth the messages must honour.
 #include <chrono>

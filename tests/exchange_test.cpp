@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "coordinator/exchange.h"
+#include "cluster/exchange.h"
 #include "core/error.h"
 
 namespace sirad::cluster {

@@ -27,7 +27,7 @@
 #include <gtest/gtest.h>
 #include <xxhash.h>
 
-#include "coordinator/status.h"
+#include "cluster/status.h"
 #include "tests/process_util.h"
 
 namespace fs = std::filesystem;

@@ -12,7 +12,7 @@
 
 #include <gtest/gtest.h>
 
-#include "coordinator/live_view.h"
+#include "cluster/live_view.h"
 
 namespace sirad::cluster {
 namespace {

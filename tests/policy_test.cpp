@@ -1,9 +1,9 @@
-// sirad tests: the coordinator's decisions (coordinator/policy.h) as plain state.
+// sirad tests: the coordinator's decisions (cluster/policy.h) as plain state.
 #include <cmath>
 
 #include <gtest/gtest.h>
 
-#include "coordinator/policy.h"
+#include "cluster/policy.h"
 #include "core/error.h"
 
 namespace sirad::cluster {

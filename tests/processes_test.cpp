@@ -33,7 +33,7 @@
 #include "core/bundle_cl.h"
 #include "core/scene.h"
 #include "core/solver.h"
-#include "coordinator/status.h"
+#include "cluster/status.h"
 
 #include "tests/process_util.h"
 

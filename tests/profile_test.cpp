@@ -5,7 +5,7 @@
 
 #include <gtest/gtest.h>
 
-#include "coordinator/profile.h"
+#include "cluster/profile.h"
 #include "core/error.h"
 
 namespace sirad::emulation {

@@ -5,7 +5,7 @@
 // time x the node's slowdown from the profile) and by each message's delivery through the
 // profile's link model (emulation::LinkModel, the one the real coordinator and nodes shape
 // their messages with). Every decision, grants, the sync barrier, exchanges, closing, is made
-// by the same Policy (coordinator/policy.h) as a real run. For a given seed and bundle time the
+// by the same Policy (cluster/policy.h) as a real run. For a given seed and bundle time the
 // run is deterministic: the same timeline and the same result, bit for bit.
 //
 // What is modelled: per node, setup (the scene's transfer on the downlink, then the burn-in

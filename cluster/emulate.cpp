@@ -1,5 +1,5 @@
 // sirad: the virtual-time cluster: a discrete-event loop around Policy (see emulate.h).
-#include "coordinator/emulate.h"
+#include "cluster/emulate.h"
 
 #include <algorithm>
 #include <chrono>
@@ -13,6 +13,8 @@
 
 #include <fmt/format.h>
 
+#include "cluster/exchange_choice.h"
+#include "cluster/worker.h"
 #include "core/error.h"
 #include "core/scene_io.h"
 #include "core/solver.h"
@@ -55,7 +57,7 @@ struct VNode {
   emulation::LinkSpec spec;
   double slowdown = 1;
   emulation::LinkModel up, down;
-  std::unique_ptr<Solver> solver;
+  std::unique_ptr<Worker> worker;  // the node's part, as a real node runs it
   std::deque<ToNode> inbox;   // delivered, not handled yet
   bool running = false;       // a grant is running
   bool granted = false;       // it has had a grant (idle counts from then)
@@ -68,8 +70,7 @@ class Emulator {
  public:
   Emulator(const EmulateConfig& config, const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots)
       : config_(config), run_(config.run), mesh_(mesh), engine_(engine), shots_(shots),
-        policy_(policy_config(), chunk_starts(static_cast<uint32_t>(mesh.size()), std::min<uint32_t>(run_.chunks, static_cast<uint32_t>(mesh.size()))),
-                error_weights(mesh)) {}
+        policy_(make_policy(config.run, mesh, config.nodes, [this](const std::vector<uint32_t>& ready) { return choose(ready); })) {}
 
   EmulateResult run() {
     auto real_start = Clock::now();
@@ -77,7 +78,7 @@ class Emulator {
     const uint32_t P = config_.nodes;
     if (run_.shots_per_bundle > 0 && shots_ == nullptr) fail("emulate: the first shot needs a shot engine");
     result_.bundle_s = config_.bundle_s > 0 ? config_.bundle_s
-                                            : measure_bundle_seconds(mesh_, engine_, shots_, node_solver_options(run_, mesh_, P));
+                                            : measure_bundle_seconds(mesh_, engine_, shots_, solver_options(run_, mesh_, P));
     const std::size_t scene_bytes = encode_scene(run_.scene).size();
     nodes_.resize(P);
     for (uint32_t n = 0; n < P; ++n) {
@@ -110,14 +111,12 @@ class Emulator {
     result_.real_s = seconds_since(real_start);
     result_.error_estimate = policy_.error_estimate();
     RunResult& r = result_.run;
-    r.radiosity = policy_.radiosity();
-    r.exchanges = policy_.exchanges();
-    r.grid = grid();
-    r.bundles = policy_.ledger().done_count();
-    r.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
-    r.exchange_every = policy_.exchange_every();
-    r.fraction = policy_.fraction();
-    r.exchange_why = policy_.exchange_why();
+    RunResult known = policy_result(policy_, grid());
+    known.exchange_bytes_in = r.exchange_bytes_in;
+    known.exchange_bytes_out = r.exchange_bytes_out;
+    known.final_bytes = r.final_bytes;
+    known.crossings = r.crossings;
+    r = std::move(known);
     for (uint32_t n = 0; n < P; ++n) {
       EmulatedNode& f = nodes_[n].figures;
       f.bundles = policy_.node(n).bundles;
@@ -136,12 +135,6 @@ class Emulator {
     std::function<void()> fn;
     bool operator>(const Event& o) const { return t != o.t ? t > o.t : seq > o.seq; }
   };
-
-  PolicyConfig policy_config() {
-    PolicyConfig pc = cluster::policy_config(config_.run, mesh_, config_.nodes);
-    if (run_.exchange_every == kExchangeAuto) pc.choose = [this](const std::vector<uint32_t>& ready) { return choose(ready); };
-    return pc;
-  }
 
   // --exchange-every auto, as the real coordinator decides it (Coordinator::choose): each
   // node's bundle time (its READY there) and its link's transfer time.
@@ -170,8 +163,9 @@ class Emulator {
 
   void setup(uint32_t n) {
     VNode& v = nodes_[n];
-    v.solver = std::make_unique<Solver>(mesh_, engine_, node_solver_options(run_, mesh_, n), shots_);
-    double t = now_ + cost(n, static_cast<uint64_t>(v.solver->burn_in()));
+    const std::vector<uint32_t>& starts = policy_.starts();  // with the end
+    v.worker = std::make_unique<Worker>(mesh_, engine_, shots_, run_, n, std::span(starts.data(), starts.size() - 1));
+    double t = now_ + cost(n, static_cast<uint64_t>(v.worker->solver().burn_in()));
     at(v.up.deliver(t, kHeaderBytes), [this, n] { ready(n); });
   }
 
@@ -195,16 +189,13 @@ class Emulator {
       ToNode m = std::move(v.inbox.front());
       v.inbox.pop_front();
       if (m.kind == ToNode::update) {
-        const auto& starts = policy_.starts();
         for (std::size_t i = 0; i < m.exchange.chunks.size(); ++i) {
           const Aggregate::Part& part = m.exchange.parts[i];
-          v.solver->absorb(starts[m.exchange.chunks[i]], unflatten(part.sum), part.count);
+          v.worker->absorb(m.exchange.chunks[i], part.sum, part.count);
         }
       } else if (m.kind == ToNode::stop) {
         v.stopped = true;
-        std::vector<uint32_t> all(policy_.aggregate().chunks());
-        for (uint32_t c = 0; c < all.size(); ++c) all[c] = c;
-        std::vector<ChunkState> chunks = states(n, all);
+        std::vector<ChunkState> chunks = v.worker->all_states();
         at(v.up.deliver(now_, message_bytes(mesh_.size())), [this, n, chunks = std::move(chunks)]() mutable {
           policy_.final_state(n, std::move(chunks));
           nodes_[n].figures.end_s = now_;
@@ -221,13 +212,13 @@ class Emulator {
   void run_grant(uint32_t n, GrantOrder g) {
     VNode& v = nodes_[n];
     v.running = v.granted = true;
-    uint64_t count = 0, crossings = v.solver->crossings();
-    for (const Range& r : g.ranges)
-      for (uint64_t k = r.first; k < r.last; ++k, ++count) v.solver->step(k);
-    result_.run.crossings += v.solver->crossings() - crossings;
+    uint64_t count = 0, crossings = v.worker->solver().crossings();
+    v.worker->run(g.ranges);
+    for (const Range& r : g.ranges) count += r.size();
+    result_.run.crossings += v.worker->solver().crossings() - crossings;
     double busy = cost(n, count);
-    double error = v.solver->error_estimate_ready() ? v.solver->error_estimate() : 0.0;
-    std::vector<ChunkState> chunks = states(n, g.report_chunks);
+    double error = v.worker->reported_error();
+    std::vector<ChunkState> chunks = v.worker->states(g.report_chunks);
     at(now_ + busy, [this, n, g = std::move(g), chunks = std::move(chunks), busy, error, count]() mutable {
       VNode& v = nodes_[n];
       v.running = false;
@@ -238,16 +229,6 @@ class Emulator {
       });
       work(n);
     });
-  }
-
-  // The node's (sum, count) of the chunks.
-  std::vector<ChunkState> states(uint32_t n, const std::vector<uint32_t>& chunks) const {
-    const Solver& s = *nodes_[n].solver;
-    const auto& starts = policy_.starts();
-    std::vector<ChunkState> out;
-    const std::span<const glm::dvec3> sum = s.sum();
-    for (uint32_t c : chunks) out.push_back({c, flatten(sum.subspan(starts[c], starts[c + 1] - starts[c])), s.bundles()});
-    return out;
   }
 
   // --- the coordinator side ---

@@ -1,5 +1,5 @@
 // sirad: the coordinator's decisions (no sockets, no clocks): see policy.h.
-#include "coordinator/policy.h"
+#include "cluster/policy.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +9,6 @@
 #include <fmt/format.h>
 
 #include "core/error.h"
-#include "core/model_fit.h"
 
 namespace sirad::cluster {
 
@@ -80,16 +79,6 @@ double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link) {
   if (link == nullptr) return 2 * bits / 1e9 + 2 * 1e-4;
   auto rate = [](double mbit) { return mbit > 0 ? mbit * 1e6 : 1e9; };
   return bits / rate(link->up_mbit) + bits / rate(link->down_mbit) + 2 * (link->latency_ms + link->jitter_ms) * 1e-3;
-}
-
-model::Scene quick_scene_fit(const PatchMesh& mesh, BundleEngine& engine, uint64_t seed) {
-  model::FitOptions o;
-  o.seed = seed;
-  o.chains = 32;
-  o.bounces = 4;
-  o.first_bounce = 16;
-  model::SceneFit f = model::fit_scene(mesh, engine, o);
-  return {std::clamp(f.contraction, 0.0, 0.99), std::max(f.sigma_ratio, 1e-6)};
 }
 
 const char* NodeState::state() const {

@@ -1,5 +1,5 @@
 // sirad: the run status as JSON.
-#include "coordinator/status.h"
+#include "cluster/status.h"
 
 #include <cmath>
 

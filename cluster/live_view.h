@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "coordinator/status.h"
+#include "cluster/status.h"
 
 namespace sirad::cluster {
 

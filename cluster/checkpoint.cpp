@@ -1,5 +1,5 @@
 // sirad: the coordinator's checkpoint file (see checkpoint.h).
-#include "coordinator/checkpoint.h"
+#include "cluster/checkpoint.h"
 
 #include <cmath>
 
@@ -48,13 +48,6 @@ wire::Checkpoint read_checkpoint(const std::string& path) {
     fail("{}: {}", path, e.what());
   }
   return c;
-}
-
-void apply_checkpoint(RunConfig& config, const wire::Checkpoint& c) {
-  apply_run(config, c.run());
-  config.balance = c.balance();
-  config.time_limit_s = c.time_limit_s();
-  config.target_error = c.target_error();
 }
 
 void put_snapshot(wire::Checkpoint& c, const PolicySnapshot& s) {

@@ -1,14 +1,15 @@
 // sirad: heterogeneous network emulation (proto/PROTOCOL.md section 8). A profile (YAML) gives
 // each node, by name or index, a compute speed factor and its link: latency, jitter, bandwidth
 // up and down, loss, and a disconnect at a given time. Coordinator and nodes honour it by
-// shaping their own messages through LinkModel, a plain model of one direction of a TCP link
-// with time passed in (no clocks, no sockets here): the delay queues live in proto/transport.h.
+// shaping their own messages through the link model (proto/link_model.h) of the shaped links
+// they send on (proto/transport.h ShapedLink).
 #pragma once
 #include <cstdint>
 #include <optional>
-#include <random>
 #include <string>
 #include <vector>
+
+#include "proto/link_model.h"
 
 namespace sirad::emulation {
 
@@ -52,27 +53,5 @@ Profile load_profile(const std::string& path);
 
 // The seed of node `index`'s emulated links in a run of `seed` (downlink; the uplink: + 1).
 inline uint64_t link_seed(uint64_t seed, uint32_t index) { return seed * 0x9E3779B97F4A7C15ull + index; }
-
-// One direction of an emulated TCP link: messages leave in order through a server of the
-// link's bandwidth (store and forward), then take the latency with jitter; a lost packet costs
-// a retransmission timeout (TCP delivers everything, late) and messages never overtake each
-// other. Deterministic for a seed. Times are seconds on the caller's clock.
-class LinkModel {
- public:
-  LinkModel() = default;  // unshaped: every message arrives when sent
-  LinkModel(double mbit, double latency_ms, double jitter_ms, double loss, uint64_t seed);
-  // When a message of `bytes` sent at `now` arrives.
-  double deliver(double now, std::size_t bytes);
-  bool shaped() const { return shaped_; }
-
-  static constexpr std::size_t kSegmentBytes = 1448;  // TCP payload per packet (Ethernet MTU)
-  static constexpr double kMinRto = 0.2;               // Linux's minimum retransmission timeout
-
- private:
-  bool shaped_ = false;
-  double bits_per_s_ = 0, latency_ = 0, jitter_ = 0, loss_ = 0;
-  double busy_until_ = 0, last_arrival_ = 0;
-  std::mt19937_64 rng_;
-};
 
 }  // namespace sirad::emulation

@@ -1,5 +1,5 @@
 // sirad: bundle ledger, chunked per-node states and the exchange schedule (no sockets, no clocks).
-#include "coordinator/exchange.h"
+#include "cluster/exchange.h"
 
 #include <algorithm>
 #include <cmath>

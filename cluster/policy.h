@@ -14,8 +14,8 @@
 
 #include <glm/vec3.hpp>
 
-#include "coordinator/exchange.h"
-#include "coordinator/profile.h"
+#include "cluster/exchange.h"
+#include "cluster/profile.h"
 #include "core/bundle.h"
 #include "core/mesh.h"
 #include "core/model.h"
@@ -78,10 +78,6 @@ ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, const 
 // back down, with the latency both ways; an unshaped LAN (1 Gbit/s, 0.1 ms) without a profile.
 double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link);
 
-// The scene's contraction and sigma_1 / C for auto_exchange: model::fit_scene with a small
-// budget (32 chains x 4 bounces, 16 first bounces) on `engine`.
-model::Scene quick_scene_fit(const PatchMesh& mesh, BundleEngine& engine, uint64_t seed);
-
 // Grants must be whole multiples of: the interleave G under stratified directions (a node's
 // chain runs same-sequence bundles >= G steps apart even across grants, core/bundle.cpp), and
 // 1 / X when that is a whole number k of steps sharing one shot (core/solver.h shots_of_step),
@@ -134,7 +130,7 @@ struct Exchange {
   std::vector<Aggregate::Part> parts;
 };
 
-// What a checkpoint keeps of a node (coordinator/checkpoint.h): its counters, its last state of
+// What a checkpoint keeps of a node (cluster/checkpoint.h): its counters, its last state of
 // every chunk, and the ledger's record of the bundles it ran.
 struct NodeRecord {
   NodeState state;

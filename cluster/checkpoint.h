@@ -6,8 +6,7 @@
 #pragma once
 #include <string>
 
-#include "coordinator/coordinator.h"
-#include "coordinator/policy.h"
+#include "cluster/policy.h"
 #include "proto/codec.h"
 
 namespace sirad::cluster {
@@ -23,12 +22,6 @@ void write_checkpoint(const std::string& path, const wire::Checkpoint& c);
 // node's counts and sums sized to the run, bundle ranges within the budget); anything else is
 // one error naming the file and what is wrong.
 wire::Checkpoint read_checkpoint(const std::string& path);
-
-// The settings of the checkpointed run into `config` (bundles, seed, grid, rule, burn-in,
-// directions, control variate, first shot, exchange period and fraction as in force,
-// topology, mode, chunks, balance, time limit, target error, meshing): a resumed run is the
-// same run. The rest of `config` (timeouts, heartbeats, profile, status) stays as given.
-void apply_checkpoint(RunConfig& config, const wire::Checkpoint& c);
 
 // The policy's part of a checkpoint, both ways (names, times and keys are the coordinator's).
 void put_snapshot(wire::Checkpoint& c, const PolicySnapshot& s);

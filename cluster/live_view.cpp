@@ -1,5 +1,5 @@
 // sirad: the live progress view of a cluster run (the frame text, its ANSI redraw, the writer).
-#include "coordinator/live_view.h"
+#include "cluster/live_view.h"
 
 #include <sys/ioctl.h>
 #include <unistd.h>

@@ -1,0 +1,64 @@
+// sirad: a cluster run's report lines (see result.h).
+#include "cluster/result.h"
+
+#include "cluster/policy.h"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+namespace sirad::cluster {
+
+RunOutcome outcome_of(const RunResult& r) {
+  return {r.bundles, r.grid, static_cast<uint32_t>(r.nodes.size()), r.exchange_every, r.fraction, r.ended_by};
+}
+
+RunResult policy_result(const Policy& p, int grid) {
+  RunResult r;
+  r.radiosity = p.radiosity();
+  r.exchanges = p.exchanges();
+  r.grid = grid;
+  r.bundles = p.ledger().done_count();
+  r.ended_by = p.ended_by().empty() ? "budget" : p.ended_by();
+  r.error_estimate = p.error_estimate();
+  r.exchange_every = p.exchange_every();
+  r.fraction = p.fraction();
+  r.exchange_why = p.exchange_why();
+  return r;
+}
+
+std::string traffic_line(const RunResult& r) {
+  uint64_t e = std::max<uint64_t>(r.exchanges, 1);
+  return fmt::format("exchange traffic: {} exchanges, {} B up, {} B down ({} B up, {} B down per exchange); final states {} B",
+                     r.exchanges, r.exchange_bytes_in, r.exchange_bytes_out, r.exchange_bytes_in / e,
+                     r.exchange_bytes_out / e, r.final_bytes);
+}
+
+std::string ledger_csv(const RunResult& r) {
+  std::string out = "node,name,first,last\n";
+  for (const LedgerEntry& e : r.ledger) {
+    std::string name = e.name;  // a CSV field: quoted, quotes doubled
+    for (std::size_t at = name.find('"'); at != std::string::npos; at = name.find('"', at + 2)) name.insert(at, 1, '"');
+    out += fmt::format("{},\"{}\",{},{}\n", e.node, name, e.range.first, e.range.last);
+  }
+  return out;
+}
+
+std::string node_lines(const RunResult& r) {
+  std::string out;
+  for (const auto& n : r.nodes)
+    out += fmt::format("node {}: {} bundles, {} exchanges, busy {:.2f} s, idle {:.2f} s{}\n", n.name, n.bundles,
+                       n.exchanges, n.busy_s, n.idle_s,
+                       !n.quarantined.empty() ? ", quarantined: " + n.quarantined : n.dead ? ", dead" : "");
+  return out;
+}
+
+std::string summary_line(std::size_t patches, uint64_t bundles, int grid, uint32_t nodes, double seconds, uint64_t crossings,
+                         const std::string& extra) {
+  const double s = std::max(seconds, 1e-9);
+  return fmt::format("patches {}, bundles {}, grid {}{}, {:.2f} s, {:.1f} bundles/s, {:.3g} line crossings/s{}", patches, bundles,
+                     grid, nodes > 0 ? fmt::format(", nodes {}", nodes) : "", seconds, static_cast<double>(bundles) / s,
+                     static_cast<double>(crossings) / s, extra);
+}
+
+}  // namespace sirad::cluster

@@ -1,0 +1,72 @@
+// sirad: what a cluster run reports (the real coordinator's and the virtual-time cluster's),
+// and the lines its drivers print of it.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "cluster/exchange.h"
+#include "cluster/settings.h"
+
+namespace sirad::cluster {
+
+struct NodeReport {
+  std::string name;
+  uint64_t bundles = 0;
+  uint32_t exchanges = 0;
+  double busy_s = 0, idle_s = 0;  // as the node last reported them
+  bool dead = false;              // declared dead (silent for `liveness` heartbeats)
+  std::string quarantined;        // why it was quarantined (empty: it was not)
+};
+
+// One range of the ledger's record: node `node` (its index in the run, `name`) ran [first, last).
+struct LedgerEntry {
+  uint32_t node = 0;
+  std::string name;
+  Range range;
+};
+
+struct RunResult {
+  std::vector<glm::vec3> radiosity;  // the count-weighted estimate per patch
+  std::vector<NodeReport> nodes;
+  std::vector<LedgerEntry> ledger;   // who ran which accepted bundles, by node then index
+  uint64_t exchange_bytes_in = 0, exchange_bytes_out = 0;  // REPORT and UPDATE bulk
+  uint64_t final_bytes = 0;                                // FINAL bulk (the end states)
+  uint32_t exchanges = 0;
+  uint64_t crossings = 0;  // line-patch crossings of all counted bundles
+  int grid = 0;            // the run's grid (as set, or the auto grid of the mesh)
+  uint64_t bundles = 0;    // bundles done (the budget unless a time limit or target ended it)
+  std::string ended_by;    // "budget", "time limit", "target error ..." or "interrupted"
+  double error_estimate = -1;  // the spread estimate at the end (Policy::error_estimate; < 0: none)
+  uint32_t exchange_every = 0;  // the period and fraction the run used (what auto chose)
+  double fraction = 1.0;
+  std::string exchange_why;     // with auto: how it chose
+};
+
+class Policy;
+// How a cluster run came out, for run_attributes (settings.h).
+RunOutcome outcome_of(const RunResult& result);
+// What the policy of a finished run knows of it: the estimate, exchanges, bundles, how it
+// ended, its error estimate and the exchange setting in force; `grid` as run. The driver adds
+// its nodes, ledger, traffic and crossings.
+RunResult policy_result(const Policy& policy, int grid);
+
+// "exchange traffic: E exchanges, X B up, Y B down (x B up, y B down per exchange); final
+// states Z B" (bulk bytes: 24 per patch of each chunk sent).
+std::string traffic_line(const RunResult& result);
+
+// The ledger as CSV: "node,name,first,last", a row per range (written by --ledger).
+std::string ledger_csv(const RunResult& result);
+
+// One line per node: "node NAME: B bundles, E exchanges, busy Xs, idle Ys[, dead | , quarantined: WHY]".
+std::string node_lines(const RunResult& result);
+
+// The last line of every run's summary: "patches N, bundles B, grid G[, nodes P], T s, R
+// bundles/s, C line crossings/s" and `extra` (", error estimate ..."), for one node (nodes 0)
+// and for a cluster alike.
+std::string summary_line(std::size_t patches, uint64_t bundles, int grid, uint32_t nodes, double seconds, uint64_t crossings,
+                         const std::string& extra = "");
+
+}  // namespace sirad::cluster

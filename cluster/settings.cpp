@@ -1,0 +1,140 @@
+// sirad: a run's settings and their conversions (see settings.h).
+#include "cluster/settings.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "cluster/policy.h"
+#include "core/error.h"
+#include "core/error_estimate.h"
+
+namespace sirad::cluster {
+
+void check(const RunSettings& s) {
+  if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
+    fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
+  check_first_shot(s.shots_per_bundle, s.shot_resolution);
+  if (s.bundles == 0) fail("a run needs at least one bundle");
+  if (!(s.fraction > 0 && s.fraction <= 1)) fail("exchange fraction {} is outside (0, 1]", s.fraction);
+  if (s.chunks == 0) fail("a run needs at least one chunk");
+  if (!(s.time_limit_s >= 0) || !std::isfinite(s.time_limit_s)) fail("time limit {} is invalid", s.time_limit_s);
+  if (!(s.target_error >= 0 && s.target_error <= 1)) fail("target error {} is outside [0, 1]", s.target_error);
+}
+
+wire::Run to_wire(const RunSettings& s, const PatchMesh& mesh, const std::vector<uint32_t>& chunk_starts) {
+  wire::Run run;
+  run.set_scene_hash(mesh.hash);
+  run.set_seed(s.seed);
+  run.set_grid(static_cast<uint32_t>(s.grid == 0 ? auto_grid(mesh) : s.grid));
+  run.set_rule(to_string(s.rule));
+  run.set_burn_in(s.burn_in);
+  run.set_directions(to_string(s.directions));
+  run.set_no_control_variate(!s.control_variate);
+  run.set_shots_per_bundle(s.shots_per_bundle);
+  run.set_shot_resolution(static_cast<uint32_t>(s.shot_resolution));
+  for (std::size_t c = 0; c + 1 < chunk_starts.size(); ++c) run.add_chunk_starts(chunk_starts[c]);
+  run.set_patches(static_cast<uint32_t>(mesh.size()));
+  run.set_exchange_every(s.exchange_every);
+  run.set_exchange_fraction(s.fraction);
+  run.set_topology(s.topology == Topology::star ? "star" : "ring");
+  run.set_mode(s.mode == Mode::sync ? "sync" : "async");
+  run.set_bundles(s.bundles);
+  run.set_target_patches(s.mesh_options.target_patches);
+  run.set_max_edge(s.mesh_options.max_edge);
+  return run;
+}
+
+RunSettings from_wire(const wire::Run& r) {
+  RunSettings s;
+  s.bundles = r.bundles();
+  s.seed = r.seed();
+  s.grid = static_cast<int>(r.grid());
+  s.rule = parse_update_rule(r.rule());
+  s.burn_in = r.burn_in();
+  s.directions = r.directions().empty() ? Directions::random : parse_directions(r.directions());
+  s.control_variate = !r.no_control_variate();
+  s.shots_per_bundle = r.shots_per_bundle();
+  s.shot_resolution = static_cast<int>(r.shot_resolution());
+  s.exchange_every = r.exchange_every();
+  s.fraction = r.exchange_fraction();
+  s.topology = parse_topology(r.topology());
+  s.mode = parse_mode(r.mode());
+  s.chunks = static_cast<uint32_t>(r.chunk_starts_size());
+  s.mesh_options.target_patches = r.target_patches();
+  s.mesh_options.max_edge = r.max_edge();
+  return s;
+}
+
+RunSettings settings_of(const wire::Checkpoint& c) {
+  RunSettings s = from_wire(c.run());
+  s.balance = c.balance();
+  s.time_limit_s = c.time_limit_s();
+  s.target_error = c.target_error();
+  return s;
+}
+
+void put_settings(wire::Checkpoint& c, const RunSettings& s, const wire::Run& run) {
+  *c.mutable_run() = run;
+  c.set_balance(s.balance);
+  c.set_time_limit_s(s.time_limit_s);
+  c.set_target_error(s.target_error);
+}
+
+SolverOptions solver_options(const RunSettings& s, const PatchMesh& mesh, uint64_t chain_id) {
+  SolverOptions so;
+  so.seed = s.seed;
+  so.grid = s.grid == 0 ? auto_grid(mesh) : s.grid;
+  so.rule = s.rule;
+  so.burn_in = s.burn_in;
+  so.directions = s.directions;
+  so.control_variate = s.control_variate;
+  so.chain_id = chain_id;
+  so.track_error = so.rule == UpdateRule::chain && mesh.size() <= kTrackErrorMaxPatches;
+  so.shots_per_bundle = s.shots_per_bundle;
+  so.shot_resolution = s.shot_resolution;
+  return so;
+}
+
+PolicyConfig policy_config(const RunSettings& s, const PatchMesh& mesh, uint32_t min_nodes) {
+  check(s);
+  return {.bundles = s.bundles, .exchange_every = s.exchange_every, .fraction = s.fraction, .topology = s.topology,
+          .mode = s.mode, .rule = s.rule, .min_nodes = min_nodes,
+          .grant_unit = grant_unit(mesh, s.directions, s.shots_per_bundle), .time_limit_s = s.time_limit_s,
+          .target_error = s.target_error, .balance = s.balance};
+}
+
+Policy make_policy(const RunSettings& s, const PatchMesh& mesh, uint32_t min_nodes,
+                   std::function<ExchangeSetting(const std::vector<uint32_t>& ready)> choose) {
+  PolicyConfig pc = policy_config(s, mesh, min_nodes);
+  if (s.exchange_every == kExchangeAuto) pc.choose = std::move(choose);
+  const auto patches = static_cast<uint32_t>(mesh.size());
+  return Policy(pc, chunk_starts(patches, std::min(s.chunks, patches)), error_weights(mesh));
+}
+
+Attributes run_attributes(const RunSettings& s, const RunOutcome& o, const PatchMesh& mesh, const std::string& scene,
+                          bool cluster) {
+  Attributes a = {
+      {"sirad.version", std::string(SIRAD_VERSION)},
+      {"sirad.scene", scene},
+      {"sirad.scene_hash", mesh.hash},
+      {"sirad.patches", static_cast<int64_t>(mesh.size())},
+      {"sirad.bundles", static_cast<int64_t>(o.bundles)},
+      {"sirad.grid", static_cast<int64_t>(o.grid)},
+      {"sirad.seed", std::to_string(s.seed)},
+      {"sirad.rule", std::string(to_string(s.rule))},
+      {"sirad.directions", std::string(to_string(s.directions))},
+      {"sirad.control_variate", std::string(s.control_variate ? "on" : "off")},
+      {"sirad.shots_per_bundle", s.shots_per_bundle},
+      {"sirad.nodes", static_cast<int64_t>(o.nodes)},
+      {"sirad.exchange_every", exchange_every_name(o.exchange_every)},
+      {"sirad.exchange_fraction", o.fraction},
+      {"sirad.ended_by", o.ended_by},
+  };
+  if (cluster) {
+    a.emplace_back("sirad.topology", std::string(s.topology == Topology::star ? "star" : "ring"));
+    a.emplace_back("sirad.mode", std::string(s.mode == Mode::sync ? "sync" : "async"));
+  }
+  return a;
+}
+
+}  // namespace sirad::cluster

@@ -1,0 +1,141 @@
+// sirad: what defines a run (RunSettings), with its one validation and its conversions: to and
+// from the wire (the Run of WELCOME and of the checkpoint), to a node's solver options, to the
+// policy's configuration, and to the EXR header attributes. Every driver, `sirad render` on one
+// node or many, `sirad emulate`, `sirad-coordinator` and `sirad-node`, holds a run's settings
+// in this one type; the command lines fill it from one declaration of the flags (cmd/run_flags.h).
+// The settings of a process (timeouts, heartbeats, files) and the hooks a driver gives a run
+// (signals, callbacks) are kept apart from it, in ProcessSettings and RunHooks.
+#pragma once
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "cluster/exchange.h"
+#include "cluster/profile.h"
+#include "core/bundle.h"
+#include "core/mesh.h"
+#include "core/output.h"
+#include "core/scene.h"
+#include "core/solver.h"
+#include "proto/codec.h"
+
+namespace sirad::cluster {
+
+struct Status;
+struct PolicyConfig;
+struct ExchangeSetting;
+class Policy;
+
+// What defines a run: with the scene, its result is a function of these and of which node ran
+// which bundle. The defaults are the library's (plain runs in tests and benches); the command
+// lines' defaults are their flags' (cmd/run_flags.h).
+struct RunSettings {
+  MeshOptions mesh_options;     // how the nodes mesh the scene
+  uint64_t bundles = 1000;      // K: the budget (the cap when a time limit or target ends it early)
+  uint64_t seed = 1;
+  int grid = 0;                 // lines per side (0: auto from the mesh)
+  UpdateRule rule = UpdateRule::chain;
+  int burn_in = -1;             // chain bundles run before counting (-1: auto)
+  Directions directions = Directions::random;  // stratified: chain rule only
+  bool control_variate = true;  // the transport's control variate (core/solver.h SolverOptions)
+  double shots_per_bundle = 0;  // first shot: shots rendered per bundle (0: off)
+  int shot_resolution = 0;      // hemicube side (0: auto)
+  uint32_t exchange_every = 0;  // I; 0: states only at the end; kExchangeAuto: chosen at the start
+  double fraction = 1.0;        // S
+  Topology topology = Topology::star;
+  Mode mode = Mode::async;
+  uint32_t chunks = 16;
+  bool balance = true;          // grants sized to each node's speed (PolicyConfig::balance)
+  double time_limit_s = 0;      // 0: none; else no grants after this long: the run ends early
+  double target_error = 0;      // 0: none; else the run ends once the error estimate is at or below it
+};
+
+// Throws sirad::Error, naming the setting, for settings no run can have: stratified directions
+// under the average rule, a first shot out of range (check_first_shot), no bundles, a fraction
+// outside (0, 1], no chunks, a negative time limit or a target outside [0, 1].
+void check(const RunSettings& s);
+
+// The wire Run of `s` on `mesh` (scene hash, grid as resolved, chunk starts, patches); the
+// run id is the coordinator's to set. And back: the settings a Run carries (a node's WELCOME,
+// a checkpoint), checked; throws sirad::Error for a rule, directions, topology or mode it does
+// not know. balance, time_limit_s and target_error are the coordinator's alone: not on the wire.
+wire::Run to_wire(const RunSettings& s, const PatchMesh& mesh, const std::vector<uint32_t>& chunk_starts);
+RunSettings from_wire(const wire::Run& run);
+
+// The settings of a checkpointed run (its Run and the coordinator's own three), and into a
+// checkpoint: a resumed run is the same run.
+RunSettings settings_of(const wire::Checkpoint& c);
+void put_settings(wire::Checkpoint& c, const RunSettings& s, const wire::Run& run);
+
+// The solver options of the chain `chain_id` (a node's index in the run) on `mesh`: its batch
+// means go out with each REPORT under the chain rule (memory-bounded: error_estimate.h).
+SolverOptions solver_options(const RunSettings& s, const PatchMesh& mesh, uint64_t chain_id);
+
+// The policy's configuration for a run of `s` on `mesh` that waits for `min_nodes` (checks the
+// settings; the chooser of --exchange-every auto is the driver's to add).
+PolicyConfig policy_config(const RunSettings& s, const PatchMesh& mesh, uint32_t min_nodes);
+
+// The policy of a run of `s` on `mesh` (its chunks and error weights), as every cluster driver
+// makes it; with --exchange-every auto, `choose` is the driver's measurement of its nodes.
+Policy make_policy(const RunSettings& s, const PatchMesh& mesh, uint32_t min_nodes,
+                   std::function<ExchangeSetting(const std::vector<uint32_t>& ready)> choose);
+
+// How a run came out, for its attributes and summary line.
+struct RunOutcome {
+  uint64_t bundles = 0;         // counted bundles done
+  int grid = 0;                 // as run
+  uint32_t nodes = 1;
+  uint32_t exchange_every = 0;  // as in force (what auto chose)
+  double fraction = 1.0;
+  std::string ended_by;         // "budget", "time limit", ... as the EXR says it
+};
+
+// The EXR header attributes of a run (DESIGN.md section 4: version, scene as the user named it,
+// scene hash, patches, bundles, grid, seed, rule, directions, control variate, first shot,
+// nodes, I, S, how it ended; the topology and mode of a cluster), one writer for every driver.
+// `cluster`: a run of the cluster's drivers (their topology and mode are part of it).
+Attributes run_attributes(const RunSettings& s, const RunOutcome& outcome, const PatchMesh& mesh, const std::string& scene,
+                          bool cluster);
+
+// What a driver gives a run besides its settings: the scene and the emulation that shapes it.
+// Process settings: how long it may take and how its peers are watched, and where it writes.
+struct ProcessSettings {
+  uint32_t min_nodes = 1;       // nodes ready before the first grant
+  double timeout_s = 0;         // 0: none; else the run fails if it takes longer
+  uint32_t heartbeat_ms = 1000; // HEARTBEAT interval of both sides (PROTOCOL.md section 4)
+  uint32_t liveness = 3;        // a peer silent this many intervals is dead
+  std::optional<emulation::Profile> profile;  // network and speed emulation
+  bool emulate_bandwidth = true;  // false: the network itself limits bandwidth (tc tbf in the
+                                  // namespace cluster); the profile's other settings still apply
+  bool strict = false;          // a node's ERROR ends the run (the embedded driver's: its nodes
+                                // are this process's own threads)
+  // The checkpoint (cluster/checkpoint.h): written atomically every checkpoint_every_s and
+  // when `interrupt` is set ("": none).
+  std::string checkpoint;
+  double checkpoint_every_s = 10;
+  double status_every_s = 1.0;  // how often RunHooks::status is called
+};
+
+// The hooks a driver gives a run: signals it watches and callbacks it is given.
+struct RunHooks {
+  const std::atomic<bool>* abort = nullptr;      // set: the run fails at once (a local node died)
+  const std::atomic<bool>* interrupt = nullptr;  // set (SIGTERM): checkpoint, then the run throws
+  // set (SIGINT on `sirad render --nodes`): the run closes as at a time limit, ended by
+  // "interrupted": no more grants, the outstanding ones finish, the result is what was done.
+  const std::atomic<bool>* close = nullptr;
+  // Continue this checkpointed run (read_checkpoint; settings_of gave the settings): its nodes'
+  // states and the ledger as accepted, the rest of the budget to run.
+  const wire::Checkpoint* resume = nullptr;
+  std::function<void(uint64_t done, uint64_t total)> progress;  // called as bundles complete
+  std::function<void(const Status&)> status;  // called every status_every_s, and at the end
+};
+
+// A run as a cluster driver is given it.
+struct RunConfig : RunSettings, ProcessSettings, RunHooks {
+  Scene scene;  // sent to the nodes, which mesh it with `mesh_options`
+};
+
+}  // namespace sirad::cluster

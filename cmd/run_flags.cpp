@@ -1,0 +1,147 @@
+// sirad: the run and output flags (see run_flags.h).
+#include "cmd/run_flags.h"
+
+#include "cluster/exchange.h"
+#include "core/error.h"
+
+namespace sirad::cli {
+
+void add_scene_argument(CLI::App* cmd, std::string& scene) {
+  cmd->add_option("scene", scene,
+                  "Built-in scene (cornell, furnace, bright-room, three-lights) or a scene file (.obj, .gltf, .glb, .ply)")
+      ->required();
+}
+
+std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
+  std::vector<CLI::Option*> options = {
+      cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
+          ->check(CLI::Range(int64_t{1}, int64_t{1} << 31)),
+      cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(CLI::PositiveNumber),
+      cmd->add_option("--bundles", r.bundles,
+                      "Bundles (random directions) to run; the cap with --target-error (default there: 1000000)")
+          ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))
+          ->capture_default_str(),
+      cmd->add_option("--grid", r.grid, "Lines per side of a bundle (default: from the patch sizes)")->check(CLI::Range(2, 8192)),
+      cmd->add_option("--seed", r.seed, "Run seed")->capture_default_str(),
+      cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
+          ->check(CLI::IsMember({"chain", "average"})),
+      cmd->add_option("--directions", r.directions,
+                      "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified")
+          ->check(CLI::IsMember({"auto", "random", "stratified"}))
+          ->capture_default_str(),
+      cmd->add_option("--control-variate", r.control_variate,
+                      "The transport's constant control variate: on (default) or off (the plain estimator)")
+          ->check(CLI::IsMember({"on", "off"}))
+          ->capture_default_str(),
+      cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")->check(CLI::Range(0, 1 << 20)),
+      cmd->add_option("--shots-per-bundle", r.shots_per_bundle,
+                      "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
+          ->check(CLI::Range(0.0, 1024.0))
+          ->capture_default_str(),
+      cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
+          ->check(CLI::Range(0, 2048))
+          ->capture_default_str(),
+      cmd->add_option("--exchange-every", r.exchange_every,
+                      "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)")
+          ->capture_default_str(),
+      cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")
+          ->check(CLI::Range(1e-9, 1.0))
+          ->capture_default_str(),
+      cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str(),
+      cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str(),
+      cmd->add_option("--balance", r.balance,
+                      "Grants sized to each node's speed, so unequal nodes finish them together: on or off (every grant I bundles)")
+          ->check(CLI::IsMember({"on", "off"}))
+          ->capture_default_str(),
+      cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")->check(CLI::NonNegativeNumber),
+      cmd->add_option("--target-error", r.target_error,
+                      "End the run at this relative error estimate (one node: batch means; 2+ nodes with --exchange-every: the "
+                      "nodes' spread)")
+          ->check(CLI::Range(0.0, 1.0)),
+      cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")->check(CLI::Range(1, 4096))->capture_default_str(),
+  };
+  std::vector<std::string> names;
+  for (const CLI::Option* o : options) names.push_back("--" + o->get_lnames().front());
+  return names;
+}
+
+const std::vector<std::string>& cluster_flag_names() {
+  static const std::vector<std::string> names = {"--exchange-every", "--exchange-fraction", "--topology", "--mode", "--balance",
+                                                 "--chunks"};
+  return names;
+}
+
+void add_output_flags(CLI::App* cmd, OutputFlags& o) {
+  cmd->add_option("--out", o.out, "Output name: writes NAME.exr, NAME.png, NAME.ply, NAME.glb (default: scene name)");
+  cmd->add_option("--width", o.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd->add_option("--height", o.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
+  cmd->add_flag("--flat", o.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
+  cmd->add_flag("--skip-degenerate", o.skip_degenerate, "Drop zero-area triangles instead of failing");
+  cmd->add_flag("--two-sided", o.two_sided,
+                "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL sirad_two_sided 1)");
+  cmd->add_option("--camera", o.camera,
+                  "The view of the images: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the scene's, else one chosen to "
+                  "see the most)");
+}
+
+std::set<std::string> given_flags(const CLI::App* cmd) {
+  std::set<std::string> out;
+  for (const CLI::Option* o : cmd->get_options())
+    if (o->count() > 0)
+      for (const std::string& name : o->get_lnames()) out.insert("--" + name);
+  return out;
+}
+
+MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<double> max_edge) {
+  if (patches && max_edge) fail("--patches and --max-edge exclude each other");
+  MeshOptions o;
+  if (patches) o.target_patches = static_cast<std::size_t>(*patches);
+  else if (max_edge) o.max_edge = *max_edge;
+  else o.target_patches = 10000;
+  return o;
+}
+
+cluster::RunSettings settings_from(const RunFlags& f, const std::set<std::string>& given) {
+  cluster::RunSettings s;
+  s.mesh_options = mesh_options_from(f.patches, f.max_edge);
+  s.rule = parse_update_rule(f.rule);
+  // "auto": stratified under the chain rule, random under average (where stratification
+  // biases: core/bundle.cpp).
+  s.directions = f.directions == "auto" ? (s.rule == UpdateRule::chain ? Directions::stratified : Directions::random)
+                                        : parse_directions(f.directions);
+  if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
+    fail("--directions stratified needs --rule chain (under average it biases the estimate: core/bundle.cpp)");
+  s.bundles = static_cast<uint64_t>(f.target_error > 0 && !given.count("--bundles") ? kTargetErrorCap : f.bundles);
+  s.seed = f.seed;
+  s.grid = f.grid.value_or(0);
+  s.burn_in = f.burn_in.value_or(-1);
+  s.control_variate = f.control_variate == "on";
+  if (!(f.shots_per_bundle >= 0.0) || f.shots_per_bundle > 1024.0)
+    fail("--shots-per-bundle must be in [0, 1024] (got {})", f.shots_per_bundle);
+  if (f.shot_resolution != 0 && (f.shot_resolution < 4 || f.shot_resolution % 2 != 0 || f.shot_resolution > 2048))
+    fail("--shot-resolution must be 0 (auto) or even in [4, 2048] (got {})", f.shot_resolution);
+  s.shots_per_bundle = f.shots_per_bundle;
+  s.shot_resolution = f.shot_resolution;
+  s.exchange_every = cluster::parse_exchange_every(f.exchange_every);
+  s.fraction = f.exchange_fraction;
+  s.topology = cluster::parse_topology(f.topology);
+  s.mode = cluster::parse_mode(f.mode);
+  s.chunks = static_cast<uint32_t>(f.chunks);
+  s.balance = f.balance == "on";
+  s.time_limit_s = f.time_limit;
+  s.target_error = f.target_error;
+  cluster::check(s);
+  return s;
+}
+
+std::optional<Camera> camera_flag(const std::string& camera) {
+  if (camera.empty()) return std::nullopt;
+  try {
+    return parse_camera(camera);
+  } catch (const Error& e) {
+    fail("--camera '{}': {}", camera, e.what());
+  }
+}
+
+}  // namespace sirad::cli

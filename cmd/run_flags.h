@@ -1,0 +1,79 @@
+// sirad: the one declaration of the flags that define a run, and of the output flags, shared by
+// `sirad render`, `sirad emulate` and `sirad-coordinator` (and by the coordinator's --resume,
+// which refuses every run flag: a resumed run keeps its checkpoint's settings). The flags hold
+// what was typed; settings_from turns them into the run's cluster::RunSettings, checked.
+#pragma once
+#include <cstdint>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "cluster/settings.h"
+#include "core/mesh.h"
+#include "core/scene.h"
+
+namespace sirad::cli {
+
+// The command lines' default first shot: shots per bundle.
+inline constexpr double kDefaultShotsPerBundle = 0.25;
+// --target-error without --bundles: the cap it lifts the default of 1000 bundles to.
+inline constexpr int64_t kTargetErrorCap = 1000000;
+
+struct RunFlags {
+  std::optional<int64_t> patches;
+  std::optional<double> max_edge;
+  int64_t bundles = 1000;
+  std::optional<int> grid;
+  uint64_t seed = 1;
+  std::string rule = "chain";
+  std::string directions = "auto";
+  std::string control_variate = "on";
+  std::optional<int> burn_in;
+  double shots_per_bundle = kDefaultShotsPerBundle;
+  int shot_resolution = 0;
+  std::string exchange_every = "end";
+  double exchange_fraction = 1.0;
+  std::string topology = "star";
+  std::string mode = "async";
+  std::string balance = "on";
+  int chunks = 16;
+  double time_limit = 0, target_error = 0;
+};
+
+struct OutputFlags {
+  std::string out;
+  int width = 512, height = 512;
+  float exposure = 0.0f;
+  bool flat = false;
+  bool skip_degenerate = false;
+  bool two_sided = false;
+  std::string camera;  // --camera "eye X Y Z look X Y Z up X Y Z fov DEG"
+};
+
+// The SCENE argument (a built-in name or a scene file).
+void add_scene_argument(CLI::App* cmd, std::string& scene);
+// The run flags, the cluster's among them; returns their long names ("--bundles", ...).
+std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& flags);
+// The flags of the run flags that only a cluster uses (refused on one node).
+const std::vector<std::string>& cluster_flag_names();
+// Import and output: --out, --width, --height, --exposure, --flat, --skip-degenerate,
+// --two-sided, --camera.
+void add_output_flags(CLI::App* cmd, OutputFlags& flags);
+
+// The long names of the options given on `cmd`'s command line.
+std::set<std::string> given_flags(const CLI::App* cmd);
+
+// The meshing the flags ask for: --patches N, --max-edge L (not both), or about 10000 patches.
+MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<double> max_edge);
+
+// The run the flags ask for (`given`: the flags given; --target-error without --bundles lifts
+// the cap to kTargetErrorCap), checked (cluster::check). Throws sirad::Error naming the flag.
+cluster::RunSettings settings_from(const RunFlags& flags, const std::set<std::string>& given);
+
+// --camera's view, or none when it is empty; throws sirad::Error naming the flag.
+std::optional<Camera> camera_flag(const std::string& camera);
+
+}  // namespace sirad::cli
