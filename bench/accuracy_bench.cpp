@@ -1,4 +1,4 @@
-// sirad bench: accuracy per second (issue 4). Runs the solver in one or more configurations
+// sirad bench: accuracy per second. Runs the solver in one or more configurations
 // against a reference solution (`sirad reference`, core/reference.h) and prints, as CSV, the
 // relative RMS error per non-emitting patch (area-weighted, the reference's own variance
 // subtracted: core/metrics.h relative_rms_vs_reference) at checkpoints of growing bundle counts,

@@ -1,4 +1,4 @@
-// sirad bench: the costs of the cluster (issue 3), for the paper's model
+// sirad bench: the costs of the cluster, for the paper's model
 //     T = N T_i + (N P S / I) T_e
 // measured with the real code: the SIRAD/1 codec and transport, the coordinator's Aggregate,
 // coordinate() and node::serve, the Solver on the OpenCL engine. Prints CSV on stdout; lines

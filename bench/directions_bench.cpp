@@ -1,4 +1,4 @@
-// sirad bench: random against stratified directions (issue 4 item 3) on the Cornell box.
+// sirad bench: random against stratified directions on the Cornell box.
 // Relative RMS error per non-emitting patch (area-weighted, core/metrics.h) of single chain-rule
 // runs against a long-run truth (the mean of --truth-runs random runs of --truth-bundles each,
 // seeds 1000..), at the checkpoint bundle counts, for --seeds paired seeds (the random and the

@@ -1,4 +1,4 @@
-// sirad paper bench: the real-run experiments of bench/paper (issue 5) on the virtual-time
+// sirad paper bench: the real-run experiments of bench/paper on the virtual-time
 // cluster (cluster/emulate.h), CSV on stdout; bench/paper/*.sh run it and plot.
 //
 //   sirad_bench_paper fig6   --scene cornell --patches 2000 --seeds 5   (figure 6: error against I

@@ -1,4 +1,4 @@
-// sirad: the coordinator's checkpoint (issue 6): everything a run has accepted, so a
+// sirad: the coordinator's checkpoint: everything a run has accepted, so a
 // coordinator that stops (SIGTERM, a crash, a reboot) can be resumed with `--resume FILE`:
 // the run's settings and scene hash, every node's last state per chunk (sums and counts), its
 // counters and the ledger's record of the bundles it ran, and the run's counters. The file is a

@@ -1,4 +1,4 @@
-// sirad: the virtual-time cluster (`sirad emulate`, issue 5). P emulated nodes live in one
+// sirad: the virtual-time cluster (`sirad emulate`). P emulated nodes live in one
 // process, each with its own Solver (its own chain, as on a real node) on one shared engine, so
 // every bundle is a real bundle on the real kernels, run one at a time. Nothing waits: a
 // discrete-event loop advances a virtual clock by each grant's cost (its bundles x the bundle
@@ -13,7 +13,7 @@
 // (as node/node.cpp does), REPORT / UPDATE / FINAL sizes of 24 bytes per patch of each chunk
 // plus a 64-byte header (proto/PROTOCOL.md), the coordinator answering at once. Not modelled:
 // the coordinator's own processing time, heartbeats, and disconnects (a profile with
-// disconnect_at_s is refused: liveness belongs to real runs, issue 6).
+// disconnect_at_s is refused: liveness belongs to real runs).
 #pragma once
 #include <cstdint>
 #include <string>

@@ -307,14 +307,23 @@ void Policy::final_state(uint32_t n, std::vector<ChunkState> chunks) {
   p.final_in = true;
 }
 
+std::string CloseRule::check(double elapsed_s, double estimate) const {
+  if (time_limit_s > 0 && elapsed_s >= time_limit_s) return "time limit";
+  if (target_error > 0 && estimate >= 0 && estimate <= target_error)
+    return fmt::format("target error ({:.4g} <= {:.4g})", estimate, target_error);
+  return "";
+}
+
 bool Policy::check_close(double elapsed_s) {
   if (closing_ || ledger_.finished()) return false;
-  if (config_.time_limit_s > 0 && elapsed_s >= config_.time_limit_s) ended_by_ = "time limit";
-  else if (config_.target_error > 0 && reports_ > last_error_check_) {
+  const CloseRule rule{config_.time_limit_s, config_.target_error};
+  // The estimate only when a report came in since the last look (it changes only then).
+  double estimate = -1;
+  if (rule.wants_estimate() && reports_ > last_error_check_) {
     last_error_check_ = reports_;
-    double e = error_estimate();
-    if (e >= 0 && e <= config_.target_error) ended_by_ = fmt::format("target error ({:.4g} <= {:.4g})", e, config_.target_error);
+    estimate = error_estimate();
   }
+  ended_by_ = rule.check(elapsed_s, estimate);
   if (ended_by_.empty()) return false;
   closing_ = true;
   return true;

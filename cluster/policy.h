@@ -30,6 +30,16 @@ struct ExchangeSetting {
   std::string why;  // one line: the model's inputs and prediction, or why the model was not used
 };
 
+// When a run closes before its budget, on a cluster (Policy::check_close) and on one node
+// (run_single) alike: at the time limit, else once an error estimate (< 0: none yet) is at or
+// below the target. Returns why ("time limit", "target error (E <= T)"), or "" to go on.
+struct CloseRule {
+  double time_limit_s = 0;  // 0: none
+  double target_error = 0;  // 0: none
+  std::string check(double elapsed_s, double estimate) const;
+  bool wants_estimate() const { return target_error > 0; }
+};
+
 struct PolicyConfig {
   uint64_t bundles = 0;
   uint32_t exchange_every = 0;  // I (0: states only at the end; kExchangeAuto: choose() decides)
@@ -58,7 +68,7 @@ struct NodeCost {
   double t_transfer = 0;
 };
 
-// --exchange-every auto (issue 5) for `nodes` sharing `bundles` (or, with a time limit, that
+// --exchange-every auto for `nodes` sharing `bundles` (or, with a time limit, that
 // time: then exchanging costs bundles not done).
 // Average rule: the paper's model (core/model.h choose_exchange) picks I and S, with T_i the
 // nodes' median bundle time and T_e the slowest transfer (0 in async mode, where a queued

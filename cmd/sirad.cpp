@@ -18,6 +18,7 @@
 
 #include "cluster/emulate.h"
 #include "cluster/live_view.h"
+#include "cluster/single_node.h"
 #include "cluster/status.h"
 #include "cmd/embedded.h"
 #include "cmd/run_flags.h"
@@ -259,32 +260,13 @@ int render(RenderArgs a) {
   auto start = std::chrono::steady_clock::now();
   Solver solver(mesh, *engine, so, shots.get());
   Progress progress(bundles, a.quiet);
-  // --target-error: the batch-means estimate (core/error_estimate.h), checked every 16 bundles
-  // once it is ready (Solver::error_estimate_ready); --time-limit: wall time. --bundles stays the cap.
-  std::string ended_by = "budget";
-  int64_t done = 0;
-  for (int64_t k = 0; k < bundles; ++k) {
-    solver.step(static_cast<uint64_t>(k));
-    done = k + 1;
-    if (g_interrupted && done < bundles) {  // after a step: the result has at least one bundle
-      ended_by = interrupted_by();
-      break;
-    }
-    double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    progress.update(done, elapsed);
-    if (settings.time_limit_s > 0 && elapsed >= settings.time_limit_s && done < bundles) {
-      ended_by = "time limit";
-      break;
-    }
-    if (settings.target_error > 0 && done % 16 == 0 && solver.error_estimate_ready()) {
-      double e = solver.error_estimate();
-      if (e >= 0 && e <= settings.target_error) {
-        ended_by = fmt::format("target error (estimate {:.4f})", e);
-        break;
-      }
-    }
-  }
-  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double setup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const cluster::SingleRun run = cluster::run_single(solver, settings, &g_interrupted, interrupted_by,
+                                                     [&](uint64_t done, double t) { progress.update(static_cast<int64_t>(done), t); },
+                                                     setup_s);
+  const std::string& ended_by = run.ended_by;
+  const auto done = static_cast<int64_t>(run.bundles);
+  const double seconds = run.seconds;
   double error = solver.error_estimate();
 
   const std::string short_of = short_of_target(settings, ended_by, error);

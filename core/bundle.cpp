@@ -27,50 +27,11 @@ const char* to_string(Directions directions) {
   return directions == Directions::random ? "random" : "stratified";
 }
 
-// Stratified sampling and the chain's bias (DESIGN.md section 1: "visited in a random order").
-//
-// The chain rule L'(m) = E + T*_m L'(m-1) unrolls to L'(m) = sum_q T*_m ... T*_(m-q+1) E, and
-// its expectation is B's series sum_q T^q E only if every product's factors are independent.
-// Under stratified sampling T*_m and T*_m' are dependent only when m = m' (mod G) and both lie
-// in one block of their sequence, so the first product that can fail to factorise holds T*_m
-// and T*_(m-G): G - 1 independent transports X (expectation T^(G-1)) lie between them.
-// For two members a != b of one block, the (direction, jitter) strata are a uniformly random
-// ordered pair of distinct strata and the draws inside them independent, so for any functions
-// f, g of a bundle: E[f(a) g(b)] - E[f] E[g] = -Cov_S(f_S, g_S) / (K - 1), f_S the mean of f
-// over stratum S (Cov_S over the K equally likely strata). Hence
-//     E[T*_m X T*_(m-G)] - T X T = -C / (K - 1),  C = mean_S(T_S X T_S) - T X T,
-// and ||X|| <= rho_max^(G-1) in the max-norm (row sums of rho F are at most rho_max). C is the
-// covariance, across strata, of what a patch gathers from one direction and of what one
-// direction carries into the scene (through X, which smears it towards the dominant mode);
-// relative to B it is of order the transports' relative variance (|cos| alone has 1/3). So the
-// relative bias of the estimate is at most about
-//     c rho_max^G / (K - 1) (1 + rho_max^G + ...),    c ~ 0.3,
-// and products holding three members of a block are smaller by another rho_max^G. Measured on
-// the furnace (rho = 0.5, 16 runs x 1024 bundles, tests/directions_test.cpp): with G = 1 (no
-// interleave: consecutive steps from one block) the bias is -0.75 % for K = 16 and -1.05 % for
-// K = 9, i.e. c ~ 0.2; with G = 2, K = 9 it is already -0.02 % +- 0.08 %, far below
-// rho c / (K - 1): the transports between the pair average over all directions, so C only
-// sees the smooth, low-variance part of what a direction carries. With rho_max^G <= 1e-3 (the
-// G below) and K = 256 the bound is below 1e-5: far below the 0.1 % the design asks, and 500x
-// below what the tests can resolve (0.5 %).
-// What G costs: bundles closer than G are independent, so a sequence holds M / G of the first
-// M bundles. That is no accident of this scheme: a linear term (1/M) sum f(w_m) gains only
-// through negative covariances between bundles, and any covariance at a lag below the chain's
-// memory biases its products. Within a block the order is a uniform random permutation, so the
-// first j members of a block are a random subset of its strata (sampling without replacement):
-// the between-strata part of their variance shrinks by (K - j) / (K - 1), full gain at j = K.
-// Measured on the Cornell box (bench/RESULTS.md): no gain at 1024 bundles, 0.9x the random
-// error at 4096 and 0.8x at 16384 bundles with K = 256 (K = 16: none; the light is much
-// smaller than a stratum). The draw costs ~3 us at K = 256 (two permutations from Philox).
-// The cluster: a node's chain follows its grants, not the global index. The coordinator rounds
-// grants up to a multiple of G, so ranges start at multiples of G and two same-sequence
-// bundles on either side of a jump are still >= G chain steps apart (only the ledger's short
-// tail, when the budget is not a multiple of G, can break this once: a bias of order
-// c rho_max^r / ((K - 1) (1 - rho_max) M), r < G, negligible).
-// The average rule: its input L(m-1) holds every earlier estimate with weight 1/(m-1), so the
-// block partners of T*_m (up to K - 1 of them, G apart) bias E[T*_m L(m-1)] by O(c / m)
-// undamped, which its slow memory turns into an error of the same order as its own
-// m^-(1 - rho) bias. The solver refuses stratified directions under the average rule.
+// Stratified directions: K = side^2 strata per block, and G sequences interleaved so that
+// same-block bundles of one chain are G steps apart, with G the smallest where rho_max^G <=
+// 1e-3 (at most 256). That bounds the chain's bias from the dependence inside a block by about
+// 0.3 rho_max^G / (K - 1): the derivation, the measurements and why the average rule refuses
+// stratification are in docs/DESIGN.md, "Stratified directions and the chain's bias".
 Sampling sampling_plan(const PatchMesh& mesh, Directions directions) {
   Sampling s;
   s.directions = directions;

@@ -19,25 +19,19 @@ class ClEngine final : public BundleEngine {
     device_ = select_device(options.device);
     info_ = describe_device(device_);
     context_ = cl::Context(device_);
-    profile_ = std::getenv("SIRAD_PROFILE") != nullptr;
+    profile_ = options.profile;
     queue_ = cl::CommandQueue(context_, device_, profile_ ? CL_QUEUE_PROFILING_ENABLE : 0);
     // SIRAD_CL_OPTIONS (in kernel_build_options) selects kernel variants by -D flags: experiments.
     cl::Program program = build_program(context_, device_, {"kernels/bundle_types.h", "kernels/bundle.cl"},
                                         kernel_build_options(device_));
     // On a CPU, eight patches per step in float8 lanes; elsewhere one patch per work-item.
-    bool project8 = info_.is_cpu;
-    if (const char* env = std::getenv("SIRAD_PROJECT8")) project8 = std::atoi(env) != 0;
+    const bool project8 = options.project8.value_or(info_.is_cpu);
     project_ = cl::Kernel(program, project8 ? "project_patches8" : "project_patches");
     transfer_ = cl::Kernel(program, "transfer_band");
     combine_ = cl::Kernel(program, "combine");
 
-    block_lines_ = options.block_lines;
-    if (block_lines_ <= 0)
-      if (const char* env = std::getenv("SIRAD_BLOCK_LINES")) block_lines_ = std::atoi(env);
-    if (block_lines_ <= 0) block_lines_ = 8192;
+    block_lines_ = options.block_lines > 0 ? options.block_lines : 8192;
     bands_ = options.bands;
-    if (bands_ <= 0)
-      if (const char* env = std::getenv("SIRAD_BANDS")) bands_ = std::atoi(env);
     // Bands on a CPU: 4 per compute unit (measured against 1, 2 and 8 per unit on 2 cores; see
     // bench/RESULTS.md "Kernel tuning"): enough to balance the threads, few enough that
     // patches spanning two bands and the per-band scan of all patches stay cheap.
@@ -223,7 +217,21 @@ class ClEngine final : public BundleEngine {
 
 }  // namespace
 
-std::unique_ptr<BundleEngine> make_cl_engine(const PatchMesh& mesh, const ClEngineOptions& options) {
+ClEngineOptions with_environment(ClEngineOptions o) {
+  auto positive = [](const char* name) {
+    const char* env = std::getenv(name);
+    return env ? std::max(0, std::atoi(env)) : 0;
+  };
+  if (o.bands <= 0) o.bands = positive("SIRAD_BANDS");
+  if (o.block_lines <= 0) o.block_lines = positive("SIRAD_BLOCK_LINES");
+  if (!o.project8)
+    if (const char* env = std::getenv("SIRAD_PROJECT8")) o.project8 = std::atoi(env) != 0;
+  o.profile = o.profile || std::getenv("SIRAD_PROFILE") != nullptr;
+  return o;
+}
+
+std::unique_ptr<BundleEngine> make_cl_engine(const PatchMesh& mesh, const ClEngineOptions& given) {
+  const ClEngineOptions options = with_environment(given);
   try {
     return std::make_unique<ClEngine>(mesh, options);
   } catch (const cl::Error& e) {

@@ -1,5 +1,5 @@
-// sirad: the paper's model's scene parameters measured on a real mesh with real bundles
-// (issue 5, "fitting the model"): the contraction a, the first bounce's relative deviation
+// sirad: the paper's model's scene parameters measured on a real mesh with real bundles:
+// the contraction a, the first bounce's relative deviation
 // sigma_1 / C, and the time of one iteration T_i on this engine. The model itself
 // (core/model.h) stays pure arithmetic; this is the part that runs kernels.
 #pragma once

@@ -1,5 +1,5 @@
-// sirad: an independent reference solver for the radiosity model of DESIGN.md section 1
-// (issue 4 item 1). It shares no estimator and no rasterisation with the bundle solver: rays are
+// sirad: an independent reference solver for the radiosity model of DESIGN.md section 1.
+// It shares no estimator and no rasterisation with the bundle solver: rays are
 // cast with Embree 3 from points on each patch, the direct light comes from the exact
 // point-to-polygon form factor (Lambert's contour formula) with visibility as a control variate,
 // and the linear system is solved by Gauss-Seidel. Only the mesh, scene loading and outputs are

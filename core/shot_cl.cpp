@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/opencl.h"
 #include "core/shot.h"
@@ -14,12 +15,12 @@ namespace {
 
 class ClShotEngine final : public ShotEngine {
  public:
-  ClShotEngine(const PatchMesh& mesh, const std::string& device) : n_(mesh.size()) {
+  ClShotEngine(const PatchMesh& mesh, const std::string& device, bool profile) : n_(mesh.size()) {
     device_ = select_device(device);
     info_ = describe_device(device_);
     max_alloc_ = device_.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
     context_ = cl::Context(device_);
-    profile_ = std::getenv("SIRAD_PROFILE") != nullptr;
+    profile_ = profile;
     queue_ = cl::CommandQueue(context_, device_, profile_ ? CL_QUEUE_PROFILING_ENABLE : 0);
     cl::Program program = build_program(
         context_, device_, {"kernels/bundle_types.h", "kernels/shot_types.h", "kernels/bundle.cl", "kernels/shot.cl"},
@@ -157,7 +158,8 @@ class ClShotEngine final : public ShotEngine {
 
 std::unique_ptr<ShotEngine> make_cl_shot_engine(const PatchMesh& mesh, const std::string& device) {
   try {
-    return std::make_unique<ClShotEngine>(mesh, device);
+    // Its one tuning, SIRAD_PROFILE, as the bundle engine reads it (core/bundle_cl.h).
+    return std::make_unique<ClShotEngine>(mesh, device, with_environment({}).profile);
   } catch (const cl::Error& e) {
     fail("OpenCL: setting up the first shot for {} patches failed: {}", mesh.size(), describe_cl_error(e));
   }
