@@ -139,10 +139,9 @@ class Golden : public ::testing::Test {
                                       "--endpoint-file", (dir_ / (name + ".endpoint")).string(), "--timeout", "240"};
     coord.insert(coord.end(), args.begin(), args.end());
     Child coordinator(coord, dir_ / (name + ".coordinator.log"));
-    // An event, not a clock: the endpoint file appears once the socket is bound (or the
-    // coordinator failed, which the wait below reports).
-    while (!fs::exists(dir_ / (name + ".endpoint")) && coordinator.wait(0.05) < 0) {
-    }
+    // An event, not a clock: the endpoint file appears once the socket is bound.
+    ASSERT_TRUE(sirad::test::wait_for_file(dir_ / (name + ".endpoint"), coordinator))
+        << slurp(dir_ / (name + ".coordinator.log"));
     std::vector<std::unique_ptr<Child>> node;
     for (int i = 0; i < nodes; ++i)
       node.push_back(std::make_unique<Child>(

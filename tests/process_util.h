@@ -45,9 +45,11 @@ class Child {
     auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
     while (std::chrono::steady_clock::now() < until) {
       int status = 0;
+      if (exited_) return status_;
       if (::waitpid(pid_, &status, WNOHANG) == pid_) {
         exited_ = true;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        return status_;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
@@ -63,7 +65,18 @@ class Child {
  private:
   pid_t pid_ = -1;
   bool exited_ = false;
+  int status_ = -1;
 };
+
+// Waits for the file `path` that `writer` writes (an endpoint file, say): true once it exists,
+// false when `writer` exited without it. The cap is for a hung child, far beyond any load.
+inline bool wait_for_file(const fs::path& path, Child& writer, double seconds = 300) {
+  auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (!fs::exists(path)) {
+    if (writer.wait(0.02) >= 0 || std::chrono::steady_clock::now() > until) return fs::exists(path);
+  }
+  return true;
+}
 
 inline std::string slurp(const fs::path& p) {
   std::ifstream in(p);

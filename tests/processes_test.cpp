@@ -74,7 +74,7 @@ int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coord
     args.push_back(a);
   Child coordinator(args, dir / "coordinator.log");
   if (!coordinator.started()) return -1;
-  for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  if (!sirad::test::wait_for_file(dir / "endpoint", coordinator)) return -1;
   std::string endpoint = slurp(dir / "endpoint");
   std::vector<std::unique_ptr<Child>> children;
   for (int i = 0; i < nodes; ++i)
@@ -120,7 +120,7 @@ TEST(Processes, CoordinatorAndThreeNodesOverTcp) {
                      "--timeout", "120"},
                     dir / "coordinator.log");
   ASSERT_TRUE(coordinator.started());
-  for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", coordinator)) << slurp(dir / "coordinator.log");
   std::string endpoint = slurp(dir / "endpoint");
   ASSERT_EQ(endpoint.rfind("tcp://127.0.0.1:", 0), 0u) << endpoint;
   std::vector<std::unique_ptr<Child>> nodes;
@@ -174,7 +174,7 @@ TEST(Processes, EmbeddedDefaultEqualsTcpClusterBitForBit) {
                                     "--timeout", "120"};
   coord.insert(coord.end(), run.begin(), run.end());
   Child coordinator(coord, dir / "coordinator.log");
-  for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", coordinator)) << slurp(dir / "coordinator.log");
   Child node({SIRAD_NODE_BINARY, "--connect", slurp(dir / "endpoint"), "--insecure", "--name", "tcp-node"}, dir / "node.log");
   ASSERT_EQ(coordinator.wait(150), 0) << slurp(dir / "coordinator.log");
   EXPECT_NE(slurp(dir / "coordinator.log").find("WARNING: --insecure"), std::string::npos) << "it says so on start";
@@ -334,7 +334,7 @@ KillRun run_with_kill(const fs::path& dir, std::vector<std::string> run_args, ui
   args.insert(args.end(), run_args.begin(), run_args.end());
   KillRun out;
   Child coordinator(args, dir / "coordinator.log");
-  for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_TRUE(sirad::test::wait_for_file(dir / "endpoint", coordinator)) << slurp(dir / "coordinator.log");
   std::string endpoint = slurp(dir / "endpoint");
   auto node = [&](int i, const std::string& log) {
     return std::make_unique<Child>(
@@ -529,7 +529,7 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
                                                  "16", "--mode", "sync", "--min-nodes", "3", "--control-variate", "off",
                                                  "--directions", "random", "--shots-per-bundle", "0"},
                            0);
-  for (int i = 0; i < 200 && !fs::exists(dir / "endpoint"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", *first)) << slurp(dir / "coordinator0.log");
   const std::string endpoint = slurp(dir / "endpoint");
   std::vector<std::unique_ptr<Child>> nodes;
   for (int i = 0; i < 3; ++i)
