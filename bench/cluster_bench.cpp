@@ -76,6 +76,7 @@
 #include <zmq.hpp>
 
 #include "cluster/exchange.h"
+#include "cluster/worker.h"
 #include "cmd/embedded.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
@@ -180,7 +181,7 @@ ExchangeTimes time_exchange(zmq::context_t& context, const std::string& bind, ui
         report.set_grant_id(static_cast<uint64_t>(rep + 1));
         std::vector<std::string> bulk;
         for (uint32_t ch = 0; ch < c; ++ch) {
-          std::vector<double> v = flatten(std::span<const glm::dvec3>(sum).subspan(starts[ch], starts[ch + 1] - starts[ch]));
+          std::vector<double> v = cluster::flatten(std::span<const glm::dvec3>(sum).subspan(starts[ch], starts[ch + 1] - starts[ch]));
           report.add_chunks(ch);
           report.add_counts(static_cast<uint64_t>(rep + 1));
           bulk.push_back(proto::pack(v));
@@ -195,7 +196,7 @@ ExchangeTimes time_exchange(zmq::context_t& context, const std::string& bind, ui
         const auto& header = std::get<wire::Update>(u.header);
         std::size_t got = 0;
         for (int i = 0; i < header.chunks_size(); ++i) {
-          got += unflatten(proto::unpack(u.bulk[static_cast<std::size_t>(i)])).size();
+          got += cluster::unflatten(proto::unpack(u.bulk[static_cast<std::size_t>(i)])).size();
         }
         if (got != patches) fail("exchange bench: UPDATE carried {} patches, expected {}", got, patches);
         if (rep >= warmup) times.round_ms.push_back(1e3 * seconds_since(t0));

@@ -1,6 +1,7 @@
 // sirad: the coordinator's checkpoint file (see checkpoint.h).
 #include "cluster/checkpoint.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/atomic_file.h"
@@ -48,6 +49,49 @@ wire::Checkpoint read_checkpoint(const std::string& path) {
     fail("{}: {}", path, e.what());
   }
   return c;
+}
+
+wire::Checkpoint make_checkpoint(const RunSettings& s, const wire::Run& run, const PolicySnapshot& snapshot,
+                                 const CoordinatorRecord& record) {
+  wire::Checkpoint c;
+  c.set_magic(kCheckpointMagic);
+  c.set_version(kCheckpointVersion);
+  put_settings(c, s, run);
+  put_snapshot(c, snapshot);
+  for (std::size_t i = 0; i < record.nodes.size() && i < static_cast<std::size_t>(c.nodes_size()); ++i) {
+    wire::CheckpointNode* n = c.mutable_nodes(static_cast<int>(i));
+    n->set_name(record.nodes[i].name);
+    n->set_busy_s(record.nodes[i].busy_s);
+    n->set_idle_s(record.nodes[i].idle_s);
+    n->set_key(record.nodes[i].key);
+  }
+  c.set_elapsed_s(record.elapsed_s);
+  c.set_crossings(record.crossings);
+  c.set_bytes_in(record.bytes_in);
+  c.set_bytes_out(record.bytes_out);
+  c.set_final_bytes(record.final_bytes);
+  for (const std::string& k : record.quarantined_keys) c.add_quarantined_keys(k);
+  return c;
+}
+
+CoordinatorRecord resume_from(const wire::Checkpoint& c, wire::Run& run, Policy& policy) {
+  if (c.run().scene_hash() != run.scene_hash())
+    fail("the checkpoint is of scene {}, this scene meshes to {}", c.run().scene_hash(), run.scene_hash());
+  if (!std::equal(c.run().chunk_starts().begin(), c.run().chunk_starts().end(), run.chunk_starts().begin(),
+                  run.chunk_starts().end()))
+    fail("the checkpoint's chunks differ from this run's");
+  policy.restore(snapshot_of(c));
+  run.set_exchange_every(policy.exchange_every());
+  run.set_exchange_fraction(policy.fraction());
+  CoordinatorRecord r;
+  for (const wire::CheckpointNode& n : c.nodes()) r.nodes.push_back({n.name(), n.key(), n.busy_s(), n.idle_s()});
+  r.elapsed_s = c.elapsed_s();
+  r.crossings = c.crossings();
+  r.bytes_in = c.bytes_in();
+  r.bytes_out = c.bytes_out();
+  r.final_bytes = c.final_bytes();
+  r.quarantined_keys.insert(c.quarantined_keys().begin(), c.quarantined_keys().end());
+  return r;
 }
 
 void put_snapshot(wire::Checkpoint& c, const PolicySnapshot& s) {

@@ -5,6 +5,23 @@
 
 namespace sirad::cluster {
 
+std::vector<double> flatten(std::span<const glm::dvec3> values) {
+  std::vector<double> flat;
+  flat.reserve(3 * values.size());
+  for (const glm::dvec3& v : values) {
+    flat.push_back(v.x);
+    flat.push_back(v.y);
+    flat.push_back(v.z);
+  }
+  return flat;
+}
+
+std::vector<glm::dvec3> unflatten(std::span<const double> flat) {
+  std::vector<glm::dvec3> values(flat.size() / 3);
+  for (std::size_t j = 0; j < values.size(); ++j) values[j] = glm::dvec3(flat[3 * j], flat[3 * j + 1], flat[3 * j + 2]);
+  return values;
+}
+
 Worker::Worker(const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots, const RunSettings& settings, uint32_t index,
                std::span<const uint32_t> starts) {
   if (starts.empty() || starts.front() != 0) fail("the run's chunks do not start at patch 0");

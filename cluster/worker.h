@@ -22,6 +22,11 @@
 
 namespace sirad::cluster {
 
+// A chunk's state as the wire and the policy carry it (3 doubles per patch, rgb) from
+// per-patch values, and back (`flat.size()` must be a multiple of 3).
+std::vector<double> flatten(std::span<const glm::dvec3> values);
+std::vector<glm::dvec3> unflatten(std::span<const double> flat);
+
 class Worker {
  public:
   // Chain `index` of a run of `settings` on `mesh`. `starts`: the first patch of each chunk

@@ -130,7 +130,7 @@ std::string output_name(const std::string& out, const std::string& scene,
                         std::initializer_list<const char*> extensions = {".exr", ".png", ".ply", ".glb"}) {
   namespace fs = std::filesystem;
   std::string name = out.empty() ? fs::path(scene).stem().string() : out;
-  check_output_name(name);
+  check_output_name(name, "--out");
   std::error_code ec;
   if (fs::is_regular_file(scene, ec))
     for (const char* ext : extensions) {
@@ -154,7 +154,7 @@ Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, con
   Meshed m;
   m.scene = load_scene(spec, import);
   m.mesh = mesh_scene(m.scene, mesh_options);
-  SceneCheck check = check_scene(m.scene, m.mesh, given);
+  SceneCheck check = check_scene(m.scene, m.mesh, given, "--camera");
   for (const std::string& w : check.warnings) std::fprintf(stderr, "sirad: warning: %s\n", w.c_str());
   m.camera_from = check.camera_from;
   return m;

@@ -462,55 +462,38 @@ class Coordinator {
 
   // Everything accepted so far, into config_.checkpoint (atomically).
   void checkpoint() {
-    wire::Checkpoint c;
-    c.set_magic(kCheckpointMagic);
-    c.set_version(kCheckpointVersion);
-    put_settings(c, config_, run_);
-    put_snapshot(c, policy_.snapshot());
-    for (const Peer* p : all_peers()) {
-      wire::CheckpointNode* n = c.mutable_nodes(static_cast<int>(p->index));
-      n->set_name(p->name);
-      n->set_busy_s(p->busy_s);
-      n->set_idle_s(p->idle_s);
-      n->set_key(p->key);
-    }
-    c.set_elapsed_s(seconds(Clock::now() - start_));
-    c.set_crossings(crossings_);
-    c.set_bytes_in(bytes_in_);
-    c.set_bytes_out(bytes_out_);
-    c.set_final_bytes(final_bytes_);
-    for (const std::string& k : quarantined_keys_) c.add_quarantined_keys(k);
-    write_checkpoint(config_.checkpoint, c);
+    CoordinatorRecord r;
+    r.nodes.resize(policy_.nodes());
+    for (const Peer* p : all_peers()) r.nodes.at(p->index) = {p->name, p->key, p->busy_s, p->idle_s};
+    r.elapsed_s = seconds(Clock::now() - start_);
+    r.crossings = crossings_;
+    r.bytes_in = bytes_in_;
+    r.bytes_out = bytes_out_;
+    r.final_bytes = final_bytes_;
+    r.quarantined_keys = quarantined_keys_;
+    write_checkpoint(config_.checkpoint, make_checkpoint(config_, run_, policy_.snapshot(), r));
   }
 
   // A checkpointed run, continued: its nodes (departed: their processes rejoin as new nodes),
   // its ledger and counters; the scene and the chunks must be the same.
   void resume(const wire::Checkpoint& c) {
-    if (c.run().scene_hash() != mesh_.hash)
-      fail("the checkpoint is of scene {}, this scene meshes to {}", c.run().scene_hash(), mesh_.hash);
-    if (!std::equal(c.run().chunk_starts().begin(), c.run().chunk_starts().end(), run_.chunk_starts().begin(),
-                    run_.chunk_starts().end()))
-      fail("the checkpoint's chunks differ from this run's");
-    policy_.restore(snapshot_of(c));
-    run_.set_exchange_every(policy_.exchange_every());
-    run_.set_exchange_fraction(policy_.fraction());
-    for (int i = 0; i < c.nodes_size(); ++i) {
-      const wire::CheckpointNode& n = c.nodes(i);
+    CoordinatorRecord r = resume_from(c, run_, policy_);
+    for (std::size_t i = 0; i < r.nodes.size(); ++i) {
       Peer p;
       p.index = static_cast<uint32_t>(i);
       p.id = fmt::format("checkpointed-{}", i);
-      p.name = n.name();
-      p.key = n.key();
-      p.busy_s = n.busy_s();
-      p.idle_s = n.idle_s();
+      p.name = r.nodes[i].name;
+      p.key = r.nodes[i].key;
+      p.busy_s = r.nodes[i].busy_s;
+      p.idle_s = r.nodes[i].idle_s;
       departed_.push_back(std::move(p));
     }
-    resumed_s_ = c.elapsed_s();
-    crossings_ = c.crossings();
-    bytes_in_ = c.bytes_in();
-    bytes_out_ = c.bytes_out();
-    final_bytes_ = c.final_bytes();
-    quarantined_keys_.insert(c.quarantined_keys().begin(), c.quarantined_keys().end());
+    resumed_s_ = r.elapsed_s;
+    crossings_ = r.crossings;
+    bytes_in_ = r.bytes_in;
+    bytes_out_ = r.bytes_out;
+    final_bytes_ = r.final_bytes;
+    quarantined_keys_ = std::move(r.quarantined_keys);
     std::fprintf(stderr, "sirad-coordinator: resumed after %.1f s: %llu of %llu bundles done by %d nodes; the rest to run\n",
                  resumed_s_, static_cast<unsigned long long>(policy_.ledger().done_count()),
                  static_cast<unsigned long long>(config_.bundles), c.nodes_size());

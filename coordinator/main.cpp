@@ -79,7 +79,7 @@ int main(int argc, char** argv) {
   try {
     const std::set<std::string> given = cli::given_flags(&app);
     std::string out = output.out.empty() ? std::filesystem::path(scene_spec).stem().string() : output.out;
-    check_output_name(out);
+    check_output_name(out, "--out");
     if (!ledger.empty()) check_output_name(ledger, "--ledger");
     if (!checkpoint.empty()) check_output_name(checkpoint, "--checkpoint");
     cluster::RunConfig rc;
@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
     rc.checkpoint = checkpoint;
     rc.checkpoint_every_s = checkpoint_every;
     PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
-    const SceneCheck check = check_scene(rc.scene, mesh, cli::camera_flag(output.camera));
+    const SceneCheck check = check_scene(rc.scene, mesh, cli::camera_flag(output.camera), "--camera");
     if (resumed && resumed->run().scene_hash() != mesh.hash)
       fail("{}: the checkpoint is of scene {}; {} meshes to {} (the same file, --patches and --two-sided?)", resume,
            resumed->run().scene_hash(), scene_spec, mesh.hash);

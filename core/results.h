@@ -24,8 +24,9 @@ struct ResultFiles {
 // "wrote PATH" for each file, absolute, one a line.
 std::string wrote_lines(const ResultFiles& files);
 
-// Fails early, before any work, if NAME's directory does not exist or is not writable.
-void check_output_name(const std::string& name, const std::string& flag = "--out");
+// Fails early, before any work, if NAME's directory does not exist or is not writable; the
+// message names it by `flag` (what gave the name).
+void check_output_name(const std::string& name, const std::string& flag);
 
 // Renders the view of the mesh's camera and writes NAME.exr, .png, .ply and .glb atomically.
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,

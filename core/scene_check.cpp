@@ -60,12 +60,12 @@ std::vector<std::string> orientation_warnings(const Scene& scene, const PatchMes
     double sees = s.front_sees / s.area, enclosed = s.back_enclosed / s.area;
     if (s.emits && sees < 0.01)
       out.push_back(fmt::format("{} emits but lights nothing: {:.0f} % of the light leaving its front meets a back "
-                                "face or leaves the scene (turn it over, or use --two-sided)",
+                                "face or leaves the scene (turn it over, or make it two-sided)",
                                 name(key.first, key.second), 100 * (1 - sees)));
     else if (sees < 0.1 && enclosed > 0.9)
       out.push_back(fmt::format("{} looks inside out: the fronts of its faces see almost nothing ({:.0f} % of their "
-                                "rays meet a front face) while their backs are enclosed (flip its normals, or use "
-                                "--two-sided)",
+                                "rays meet a front face) while their backs are enclosed (flip its normals, or make "
+                                "it two-sided)",
                                 name(key.first, key.second), 100 * sees));
   }
   return out;
@@ -145,12 +145,12 @@ Camera choose_camera(const Scene& scene, const PatchMesh& mesh, const RayScene& 
 
 }  // namespace
 
-SceneCheck check_scene(const Scene& scene, PatchMesh& mesh, const std::optional<Camera>& camera) {
+SceneCheck check_scene(const Scene& scene, PatchMesh& mesh, const std::optional<Camera>& camera, const std::string& given_by) {
   SceneCheck out;
   out.warnings = scene.warnings;
   if (camera) {
     mesh.camera = camera;
-    out.camera_from = "--camera";
+    out.camera_from = given_by;
   } else if (mesh.camera) {
     out.camera_from = "the scene's";
   }

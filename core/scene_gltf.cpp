@@ -297,7 +297,7 @@ class GltfReader {
         glm::dvec3 e = glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]));
         if (!(glm::length(e) > 0.0)) {
           if (!options.skip_degenerate)
-            fail("{}: {}: degenerate triangle (zero area) with vertices {}, {}, {} (--skip-degenerate drops them)", path_,
+            fail("{}: {}: degenerate triangle (zero area) with vertices {}, {}, {} (skipping degenerate triangles drops them)", path_,
                  what, a, b, c);
           ++skipped_;
           return;

@@ -283,7 +283,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
       t.p = {positions[f.v[0]], positions[f.v[k]], positions[f.v[k + 1]]};
       t.material = it->second;
       if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) {
-        if (!options.skip_degenerate) fail("{}: face {}: degenerate triangle (zero area) (--skip-degenerate drops them)", path, i);
+        if (!options.skip_degenerate) fail("{}: face {}: degenerate triangle (zero area) (skipping degenerate triangles drops them)", path, i);
         ++skipped;
         continue;
       }

@@ -81,7 +81,7 @@ class ClShotEngine final : public ShotEngine {
     // the device does.
     if (capacity_ * static_cast<uint64_t>(bands) * sizeof(cl_uint) > max_alloc_)
       fail("first shot: {} triangles x {} bands of scratch exceed the device's largest buffer ({} MiB); "
-           "lower --shot-resolution or the patch count", capacity_, bands, max_alloc_ >> 20);
+           "lower the shot resolution or the patch count", capacity_, bands, max_alloc_ >> 20);
     params_host_.capacity = static_cast<sirad_u32>(capacity_);
     if (H != allocated_resolution_ || bands != allocated_bands_ || capacity_ != allocated_capacity_) {
       band_list_ = cl::Buffer(context_, CL_MEM_READ_WRITE, static_cast<std::size_t>(capacity_) * bands * sizeof(cl_uint));

@@ -54,11 +54,6 @@ ShotRange shots_of_step(double shots_per_bundle, uint64_t index);
 // that is neither 0 (auto) nor even in [4, 8192].
 void check_first_shot(double shots_per_bundle, int shot_resolution);
 
-// The cluster's chunk format (3 doubles per patch, rgb) from per-patch values, and back
-// (`flat.size()` must be a multiple of 3).
-std::vector<double> flatten(std::span<const glm::dvec3> values);
-std::vector<glm::dvec3> unflatten(std::span<const double> flat);
-
 // Burn-in that brings the chain's start-up bias below 1e-3 of its initial value:
 // the smallest k with rho_max^k < 1e-3, capped at 64 (0 for a scene that reflects nothing).
 int auto_burn_in(const PatchMesh& mesh);
