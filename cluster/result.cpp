@@ -61,4 +61,9 @@ std::string summary_line(std::size_t patches, uint64_t bundles, int grid, uint32
                      static_cast<double>(crossings) / s, extra);
 }
 
+std::string cluster_summary(const RunResult& r, std::size_t patches, double seconds) {
+  return node_lines(r) + traffic_line(r) + "\n" +
+         summary_line(patches, r.bundles, r.grid, static_cast<uint32_t>(r.nodes.size()), seconds, r.crossings) + "\n";
+}
+
 }  // namespace sirad::cluster

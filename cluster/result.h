@@ -69,4 +69,8 @@ std::string node_lines(const RunResult& result);
 std::string summary_line(std::size_t patches, uint64_t bundles, int grid, uint32_t nodes, double seconds, uint64_t crossings,
                          const std::string& extra = "");
 
+// A cluster run's summary as every driver prints it: node_lines, traffic_line, then
+// summary_line with the run's nodes and `seconds`.
+std::string cluster_summary(const RunResult& result, std::size_t patches, double seconds);
+
 }  // namespace sirad::cluster

@@ -207,10 +207,7 @@ int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, c
   };
   embedded::Outcome o = embedded::run(rc, m.mesh, eo);
   const cluster::RunResult& result = o.result;
-  std::fputs(cluster::node_lines(result).c_str(), stdout);
-  std::printf("%s\n", cluster::traffic_line(result).c_str());
-  std::printf("%s\n", cluster::summary_line(m.mesh.size(), result.bundles, result.grid, static_cast<uint32_t>(a.nodes),
-                                            o.coordinate_s, result.crossings).c_str());
+  std::fputs(cluster::cluster_summary(result, m.mesh.size(), o.coordinate_s).c_str(), stdout);
   return finish_line(result.ended_by, short_of, static_cast<int64_t>(result.bundles));
 }
 

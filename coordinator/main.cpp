@@ -174,10 +174,7 @@ int main(int argc, char** argv) {
       write_file_atomic(ledger, cluster::ledger_csv(result));
       std::printf("wrote %s\n", std::filesystem::absolute(ledger).c_str());
     }
-    std::fputs(cluster::node_lines(result).c_str(), stdout);
-    std::printf("%s\n", cluster::traffic_line(result).c_str());
-    std::printf("%s\n", cluster::summary_line(mesh.size(), result.bundles, result.grid, static_cast<uint32_t>(result.nodes.size()),
-                                            seconds, result.crossings).c_str());
+    std::fputs(cluster::cluster_summary(result, mesh.size(), seconds).c_str(), stdout);
     if (result.ended_by != "budget") std::printf("ended early: %s\n", result.ended_by.c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad-coordinator: error: %s\n", e.what());
