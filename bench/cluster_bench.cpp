@@ -308,7 +308,7 @@ struct ClusterRun {
 // The embedded driver (cmd/embedded.h), as `sirad render --nodes` runs it: the scene meshed
 // here, then the coordinator on this thread and `nodes` node threads; timed from before the
 // meshing to the end of the teardown.
-int g_node_poll_ms = 100;  // NodeOptions::poll_ms of the node threads (100: as render_embedded)
+int g_node_poll_ms = 100;  // NodeOptions::poll_ms of the node threads (100: as sirad render --nodes)
 
 ClusterRun run_cluster(cluster::RunConfig rc, int nodes, const std::string& device, int serial) {
   ClusterRun out;
