@@ -111,7 +111,7 @@ class Emulator {
     result_.real_s = seconds_since(real_start);
     result_.error_estimate = policy_.error_estimate();
     RunResult& r = result_.run;
-    RunResult known = policy_result(policy_, grid());
+    RunResult known = policy_result(policy_, run_grid(run_, mesh_));
     known.exchange_bytes_in = r.exchange_bytes_in;
     known.exchange_bytes_out = r.exchange_bytes_out;
     known.final_bytes = r.final_bytes;
@@ -146,8 +146,6 @@ class Emulator {
     result_.exchange_why = s.why;
     return s;
   }
-
-  int grid() const { return run_.grid == 0 ? auto_grid(mesh_) : run_.grid; }
 
   void at(double t, std::function<void()> fn) { events_.push({t, seq_++, std::move(fn)}); }
   void log(uint32_t n, const char* what, uint64_t bundles) { result_.timeline.push_back({now_, n, what, bundles}); }

@@ -21,11 +21,13 @@ void check(const RunSettings& s) {
   if (!(s.target_error >= 0 && s.target_error <= 1)) fail("target error {} is outside [0, 1]", s.target_error);
 }
 
+int run_grid(const RunSettings& s, const PatchMesh& mesh) { return s.grid == 0 ? auto_grid(mesh) : s.grid; }
+
 wire::Run to_wire(const RunSettings& s, const PatchMesh& mesh, const std::vector<uint32_t>& chunk_starts) {
   wire::Run run;
   run.set_scene_hash(mesh.hash);
   run.set_seed(s.seed);
-  run.set_grid(static_cast<uint32_t>(s.grid == 0 ? auto_grid(mesh) : s.grid));
+  run.set_grid(static_cast<uint32_t>(run_grid(s, mesh)));
   run.set_rule(to_string(s.rule));
   run.set_burn_in(s.burn_in);
   run.set_directions(to_string(s.directions));
@@ -83,7 +85,7 @@ void put_settings(wire::Checkpoint& c, const RunSettings& s, const wire::Run& ru
 SolverOptions solver_options(const RunSettings& s, const PatchMesh& mesh, uint64_t chain_id) {
   SolverOptions so;
   so.seed = s.seed;
-  so.grid = s.grid == 0 ? auto_grid(mesh) : s.grid;
+  so.grid = run_grid(s, mesh);
   so.rule = s.rule;
   so.burn_in = s.burn_in;
   so.directions = s.directions;

@@ -58,6 +58,9 @@ struct RunSettings {
 // outside (0, 1], no chunks, a negative time limit or a target outside [0, 1].
 void check(const RunSettings& s);
 
+// The grid the run uses on `mesh`: s.grid, or auto_grid(mesh) where it is 0.
+int run_grid(const RunSettings& s, const PatchMesh& mesh);
+
 // The wire Run of `s` on `mesh` (scene hash, grid as resolved, chunk starts, patches); the
 // run id is the coordinator's to set. And back: the settings a Run carries (a node's WELCOME,
 // a checkpoint), checked; throws sirad::Error for a rule, directions, topology or mode it does

@@ -2,6 +2,8 @@
 #include "cluster/single_node.h"
 
 #include <chrono>
+#include <string>
+#include <utility>
 
 #include "cluster/policy.h"
 
@@ -26,9 +28,10 @@ SingleRun run_single(Solver& solver, const RunSettings& s, const std::atomic<boo
     const double t = elapsed();
     if (progress) progress(r.bundles, t);
     const bool look = rule.wants_estimate() && r.bundles % 16 == 0 && solver.error_estimate_ready();
-    r.ended_by = rule.check(t, look ? solver.error_estimate() : -1.0);
-    if (!r.ended_by.empty()) break;
-    r.ended_by = "budget";
+    if (std::string why = rule.check(t, look ? solver.error_estimate() : -1.0); !why.empty()) {
+      r.ended_by = std::move(why);
+      break;
+    }
   }
   if (progress && r.bundles == s.bundles) progress(r.bundles, elapsed());
   r.seconds = elapsed();

@@ -69,7 +69,7 @@ class Coordinator {
   }
 
   RunResult run() {
-    start_ = Clock::now() - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(resumed_s_));
+    start_ = Clock::now() - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(record_.elapsed_s));
     auto last_status = Clock::now(), last_checkpoint = Clock::now();
     while (!policy_.done()) {
       auto now = Clock::now();
@@ -121,7 +121,7 @@ class Coordinator {
         error(id, e.what(), dynamic_cast<const Rejoin*>(&e) != nullptr);
         // A quarantine sticks to the node's key (under CURVE), not only to its routing id.
         if (auto it = peers_.find(id); it != peers_.end() && policy_.node(it->second.index).quarantined && !key.empty())
-          quarantined_keys_.insert(key);
+          record_.quarantined_keys.insert(key);
       }
     }
     // FINAL is in from every live node; let the last shaped messages (STOPs) go out.
@@ -133,10 +133,10 @@ class Coordinator {
       result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why});
       for (const Range& r : policy_.ledger().done_by(p->index)) result.ledger.push_back({p->index, p->name, r});
     }
-    result.exchange_bytes_in = bytes_in_;
-    result.exchange_bytes_out = bytes_out_;
-    result.final_bytes = final_bytes_;
-    result.crossings = crossings_;
+    result.exchange_bytes_in = record_.bytes_in;
+    result.exchange_bytes_out = record_.bytes_out;
+    result.final_bytes = record_.final_bytes;
+    result.crossings = record_.crossings;
     return result;
   }
 
@@ -184,8 +184,8 @@ class Coordinator {
     s.elapsed_s = seconds(now - start_);
     s.error_estimate = policy_.error_estimate();
     s.exchanges = policy_.exchanges();
-    s.bytes_in = bytes_in_;
-    s.bytes_out = bytes_out_;
+    s.bytes_in = record_.bytes_in;
+    s.bytes_out = record_.bytes_out;
     s.exchange_every = policy_.exchange_every() == kExchangeAuto ? 0 : policy_.exchange_every();
     s.exchange_fraction = policy_.fraction();
     s.mode = config_.mode == Mode::sync ? "sync" : "async";
@@ -270,7 +270,7 @@ class Coordinator {
 
   void handle(const std::string& id, const std::string& key, const Message& m) {
     if (m.command == Command::hello) {
-      if (!key.empty() && quarantined_keys_.count(key)) fail("HELLO from the key of a quarantined node: refused");
+      if (!key.empty() && record_.quarantined_keys.count(key)) fail("HELLO from the key of a quarantined node: refused");
       return hello(id, key, std::get<wire::Hello>(m.header));
     }
     auto it = peers_.find(id);
@@ -420,12 +420,12 @@ class Coordinator {
       }
       x = policy_.report(p.index, r.grant_id(), done, std::move(chunks), refused.empty() ? r.error_estimate() : 0.0);
       if (!refused.empty()) throw Error(refused);
-      bytes_in_ += bytes;
+      record_.bytes_in += bytes;
     } catch (const Error&) {
       schedule();  // refused (the caller logs it and answers ERROR); the others go on
       throw;
     }
-    crossings_ += r.crossings();
+    record_.crossings += r.crossings();
     // Its speed as it runs, for balanced grants: busy time (emulated slowdown included) over
     // bundles since its first report (the first grant carries the kernels' compilation).
     if (uint64_t b = policy_.node(p.index).bundles; b > 0) {
@@ -443,7 +443,7 @@ class Coordinator {
         u.add_chunks(x->chunks[i]);
         u.add_counts(x->parts[i].count);
         frames.push_back(proto::pack(x->parts[i].sum));
-        bytes_out_ += frames.back().size();
+        record_.bytes_out += frames.back().size();
       }
       send(p, {Command::update, u, frames});
     }
@@ -453,7 +453,7 @@ class Coordinator {
   void final_state(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
     if (!policy_.node(p.index).stopped) fail("FINAL without STOP");
     try {
-      policy_.final_state(p.index, chunk_states(p, r, bulk, final_bytes_));
+      policy_.final_state(p.index, chunk_states(p, r, bulk, record_.final_bytes));
     } catch (const Error&) {
       schedule();  // a quarantine gave bundles back
       throw;
@@ -462,22 +462,18 @@ class Coordinator {
 
   // Everything accepted so far, into config_.checkpoint (atomically).
   void checkpoint() {
-    CoordinatorRecord r;
+    CoordinatorRecord r = record_;
     r.nodes.resize(policy_.nodes());
     for (const Peer* p : all_peers()) r.nodes.at(p->index) = {p->name, p->key, p->busy_s, p->idle_s};
     r.elapsed_s = seconds(Clock::now() - start_);
-    r.crossings = crossings_;
-    r.bytes_in = bytes_in_;
-    r.bytes_out = bytes_out_;
-    r.final_bytes = final_bytes_;
-    r.quarantined_keys = quarantined_keys_;
     write_checkpoint(config_.checkpoint, make_checkpoint(config_, run_, policy_.snapshot(), r));
   }
 
   // A checkpointed run, continued: its nodes (departed: their processes rejoin as new nodes),
   // its ledger and counters; the scene and the chunks must be the same.
   void resume(const wire::Checkpoint& c) {
-    CoordinatorRecord r = resume_from(c, run_, policy_);
+    record_ = resume_from(c, run_, policy_);
+    const CoordinatorRecord& r = record_;
     for (std::size_t i = 0; i < r.nodes.size(); ++i) {
       Peer p;
       p.index = static_cast<uint32_t>(i);
@@ -488,14 +484,8 @@ class Coordinator {
       p.idle_s = r.nodes[i].idle_s;
       departed_.push_back(std::move(p));
     }
-    resumed_s_ = r.elapsed_s;
-    crossings_ = r.crossings;
-    bytes_in_ = r.bytes_in;
-    bytes_out_ = r.bytes_out;
-    final_bytes_ = r.final_bytes;
-    quarantined_keys_ = std::move(r.quarantined_keys);
     std::fprintf(stderr, "sirad-coordinator: resumed after %.1f s: %llu of %llu bundles done by %d nodes; the rest to run\n",
-                 resumed_s_, static_cast<unsigned long long>(policy_.ledger().done_count()),
+                 record_.elapsed_s, static_cast<unsigned long long>(policy_.ledger().done_count()),
                  static_cast<unsigned long long>(config_.bundles), c.nodes_size());
   }
 
@@ -507,10 +497,10 @@ class Coordinator {
   wire::Run run_;
   std::map<std::string, Peer> peers_;
   std::vector<Peer> departed_;
-  std::set<std::string> quarantined_keys_;
-  double resumed_s_ = 0;  // the run's time before a resume
+  // The run's counters and quarantined keys (what a checkpoint keeps besides the policy and the
+  // peers); elapsed_s: the run's time before a resume.
+  CoordinatorRecord record_;
   Clock::time_point start_ = Clock::now();
-  uint64_t bytes_in_ = 0, bytes_out_ = 0, final_bytes_ = 0, crossings_ = 0;
 };
 
 }  // namespace
