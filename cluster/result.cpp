@@ -27,6 +27,33 @@ RunResult policy_result(const Policy& p, int grid) {
   return r;
 }
 
+Status policy_status(const Policy& p, const RunSettings& settings, bool last) {
+  Status s;
+  s.target_error = settings.target_error;
+  if (last) {
+    s.ended_by = p.ended_by().empty() ? "budget" : p.ended_by();
+    if (s.ended_by == "budget" && settings.target_error > 0) s.ended_by = "bundle cap reached short of the target error";
+  }
+  s.bundles_done = p.ledger().done_count();
+  s.bundles = settings.bundles;
+  s.error_estimate = p.error_estimate();
+  s.exchanges = p.exchanges();
+  s.exchange_every = p.exchange_every() == kExchangeAuto ? 0 : p.exchange_every();
+  s.exchange_fraction = p.fraction();
+  s.mode = settings.mode == Mode::sync ? "sync" : "async";
+  s.topology = settings.topology == Topology::star ? "star" : "ring";
+  for (uint32_t i = 0; i < p.nodes(); ++i) {
+    const NodeState& ns = p.node(i);
+    Status::Node n;
+    n.state = ns.state();
+    n.why = ns.why;
+    n.bundles = ns.bundles;
+    n.exchanges = ns.exchanges;
+    s.nodes.push_back(std::move(n));
+  }
+  return s;
+}
+
 std::string traffic_line(const RunResult& r) {
   uint64_t e = std::max<uint64_t>(r.exchanges, 1);
   return fmt::format("exchange traffic: {} exchanges, {} B up, {} B down ({} B up, {} B down per exchange); final states {} B",

@@ -9,6 +9,7 @@
 
 #include "cluster/exchange.h"
 #include "cluster/settings.h"
+#include "cluster/status.h"
 
 namespace sirad::cluster {
 
@@ -52,6 +53,11 @@ RunOutcome outcome_of(const RunResult& result);
 // ended, its error estimate and the exchange setting in force; `grid` as run. The driver adds
 // its nodes, ledger, traffic and crossings.
 RunResult policy_result(const Policy& policy, int grid);
+// What the policy of a run of `s` knows of it now, as a Status: bundles, the error estimate,
+// the exchange setting in force, and a node per policy index with its state, bundles,
+// exchanges and why; `last`: the run has ended (ended_by says how). The driver adds the
+// elapsed time, the traffic and what only it knows of each node (name, device, times, rate).
+Status policy_status(const Policy& policy, const RunSettings& s, bool last);
 
 // "exchange traffic: E exchanges, X B up, Y B down (x B up, y B down per exchange); final
 // states Z B" (bulk bytes: 24 per patch of each chunk sent).

@@ -173,38 +173,20 @@ class Coordinator {
   // The status now; `last`: the run's last, which says how it ended.
   Status snapshot(bool last = false) const {
     auto now = Clock::now();
-    Status s;
-    s.target_error = config_.target_error;
-    if (last) {
-      s.ended_by = policy_.ended_by().empty() ? "budget" : policy_.ended_by();
-      if (s.ended_by == "budget" && config_.target_error > 0) s.ended_by = "bundle cap reached short of the target error";
-    }
-    s.bundles_done = policy_.ledger().done_count();
-    s.bundles = config_.bundles;
+    Status s = policy_status(policy_, config_, last);
     s.elapsed_s = seconds(now - start_);
-    s.error_estimate = policy_.error_estimate();
-    s.exchanges = policy_.exchanges();
     s.bytes_in = record_.bytes_in;
     s.bytes_out = record_.bytes_out;
-    s.exchange_every = policy_.exchange_every() == kExchangeAuto ? 0 : policy_.exchange_every();
-    s.exchange_fraction = policy_.fraction();
-    s.mode = config_.mode == Mode::sync ? "sync" : "async";
-    s.topology = config_.topology == Topology::star ? "star" : "ring";
     for (const Peer* p : all_peers()) {
       const NodeState& ns = policy_.node(p->index);
-      Status::Node n;
+      Status::Node& n = s.nodes.at(p->index);
       n.name = p->name;
       n.device = p->device;
-      n.state = ns.state();
-      n.why = ns.why;
-      n.bundles = ns.bundles;
-      n.exchanges = ns.exchanges;
       n.last_seen_s = seconds(now - p->last_seen);
       double up = ns.ready ? seconds(now - p->ready_at) : 0.0;
       n.rate = up > 0 ? static_cast<double>(ns.bundles) / up : 0.0;
       n.busy_s = p->busy_s;
       n.idle_s = p->idle_s;
-      s.nodes.push_back(n);
     }
     return s;
   }

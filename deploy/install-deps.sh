@@ -19,6 +19,8 @@ packages=(
   # tests and benchmarks; docker-compose only validates deploy/docker-compose.yml (no engine);
   # iproute2 (ip, tc) runs the namespace cluster; gnuplot-nox draws bench/paper's figures
   libgtest-dev libgmock-dev libbenchmark-dev docker-compose iproute2 gnuplot-nox
+  # the hostile-peer tests: a SIRAD/1 client in Python (pyzmq, protobuf from protoc --python_out)
+  python3-zmq python3-protobuf
 )
 
 missing=()
