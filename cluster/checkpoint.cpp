@@ -3,6 +3,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string_view>
+
+#include <xxhash.h>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
@@ -10,39 +13,97 @@
 
 namespace sirad::cluster {
 
+namespace {
+
+// The file: kFileMagic, the format version (u32), the XXH3-64 of the payload (u64), then the
+// payload, a serialised wire::Checkpoint; integers little-endian.
+constexpr std::string_view kFileMagic = "SIRADCKP";
+constexpr std::size_t kHeaderBytes = kFileMagic.size() + 4 + 8;
+// The largest checkpoint read: 24 bytes per patch per node, so this holds, for example, a
+// million patches on 700 nodes.
+constexpr std::size_t kMaxCheckpointBytes = std::size_t{16} << 30;
+constexpr std::size_t kMaxCheckpointText = 4096;  // a name, a reason, how the run ended
+constexpr std::size_t kMaxCheckpointNodes = 1 << 16;
+
+template <typename T>
+void put_le(std::string& out, T v) {
+  for (std::size_t i = 0; i < sizeof(T); ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xff));
+}
+template <typename T>
+T get_le(std::string_view in) {
+  T v = 0;
+  for (std::size_t i = 0; i < sizeof(T); ++i) v |= static_cast<T>(static_cast<unsigned char>(in[i])) << (8 * i);
+  return v;
+}
+
+}  // namespace
+
+std::string frame_checkpoint(std::string_view payload) {
+  std::string bytes(kFileMagic);
+  put_le<uint32_t>(bytes, kCheckpointVersion);
+  put_le<uint64_t>(bytes, XXH3_64bits(payload.data(), payload.size()));
+  bytes += payload;
+  return bytes;
+}
+
 void write_checkpoint(const std::string& path, const wire::Checkpoint& c) {
-  std::string bytes;
-  if (!c.SerializeToString(&bytes)) fail("{}: cannot encode the checkpoint", path);
-  write_file_atomic(path, bytes);
+  std::string payload;
+  if (!c.SerializeToString(&payload)) fail("{}: cannot encode the checkpoint", path);
+  write_file_atomic(path, frame_checkpoint(payload));
 }
 
 wire::Checkpoint read_checkpoint(const std::string& path) {
+  return decode_checkpoint(read_file_whole(path, "checkpoint", kMaxCheckpointBytes), path);
+}
+
+wire::Checkpoint decode_checkpoint(std::string_view all, const std::string& path) {
+  if (all.size() < kHeaderBytes || all.substr(0, kFileMagic.size()) != kFileMagic) fail("{}: not a sirad checkpoint", path);
+  if (uint32_t v = get_le<uint32_t>(all.substr(kFileMagic.size())); v != kCheckpointVersion)
+    fail("{}: checkpoint version {}; this sirad reads version {}", path, v, kCheckpointVersion);
+  const std::string_view payload = all.substr(kHeaderBytes);
+  if (get_le<uint64_t>(all.substr(kFileMagic.size() + 4)) != XXH3_64bits(payload.data(), payload.size()))
+    fail("{}: the checkpoint is damaged (its checksum does not match its contents)", path);
   wire::Checkpoint c;
-  if (!c.ParseFromString(read_file_whole(path, "checkpoint")) || c.magic() != kCheckpointMagic)
-    fail("{}: not a sirad checkpoint", path);
+  if (!c.ParseFromArray(payload.data(), static_cast<int>(payload.size())) || c.magic() != kCheckpointMagic)
+    fail("{}: not a sirad checkpoint (the contents do not decode)", path);
   if (c.version() != kCheckpointVersion)
     fail("{}: checkpoint version {}; this sirad reads version {}", path, c.version(), kCheckpointVersion);
+  // Every field within what a run of this sirad can have, as the wire decoder checks a message.
+  RunSettings settings;
+  try {
+    settings = settings_of(c);  // the run's settings and its chunks (from_wire, check)
+  } catch (const Error& e) {
+    fail("{}: {}", path, e.what());
+  }
   const wire::Run& run = c.run();
   const uint32_t chunks = static_cast<uint32_t>(run.chunk_starts_size());
-  if (run.patches() == 0 || chunks == 0 || chunks > proto::kMaxChunks || run.chunk_starts(0) != 0)
-    fail("{}: the run's chunks are malformed", path);
-  for (uint32_t i = 1; i < chunks; ++i)
-    if (run.chunk_starts(static_cast<int>(i)) <= run.chunk_starts(static_cast<int>(i) - 1) ||
-        run.chunk_starts(static_cast<int>(i)) >= run.patches())
-      fail("{}: chunk {} starts out of order", path, i);
-  if (run.bundles() == 0 || !(run.exchange_fraction() > 0 && run.exchange_fraction() <= 1) ||
-      run.exchange_every() == kExchangeAuto)
-    fail("{}: the run's bundles or exchange setting are invalid", path);
+  if (run.exchange_every() == kExchangeAuto) fail("{}: the run's exchange period is 'auto', not the period it ran", path);
+  auto seconds_ok = [](double t) { return t >= 0 && t <= kMaxSeconds; };
+  auto text_ok = [](const std::string& t) { return t.size() <= kMaxCheckpointText; };
+  if (!seconds_ok(c.elapsed_s())) fail("{}: elapsed time {:.6g} s is outside 0..{:.0e} s", path, c.elapsed_s(), kMaxSeconds);
+  if (!text_ok(c.ended_by()) || !text_ok(c.exchange_why())) fail("{}: a text field is over {} bytes", path, kMaxCheckpointText);
+  if (c.nodes_size() > static_cast<int>(kMaxCheckpointNodes)) fail("{}: {} nodes (at most {})", path, c.nodes_size(), kMaxCheckpointNodes);
+  for (const std::string& k : c.quarantined_keys())
+    if (k.size() > 64) fail("{}: a quarantined key of {} bytes (a CURVE key has 40)", path, k.size());
   for (int n = 0; n < c.nodes_size(); ++n) {
     const wire::CheckpointNode& node = c.nodes(n);
     if (node.counts_size() != static_cast<int>(chunks) || node.sums().size() != 24 * static_cast<std::size_t>(run.patches()))
-      fail("{}: node {} ({}) has {} counts and {} bytes of sums for {} chunks of {} patches", path, n, node.name(),
-           node.counts_size(), node.sums().size(), chunks, run.patches());
+      fail("{}: node {} has {} counts and {} bytes of sums for {} chunks of {} patches", path, n, node.counts_size(),
+           node.sums().size(), chunks, run.patches());
+    if (node.bundles() > run.bundles() || node.error_bundles() > node.bundles())
+      fail("{}: node {} counts {} bundles ({} at its error estimate) of the run's {}", path, n, node.bundles(),
+           node.error_bundles(), run.bundles());
+    for (uint64_t count : node.counts())
+      if (count > node.bundles()) fail("{}: node {} has a chunk of {} bundles, more than its {}", path, n, count, node.bundles());
+    if (!(std::isfinite(node.error()) && node.error() <= 1e6)) fail("{}: node {} has error estimate {:.6g}", path, n, node.error());
+    if (!seconds_ok(node.busy_s()) || !seconds_ok(node.idle_s()))
+      fail("{}: node {} has busy {:.6g} s, idle {:.6g} s (each in 0..{:.0e} s)", path, n, node.busy_s(), node.idle_s(), kMaxSeconds);
+    if (!text_ok(node.name()) || !text_ok(node.why()) || node.key().size() > 64)
+      fail("{}: node {} has a name, reason or key over its size", path, n);
     for (const wire::Range& r : node.done())
       if (r.last() <= r.first() || r.last() > run.bundles())
         fail("{}: node {} ran bundles [{}, {}) outside 0..{}", path, n, r.first(), r.last(), run.bundles());
   }
-  if (!std::isfinite(c.elapsed_s()) || c.elapsed_s() < 0) fail("{}: elapsed time {} is invalid", path, c.elapsed_s());
   try {
     snapshot_of(c);  // the ledger's ranges disjoint, the sums finite and within their counts
   } catch (const Error& e) {

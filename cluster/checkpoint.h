@@ -2,10 +2,12 @@
 // coordinator that stops (SIGTERM, a crash, a reboot) can be resumed with `--resume FILE`:
 // the run's settings and scene hash, every node's last state per chunk (sums and counts), its
 // counters and the ledger's record of the bundles it ran, and the run's counters. The file is a
-// protobuf message (wire::Checkpoint in proto/sirad.proto), replaced atomically.
+// protobuf message (wire::Checkpoint in proto/sirad.proto) behind a header with its format
+// version and XXH3-64 checksum (PROTOCOL.md section 10), replaced atomically.
 #pragma once
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "cluster/policy.h"
@@ -15,16 +17,23 @@
 namespace sirad::cluster {
 
 inline constexpr const char* kCheckpointMagic = "sirad checkpoint";
-inline constexpr uint32_t kCheckpointVersion = 1;
+inline constexpr uint32_t kCheckpointVersion = 2;
 
 // Writes `c` to `path` atomically (a temporary renamed over it): a crash mid-write leaves the
 // previous checkpoint whole.
 void write_checkpoint(const std::string& path, const wire::Checkpoint& c);
 
-// Reads a checkpoint and checks it hangs together (magic, version, chunk boundaries, every
-// node's counts and sums sized to the run, bundle ranges within the budget); anything else is
-// one error naming the file and what is wrong.
+// Reads a checkpoint (a regular file of at most 16 GiB) and checks it whole: magic, version
+// and checksum (any damaged byte is refused), then every field within what a run can have
+// (the settings as check() and from_wire take them, counts within the node's bundles and the
+// budget, ranges within the budget and disjoint, times finite and within kMaxSeconds, sums
+// finite and within their counts, texts and keys within their sizes); anything else is one
+// error naming the file and what is wrong.
 wire::Checkpoint read_checkpoint(const std::string& path);
+// The same for a file's bytes (`label` names it in errors), and the file's bytes of a
+// serialised wire::Checkpoint (the header before it: the fuzz target frames its inputs so).
+wire::Checkpoint decode_checkpoint(std::string_view bytes, const std::string& label);
+std::string frame_checkpoint(std::string_view payload);
 
 // What the coordinator keeps of a run besides the policy's state: per node (by index) its name,
 // CURVE key and times; the run's counters; the keys it quarantined.

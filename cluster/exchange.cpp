@@ -12,13 +12,13 @@ namespace sirad::cluster {
 Topology parse_topology(const std::string& s) {
   if (s == "star") return Topology::star;
   if (s == "ring") return Topology::ring;
-  fail("--topology: '{}' is not star or ring", s);
+  fail("topology '{}' is not star or ring", s);
 }
 
 Mode parse_mode(const std::string& s) {
   if (s == "sync") return Mode::sync;
   if (s == "async") return Mode::async;
-  fail("--mode: '{}' is not sync or async", s);
+  fail("mode '{}' is not sync or async", s);
 }
 
 uint32_t parse_exchange_every(const std::string& s) {

@@ -231,14 +231,25 @@ void StatusReporter::operator()(const Status& s) {
   last_ = s;
   view_.update(s);
   if (!json_.empty() && (json_at_ < 0 || s.elapsed_s - json_at_ >= 1.0)) {
-    write_status(json_, s);
+    write_json(s);
     json_at_ = s.elapsed_s;
   }
 }
 
 void StatusReporter::finish() {
   view_.finish(last_);
-  if (!json_.empty()) write_status(json_, last_);
+  if (!json_.empty()) write_json(last_);
+}
+
+void StatusReporter::write_json(const Status& s) {
+  try {
+    write_status(json_, s);
+    if (failing_) std::fprintf(stderr, "sirad: --status-json %s written again\n", json_.c_str());
+    failing_ = false;
+  } catch (const std::exception& e) {
+    if (!failing_) std::fprintf(stderr, "sirad: --status-json not written (%s); the run goes on\n", e.what());
+    failing_ = true;
+  }
 }
 
 }  // namespace sirad::cluster

@@ -46,7 +46,9 @@ class LiveView {
 
 // What a cluster driver (sirad render --nodes, sirad-coordinator) does with each Status: the
 // live view on stderr and, if asked, --status-json rewritten at most once a second; finish()
-// draws the last frame and writes the file with the last status.
+// draws the last frame and writes the file with the last status. The file is best effort: a
+// write that fails (a full disk, a directory in its place) is said once on stderr, and the run
+// goes on; the previous file stays whole (written atomically).
 class StatusReporter {
  public:
   StatusReporter(bool quiet, std::string json_path) : view_(stderr, quiet), json_(std::move(json_path)) {}
@@ -55,8 +57,11 @@ class StatusReporter {
 
  private:
   LiveView view_;
+  void write_json(const Status& s);
+
   std::string json_;
   double json_at_ = -1;
+  bool failing_ = false;  // the last write failed (said once until one succeeds)
   Status last_;
 };
 

@@ -2,6 +2,7 @@
 #include "cluster/policy.h"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -168,6 +169,16 @@ uint64_t Policy::grant_size() const {
 
 void Policy::set_bundle_time(uint32_t n, double seconds) {
   bundle_time_.at(n) = std::isfinite(seconds) && seconds > 0 ? seconds : 0.0;
+}
+
+double Policy::grant_time_bound(uint32_t n, uint64_t bundles, double claimed_s) const {
+  constexpr double kSlack = 8, kSpread = 16, kMaxBundleS = 10;
+  double t = bundle_time_.at(n) > 0 ? bundle_time_[n] : std::isfinite(claimed_s) && claimed_s > 0 ? claimed_s : 1.0;
+  double fastest = std::numeric_limits<double>::infinity();
+  for (uint32_t m = 0; m < nodes(); ++m)
+    if (!nodes_[m].dead && nodes_[m].ready && bundle_time_[m] > 0) fastest = std::min(fastest, bundle_time_[m]);
+  t = std::min({t, kSpread * fastest, kMaxBundleS});
+  return kSlack * static_cast<double>(bundles) * t;
 }
 
 uint64_t Policy::grant_size(uint32_t n) const {

@@ -231,6 +231,13 @@ class Policy {
   // Node n's seconds per bundle, as its driver measures it (READY, then busy / bundles of its
   // reports); <= 0 or non-finite: unknown.
   void set_bundle_time(uint32_t n, double seconds);
+  // The longest node n may honestly take for a grant of `bundles`: 8 times them at its bundle
+  // time (as measured, else `claimed_s`, what its READY said; unknown: 1 s), that time taken
+  // at most 16 times the fastest ready node's measured one (balanced grants assume no larger
+  // spread) and at most 10 s. The driver adds its liveness window, and declares a node whose
+  // grant is out longer than that dead (dead(): the grant goes back to the budget), so a node
+  // that heartbeats but never reports cannot stall the run.
+  double grant_time_bound(uint32_t n, uint64_t bundles, double claimed_s) const;
   const Ledger& ledger() const { return ledger_; }
   const Aggregate& aggregate() const { return aggregate_; }
   const std::vector<uint32_t>& starts() const { return starts_; }

@@ -14,11 +14,18 @@ void check(const RunSettings& s) {
   if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
     fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
   check_first_shot(s.shots_per_bundle, s.shot_resolution);
-  if (s.bundles == 0) fail("a run needs at least one bundle");
+  if (s.bundles == 0 || s.bundles > kMaxBundles) fail("bundles {} is outside 1..{}", s.bundles, kMaxBundles);
+  if (s.grid != 0 && (s.grid < 2 || s.grid > kMaxGrid)) fail("grid {} is outside 2..{} (0: auto)", s.grid, kMaxGrid);
+  if (s.burn_in < -1 || s.burn_in > kMaxBurnIn) fail("burn-in {} is outside 0..{} (-1: auto)", s.burn_in, kMaxBurnIn);
   if (!(s.fraction > 0 && s.fraction <= 1)) fail("exchange fraction {} is outside (0, 1]", s.fraction);
-  if (s.chunks == 0) fail("a run needs at least one chunk");
-  if (!(s.time_limit_s >= 0) || !std::isfinite(s.time_limit_s)) fail("time limit {} is invalid", s.time_limit_s);
+  if (s.chunks == 0 || s.chunks > proto::kMaxChunks) fail("chunks {} is outside 1..{}", s.chunks, proto::kMaxChunks);
+  if (!(s.time_limit_s >= 0 && s.time_limit_s <= kMaxSeconds))
+    fail("time limit {:.6g} s is outside 0..{:.0e} s", s.time_limit_s, kMaxSeconds);
   if (!(s.target_error >= 0 && s.target_error <= 1)) fail("target error {} is outside [0, 1]", s.target_error);
+  if (s.mesh_options.target_patches > kMaxTargetPatches)
+    fail("target patches {} is above {}", s.mesh_options.target_patches, kMaxTargetPatches);
+  if (!(s.mesh_options.max_edge >= 0) || !std::isfinite(s.mesh_options.max_edge))
+    fail("max edge {:.6g} is not a finite length >= 0", s.mesh_options.max_edge);
 }
 
 int run_grid(const RunSettings& s, const PatchMesh& mesh) { return s.grid == 0 ? auto_grid(mesh) : s.grid; }
@@ -47,6 +54,15 @@ wire::Run to_wire(const RunSettings& s, const PatchMesh& mesh, const std::vector
 }
 
 RunSettings from_wire(const wire::Run& r) {
+  const uint32_t chunks = static_cast<uint32_t>(r.chunk_starts_size());
+  if (r.patches() == 0) fail("the run has no patches");
+  if (chunks == 0 || chunks > proto::kMaxChunks || r.chunk_starts(0) != 0)
+    fail("the run's {} chunks are not 1..{} starting at patch 0", chunks, proto::kMaxChunks);
+  for (uint32_t i = 1; i < chunks; ++i)
+    if (r.chunk_starts(static_cast<int>(i)) <= r.chunk_starts(static_cast<int>(i) - 1) ||
+        r.chunk_starts(static_cast<int>(i)) >= r.patches())
+      fail("chunk {} starts at patch {}: out of order (it must be after chunk {}'s and below the {} patches)", i,
+           r.chunk_starts(static_cast<int>(i)), i - 1, r.patches());
   RunSettings s;
   s.bundles = r.bundles();
   s.seed = r.seed();
@@ -64,6 +80,7 @@ RunSettings from_wire(const wire::Run& r) {
   s.chunks = static_cast<uint32_t>(r.chunk_starts_size());
   s.mesh_options.target_patches = r.target_patches();
   s.mesh_options.max_edge = r.max_edge();
+  check(s);
   return s;
 }
 
@@ -72,6 +89,7 @@ RunSettings settings_of(const wire::Checkpoint& c) {
   s.balance = c.balance();
   s.time_limit_s = c.time_limit_s();
   s.target_error = c.target_error();
+  check(s);
   return s;
 }
 

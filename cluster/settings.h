@@ -53,9 +53,20 @@ struct RunSettings {
   double target_error = 0;      // 0: none; else the run ends once the error estimate is at or below it
 };
 
+// The bounds of every run's settings, whoever gives them (a flag, a WELCOME, a checkpoint):
+// far beyond what a run needs, and what the engines and the policy are sized for, so no
+// message or file can make a process allocate or loop beyond them.
+inline constexpr int kMaxGrid = 8192;                   // lines per side: 67 M lines a bundle
+inline constexpr int kMaxBurnIn = 1 << 20;              // bundles
+inline constexpr uint64_t kMaxBundles = uint64_t{1} << 40;
+inline constexpr uint64_t kMaxTargetPatches = uint64_t{1} << 31;
+inline constexpr double kMaxSeconds = 1e9;              // a time limit or a run's elapsed time (31 years)
+
 // Throws sirad::Error, naming the setting, for settings no run can have: stratified directions
-// under the average rule, a first shot out of range (check_first_shot), no bundles, a fraction
-// outside (0, 1], no chunks, a negative time limit or a target outside [0, 1].
+// under the average rule, a first shot out of range (check_first_shot), bundles outside
+// [1, kMaxBundles], a grid or burn-in beyond its bound, a fraction outside (0, 1], chunks
+// outside [1, kMaxChunks], a time limit outside [0, kMaxSeconds], a target outside [0, 1], or
+// meshing options no mesh can have.
 void check(const RunSettings& s);
 
 // The grid the run uses on `mesh`: s.grid, or auto_grid(mesh) where it is 0.
@@ -63,8 +74,10 @@ int run_grid(const RunSettings& s, const PatchMesh& mesh);
 
 // The wire Run of `s` on `mesh` (scene hash, grid as resolved, chunk starts, patches); the
 // run id is the coordinator's to set. And back: the settings a Run carries (a node's WELCOME,
-// a checkpoint), checked; throws sirad::Error for a rule, directions, topology or mode it does
-// not know. balance, time_limit_s and target_error are the coordinator's alone: not on the wire.
+// a checkpoint), checked as check() does and for the Run's own shape: a rule, directions,
+// topology or mode it does not know, no patches, or chunk starts that do not begin at 0 and
+// rise strictly below the patch count throw sirad::Error. balance, time_limit_s and
+// target_error are the coordinator's alone: not on the wire.
 wire::Run to_wire(const RunSettings& s, const PatchMesh& mesh, const std::vector<uint32_t>& chunk_starts);
 RunSettings from_wire(const wire::Run& run);
 

@@ -32,6 +32,11 @@ using proto::Message;
 
 using Clock = std::chrono::steady_clock;
 
+// What a grant given before a node's first report may take beyond its bound: PoCL compiles a
+// kernel for its work-group size at its first use (3 s for a whole 20-bundle render here, with
+// an empty POCL_CACHE_DIR and an idle machine; several times that under load).
+constexpr double kFirstGrantS = 30;
+
 // Refused because the coordinator does not know the sender in its run (never joined, declared
 // dead, or this coordinator was restarted): the ERROR asks it to say HELLO again.
 struct Rejoin : Error {
@@ -50,6 +55,9 @@ struct Peer {
   double first_busy_s = 0;
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   proto::ShapedLink down;     // the coordinator -> node link (shaped by the profile)
+  // Its outstanding grants, oldest first, and when each is due (Policy::grant_time_bound after
+  // the one before it, plus the liveness window): a grant past due declares the node dead.
+  std::deque<std::pair<uint64_t, Clock::time_point>> due;
   bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
 };
 
@@ -103,12 +111,16 @@ class Coordinator {
         schedule();
       }
       std::string key;
-      auto frames = proto::receive(router_, wait_ms(now), &key);
-      if (!frames || frames->size() < 2) continue;
-      std::string id = frames->front();
+      auto in = proto::receive(router_, wait_ms(now), 1, mesh_.size(), run_.chunk_starts_size(), &key);
+      if (!in || in->frames.empty()) continue;
+      const std::vector<std::string>& frames = in->frames;
+      std::string id = frames.front();
       Message m;
       try {
-        m = proto::decode({frames->begin() + 1, frames->end()});
+        if (in->over)
+          throw proto::ProtocolError(fmt::format("refused a message of {} frames, {} bytes: over the bound of its command",
+                                                 in->frames_seen, in->bytes_seen));
+        m = proto::decode({frames.begin() + 1, frames.end()});
       } catch (const proto::ProtocolError& e) {
         log(id, e.what());
         continue;
@@ -206,14 +218,24 @@ class Coordinator {
         declare_dead(p, fmt::format("silent for {:.1f} s", seconds(now - p.last_seen)));
         continue;
       }
+      if (!p.due.empty() && now > p.due.front().second) {
+        declare_dead(p, fmt::format("grant {} overdue by {:.1f} s", p.due.front().first, seconds(now - p.due.front().second)));
+        continue;
+      }
       if (now - p.last_sent >= interval) send(p, {Command::heartbeat, {}, {}});
       p.down.flush(router_, clock(now));
     }
   }
 
+  // How long a peer may be silent (heartbeat_ms x liveness), which a grant's due time allows
+  // beyond its bound too; before the node's first report, kFirstGrantS more (its first bundles
+  // can carry the OpenCL compiler's first use of the kernels).
+  Clock::duration liveness_window() const { return std::chrono::milliseconds(config_.heartbeat_ms) * config_.liveness; }
+
   void declare_dead(Peer& p, const std::string& why) {
     uint64_t back = policy_.dead(p.index);
     p.down.clear();
+    p.due.clear();
     std::fprintf(stderr, "sirad-coordinator: %s: declared dead (%s); %llu granted bundles return to the budget\n",
                  p.name.c_str(), why.c_str(), static_cast<unsigned long long>(back));
     schedule();  // a sync barrier may have been waiting on it
@@ -351,7 +373,16 @@ class Coordinator {
         w->set_last(r.last);
       }
       for (uint32_t c : o.report_chunks) g.add_report_chunks(c);
-      send(peer(o.node), {Command::grant, g, {}});
+      Peer& p = peer(o.node);
+      uint64_t bundles = 0;
+      for (const Range& r : o.ranges) bundles += r.size();
+      const auto now = Clock::now();
+      const auto from = p.due.empty() ? now : std::max(now, p.due.back().second - liveness_window());  // queued behind
+      const double bound = policy_.grant_time_bound(p.index, bundles, p.ms_per_bundle / 1e3);
+      const double first = policy_.node(p.index).bundles == 0 ? kFirstGrantS : 0.0;
+      p.due.emplace_back(o.id, from + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bound + first)) +
+                                   liveness_window());
+      send(p, {Command::grant, g, {}});
     }
     for (uint32_t n : orders.stops) {
       wire::Stop s;
@@ -401,6 +432,7 @@ class Coordinator {
         }
       }
       x = policy_.report(p.index, r.grant_id(), done, std::move(chunks), refused.empty() ? r.error_estimate() : 0.0);
+      if (!p.due.empty() && p.due.front().first == r.grant_id()) p.due.pop_front();
       if (!refused.empty()) throw Error(refused);
       record_.bytes_in += bytes;
     } catch (const Error&) {

@@ -7,8 +7,12 @@
 #include <fstream>
 #include <sstream>
 #include <utility>
+#include <vector>
+
+#include <fmt/format.h>
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "core/error.h"
@@ -67,15 +71,47 @@ void write_file_atomic(const std::string& path, const std::string& text) {
   f.commit();
 }
 
+std::string read_regular_file(const std::string& path, const std::string& label, std::size_t max_bytes,
+                              const std::string& too_large) {
+  // O_NONBLOCK: opening a FIFO with no writer returns at once (and is refused below).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    if (errno == ENOENT) fail("{}: no such file", label);
+    fail("{}: cannot open ({})", label, std::strerror(errno));
+  }
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) fail("{}: cannot access ({})", label, std::strerror(errno));
+  if (S_ISDIR(st.st_mode)) fail("{}: is a directory, not a file", label);
+  if (!S_ISREG(st.st_mode)) fail("{}: not a regular file", label);
+  if (static_cast<uint64_t>(st.st_size) > max_bytes) fail("{}: {}", label, too_large);
+  // Read what is there, up to the bound (the file may grow while it is read).
+  std::string text;
+  text.reserve(static_cast<std::size_t>(st.st_size));
+  std::vector<char> chunk(1 << 16);
+  for (;;) {
+    const ssize_t n = ::read(fd, chunk.data(), chunk.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) fail("{}: read error ({})", label, std::strerror(errno));
+    if (n == 0) break;
+    if (text.size() + static_cast<std::size_t>(n) > max_bytes) fail("{}: {}", label, too_large);
+    text.append(chunk.data(), static_cast<std::size_t>(n));
+  }
+  return text;
+}
+
 std::string read_file_whole(const std::string& path, const std::string& what, std::size_t max_bytes) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail("{}: cannot read the {}: {}", path, what, std::strerror(errno));
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (max_bytes > 0 && text.str().size() > max_bytes)
-    fail("{}: not a {} (over {})", path, what,
-         max_bytes % (1 << 20) == 0 ? fmt::format("{} MiB", max_bytes >> 20) : fmt::format("{} KiB", max_bytes >> 10));
-  return std::move(text).str();
+  const std::string size = max_bytes % (1 << 20) == 0 ? fmt::format("{} MiB", max_bytes >> 20) : fmt::format("{} KiB", max_bytes >> 10);
+  try {
+    return read_regular_file(path, path, max_bytes, fmt::format("not a {} (over {})", what, size));
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    if (m.find("not a " + what) != std::string::npos) throw;
+    fail("{}: cannot read the {}: {}", path, what, m.substr(path.size() + 2));
+  }
 }
 
 }  // namespace sirad

@@ -34,9 +34,16 @@ class AtomicFile {
 // Replaces `path` atomically with `text`.
 void write_file_atomic(const std::string& path, const std::string& text);
 
-// The whole of the file at `path` (a profile, a key file, a checkpoint), or one error:
-// "PATH: cannot read the WHAT: REASON", or, beyond `max_bytes` (0: no bound),
-// "PATH: not a WHAT (over N KiB or MiB)".
-std::string read_file_whole(const std::string& path, const std::string& what, std::size_t max_bytes = 0);
+// The whole of the regular file at `path`, at most `max_bytes`, or one error starting with
+// `label`: "no such file", "is a directory, not a file", "not a regular file" (a FIFO or a
+// device: never opened for a blocking read), "cannot open (REASON)", or `too_large` where it
+// holds more than `max_bytes` (checked before reading and while reading).
+std::string read_regular_file(const std::string& path, const std::string& label, std::size_t max_bytes,
+                              const std::string& too_large);
+
+// The whole of the file at `path` (a profile, a key file, a checkpoint), at most `max_bytes`,
+// or one error: "PATH: cannot read the WHAT: REASON" (no such file, not a regular file, ...),
+// or "PATH: not a WHAT (over N KiB or MiB)".
+std::string read_file_whole(const std::string& path, const std::string& what, std::size_t max_bytes);
 
 }  // namespace sirad

@@ -288,6 +288,8 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
   if (total > kMaxPatches)
     fail("{}: meshing would make {}{} patches, more than 2^31 - 1", scene.name,
          total == kSaturated ? "over " : "", total);
+  if (options.max_patches > 0 && total > options.max_patches)
+    fail("{}: meshing would make {} patches, more than the {} expected", scene.name, total, options.max_patches);
 
   // Step 3: subdivide and weld, in input triangle order.
   PatchMesh mesh;

@@ -19,6 +19,9 @@ struct MeshOptions {
   // At most one of these is set; both zero means one patch per input triangle.
   std::size_t target_patches = 0;  // subdivide to the patch count closest to this
   double max_edge = 0.0;           // subdivide until no patch edge is longer than this
+  // Refuse (before allocating) a meshing to more patches than this (0: 2^31 - 1): a node
+  // meshing a coordinator's scene takes no more than the run says it has.
+  uint64_t max_patches = 0;
 };
 
 struct PatchMesh {

@@ -1,6 +1,8 @@
 // sirad: scene import (line-exact OBJ parsing, MTL via tinyobjloader), validation, built-ins.
 #include "core/scene.h"
 
+#include "core/atomic_file.h"
+
 #include <tiny_obj_loader.h>
 
 #include <algorithm>
@@ -395,35 +397,12 @@ Scene import_obj(const std::string& name, std::string_view text, const MtlSource
   });
 }
 
-// A whole regular file, at most 2 GiB; never blocks on FIFOs or devices.
-
 }  // namespace
 
 namespace import {
 
 std::string read_file(const std::filesystem::path& path, const std::string& label) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::file_status status = fs::status(path, ec);
-  if (status.type() == fs::file_type::not_found) fail("{}: no such file", label);
-  if (ec) fail("{}: cannot access ({})", label, ec.message());
-  if (fs::is_directory(status)) fail("{}: is a directory, not a file", label);
-  if (!fs::is_regular_file(status)) fail("{}: not a regular file", label);
-  const std::uintmax_t size = fs::file_size(path, ec);
-  if (!ec && size > kMaxFileBytes) fail("{}: file is larger than 2 GiB", label);
-  std::ifstream in(path, std::ios::binary);
-  if (!in)
-    fail("{}: cannot open ({})", label, std::error_code(errno, std::generic_category()).message());
-  std::string text;
-  if (!ec) text.reserve(size);
-  std::vector<char> chunk(1 << 16);
-  while (in.read(chunk.data(), static_cast<std::streamsize>(chunk.size())) || in.gcount() > 0) {
-    const auto n = static_cast<std::size_t>(in.gcount());
-    if (text.size() + n > kMaxFileBytes) fail("{}: file is larger than 2 GiB", label);
-    text.append(chunk.data(), n);
-  }
-  if (in.bad()) fail("{}: read error", label);
-  return text;
+  return read_regular_file(path.string(), label, kMaxFileBytes, "file is larger than 2 GiB");
 }
 
 std::string printable(std::string_view s) {

@@ -27,6 +27,9 @@ int main(int argc, char** argv) {
   app.add_option("--connect", endpoint, "Coordinator endpoint, e.g. tcp://host:5555")->required();
   app.add_option("--device", device, "OpenCL device: P:D or part of its name (env SIRAD_DEVICE)");
   app.add_option("--name", name, "Name shown by the coordinator")->capture_default_str();
+  app.add_option("--max-patches", options.max_patches, "Refuse runs of more patches (bounds this node's memory and largest message)")
+      ->check(CLI::Range(uint32_t{1}, uint32_t{1} << 31))
+      ->capture_default_str();
   std::string curve_secret, server_key;
   bool check_config = false, insecure = false;
   auto* secret_opt = app.add_option("--curve-secret", curve_secret, "This node's CURVE secret key file (NAME.key_secret from sirad keygen; mode 0600)");

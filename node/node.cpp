@@ -80,9 +80,12 @@ class Node {
         continue;
       }
       auto waiting = Clock::now();
-      auto frames = proto::receive(*socket_, poll_ms());
+      // A message is copied only within its command's bound for this node's run (none before
+      // WELCOME: headers alone, a SCENE frame).
+      const RunState* run = state_ ? state_.get() : pending_.get();
+      auto in = proto::receive(*socket_, poll_ms(), 0, run ? run->run.patches() : 0, run ? run->run.chunk_starts_size() : 0);
       if (state_ && granted_) idle_s_ += seconds(Clock::now() - waiting);  // blocked with nothing to run
-      if (!frames) {
+      if (!in) {
         coordinator_liveness();
         continue;
       }
@@ -90,7 +93,10 @@ class Node {
       hello_every_ = std::chrono::milliseconds(options_.reconnect_ms);
       Message m;
       try {
-        m = proto::decode(*frames);
+        if (in->over)
+          throw proto::ProtocolError(fmt::format("a message of {} frames, {} bytes: over the bound of its command",
+                                                 in->frames_seen, in->bytes_seen));
+        m = proto::decode(in->frames);
       } catch (const proto::ProtocolError& e) {
         std::fprintf(stderr, "sirad-node %s: refused a message: %s\n", options_.name.c_str(), e.what());
         continue;
@@ -110,7 +116,7 @@ class Node {
     socket_->set(zmq::sockopt::linger, 0);
     socket_->set(zmq::sockopt::reconnect_ivl, options_.reconnect_ms);
     socket_->set(zmq::sockopt::reconnect_ivl_max, options_.reconnect_max_ms);
-    proto::harden(*socket_, options_.max_frame_bytes);
+    proto::harden(*socket_, proto::max_frame_bytes(options_.max_patches, true));
     if (!options_.server_key.empty()) proto::make_curve_client(*socket_, options_.curve_keys, options_.server_key);
     socket_->connect(endpoint_);
   }
@@ -125,7 +131,7 @@ class Node {
     d->set_is_cpu(device_.is_cpu);
     d->set_compute_units(device_.compute_units);
     d->set_opencl_version(device_.version);
-    h.set_max_message_bytes(static_cast<uint64_t>(options_.max_frame_bytes));
+    h.set_max_message_bytes(static_cast<uint64_t>(proto::max_frame_bytes(options_.max_patches, true)));
     send({Command::hello, h, {}});
   }
 
@@ -222,6 +228,14 @@ class Node {
 
   void welcome(const wire::Welcome& w) {
     if (!w.has_run()) return;
+    // Every field of the run within its bounds and this node's before anything acts on it.
+    try {
+      cluster::from_wire(w.run());
+      if (w.run().patches() > options_.max_patches)
+        fail("a run of {} patches (this node takes at most {}: sirad-node --max-patches)", w.run().patches(), options_.max_patches);
+    } catch (const Error& e) {
+      return error(fmt::format("WELCOME refused: {}", e.what()));
+    }
     state_.reset();
     pending_ = std::make_unique<RunState>();
     pending_->run = w.run();
@@ -261,7 +275,9 @@ class Node {
       const wire::Run& run = pending_->run;
       const cluster::RunSettings settings = cluster::from_wire(run);  // as the coordinator has them
       Scene scene = decode_scene(scene_bytes_, "scene from coordinator");
-      pending_->mesh = mesh_scene(scene, settings.mesh_options);
+      MeshOptions mesh_options = settings.mesh_options;
+      mesh_options.max_patches = run.patches();  // no more than the run says it has
+      pending_->mesh = mesh_scene(scene, mesh_options);
       if (pending_->mesh.hash != run.scene_hash())
         fail("meshed scene hash {} differs from the run's {}", pending_->mesh.hash, run.scene_hash());
       pending_->engine = make_cl_engine(pending_->mesh, {.device = options_.device});

@@ -20,9 +20,10 @@ struct NodeOptions {
   // Reconnecting to a coordinator that went away: ZeroMQ retries after reconnect_ms, doubling up
   // to reconnect_max_ms; HELLO without a run backs off the same way until a coordinator answers.
   int reconnect_ms = 1000, reconnect_max_ms = 32000;
-  // The largest frame this node accepts (ZMQ_MAXMSGSIZE; said in HELLO): 1 GiB, a chunk of
-  // 44 M patches.
-  int64_t max_frame_bytes = int64_t{1} << 30;
+  // The largest run this node takes (patches; a WELCOME beyond it is refused before any
+  // meshing), and so the largest frame it accepts (ZMQ_MAXMSGSIZE, said in HELLO: a chunk of
+  // that many patches, 96 MiB at the default 4 M).
+  uint32_t max_patches = uint32_t{1} << 22;
   // CURVE (proto/security.h): the node's key pair and the coordinator's public key. Empty
   // server_key: none (inproc, or a TCP cluster run with --insecure).
   proto::KeyPair curve_keys;

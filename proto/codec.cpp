@@ -96,6 +96,18 @@ std::vector<std::string> encode(const Message& m) {
   return frames;
 }
 
+MessageBound message_bound(uint8_t command, std::size_t patches, std::size_t chunks) {
+  constexpr std::size_t envelope = kSignature.size() + 1 + kMaxHeaderBytes;  // frames 0 to 2
+  switch (static_cast<Command>(command)) {
+    case Command::report:
+    case Command::update:
+    case Command::final_state:
+      return {3 + std::min(chunks, kMaxChunks), envelope + 24 * patches};
+    case Command::scene: return {4, envelope + kMaxSceneFrameBytes};
+    default: return {3, envelope};
+  }
+}
+
 Message decode(const std::vector<std::string>& frames) {
   if (frames.size() < 3) refuse(fmt::format("truncated message: {} frames (at least 3)", frames.size()));
   if (frames[0] != kSignature) {

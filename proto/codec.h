@@ -48,6 +48,16 @@ class ProtocolError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The most one message of a command may hold as its receiver reads it (frames and bytes in
+// all, signature and command included), for a receiver whose run has `patches` patches in
+// `chunks` chunks (0 and 0 without a run): REPORT, UPDATE and FINAL at most one frame per chunk
+// and 24 bytes per patch in all; SCENE one frame of kMaxSceneFrameBytes; every other command
+// its header alone. An unknown command byte gets the header-only bound (decode refuses it).
+struct MessageBound {
+  std::size_t frames = 0, bytes = 0;
+};
+MessageBound message_bound(uint8_t command, std::size_t patches, std::size_t chunks);
+
 // The frames of a message: signature, command byte, serialised header, bulk frames.
 std::vector<std::string> encode(const Message& message);
 

@@ -37,9 +37,9 @@ void harden(zmq::socket_t& socket, int64_t max_frame_bytes) {
     socket.set(zmq::sockopt::router_mandatory, 1);
 }
 
-int64_t max_frame_bytes(std::size_t patches) {
+int64_t max_frame_bytes(std::size_t patches, bool with_scene) {
   const uint64_t chunk = 24 * static_cast<uint64_t>(patches);
-  const uint64_t largest = std::max<uint64_t>({chunk, kMaxSceneFrameBytes, kMaxHeaderBytes});
+  const uint64_t largest = std::max<uint64_t>({chunk, with_scene ? kMaxSceneFrameBytes : 0, kMaxHeaderBytes});
   return static_cast<int64_t>(std::min<uint64_t>(largest + 64 * 1024, std::numeric_limits<int64_t>::max()));
 }
 
@@ -82,27 +82,58 @@ double ShapedLink::flush(zmq::socket_t& socket, double now) {
   return queue_.empty() ? std::numeric_limits<double>::infinity() : queue_.front().first;
 }
 
-std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms, std::string* user_id) {
+namespace {
+
+// Waits up to `timeout_ms` for a message; false on a timeout or a signal.
+bool readable(zmq::socket_t& socket, int timeout_ms) {
   zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
   try {
-    if (zmq::poll(&item, 1, std::chrono::milliseconds(timeout_ms)) == 0) return std::nullopt;
+    return zmq::poll(&item, 1, std::chrono::milliseconds(timeout_ms)) > 0;
   } catch (const zmq::error_t& e) {
-    if (e.num() == EINTR) return std::nullopt;  // a signal: the caller checks its stop flag
+    if (e.num() == EINTR) return false;  // a signal: the caller checks its stop flag
     throw;
   }
+}
+
+}  // namespace
+
+std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms) {
+  if (!readable(socket, timeout_ms)) return std::nullopt;
   std::vector<std::string> frames;
   zmq::message_t part;
   do {
     if (!socket.recv(part)) return std::nullopt;
     frames.emplace_back(part.to_string());
+  } while (part.more());
+  return frames;
+}
+
+std::optional<Received> receive(zmq::socket_t& socket, int timeout_ms, std::size_t envelope, std::size_t patches,
+                                std::size_t chunks, std::string* user_id) {
+  if (!readable(socket, timeout_ms)) return std::nullopt;
+  Received r;
+  MessageBound bound{2, kSignature.size() + 1};  // until the command byte (frame 1) is in
+  zmq::message_t part;
+  std::size_t index = 0;
+  do {
+    if (!socket.recv(part)) return std::nullopt;
+    if (index >= envelope) {
+      ++r.frames_seen;
+      r.bytes_seen += part.size();
+    }
+    if (index == envelope + 1)
+      bound = message_bound(part.size() == 1 ? *static_cast<const uint8_t*>(part.data()) : 0, patches, chunks);
+    if (index >= envelope && (r.frames_seen > bound.frames || r.bytes_seen > bound.bytes)) r.over = true;
+    if (!r.over) r.frames.emplace_back(part.to_string());
     // The ZAP user id rides on the frames that came through the pipe (a ROUTER's routing-id
     // frame is made locally and has none): the last frame that carries it.
     if (user_id) {
-      if (frames.size() == 1) user_id->clear();
+      if (index == 0) user_id->clear();
       if (const char* user = zmq_msg_gets(part.handle(), "User-Id")) *user_id = user;  // NULL without ZAP
     }
+    ++index;
   } while (part.more());
-  return frames;
+  return r;
 }
 
 std::string pack(const std::vector<double>& values) {

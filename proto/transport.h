@@ -29,9 +29,10 @@ inline constexpr int kHandshakeMs = 3000;
 inline constexpr int kSendTimeoutMs = 250;
 void harden(zmq::socket_t& socket, int64_t max_frame_bytes);
 
-// The largest frame a run of `patches` patches can carry: a chunk of all of them (24 bytes per
-// patch), a SCENE frame or a header, whichever is larger, plus 64 KiB.
-int64_t max_frame_bytes(std::size_t patches);
+// The largest frame a receiver of a run of `patches` patches takes: a chunk of all of them (24
+// bytes per patch) or a header, or, `with_scene` (a node, which receives SCENE), a SCENE frame,
+// whichever is larger, plus 64 KiB.
+int64_t max_frame_bytes(std::size_t patches, bool with_scene = false);
 
 // Sends `message`, preceded by `routing_id` on a ROUTER socket. False when it could not go: the
 // peer is unknown to the ROUTER (gone) or its queue stayed full for the send timeout.
@@ -64,10 +65,25 @@ class ShapedLink {
   uint64_t failed_ = 0;
 };
 
-// Every frame of the next multipart message, or nothing after `timeout_ms` (or when a signal
-// interrupts the wait). `user_id`, if given, gets the message's ZAP user id (the sender's
-// CURVE public key, proto/security.h), or "" without one.
-std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms, std::string* user_id = nullptr);
+// The next multipart message, or nothing after `timeout_ms` (or when a signal interrupts the
+// wait). `envelope` leading frames (a ROUTER's routing id) come first and are not counted;
+// then the message is copied only while it keeps within `bound` (message_bound of its command
+// byte, frame 1, with the receiver's `patches` and `chunks`). Past it, the rest is read and
+// dropped uncopied, and `over` says how much there was. (libzmq holds a multipart message
+// whole before any of it can be read, so the bound caps this process's copies; libzmq's own
+// buffer is capped per frame by ZMQ_MAXMSGSIZE, not in frame count: PROTOCOL.md section 2.)
+// `user_id`, if given, gets the message's ZAP user id (the sender's CURVE public key,
+// proto/security.h), or "" without one.
+struct Received {
+  std::vector<std::string> frames;  // the envelope, then the message (truncated when over)
+  bool over = false;                // it held more than its bound: refuse it
+  std::size_t frames_seen = 0, bytes_seen = 0;  // the whole message's, envelope not counted
+};
+std::optional<Received> receive(zmq::socket_t& socket, int timeout_ms, std::size_t envelope, std::size_t patches,
+                                std::size_t chunks, std::string* user_id = nullptr);
+// Every frame of the next message, unbounded: for sockets whose peer is this process (the ZAP
+// handler's inproc socket) and for tests; never for a peer's messages.
+std::optional<std::vector<std::string>> receive(zmq::socket_t& socket, int timeout_ms);
 
 // The bytes of doubles, and back (little-endian, as the spec's bulk frames).
 std::string pack(const std::vector<double>& values);

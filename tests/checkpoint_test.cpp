@@ -5,6 +5,10 @@
 #include <cstring>
 #include <limits>
 
+#include <functional>
+#include <iterator>
+
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <gtest/gtest.h>
@@ -104,8 +108,8 @@ TEST(Checkpoint, ADamagedFileIsOneClearError) {
   c.set_magic("something else");
   expect_refused(c, "not a sirad checkpoint");
   c = good;
-  c.set_version(2);
-  expect_refused(c, "version 2");
+  c.set_version(kCheckpointVersion + 1);
+  expect_refused(c, fmt::format("version {}", kCheckpointVersion + 1));
   c = good;
   c.mutable_nodes(0)->mutable_sums()->resize(100);
   expect_refused(c, "bytes of sums");
@@ -127,6 +131,101 @@ TEST(Checkpoint, ADamagedFileIsOneClearError) {
   EXPECT_THROW(read_checkpoint(file.string()), Error);
   fs::remove(file);
   EXPECT_THROW(read_checkpoint(file.string()), Error);
+}
+
+}  // namespace
+}  // namespace sirad::cluster
+
+namespace sirad::cluster {
+namespace {
+
+std::string bytes_of(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+// Every single-bit flip of a real checkpoint (the golden run's, tests/data/golden) is refused
+// with one error naming the file: the header's magic and version are compared whole, a flip in
+// the stored checksum no longer matches, and a flip in the payload leaves its XXH3-64 unchanged
+// with probability 2^-64 for a hash that mixes like a random function (61,600 flips: 3e-15).
+// The file is fixed, so the outcome is too. The unflipped file reads.
+TEST(Checkpoint, EverySingleBitFlipIsRefused) {
+  const fs::path golden = fs::path(SIRAD_SOURCE_DIR) / "tests/data/golden/resume.ckpt";
+  const std::string good = bytes_of(golden);
+  ASSERT_GT(good.size(), 1000u);
+  const fs::path dir = fs::is_directory("/dev/shm") ? fs::path("/dev/shm") : fs::temp_directory_path();  // 61,600 writes
+  const fs::path file = dir / fmt::format("sirad_checkpoint_flip_{}", ::getpid());
+  std::ofstream(file, std::ios::binary) << good;
+  EXPECT_NO_THROW(read_checkpoint(file.string()));
+  std::size_t accepted = 0, unclear = 0;
+  std::string bad = good;
+  for (std::size_t byte = 0; byte < good.size(); ++byte)
+    for (int bit = 0; bit < 8; ++bit) {
+      bad[byte] = static_cast<char>(good[byte] ^ (1 << bit));
+      {
+        std::ofstream out(file, std::ios::binary | std::ios::trunc);
+        out << bad;
+      }
+      try {
+        read_checkpoint(file.string());
+        ++accepted;
+      } catch (const Error& e) {
+        unclear += std::string(e.what()).rfind(file.string() + ": ", 0) != 0;
+      }
+      bad[byte] = good[byte];
+    }
+  fs::remove(file);
+  EXPECT_EQ(accepted, 0u) << "of " << 8 * good.size() << " single-bit flips";
+  EXPECT_EQ(unclear, 0u);
+}
+
+// A crafted checkpoint (a valid checksum over values no run has) is refused field by field,
+// as the wire decoder refuses a message.
+TEST(Checkpoint, CraftedValuesOutOfRangeAreRefused) {
+  const fs::path golden = fs::path(SIRAD_SOURCE_DIR) / "tests/data/golden/resume.ckpt";
+  const wire::Checkpoint good = read_checkpoint(golden.string());
+  ASSERT_GT(good.nodes_size(), 0);
+  const fs::path file = fs::temp_directory_path() / fmt::format("sirad_checkpoint_crafted_{}", ::getpid());
+  auto refused = [&](const std::function<void(wire::Checkpoint&)>& edit, const std::string& what) {
+    wire::Checkpoint c = good;
+    edit(c);
+    write_checkpoint(file.string(), c);
+    try {
+      read_checkpoint(file.string());
+      ADD_FAILURE() << "accepted: " << what;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  refused([](wire::Checkpoint& c) { c.mutable_nodes(0)->set_counts(0, 1'000'000'000'000'000ull); }, "more than its");
+  refused([](wire::Checkpoint& c) { c.mutable_nodes(0)->set_bundles(1'000'000'000'000'000ull); }, "bundles");
+  refused([](wire::Checkpoint& c) { c.mutable_run()->set_grid(100000); }, "grid 100000");
+  refused([](wire::Checkpoint& c) { c.mutable_run()->set_burn_in(std::numeric_limits<int32_t>::max()); }, "burn-in");
+  refused([](wire::Checkpoint& c) { c.set_elapsed_s(1e300); }, "elapsed time");
+  refused([](wire::Checkpoint& c) { c.set_time_limit_s(std::numeric_limits<double>::infinity()); }, "time limit");
+  refused([](wire::Checkpoint& c) { c.mutable_nodes(0)->set_busy_s(-1); }, "busy");
+  refused([](wire::Checkpoint& c) { c.mutable_nodes(0)->set_error(std::numeric_limits<double>::quiet_NaN()); }, "error estimate");
+  refused([](wire::Checkpoint& c) { c.mutable_run()->set_topology("staz"); }, "topology 'staz'");
+  refused([](wire::Checkpoint& c) { c.mutable_run()->set_target_patches(uint64_t{1} << 40); }, "target patches");
+  refused([](wire::Checkpoint& c) { c.mutable_nodes(0)->set_name(std::string(100000, 'x')); }, "over its size");
+  fs::remove(file);
+}
+
+// The reader opens only regular files, never blocking on a FIFO or reading a device for ever.
+TEST(Checkpoint, DevicesAndFifosAreRefusedAtOnce) {
+  for (const char* path : {"/dev/zero", "/dev/urandom"}) {
+    try {
+      read_checkpoint(path);
+      ADD_FAILURE() << "read " << path;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+    }
+  }
+  const fs::path fifo = fs::temp_directory_path() / fmt::format("sirad_checkpoint_fifo_{}", ::getpid());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_THROW(read_checkpoint(fifo.string()), Error);  // would block for ever in a plain open
+  fs::remove(fifo);
+  EXPECT_THROW(read_checkpoint(fs::temp_directory_path().string()), Error);
 }
 
 }  // namespace
