@@ -258,6 +258,35 @@ class Hasher {
 
 }  // namespace
 
+// The range of values the solver carries. The transport sums, per patch and bundle, up to
+// grid^2 (at most 8192^2 = 6.7e7) radiosities in 32-bit floats (FLT_MAX 3.4e38), and radiosity
+// is at most E / (1 - rho), 1e3 E at rho = 0.999: an emission of at most 1e20 keeps the largest
+// sum near 6.7e30, seven decades short of overflow (an emission of 1e38 gave NaN). Below 1e-20,
+// a scene's brightest light makes radiosities that lose their precision in float (denormals
+// from 1.2e-38). Power (emission x area) up to 1e30 keeps a first shot's products finite.
+namespace {
+
+constexpr double kMaxEmission = 1e20, kMinBrightest = 1e-20, kMaxPower = 1e30;
+
+void check_radiometry(const Scene& scene) {
+  double brightest = 0;
+  auto value = [&](const glm::vec3& v, const std::string& what, double hi) {
+    for (int k = 0; k < 3; ++k)
+      if (!(v[k] >= 0.0f && v[k] <= static_cast<float>(hi)))  // the bound as a float: 1e20f is just above 1e20
+        fail("{}: {} component {} is {}, outside [0, {:.0e}]", scene.name, what, k, v[k], hi);
+  };
+  for (const Material& m : scene.materials) {
+    value(m.reflectance, fmt::format("material '{}': reflectance", m.name.substr(0, 64)), 1.0);
+    value(m.emission, fmt::format("material '{}': emission", m.name.substr(0, 64)), kMaxEmission);
+    brightest = std::max<double>({brightest, m.emission.x, m.emission.y, m.emission.z});
+  }
+  value(scene.background, "background", kMaxEmission);
+  if (brightest > 0 && brightest < kMinBrightest)
+    fail("{}: the brightest emission is {:.3g}, below {:.0e}: scale the scene's emission up", scene.name, brightest, kMinBrightest);
+}
+
+}  // namespace
+
 PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
   // Step 1: options and input.
   if (std::isnan(options.max_edge) || options.max_edge < 0.0)
@@ -267,6 +296,7 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
   if (options.target_patches > kMaxPatches)
     fail("{}: target of {} patches exceeds 2^31 - 1", scene.name, options.target_patches);
   if (scene.triangles.empty()) fail("{}: scene has no triangles", scene.name);
+  check_radiometry(scene);
   std::vector<double> longest;
   longest.reserve(scene.triangles.size());
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
@@ -319,6 +349,14 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
   mesh.background = scene.background;
   mesh.camera = scene.camera;
   bound(mesh, scene.name);
+  // Each patch's emitted power within the float pipeline's range too (see check_radiometry).
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const glm::vec3& e = mesh.materials[mesh.material[j]].emission;
+    const double power = static_cast<double>(std::max({e.x, e.y, e.z})) * mesh.area[j];
+    if (power > kMaxPower)
+      fail("{}: patch {} emits {:.3g} (emission x area), more than {:.0e}: scale the scene's units or its emission down",
+           scene.name, j, power, kMaxPower);
+  }
   mesh.hash = content_hash(mesh);
   return mesh;
 }

@@ -4,16 +4,24 @@
 #include "core/scene.h"
 
 #include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 
 #include <unistd.h>
 
 #include "core/error.h"
 
+#include <fmt/format.h>
+
 namespace sirad {
 
 void check_output_name(const std::string& name, const std::string& flag) {
   if (name.empty()) fail("{}: empty output name", flag);
+  if (std::filesystem::path(name).filename().empty() || name.back() == '/')
+    fail("{} {}: names a directory, not an output name (for example {}result)", flag, name, name);
   std::filesystem::path dir = std::filesystem::path(name).parent_path();
   if (dir.empty()) dir = ".";
   std::error_code ec;
@@ -34,16 +42,44 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
   if (options.width < 1 || options.height < 1 || options.width > 16384 || options.height > 16384)
     fail("image size {}x{} outside 1..16384", options.width, options.height);
   if (!mesh.camera) fail("{}: the mesh carries no camera", name);
+  if (radiosity.size() != mesh.size()) fail("{}: {} radiosity values for {} patches", name, radiosity.size(), mesh.size());
+  for (std::size_t j = 0; j < radiosity.size(); ++j)
+    if (!std::isfinite(radiosity[j].x) || !std::isfinite(radiosity[j].y) || !std::isfinite(radiosity[j].z))
+      fail("{}: the result is not finite at patch {} ({}, {}, {}); nothing written", name, j, radiosity[j].x, radiosity[j].y,
+           radiosity[j].z);
   int s = options.samples_per_side;
   if (s == 0) s = std::clamp(4096 / std::max(options.width, options.height), 1, 4);
   Image image = render_view_antialiased(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading, s);
   ResultFiles files{name + ".exr", name + ".png", name + ".ply", name + ".glb"};
   Attributes with_camera = attributes;
   with_camera.emplace_back("sirad.camera", camera_spec(*mesh.camera));
-  write_exr(files.exr, image, with_camera);
-  write_png(files.png, image, options.exposure);
-  write_ply(files.ply, mesh, radiosity, options.exposure);
-  write_glb(files.glb, mesh, radiosity, options.exposure, static_cast<double>(options.width) / options.height);
+  // All four or none: each is written to a temporary beside it, and they replace the outputs
+  // only once every one is written (a full disk, a directory in an output's place: no mixed set
+  // of new and old files is left).
+  namespace fs = std::filesystem;
+  const std::string tag = fmt::format(".sirad-{}.tmp", ::getpid());
+  const std::vector<std::string> finals = {files.exr, files.png, files.ply, files.glb};
+  std::vector<std::string> temps;
+  for (const std::string& f : finals) temps.push_back(f + tag);
+  auto discard = [&] {
+    std::error_code ec;
+    for (const std::string& t : temps) fs::remove(t, ec);
+  };
+  try {
+    for (const std::string& f : finals) {
+      std::error_code ec;
+      if (fs::is_directory(f, ec)) fail("{}: is a directory; nothing written", f);
+    }
+    write_exr(temps[0], image, with_camera);
+    write_png(temps[1], image, options.exposure);
+    write_ply(temps[2], mesh, radiosity, options.exposure);
+    write_glb(temps[3], mesh, radiosity, options.exposure, static_cast<double>(options.width) / options.height);
+    for (std::size_t i = 0; i < finals.size(); ++i)
+      if (std::rename(temps[i].c_str(), finals[i].c_str()) != 0) fail("{}: cannot replace it: {}", finals[i], std::strerror(errno));
+  } catch (...) {
+    discard();
+    throw;
+  }
   return files;
 }
 

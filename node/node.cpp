@@ -31,6 +31,7 @@ using proto::Command;
 using proto::Message;
 
 using Clock = std::chrono::steady_clock;
+constexpr auto kFreshSocketAfter = std::chrono::seconds(16);
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -69,6 +70,13 @@ class Node {
       // this node that way. Every reconnect_ms while a coordinator answers; while none does,
       // the wait doubles up to reconnect_max_ms.
       if (!state_ && !pending_ && Clock::now() - last_hello > hello_every_) {
+        // libzmq ends a connection for good on a protocol error (a frame over ZMQ_MAXMSGSIZE
+        // from a broken or hostile coordinator) and never reconnects it; after 16 s of silence,
+        // a fresh socket (and routing id) connects again.
+        if (Clock::now() - last_heard_ > kFreshSocketAfter && Clock::now() - fresh_at_ > kFreshSocketAfter) {
+          connect();
+          fresh_at_ = Clock::now();
+        }
         hello();
         last_hello = Clock::now();
         if (Clock::now() - last_heard_ > hello_every_)
@@ -397,7 +405,7 @@ class Node {
   std::string scene_bytes_;
   // Time: the heartbeat, the coordinator's liveness, this run's busy and idle time.
   Clock::time_point epoch_ = Clock::now(), last_sent_ = Clock::now(), last_heard_ = Clock::now();
-  Clock::time_point ready_at_ = Clock::now();
+  Clock::time_point ready_at_ = Clock::now(), fresh_at_ = Clock::now();
   Clock::duration heartbeat_ = std::chrono::seconds(1);
   Clock::duration hello_every_ = std::chrono::milliseconds(options_.reconnect_ms);
   uint32_t liveness_ = 3;

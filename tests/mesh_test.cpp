@@ -278,3 +278,53 @@ TEST(MeshFurnace, InwardNormalsAndTotalArea) {
 
 }  // namespace
 }  // namespace sirad
+
+namespace sirad {
+namespace {
+
+std::string mesh_error(const Scene& s, const MeshOptions& o = {}) {
+  try {
+    mesh_scene(s, o);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Values the float pipeline cannot carry are refused at meshing, whatever the scene's format:
+// an emission of 1e38 (which gave an all-NaN result before: core/mesh.cpp's derivation of the
+// 1e20 bound), a brightest light below 1e-20, emission x area above 1e30, and a reflectance
+// outside [0, 1]. The bounds themselves are accepted.
+TEST(MeshRadiometry, ValuesBeyondTheFloatPipelineAreRefused) {
+  Scene s = unit_square();
+  s.materials[0].emission = glm::vec3(1e38f, 0, 0);
+  EXPECT_NE(mesh_error(s).find("emission component 0 is 1e+38, outside [0, 1e+20]"), std::string::npos) << mesh_error(s);
+  s.materials[0].emission = glm::vec3(1e20f);
+  EXPECT_EQ(mesh_error(s), "");
+  s.materials[0].emission = glm::vec3(1e-30f);
+  EXPECT_NE(mesh_error(s).find("below 1e-20"), std::string::npos) << mesh_error(s);
+  s.materials[0].emission = glm::vec3(1e19f);
+  for (Triangle& t : s.triangles)
+    for (glm::vec3& p : t.p) p *= 1e6f;  // area 1e12: power 1e31
+  EXPECT_NE(mesh_error(s).find("emission x area"), std::string::npos) << mesh_error(s);
+  s = unit_square();
+  s.materials[0].reflectance = glm::vec3(0.5f, std::numeric_limits<float>::quiet_NaN(), 0.5f);
+  EXPECT_NE(mesh_error(s).find("reflectance component 1"), std::string::npos) << mesh_error(s);
+  s = unit_square();
+  s.background = glm::vec3(std::numeric_limits<float>::infinity());
+  EXPECT_NE(mesh_error(s).find("background"), std::string::npos) << mesh_error(s);
+}
+
+// A node meshes a coordinator's scene to no more patches than the run says it has: refused
+// before anything is allocated (a lying target_patches cost 2 GB before).
+TEST(MeshTarget, MaxPatchesRefusesBeforeAllocating) {
+  MeshOptions o;
+  o.target_patches = 50'000'000;
+  o.max_patches = 300;
+  EXPECT_NE(mesh_error(unit_square(), o).find("more than the 300 expected"), std::string::npos) << mesh_error(unit_square(), o);
+  o.target_patches = 200;
+  EXPECT_EQ(mesh_error(unit_square(), o), "");
+}
+
+}  // namespace
+}  // namespace sirad

@@ -33,6 +33,7 @@
 #include <unistd.h>
 
 #include "core/error.h"
+#include "core/results.h"
 #include "core/output.h"
 
 namespace sirad {
@@ -865,6 +866,62 @@ TEST_F(OutputAtomic, FailedRenameRemovesTemporary) {
   EXPECT_THROW(write_ply(file("target"), facing_quad(), {glm::vec3(1), glm::vec3(3)}), Error);
   EXPECT_EQ(listing(), std::vector<std::string>{"target"});
   EXPECT_TRUE(fs::is_empty(file("target")));
+}
+
+}  // namespace
+}  // namespace sirad
+
+namespace sirad {
+namespace {
+
+class OutputResults : public OutputFiles {
+ protected:
+  PatchMesh quad_with_camera() const {
+    PatchMesh m = facing_quad();
+    m.camera = Camera{glm::vec3(0, 0, 3), glm::vec3(0), glm::vec3(0, 1, 0), 60.0f};
+    return m;
+  }
+  ResultOptions small() const {
+    ResultOptions o;
+    o.width = 8;
+    o.height = 8;
+    return o;
+  }
+};
+
+// The four outputs are all replaced or none is: with a directory where the PLY goes, the old
+// EXR, PNG and glTF stay as they were, and no temporary is left.
+TEST_F(OutputResults, AllOrNone) {
+  for (const char* name : {"x.exr", "x.png", "x.glb"}) std::ofstream(file(name)) << "old contents";
+  fs::create_directory(file("x.ply"));
+  EXPECT_THROW(write_results(file("x"), quad_with_camera(), {glm::vec3(1), glm::vec3(3)}, small(), {}), Error);
+  EXPECT_EQ(listing(), (std::vector<std::string>{"x.exr", "x.glb", "x.ply", "x.png"}));
+  for (const char* name : {"x.exr", "x.png", "x.glb"}) {
+    std::ifstream in(file(name));
+    std::string text((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_EQ(text, "old contents") << name;
+  }
+  fs::remove(file("x.ply"));
+  write_results(file("x"), quad_with_camera(), {glm::vec3(1), glm::vec3(3)}, small(), {});
+  EXPECT_EQ(listing(), (std::vector<std::string>{"x.exr", "x.glb", "x.ply", "x.png"}));
+}
+
+// A result with a non-finite value is never written (it used to give an all-NaN PLY and exit 0).
+TEST_F(OutputResults, NonFiniteResultIsNeverWritten) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  try {
+    write_results(file("x"), quad_with_camera(), {glm::vec3(1), glm::vec3(1, nan, 1)}, small(), {});
+    ADD_FAILURE() << "written";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("not finite at patch 1"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(listing().empty());
+}
+
+// An output name that is a directory (`--out some/dir/`) is refused before the run.
+TEST_F(OutputResults, ADirectoryIsNotAnOutputName) {
+  EXPECT_THROW(check_output_name(dir_.string() + "/", "--out"), Error);
+  EXPECT_NO_THROW(check_output_name(file("x"), "--out"));
 }
 
 }  // namespace

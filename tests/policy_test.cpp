@@ -47,6 +47,24 @@ TEST(Policy, BalancedGrantsFollowTheNodesSpeeds) {
   for (const GrantOrder& g : q.schedule().grants) EXPECT_EQ(size_of(g), 16u);
 }
 
+// A grant's time bound: 8 times its bundles at the node's bundle time (measured, else its
+// READY's claim, else 1 s), that time at most 16 times the fastest ready node's and at most
+// 10 s: a node claiming to be slow cannot buy itself a deadline far beyond the others'.
+TEST(Policy, GrantTimeBoundFollowsMeasuredSpeedsWithinBounds) {
+  PolicyConfig c{.bundles = 1000, .exchange_every = 16, .mode = Mode::async, .min_nodes = 3};
+  Policy p = make(c, 3);
+  for (uint32_t n = 0; n < 3; ++n) p.ready(n);
+  EXPECT_DOUBLE_EQ(p.grant_time_bound(0, 16, 0.0), 8 * 16 * 1.0);     // nothing known: 1 s
+  EXPECT_DOUBLE_EQ(p.grant_time_bound(0, 16, 0.002), 8 * 16 * 0.002); // its claim
+  EXPECT_DOUBLE_EQ(p.grant_time_bound(0, 16, 1e9), 8 * 16 * 10.0);    // at most 10 s a bundle
+  p.set_bundle_time(0, 0.001);
+  p.set_bundle_time(1, 0.004);
+  EXPECT_DOUBLE_EQ(p.grant_time_bound(1, 16, 0.5), 8 * 16 * 0.004);   // measured beats claimed
+  EXPECT_DOUBLE_EQ(p.grant_time_bound(2, 16, 1e9), 8 * 16 * 0.016);   // 16 x the fastest
+  p.dead(0);                                                           // the fastest gone: 16 x 0.004
+  EXPECT_DOUBLE_EQ(p.grant_time_bound(2, 16, 1e9), 8 * 16 * 0.064);
+}
+
 // Quarantine: a report with a value no node can send (NaN), a count beyond its bundles or done
 // ranges it was not granted drops the node's data and returns its bundles, done or not; its
 // earlier accepted report goes too. A late report from it is refused without changing anything.

@@ -7,6 +7,7 @@
 #include <zmq.hpp>
 
 #include "proto/codec.h"
+#include "proto/transport.h"
 #include "proto_samples.h"
 
 namespace sirad::proto {
@@ -140,6 +141,43 @@ TEST(ProtoCodec, FramesCrossARouterDealerPair) {
   Message m = decode({good.begin() + 1, good.end()});
   EXPECT_EQ(m.command, Command::report);
   EXPECT_EQ(m.bulk, messages[5].bulk);
+}
+
+}  // namespace
+}  // namespace sirad::proto
+
+namespace sirad::proto {
+namespace {
+
+// A received message is copied only within its command's bound (message_bound) for the
+// receiver's run: a REPORT of 40 chunk frames to a run of 2 chunks is marked over with no more
+// than 3 + 2 frames copied, its size counted whole; one within the bound arrives whole, and a
+// signature frame larger than any signature is over before the command is known.
+TEST(ProtoTransport, ReceiveCopiesOnlyWithinTheBound) {
+  zmq::context_t ctx;
+  zmq::socket_t a(ctx, zmq::socket_type::pair), b(ctx, zmq::socket_type::pair);
+  a.bind("inproc://bound");
+  b.connect("inproc://bound");
+  const std::string chunk(24 * 5, '\0');  // a chunk of 5 patches
+  std::vector<std::string> many = {std::string(kSignature), std::string(1, char(Command::report)), ""};
+  for (int i = 0; i < 40; ++i) many.push_back(chunk);
+  ASSERT_TRUE(send_frames(a, many));
+  auto r = receive(b, 1000, 0, 10, 2);
+  ASSERT_TRUE(r);
+  EXPECT_TRUE(r->over);
+  EXPECT_LE(r->frames.size(), 5u);
+  EXPECT_EQ(r->frames_seen, 43u);
+  std::vector<std::string> fits(many.begin(), many.begin() + 5);
+  ASSERT_TRUE(send_frames(a, fits));
+  r = receive(b, 1000, 0, 10, 2);
+  ASSERT_TRUE(r);
+  EXPECT_FALSE(r->over);
+  EXPECT_EQ(r->frames, fits);
+  ASSERT_TRUE(send_frames(a, {std::string(1 << 20, 'S'), std::string(1, char(Command::heartbeat)), ""}));
+  r = receive(b, 1000, 0, 10, 2);
+  ASSERT_TRUE(r);
+  EXPECT_TRUE(r->over);
+  EXPECT_TRUE(r->frames.empty());
 }
 
 }  // namespace
