@@ -16,12 +16,7 @@ namespace {
 constexpr int min_columns = 40;
 
 // Names and devices come from the network: only printable ASCII reaches the terminal.
-std::string ascii(const std::string& s) {
-  std::string out = s;
-  for (char& c : out)
-    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) > 0x7e) c = '?';
-  return out;
-}
+std::string ascii(const std::string& s) { return peer_text(s, s.size()); }
 
 // `s` padded or cut to exactly `width` characters; a cut one ends in '~'.
 std::string fit(const std::string& s, size_t width) {

@@ -15,6 +15,9 @@ namespace sirad::emulation {
 
 namespace {
 
+// A profile describes at most the most nodes a run can have (--min-nodes 1..4096).
+constexpr std::size_t kMaxProfileEntries = 4096;
+
 // "FILE:LINE: what" for a node of the document (yaml-cpp marks are 0-based).
 std::string where(const std::string& origin, const YAML::Node& node) {
   return node.Mark().is_null() ? origin : fmt::format("{}:{}", origin, node.Mark().line + 1);
@@ -80,33 +83,39 @@ Profile parse_profile(const std::string& text, const std::string& origin) {
   } catch (const YAML::Exception& e) {
     fail("{}:{}: not valid YAML: {}", origin, e.mark.line + 1, e.msg);
   }
-  if (!root.IsMap()) fail("{}: a profile is a map with 'defaults' and 'nodes' (see deploy/profiles/)", origin);
   Profile p;
-  for (const auto& kv : root) {
-    std::string key = kv.first.as<std::string>();
-    if (key != "profile" && key != "defaults" && key != "nodes")
-      fail("{}: unknown key '{}' (known: profile, defaults, nodes)", where(origin, kv.first), key);
-  }
-  if (root["profile"]) p.name = root["profile"].as<std::string>();
-  if (root["defaults"]) apply(origin, "defaults", root["defaults"], p.defaults, {});
-  if (const YAML::Node nodes = root["nodes"]) {
-    if (!nodes.IsSequence()) fail("{}: nodes: expected a list of entries", where(origin, nodes));
-    for (std::size_t i = 0; i < nodes.size(); ++i) {
-      const YAML::Node& n = nodes[i];
-      std::string path = fmt::format("nodes[{}]", i);
-      Profile::Entry e;
-      e.spec = p.defaults;
-      apply(origin, path, n, e.spec, {"name", "index"});
-      if (n["name"]) {
-        if (!n["name"].IsScalar() || n["name"].Scalar().empty()) fail("{}: {}.name: expected a node name", where(origin, n["name"]), path);
-        e.name = n["name"].Scalar();
-      }
-      if (n["index"]) e.index = static_cast<uint32_t>(number(origin, path + ".index", n["index"], 0, 1 << 20));
-      if (e.index && n["index"].as<double>() != *e.index)
-        fail("{}: {}.index: expected a whole number", where(origin, n["index"]), path);
-      if (!e.name && !e.index) fail("{}: {}: an entry needs a name or an index", where(origin, n), path);
-      p.nodes.push_back(std::move(e));
+  try {
+    if (!root.IsMap()) fail("{}: a profile is a map with 'defaults' and 'nodes' (see deploy/profiles/)", origin);
+    for (const auto& kv : root) {
+      std::string key = kv.first.as<std::string>();
+      if (key != "profile" && key != "defaults" && key != "nodes")
+        fail("{}: unknown key '{}' (known: profile, defaults, nodes)", where(origin, kv.first), key);
     }
+    if (root["profile"]) p.name = root["profile"].as<std::string>();
+    if (root["defaults"]) apply(origin, "defaults", root["defaults"], p.defaults, {});
+    if (const YAML::Node nodes = root["nodes"]) {
+      if (!nodes.IsSequence()) fail("{}: nodes: expected a list of entries", where(origin, nodes));
+      if (nodes.size() > kMaxProfileEntries)
+        fail("{}: nodes: {} entries (at most {}, the most nodes a run has)", where(origin, nodes), nodes.size(), kMaxProfileEntries);
+      for (std::size_t i = 0; i < nodes.size(); ++i) {
+        const YAML::Node& n = nodes[i];
+        std::string path = fmt::format("nodes[{}]", i);
+        Profile::Entry e;
+        e.spec = p.defaults;
+        apply(origin, path, n, e.spec, {"name", "index"});
+        if (n["name"]) {
+          if (!n["name"].IsScalar() || n["name"].Scalar().empty()) fail("{}: {}.name: expected a node name", where(origin, n["name"]), path);
+          e.name = n["name"].Scalar();
+        }
+        if (n["index"]) e.index = static_cast<uint32_t>(number(origin, path + ".index", n["index"], 0, 1 << 20));
+        if (e.index && n["index"].as<double>() != *e.index)
+          fail("{}: {}.index: expected a whole number", where(origin, n["index"]), path);
+        if (!e.name && !e.index) fail("{}: {}: an entry needs a name or an index", where(origin, n), path);
+        p.nodes.push_back(std::move(e));
+      }
+    }
+  } catch (const YAML::Exception& e) {  // a key or value of the wrong kind (a map for a name, ...)
+    fail("{}:{}: {}", origin, e.mark.line + 1, e.msg);
   }
   return p;
 }

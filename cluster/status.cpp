@@ -104,6 +104,13 @@ Status read_status(const std::string& path) {
   return s;
 }
 
+std::string peer_text(std::string_view s, std::size_t max) {
+  std::string out(s.substr(0, max));
+  for (char& c : out)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) > 0x7e) c = '?';
+  return out;
+}
+
 void write_status(const std::string& path, const Status& status) {
   write_file_atomic(path, to_json(status));
 }

@@ -3,6 +3,7 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace sirad::cluster {
@@ -38,6 +39,11 @@ struct Status {
   };
   std::vector<Node> nodes;
 };
+
+// Text a peer sent (a node's name, its device, an ERROR's reason), for a log line or a terminal:
+// at most `max` bytes, every byte outside printable ASCII (newlines, escape sequences, UTF-8)
+// as '?', so no peer can forge a line or move the cursor.
+std::string peer_text(std::string_view s, std::size_t max);
 
 // The status as one line of JSON (names escaped), ending in a newline.
 std::string to_json(const Status& status);

@@ -1,6 +1,8 @@
 // sirad: the run and output flags (see run_flags.h).
 #include "cmd/run_flags.h"
 
+#include <cmath>
+
 #include "cluster/exchange.h"
 #include "core/error.h"
 
@@ -12,11 +14,29 @@ void add_scene_argument(CLI::App* cmd, std::string& scene) {
       ->required();
 }
 
+namespace {
+
+CLI::Validator number_check(bool zero_too) {
+  return CLI::Validator(
+      [zero_too](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v) || !std::isfinite(v)) return "'" + text + "' is not a finite number";
+        if (zero_too ? v >= 0 : v > 0) return "";
+        return std::string(zero_too ? "must be 0 or more" : "must be greater than 0") + " (got " + text + ")";
+      },
+      zero_too ? "NONNEGATIVE" : "POSITIVE");
+}
+
+}  // namespace
+
+CLI::Validator positive() { return number_check(false); }
+CLI::Validator non_negative() { return number_check(true); }
+
 std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
   std::vector<CLI::Option*> options = {
       cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
           ->check(CLI::Range(int64_t{1}, int64_t{1} << 31)),
-      cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(CLI::PositiveNumber),
+      cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(positive()),
       cmd->add_option("--bundles", r.bundles,
                       "Bundles (random directions) to run; the cap with --target-error (default there: 1000000)")
           ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))
@@ -53,7 +73,7 @@ std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
                       "Grants sized to each node's speed, so unequal nodes finish them together: on or off (every grant I bundles)")
           ->check(CLI::IsMember({"on", "off"}))
           ->capture_default_str(),
-      cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")->check(CLI::NonNegativeNumber),
+      cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")->check(non_negative()),
       cmd->add_option("--target-error", r.target_error,
                       "End the run at this relative error estimate (one node: batch means; 2+ nodes with --exchange-every: the "
                       "nodes' spread)")

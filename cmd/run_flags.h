@@ -57,6 +57,11 @@ struct OutputFlags {
 void add_scene_argument(CLI::App* cmd, std::string& scene);
 // The run flags, the cluster's among them; returns their long names ("--bundles", ...).
 std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& flags);
+
+// Number checks whose refusal reads plainly ("must be greater than 0 (got 0)"), for the flags
+// CLI11's PositiveNumber and NonNegativeNumber would refuse with a 300-digit bound.
+CLI::Validator positive();
+CLI::Validator non_negative();
 // The flags of the run flags that only a cluster uses (refused on one node).
 const std::vector<std::string>& cluster_flag_names();
 // Import and output: --out, --width, --height, --exposure, --flat, --skip-degenerate,

@@ -390,10 +390,10 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
   cmd->add_option("--exchange-every", m.setup.exchange_every, "I (0: never)")->check(CLI::Range(uint64_t{0}, uint64_t{1} << 40))->capture_default_str();
   cmd->add_option("--fraction", m.setup.fraction, "S in (0, 1]")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
   cmd->add_option("--contraction", m.scene_params.contraction, "a in [0, 1)")->check(CLI::Range(0.0, 0.999999))->capture_default_str();
-  cmd->add_option("--sigma", m.scene_params.sigma_ratio, "sigma_1 / C")->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--t-iteration", m.costs.t_iteration, "T_i, seconds per iteration")->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--t-exchange", m.costs.t_exchange, "T_e, seconds per exchange with one processor")->check(CLI::NonNegativeNumber)->capture_default_str();
-  cmd->add_option("--time", m.time, "T, seconds")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--sigma", m.scene_params.sigma_ratio, "sigma_1 / C")->check(cli::positive())->capture_default_str();
+  cmd->add_option("--t-iteration", m.costs.t_iteration, "T_i, seconds per iteration")->check(cli::positive())->capture_default_str();
+  cmd->add_option("--t-exchange", m.costs.t_exchange, "T_e, seconds per exchange with one processor")->check(cli::non_negative())->capture_default_str();
+  cmd->add_option("--time", m.time, "T, seconds")->check(cli::positive())->capture_default_str();
   cmd->add_option("--sweep", m.sweep, "none, processors (P = 1..max), period (I = 1..max) or fraction (S = k / max)")
       ->check(CLI::IsMember({"none", "processors", "period", "fraction"}))->capture_default_str();
   cmd->add_option("--max", m.max, "Sweep range, and the largest I searched for the best")->check(CLI::Range(uint64_t{1}, uint64_t{1000000}))->capture_default_str();
@@ -500,7 +500,7 @@ CLI::App* add_reference_command(CLI::App& app, ReferenceArgs& r) {
   cli::add_scene_argument(cmd, r.scene);
   cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
-  cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(CLI::PositiveNumber);
+  cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(cli::positive());
   cmd->add_option("--rays", r.options.rays_per_patch, "Cosine-distributed rays per patch (all batches)")
       ->check(CLI::Range(1, 1 << 24))->capture_default_str();
   cmd->add_option("--light-samples", r.options.light_samples,
@@ -570,6 +570,7 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
 // sirad keygen NAME: a CURVE key pair (proto/security.h); the public key goes to the other side
 // (a node's into the coordinator's allow list, the coordinator's to every node).
 int keygen(const std::string& name) {
+  check_output_name(name, "keygen NAME");
   proto::KeyPair keys = proto::generate_keypair();
   proto::write_keypair(name, keys);
   std::printf("wrote %s.key\nwrote %s.key_secret (mode 0600; keep it on this machine)\n"
@@ -597,7 +598,7 @@ int run(int argc, char** argv) {
   emulate_cmd->add_option("--profile", e.run.profile, "Emulation profile (YAML): speeds and links; nodes are named emu-0, emu-1, ...");
   emulate_cmd->add_option("--bundle-ms", e.bundle_ms,
                           "Milliseconds of one bundle at speed 1 (default: measured before the run; fix it for a reproducible timeline)")
-      ->check(CLI::PositiveNumber);
+      ->check(cli::positive());
   emulate_cmd->add_option("--nodes-csv", e.nodes_csv, "Write the per-node figures (bundles, busy, idle, utilisation) as CSV");
   emulate_cmd->add_option("--timeline", e.timeline, "Write the virtual timeline (every grant, report, update, stop) as CSV");
   ReferenceArgs ref_args;
@@ -652,6 +653,9 @@ int main(int argc, char** argv) {
     return sirad::run(argc, argv);
   } catch (const sirad::Error& e) {
     std::fprintf(stderr, "sirad: error: %s\n", e.what());
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "sirad: error: out of memory\n");
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad: error: %s\n", e.what());
   }

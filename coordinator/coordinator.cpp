@@ -16,6 +16,8 @@
 
 #include "cluster/checkpoint.h"
 #include "cluster/exchange_choice.h"
+#include "cluster/rate_limit.h"
+#include "cluster/status.h"
 #include "core/bundle.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
@@ -136,6 +138,11 @@ class Coordinator {
           record_.quarantined_keys.insert(key);
       }
     }
+    for (const auto& [id, held] : log_limit_.held()) {
+      auto it = peers_.find(id);
+      std::fprintf(stderr, "sirad-coordinator: %s: %llu more lines like its last held back\n",
+                   it != peers_.end() ? it->second.name.c_str() : "unknown peer", static_cast<unsigned long long>(held));
+    }
     // FINAL is in from every live node; let the last shaped messages (STOPs) go out.
     for (auto& [id, p] : peers_) p.down.flush(router_, std::numeric_limits<double>::infinity());
     if (config_.status) config_.status(snapshot(true));
@@ -249,10 +256,14 @@ class Coordinator {
     return static_cast<int>(std::clamp(ms, 0.0, 100.0));
   }
 
+  // A line about a peer: at most 5 per routing id every 10 s; the next line that goes says how
+  // many were held back (a flood of refusals is a few lines, not one per message).
   void log(const std::string& id, const std::string& what) {
+    uint64_t held = 0;
+    if (!log_limit_.allow(id, clock(Clock::now()), &held)) return;
     auto it = peers_.find(id);
-    std::fprintf(stderr, "sirad-coordinator: %s: %s\n", it != peers_.end() ? it->second.name.c_str() : "unknown peer",
-                 what.c_str());
+    std::fprintf(stderr, "sirad-coordinator: %s: %s%s\n", it != peers_.end() ? it->second.name.c_str() : "unknown peer",
+                 what.c_str(), held ? fmt::format(" ({} more lines like it held back)", held).c_str() : "");
   }
 
   // To a peer, through its link (shaped when the profile says so).
@@ -280,6 +291,9 @@ class Coordinator {
     auto it = peers_.find(id);
     if (it == peers_.end()) throw Rejoin(fmt::format("{} before HELLO", proto::command_name(m.command)));
     Peer& p = it->second;
+    // Under CURVE a peer is its key: another key on its routing id (a node that took it over)
+    // is refused without touching the node that has it.
+    if (p.key != key) fail("{} on the routing id of {} from another key: refused", proto::command_name(m.command), p.name);
     const NodeState& n = policy_.node(p.index);
     if (n.quarantined) fail("{} from a quarantined node ({})", proto::command_name(m.command), n.why);
     if (n.dead) throw Rejoin(fmt::format("{} from a node declared dead; say HELLO to rejoin", proto::command_name(m.command)));
@@ -289,8 +303,8 @@ class Coordinator {
       case Command::report: report(p, std::get<wire::Report>(m.header), m.bulk); break;
       case Command::final_state: final_state(p, std::get<wire::Report>(m.header), m.bulk); break;
       case Command::error:
-        if (config_.strict) fail("{}: {}", p.name, std::get<wire::Error>(m.header).reason());
-        log(id, "node: " + std::get<wire::Error>(m.header).reason());
+        if (config_.strict) fail("{}: {}", p.name, peer_text(std::get<wire::Error>(m.header).reason(), 300));
+        log(id, "node: " + peer_text(std::get<wire::Error>(m.header).reason(), 300));
         break;
       case Command::heartbeat: break;
       default: fail("unexpected {}", proto::command_name(m.command));
@@ -303,6 +317,7 @@ class Coordinator {
     if (auto it = peers_.find(id); it != peers_.end()) {
       Peer& old = it->second;
       const NodeState& n = policy_.node(old.index);
+      if (old.key != key && !n.dead) fail("HELLO on the routing id of {} from another key: refused", old.name);
       old.last_seen = Clock::now();
       if (n.quarantined) fail("HELLO from a quarantined node ({}): refused", n.why);
       // An idle node repeats HELLO until it has a run, and a node between FINAL and the next
@@ -318,8 +333,9 @@ class Coordinator {
     p.id = id;
     p.key = key;
     p.index = policy_.join();
-    p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : h.node_name();
-    if (h.has_device()) p.device = h.device().name();
+    // What a peer names itself reaches logs, the summary and the status: printable ASCII only.
+    p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : peer_text(h.node_name(), 64);
+    if (h.has_device()) p.device = peer_text(h.device().name(), 128);
     wire::Welcome w;
     w.set_node_index(p.index);
     w.set_heartbeat_ms(config_.heartbeat_ms);
@@ -405,7 +421,9 @@ class Coordinator {
       out.push_back({r.chunks(i), proto::unpack(bulk[i]), r.counts(i)});
       bytes += bulk[i].size();
     }
-    if (std::isfinite(r.busy_s()) && std::isfinite(r.idle_s())) {
+    // Times a node reports are its own word: taken only within [0, kMaxSeconds].
+    auto plausible = [](double t) { return t >= 0 && t <= kMaxSeconds; };
+    if (plausible(r.busy_s()) && plausible(r.idle_s())) {
       p.busy_s = std::max(p.busy_s, r.busy_s());
       p.idle_s = std::max(p.idle_s, r.idle_s());
     }
@@ -418,11 +436,19 @@ class Coordinator {
       std::vector<Range> done;
       for (const auto& d : r.done()) done.push_back({d.first(), d.last()});
       // A report for a grant it does not hold is refused before its data is looked at; one for
-      // its grant with data refused (another run's) still answers the grant, without the data.
+      // its grant whose data is refused still answers the grant, without the data.
       uint64_t bytes = 0;
       std::vector<ChunkState> chunks;
       std::string refused;
       const NodeState& n = policy_.node(p.index);
+      // Another run's id on the grant it holds: no honest node sends that, and nothing of it
+      // may count (its done ranges included).
+      if (r.run_id() != run_.run_id() && !n.grants.empty() && r.grant_id() == n.grants.front()) {
+        const std::string why = fmt::format("REPORT for grant {} names run {:x}, not this run", r.grant_id(), r.run_id());
+        policy_.quarantine(p.index, why);
+        p.due.clear();
+        fail("{}: quarantined", why);
+      }
       if (!n.grants.empty() && r.grant_id() == n.grants.front()) {
         try {
           chunks = chunk_states(p, r, bulk, bytes);
@@ -514,6 +540,7 @@ class Coordinator {
   // The run's counters and quarantined keys (what a checkpoint keeps besides the policy and the
   // peers); elapsed_s: the run's time before a resume.
   CoordinatorRecord record_;
+  RateLimit log_limit_{5, 10.0};
   Clock::time_point start_ = Clock::now();
 };
 

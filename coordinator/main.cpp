@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
   app.add_option("--endpoint-file", endpoint_file, "Write the bound endpoint here (for scripts: tcp://*:0 picks a port)");
   app.add_option("--status-json", status_json, "Rewrite this file with the run's status every second");
   app.add_option("--ledger", ledger, "At the end, write which node ran which bundle indices (CSV: node,name,first,last)");
-  app.add_option("--timeout", timeout, "Fail if the run takes longer (seconds; 0: never)")->check(CLI::NonNegativeNumber);
+  app.add_option("--timeout", timeout, "Fail if the run takes longer (seconds; 0: never)")->check(cli::non_negative());
   app.add_option("--profile", profile, "Network emulation profile (YAML; see deploy/profiles/)");
   app.add_option("--heartbeat-ms", heartbeat_ms, "Heartbeat interval")->check(CLI::Range(10, 60000))->capture_default_str();
   app.add_option("--liveness", liveness, "Heartbeats a node may miss before it is dead")->check(CLI::Range(1, 100))->capture_default_str();
@@ -80,8 +80,9 @@ int main(int argc, char** argv) {
     const std::set<std::string> given = cli::given_flags(&app);
     std::string out = output.out.empty() ? std::filesystem::path(scene_spec).stem().string() : output.out;
     check_output_name(out, "--out");
-    if (!ledger.empty()) check_output_name(ledger, "--ledger");
-    if (!checkpoint.empty()) check_output_name(checkpoint, "--checkpoint");
+    if (!ledger.empty()) check_file_name(ledger, "--ledger");
+    if (!checkpoint.empty()) check_file_name(checkpoint, "--checkpoint");
+    if (!status_json.empty()) check_file_name(status_json, "--status-json");
     cluster::RunConfig rc;
     std::optional<wire::Checkpoint> resumed;
     if (!resume.empty()) {
@@ -176,6 +177,9 @@ int main(int argc, char** argv) {
     }
     std::fputs(cluster::cluster_summary(result, mesh.size(), seconds).c_str(), stdout);
     if (result.ended_by != "budget") std::printf("ended early: %s\n", result.ended_by.c_str());
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "sirad-coordinator: error: out of memory\n");
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad-coordinator: error: %s\n", e.what());
     return 1;

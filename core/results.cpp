@@ -29,6 +29,12 @@ void check_output_name(const std::string& name, const std::string& flag) {
   if (::access(dir.c_str(), W_OK) != 0) fail("{} {}: directory '{}' is not writable", flag, name, dir.string());
 }
 
+void check_file_name(const std::string& path, const std::string& flag) {
+  check_output_name(path, flag);
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) fail("{} {}: is a directory, not a file", flag, path);
+}
+
 std::string wrote_lines(const ResultFiles& files) {
   std::string out;
   for (const std::string* f : {&files.exr, &files.png, &files.ply, &files.glb})

@@ -27,6 +27,9 @@ std::string wrote_lines(const ResultFiles& files);
 // Fails early, before any work, if NAME's directory does not exist or is not writable; the
 // message names it by `flag` (what gave the name).
 void check_output_name(const std::string& name, const std::string& flag);
+// The same for a file written whole at `path` itself (a checkpoint, a ledger, a status file, a
+// key): also refused when `path` is a directory.
+void check_file_name(const std::string& path, const std::string& flag);
 
 // Renders the view of the mesh's camera and writes NAME.exr, .png, .ply and .glb atomically.
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,

@@ -1,9 +1,7 @@
-// sirad: scene import (line-exact OBJ parsing, MTL via tinyobjloader), validation, built-ins.
+// sirad: scene import (line-exact OBJ and MTL parsing), validation, built-ins.
 #include "core/scene.h"
 
 #include "core/atomic_file.h"
-
-#include <tiny_obj_loader.h>
 
 #include <algorithm>
 #include <cctype>
@@ -103,6 +101,68 @@ bool is_degenerate(const std::array<glm::vec3, 3>& p) {
   const double longest2 =
       std::max({glm::dot(b - a, b - a), glm::dot(c - b, c - b), glm::dot(a - c, a - c)});
   return !(glm::length(glm::cross(b - a, c - a)) > 1e-12 * longest2);
+}
+
+// One material of an MTL file: its name, Kd, Ke and sirad_two_sided, and the texture maps it
+// names (not read; said in a warning).
+struct MtlMaterial {
+  Material material;
+  std::string textures;
+};
+
+// An MTL file read line by line, as strictly as the OBJ: `Kd` and `Ke` take one number (then
+// g = b = r, as the MTL convention has it) or three, each a finite float, else an error naming
+// the file and line; `spectral` and `xyz` colours are refused; `sirad_two_sided` is 0 or 1.
+// Every other statement (Ka, Ks, Ns, d, Tr, illum, the PBR extension, ...) is ignored, as are
+// colours before the first `newmtl`. Materials come in file order.
+std::vector<MtlMaterial> parse_mtl(const std::string& text, const std::string& label) {
+  std::vector<MtlMaterial> out;
+  std::vector<std::string_view> words;
+  uint32_t line_no = 0;
+  for (std::size_t at = 0; at <= text.size();) {
+    std::size_t end = text.find('\n', at);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + at, end - at);
+    at = end + 1;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const std::string_view content = trim(line.substr(0, line.find('#')));
+    if (content.empty()) continue;
+    split(content, words);
+    const std::string_view key = words[0];
+    auto bad = [&](const std::string& what) { fail("{}:{}: {}", label, line_no, what); };
+    if (key == "newmtl") {
+      const std::string name = material_name(trim(line).substr(6));
+      if (name.empty()) bad("newmtl without a name");
+      out.push_back({{name, glm::vec3(0.0f), glm::vec3(0.0f)}, {}});
+    } else if (key == "Kd" || key == "Ke") {
+      if (words.size() > 1 && (words[1] == "spectral" || words[1] == "xyz"))
+        bad(fmt::format("{} {}: only RGB colours are read", key, printable(words[1])));
+      if (words.size() != 2 && words.size() != 4)
+        bad(fmt::format("{} takes 1 or 3 numbers (got {})", key, words.size() - 1));
+      glm::vec3 v(0.0f);
+      for (std::size_t k = 1; k < words.size(); ++k) {
+        float f = 0;
+        if (parse_float(words[k], f) != Parsed::ok || !std::isfinite(f))
+          bad(fmt::format("{}: '{}' is not a finite number", key, printable(words[k])));
+        v[static_cast<int>(k - 1)] = f;
+      }
+      if (words.size() == 2) v = glm::vec3(v.x);
+      if (out.empty()) continue;  // before any newmtl: no material has it
+      (key == "Kd" ? out.back().material.reflectance : out.back().material.emission) = v;
+    } else if (key == "sirad_two_sided") {
+      const std::string v = words.size() == 2 ? std::string(words[1]) : std::string(trim(content.substr(key.size())));
+      if (v != "0" && v != "1") {
+        if (out.empty()) bad(fmt::format("sirad_two_sided must be 0 or 1 (got '{}')", printable(v)));
+        fail("{}: material '{}': sirad_two_sided must be 0 or 1 (got '{}')", label, printable(out.back().material.name), printable(v));
+      }
+      if (!out.empty()) out.back().material.two_sided = v == "1";
+    } else if ((key == "map_Kd" || key == "map_Ke") && words.size() > 1 && !out.empty()) {
+      std::string& t = out.back().textures;
+      t += (t.empty() ? "" : ", ") + printable(words.back());
+    }
+  }
+  return out;
 }
 
 void validate_material(const Material& m, const std::string& file) {
@@ -279,8 +339,7 @@ class ObjParser {
 };
 
 Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
-  // Step 1: material libraries, each parsed by tinyobjloader; the first definition of a name
-  // wins. Its warnings concern parameters sirad ignores (d/Tr, textures).
+  // Step 1: material libraries (parse_mtl); the first definition of a name wins.
   struct Defined {
     Material material;
     std::string file;
@@ -290,29 +349,11 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
   for (const auto& [file, line] : mtllibs_) {
     const auto [label, text] = source(file, line);
     if (text.find('\0') != std::string::npos) fail("{}: binary data, not MTL text", label);
-    std::istringstream in(text);
-    std::map<std::string, int> map;
-    std::vector<tinyobj::material_t> materials;
-    std::string warn, err;
-    tinyobj::LoadMtl(&map, &materials, &in, &warn, &err);
-    if (!err.empty()) fail("{}: {}", label, printable(err.substr(0, err.find('\n'))));
-    for (const auto& m : materials) {
-      const std::string name = material_name(m.name);
-      if (name.empty()) continue;  // tinyobjloader's unnamed default
-      Material material{name, {m.diffuse[0], m.diffuse[1], m.diffuse[2]}, {m.emission[0], m.emission[1], m.emission[2]}};
-      if (auto it = m.unknown_parameter.find("sirad_two_sided"); it != m.unknown_parameter.end()) {
-        const std::string v(trim(it->second));
-        if (v != "0" && v != "1")
-          fail("{}: material '{}': sirad_two_sided must be 0 or 1 (got '{}')", label, printable(name), printable(v));
-        material.two_sided = v == "1";
-      }
-      std::string textures;
-      for (const std::string* t : {&m.diffuse_texname, &m.emissive_texname})
-        if (!t->empty()) textures += (textures.empty() ? "" : ", ") + printable(*t);
-      if (!textures.empty())
-        texture_notes.emplace(name, fmt::format("{}: material '{}': texture maps are not read ({}); its Kd and Ke "
-                                                "are used as they are", label, printable(name), textures));
-      defined.try_emplace(name, Defined{material, label});
+    for (MtlMaterial& m : parse_mtl(text, label)) {
+      if (!m.textures.empty())
+        texture_notes.emplace(m.material.name, fmt::format("{}: material '{}': texture maps are not read ({}); its Kd and Ke "
+                                                           "are used as they are", label, printable(m.material.name), m.textures));
+      defined.try_emplace(m.material.name, Defined{m.material, label});
     }
   }
 

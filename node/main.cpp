@@ -59,6 +59,9 @@ int main(int argc, char** argv) {
                   d.platform_name.c_str(), d.device_name.c_str());
       return 0;
     }
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "sirad-node: error: out of memory\n");
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad-node: error: %s\n", e.what());
     return 1;
@@ -72,6 +75,9 @@ int main(int argc, char** argv) {
   try {
     zmq::context_t context;
     sirad::node::serve(context, endpoint, options);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "sirad-node: error: out of memory\n");
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad-node: error: %s\n", e.what());
     return 1;

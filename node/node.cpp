@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "cluster/settings.h"
+#include "cluster/status.h"
 #include "cluster/worker.h"
 #include "cluster/profile.h"
 #include "core/bundle_cl.h"
@@ -215,7 +216,7 @@ class Node {
       case Command::heartbeat: break;
       case Command::error: {
         const wire::Error& e = std::get<wire::Error>(m.header);
-        std::fprintf(stderr, "sirad-node %s: coordinator: %s\n", options_.name.c_str(), e.reason().c_str());
+        std::fprintf(stderr, "sirad-node %s: coordinator: %s\n", options_.name.c_str(), cluster::peer_text(e.reason(), 300).c_str());
         // It does not know this node in its run (declared dead, or the coordinator restarted):
         // leave the run and join again.
         if (e.rejoin() && (state_ || pending_)) {

@@ -303,7 +303,7 @@ TEST(SceneErrors, BadMaterials) {
   expect_parts(load_error(dir, kQuad, "newmtl light\nKd 0.5 0.5 0.5\nKe 1 -1 1\n"),
                {"s.mtl: material 'light': Ke -1 is negative"});
   expect_parts(load_error(dir, kQuad, "newmtl light\nKe 1 1e99 1\n"),
-               {"s.mtl: material 'light': Ke inf"});
+               {"s.mtl:2: Ke: '1e99' is not a finite number"});  // beyond float range: refused where it is written
   expect_parts(load_error(dir, "mtllib none.mtl\n" + kQuad), {"none.mtl: no such file"});
   std::string dark = kQuad;
   dark.replace(dark.find("usemtl light"), 12, "usemtl white");
@@ -387,6 +387,34 @@ TEST(SceneErrors, FuzzedInputOnlyThrowsSiradErrors) {
     }
   }
   EXPECT_GT(loaded, 0);
+}
+
+}  // namespace
+}  // namespace sirad
+
+namespace sirad {
+namespace {
+
+// MTL values are read as strictly as OBJ's: one number means g = b = r (the MTL convention);
+// a value that is not a finite number, a count other than 1 or 3, or a spectral or xyz colour
+// is an error naming the file and line, never a silent 0 (tinyobjloader made `Kd 0.5` (0.5, 0,
+// 0) and `Ke abc` 0).
+TEST(SceneMtl, ValuesAreReadStrictly) {
+  const std::string obj = "mtllib lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl m\nf 1 2 3\n";
+  const Scene s = parse_obj("mem", obj, {{"lib.mtl", "# a comment\nnewmtl m # trailing\nKd 0.5\r\nKe 2 # bright\n"}});
+  ASSERT_EQ(s.materials.size(), 1u);
+  EXPECT_EQ(s.materials[0].reflectance, glm::vec3(0.5f));
+  EXPECT_EQ(s.materials[0].emission, glm::vec3(2.0f));
+  for (const auto& [mtl, parts] : std::vector<std::pair<std::string, std::vector<std::string>>>{
+           {"newmtl m\nKd 0.5 0.5 0.5\nKe nan\n", {"lib.mtl:3:", "Ke", "'nan'", "not a finite number"}},
+           {"newmtl m\nKd 0.5 0.5 0.5\nKe inf 1 1\n", {"lib.mtl:3:", "'inf'"}},
+           {"newmtl m\nKd 0.5 0.5 0.5\nKe abc\n", {"lib.mtl:3:", "'abc'"}},
+           {"newmtl m\nKd 0.5 0.5 0.5\nKe NaN NaN NaN\n", {"lib.mtl:3:", "'NaN'"}},
+           {"newmtl m\nKd 0.5 0.5\nKe 1\n", {"lib.mtl:2:", "Kd takes 1 or 3 numbers (got 2)"}},
+           {"newmtl m\nKd xyz 0.5 0.5 0.5\nKe 1\n", {"lib.mtl:2:", "only RGB"}},
+           {"newmtl m\nKd 1e39 0 0\nKe 1\n", {"lib.mtl:2:", "'1e39'"}},
+           {"newmtl\nKd 0.5\n", {"lib.mtl:1:", "newmtl without a name"}}})
+    expect_parts(error_of([&] { parse_obj("mem", obj, {{"lib.mtl", mtl}}); }), parts);
 }
 
 }  // namespace

@@ -46,7 +46,17 @@ def check(cond, what):
 
 class Proc:
     """A child process with its output in a log file; wait() reaps it with wait4 and keeps its
-    exit code and peak resident memory (ru_maxrss, KiB)."""
+    exit code and peak resident memory (ru_maxrss, KiB). Every child still running when the case
+    ends, passed or failed, is killed (Proc.kill_all)."""
+
+    running = []
+
+    @classmethod
+    def kill_all(cls):
+        for p in cls.running:
+            if p.poll() is None:
+                p.p.kill()
+                p.wait(30)
 
     def __init__(self, args, log_path, env=None):
         self.args = args
@@ -55,6 +65,7 @@ class Proc:
         self.p = subprocess.Popen(args, stdout=self.log_file, stderr=subprocess.STDOUT, env=env)
         self.rc = None
         self.maxrss_kib = None
+        Proc.running.append(self)
 
     def poll(self):
         if self.rc is None:
@@ -218,14 +229,14 @@ class Run:
     """A coordinator on the furnace (300 patches, the plain transport with random directions, so
     the tolerance below holds) over loopback TCP, and honest node processes."""
 
-    def __init__(self, build, work, bundles, min_nodes, extra=()):
+    def __init__(self, build, work, bundles, min_nodes, extra=(), insecure=True):
         self.build, self.work, self.bundles = build, work, bundles
         self.endpoint_file = os.path.join(work, "endpoint")
         self.out = os.path.join(work, "furnace")
         self.ledger = os.path.join(work, "ledger.csv")
         self.status = os.path.join(work, "status.json")
-        args = [os.path.join(build, "sirad-coordinator"), "furnace", "--listen", "tcp://127.0.0.1:*", "--insecure",
-                "--endpoint-file", self.endpoint_file, "--bundles", str(bundles), "--patches", "300",
+        args = [os.path.join(build, "sirad-coordinator"), "furnace", "--listen", "tcp://127.0.0.1:*"] + \
+               (["--insecure"] if insecure else []) + ["--endpoint-file", self.endpoint_file, "--bundles", str(bundles), "--patches", "300",
                 "--min-nodes", str(min_nodes), "--control-variate", "off", "--directions", "random",
                 "--shots-per-bundle", "0", "--exchange-every", "16", "--out", self.out, "--width", "16",
                 "--height", "16", "--ledger", self.ledger, "--status-json", self.status, "--timeout", "300",
@@ -477,6 +488,134 @@ def case_huge_emission(build, work, ctx):
                 check(not left, f"Ke {ke}, {mode}: wrote {left}")
 
 
+def case_garbage_flood(build, work, ctx):
+    """Class 16: 20,000 garbage messages from one peer in a burst. Each is refused, but the log
+    says so at most 5 times per peer per 10 s (the next line, or the end of the run, counts what
+    was held back): here
+    at most 5 x (the run's seconds / 10 + 1) lines about it, not 20,000; the run is unharmed."""
+    run = Run(build, work, 2048, 2)
+    p = Peer(ctx, run.endpoint, "garbage")
+    for i in range(20000):
+        p.s.send_multipart([b"JUNK", bytes([i & 0xff]), b"x" * (i % 97)])
+    p.send("heartbeat")  # one more, known to come after the burst
+    run.honest(2)
+    t0 = time.monotonic()
+    run.finish()
+    seconds = time.monotonic() - t0
+    log = run.check_result({"h0", "h1"})
+    lines = log.count("sirad-coordinator: unknown peer: ")
+    allowed = 5 * (int(seconds / 10) + 2)
+    print(f"{lines} log lines about the flood in {seconds:.1f} s (at most {allowed})")
+    check(lines <= allowed, f"{lines} log lines about 20,000 garbage messages (at most {allowed})")
+    check("held back" in log, "no count of the held-back lines")
+
+
+def keypair(build, work, name):
+    subprocess.run([os.path.join(build, "sirad"), "keygen", os.path.join(work, name)], check=True, capture_output=True)
+
+    def key(path, field):
+        with open(path) as f:
+            for line in f:
+                if line.strip().startswith(field):
+                    return line.split('"')[1].encode()
+        raise Failure(f"no {field} in {path}")
+    pub = os.path.join(work, name + ".key")
+    return key(pub, "public-key"), key(pub + "_secret", "secret-key")
+
+
+def case_stolen_routing_id(build, work, ctx):
+    """Class 10: under CURVE, node B (an allowed key) takes node A's routing id and sends a NaN
+    REPORT for A's grant. The coordinator binds a peer to its key (the ZAP user id): B's
+    message is refused and A is not quarantined (it ends dead, by its grant deadline, since this
+    A is a Python peer that runs nothing); the honest nodes finish the run."""
+    cpub, csec = keypair(build, work, "coordinator")
+    keys = {n: keypair(build, work, n) for n in ("h0", "h1", "a", "b")}
+    with open(os.path.join(work, "allow"), "w") as f:
+        for n, (pub, _) in keys.items():
+            f.write(f"{pub.decode()} {n}\n")
+    extra = ["--curve-secret", os.path.join(work, "coordinator.key_secret"), "--allow", os.path.join(work, "allow")]
+    run = Run(build, work, 2048, 3, extra, insecure=False)
+
+    def curve_peer(name, routing_id):
+        pub, sec = keys[name]
+        s = ctx.socket(zmq.DEALER)
+        s.setsockopt(zmq.LINGER, 0)
+        s.setsockopt(zmq.CURVE_SERVERKEY, cpub)
+        s.setsockopt(zmq.CURVE_PUBLICKEY, pub)
+        s.setsockopt(zmq.CURVE_SECRETKEY, sec)
+        s.setsockopt(zmq.ROUTING_ID, routing_id)
+        s.connect(run.endpoint)
+        p = Peer.__new__(Peer)
+        p.s, p.name, p.run = s, name, None
+        return p
+
+    for i in range(2):
+        name = f"h{i}"
+        run.nodes.append(Proc([os.path.join(build, "sirad-node"), "--connect", run.endpoint, "--name", name, "--curve-secret",
+                               os.path.join(work, name + ".key_secret"), "--server-key", os.path.join(work, "coordinator.key")],
+                              os.path.join(work, f"{name}.log")))
+    a = curve_peer("a", b"node-shared")
+    a.join([run.coordinator])
+    grant = None
+    while grant is None:
+        check(run.coordinator.poll() is None, "the coordinator ended before A's grant")
+        m = a.recv(100)
+        if m is not None and m[0] == "grant":
+            grant = m[1]
+    b = curve_peer("b", b"node-shared")
+    nan = struct.pack("<d", float("nan")) * (3 * 300)
+    r = pb.Report(run_id=grant.run_id, grant_id=grant.grant_id, chunks=[0], counts=[1])
+    r.done.extend(grant.ranges)
+    b.send("report", r, [nan[:24 * 19]])
+    wait_until("B's refusal", lambda: "from another key: refused" in run.coordinator.log(), [run.coordinator])
+    while run.coordinator.poll() is None:
+        a.recv(100)
+        a.send("heartbeat")
+    run.finish()
+    run.check_result({"h0", "h1"})
+    status = read_status(run.status)
+    states = {n["name"]: n["state"] for n in status["nodes"]}
+    check(states.get("a") != "quarantined", f"A was quarantined: {states}")
+
+
+def case_bad_files_and_flags(build, work, ctx):
+    """Classes 11, 14 and 15: every file a command reads is opened only when it is a regular
+    file within a bound (a device or a FIFO is refused at once, never read for ever or waited
+    on); outputs that name a directory are refused before the run; bounds read plainly."""
+    fifo = os.path.join(work, "fifo")
+    os.mkfifo(fifo)
+    os.mkdir(os.path.join(work, "dir"))
+    coord, sirad, node = (os.path.join(build, b) for b in ("sirad-coordinator", "sirad", "sirad-node"))
+    big_profile = os.path.join(work, "big.yaml")
+    with open(big_profile, "w") as f:
+        f.write("nodes:\n" + "".join(f"  - index: {i}\n    speed: 1\n" for i in range(5000)))
+    sec = os.path.join(work, "k")
+    subprocess.run([sirad, "keygen", sec], check=True, capture_output=True)
+    cases = [
+        ([coord, "cornell", "--allow", "/dev/zero", "--curve-secret", sec + ".key_secret"], "not a regular file"),
+        ([coord, "cornell", "--allow", fifo, "--curve-secret", sec + ".key_secret"], "not a regular file"),
+        ([coord, "cornell", "--resume", "/dev/zero"], "not a regular file"),
+        ([coord, "cornell", "--profile", fifo], "not a regular file"),
+        ([coord, "cornell", "--profile", big_profile, "--check-config"], "5000 entries (at most 4096"),
+        ([node, "--connect", "tcp://127.0.0.1:9", "--curve-secret", "/dev/zero", "--server-key", sec + ".key"], "/dev/zero"),
+        ([node, "--connect", "tcp://127.0.0.1:9", "--curve-secret", sec + ".key_secret", "--server-key", fifo], "not a regular file"),
+        ([coord, "cornell", "--insecure", "--checkpoint", os.path.join(work, "dir"), "--check-config"], "is a directory"),
+        ([coord, "cornell", "--insecure", "--ledger", os.path.join(work, "dir"), "--check-config"], "is a directory"),
+        ([sirad, "render", "cornell", "--out", os.path.join(work, "dir") + "/"], "names a directory"),
+        ([sirad, "keygen", ""], "empty output name"),
+        ([sirad, "render", "cornell", "--max-edge", "0"], "must be greater than 0 (got 0)"),
+        ([coord, "cornell", "--timeout", "-1"], "must be 0 or more (got -1)"),
+    ]
+    for i, (args, expect) in enumerate(cases):
+        p = Proc(args, os.path.join(work, f"case{i}.log"))
+        rc = p.wait(60)
+        log = p.log().strip()
+        err = [l for l in log.splitlines() if "error" in l]
+        check(rc != 0, f"{args[1:]}: exit 0")
+        check(len(err) == 1 and expect in err[0] and len(err[0]) < 300, f"{args[1:]}: not one clear line with {expect!r}: {log}")
+    check(not os.listdir(os.path.join(work, "dir")), "something was written into the directory")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in globals().items() if name.startswith("case_")}
 
 
@@ -502,6 +641,7 @@ def main():
         print(f"FAILED {a.case}: {e}\n(work directory kept: {work})")
         return 1
     finally:
+        Proc.kill_all()
         ctx.destroy(linger=0)
     print(f"passed {a.case}")
     if not a.keep:
