@@ -176,10 +176,12 @@ Aggregate::Aggregate(std::vector<uint32_t> starts, uint32_t nodes) : starts_(std
   for (uint32_t p = 0; p < nodes; ++p) add_node();
 }
 
-void Aggregate::add_node() {
-  std::vector<Part> parts(chunks());
-  for (uint32_t c = 0; c < chunks(); ++c) parts[c].sum.assign(3 * static_cast<std::size_t>(chunk_size(c)), 0.0);
-  state_.push_back(std::move(parts));
+void Aggregate::add_node() { state_.emplace_back(chunks()); }  // empty sums: zeros, allocated at the first set
+
+Aggregate::Part Aggregate::state(uint32_t node, uint32_t chunk) const {
+  const Part& p = state_.at(node).at(chunk);
+  if (!p.sum.empty()) return p;
+  return {std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
 }
 
 void Aggregate::check(uint32_t node, uint32_t chunk, const std::vector<double>& sum, uint64_t count) const {
@@ -208,14 +210,11 @@ void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint
 
 void Aggregate::clear(uint32_t node) {
   if (node >= nodes()) fail("aggregate: no node {}", node);
-  for (Part& part : state_[node]) {
-    std::fill(part.sum.begin(), part.sum.end(), 0.0);
-    part.count = 0;
-  }
+  for (Part& part : state_[node]) part = Part{};  // back to zeros, its memory freed
 }
 
 Aggregate::Part Aggregate::others(uint32_t node, uint32_t chunk, Topology topology) const {
-  if (topology == Topology::ring) return nodes() > 1 ? state_[(node + 1) % nodes()][chunk] : Part{std::vector<double>(3 * chunk_size(chunk), 0.0), 0};
+  if (topology == Topology::ring) return nodes() > 1 ? state((node + 1) % nodes(), chunk) : Part{std::vector<double>(3 * chunk_size(chunk), 0.0), 0};
   Part out{std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
   for (uint32_t p = 0; p < nodes(); ++p) {
     if (p == node) continue;
@@ -237,7 +236,8 @@ std::vector<double> Aggregate::estimate(uint32_t chunk) const {
   uint64_t n = count(chunk);
   if (n == 0) return out;
   for (const auto& parts : state_)
-    for (std::size_t i = 0; i < out.size(); ++i) out[i] += parts[chunk].sum[i];
+    if (!parts[chunk].sum.empty())  // empty: zeros
+      for (std::size_t i = 0; i < out.size(); ++i) out[i] += parts[chunk].sum[i];
   for (double& v : out) v /= static_cast<double>(n);
   return out;
 }

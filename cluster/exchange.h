@@ -92,7 +92,9 @@ class Aggregate {
     std::vector<double> sum;  // 3 per patch of the chunk
     uint64_t count = 0;
   };
-  const Part& state(uint32_t node, uint32_t chunk) const { return state_[node][chunk]; }
+  // Node `node`'s last state of chunk c (zeros with count 0 before it sent one: a node's parts
+  // are allocated at its first state, so nodes that join and never report cost no chunk memory).
+  Part state(uint32_t node, uint32_t chunk) const;
   // What `node` receives for chunk c: star, the sum over all other nodes; ring, node + 1's.
   Part others(uint32_t node, uint32_t chunk, Topology topology) const;
   // The count-weighted global estimate of chunk c: sum of sums / sum of counts (zeros where no

@@ -39,6 +39,11 @@ using Clock = std::chrono::steady_clock;
 // an empty POCL_CACHE_DIR and an idle machine; several times that under load).
 constexpr double kFirstGrantS = 30;
 
+// Joins (HELLOs that make a new node entry) per CURVE key or address in any 10 s: enough for a
+// farm of 256 nodes behind one address (a NAT, one host) to start at once.
+constexpr uint32_t kJoinBurst = 256;
+constexpr double kJoinWindowS = 10;
+
 // Refused because the coordinator does not know the sender in its run (never joined, declared
 // dead, or this coordinator was restarted): the ERROR asks it to say HELLO again.
 struct Rejoin : Error {
@@ -128,7 +133,7 @@ class Coordinator {
         continue;
       }
       try {
-        handle(id, key, m);
+        handle(id, key, in->address, m);
       } catch (const Error& e) {
         if (config_.strict) throw;
         log(id, e.what());
@@ -243,8 +248,7 @@ class Coordinator {
     uint64_t back = policy_.dead(p.index);
     p.down.clear();
     p.due.clear();
-    std::fprintf(stderr, "sirad-coordinator: %s: declared dead (%s); %llu granted bundles return to the budget\n",
-                 p.name.c_str(), why.c_str(), static_cast<unsigned long long>(back));
+    log(p.id, fmt::format("declared dead ({}); {} granted bundles return to the budget", why, back));
     schedule();  // a sync barrier may have been waiting on it
   }
 
@@ -283,10 +287,10 @@ class Coordinator {
     proto::send(router_, {Command::error, e, {}}, &id);
   }
 
-  void handle(const std::string& id, const std::string& key, const Message& m) {
+  void handle(const std::string& id, const std::string& key, const std::string& address, const Message& m) {
     if (m.command == Command::hello) {
       if (!key.empty() && record_.quarantined_keys.count(key)) fail("HELLO from the key of a quarantined node: refused");
-      return hello(id, key, std::get<wire::Hello>(m.header));
+      return hello(id, key, address, std::get<wire::Hello>(m.header));
     }
     auto it = peers_.find(id);
     if (it == peers_.end()) throw Rejoin(fmt::format("{} before HELLO", proto::command_name(m.command)));
@@ -313,7 +317,7 @@ class Coordinator {
 
   // A new node, or one that lost its run (it restarted, or the emulation disconnected it): it
   // joins with a fresh index; a former entry's last state stays in the estimate.
-  void hello(const std::string& id, const std::string& key, const wire::Hello& h) {
+  void hello(const std::string& id, const std::string& key, const std::string& address, const wire::Hello& h) {
     if (auto it = peers_.find(id); it != peers_.end()) {
       Peer& old = it->second;
       const NodeState& n = policy_.node(old.index);
@@ -329,6 +333,11 @@ class Coordinator {
       departed_.push_back(std::move(old));
       peers_.erase(it);
     }
+    // Joins are limited per CURVE key, else per address: a peer that cycles HELLO and READY
+    // cannot grow the run's node entries faster than this (each costs a few hundred bytes; its
+    // chunk states are allocated only when it sends one).
+    if (!join_limit_.allow(key.empty() ? address : key, clock(Clock::now())))
+      fail("HELLO: more than {} joins from {} in {} s: refused", kJoinBurst, key.empty() ? address : "its key", kJoinWindowS);
     Peer& p = peers_[id];
     p.id = id;
     p.key = key;
@@ -541,6 +550,7 @@ class Coordinator {
   // peers); elapsed_s: the run's time before a resume.
   CoordinatorRecord record_;
   RateLimit log_limit_{5, 10.0};
+  RateLimit join_limit_{kJoinBurst, kJoinWindowS};
   Clock::time_point start_ = Clock::now();
 };
 

@@ -131,6 +131,8 @@ std::optional<Received> receive(zmq::socket_t& socket, int timeout_ms, std::size
       if (index == 0) user_id->clear();
       if (const char* user = zmq_msg_gets(part.handle(), "User-Id")) *user_id = user;  // NULL without ZAP
     }
+    if (index == envelope)
+      if (const char* address = zmq_msg_gets(part.handle(), "Peer-Address")) r.address = address;
     ++index;
   } while (part.more());
   return r;

@@ -78,6 +78,7 @@ struct Received {
   std::vector<std::string> frames;  // the envelope, then the message (truncated when over)
   bool over = false;                // it held more than its bound: refuse it
   std::size_t frames_seen = 0, bytes_seen = 0;  // the whole message's, envelope not counted
+  std::string address;  // the sender's IP address over tcp:// (ZeroMQ's Peer-Address), else ""
 };
 std::optional<Received> receive(zmq::socket_t& socket, int timeout_ms, std::size_t envelope, std::size_t patches,
                                 std::size_t chunks, std::string* user_id = nullptr);
