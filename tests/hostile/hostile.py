@@ -649,6 +649,52 @@ def case_join_cycles(build, work, ctx):
     check(peak < 60, f"coordinator peak {peak:.0f} MiB, over 60 MiB")
 
 
+def case_name_injection(build, work, ctx):
+    """Class 9: a node whose HELLO name carries a newline, a forged log line and ANSI escapes.
+    Names reach the log, the summary and the status as printable ASCII only: no line of the
+    coordinator's output starts with the forged text, and no escape byte is printed."""
+    run = Run(build, work, 2048, 3)
+    forged = "x\nsirad-coordinator: h0: quarantined: forged\x1b[2J\x1b[1;1H"
+    p = Peer(ctx, run.endpoint, forged)
+    run.honest(2)
+    p.join([run.coordinator])
+    while run.coordinator.poll() is None:
+        p.recv(100)
+        p.send("heartbeat")
+    run.finish()
+    log = run.check_result({"h0", "h1"})
+    check(not any(l.startswith("sirad-coordinator: h0: quarantined") for l in log.splitlines()), "a forged line")
+    check("\x1b" not in log, "an escape byte reached the log")
+    status = read_status(run.status)
+    check(any(n["name"].startswith("x?sirad-coordinator") for n in status["nodes"]), f"the name not as printable ASCII: {status}")
+
+
+def case_foreign_run_report(build, work, ctx):
+    """Class 13: a node reports its grant's bundles done under another run's id. No honest node
+    does that: it is quarantined, and nothing of the report counts (its done ranges least of
+    all: before, they entered the ledger with no samples); the honest nodes run every bundle."""
+    run = Run(build, work, 2048, 3)
+    p = Peer(ctx, run.endpoint, "foreign")
+    run.honest(2)
+    p.join([run.coordinator])
+    grant = None
+    while grant is None:
+        check(run.coordinator.poll() is None, "the run ended before the grant")
+        m = p.recv(100)
+        if m is not None and m[0] == "grant":
+            grant = m[1]
+    r = pb.Report(run_id=grant.run_id ^ 0xFFFF, grant_id=grant.grant_id)
+    r.done.extend(grant.ranges)
+    p.send("report", r)
+    while run.coordinator.poll() is None:
+        p.recv(100)
+        p.send("heartbeat")
+    run.finish()
+    run.check_result({"h0", "h1"})  # the ledger: every index once, by honest nodes only
+    status = read_status(run.status)
+    check(any(n["name"] == "foreign" and n["state"] == "quarantined" for n in status["nodes"]), f"not quarantined: {status}")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in globals().items() if name.startswith("case_")}
 
 
