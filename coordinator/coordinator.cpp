@@ -38,6 +38,8 @@ using Clock = std::chrono::steady_clock;
 // kernel for its work-group size at its first use (3 s for a whole 20-bundle render here, with
 // an empty POCL_CACHE_DIR and an idle machine; several times that under load).
 constexpr double kFirstGrantS = 30;
+// The least a grant's due time allows beyond its bound (Coordinator::grant_slack).
+constexpr double kGrantSlackS = 10;
 
 // Joins (HELLOs that make a new node entry) per CURVE key or address in any 10 s: enough for a
 // farm of 256 nodes behind one address (a NAT, one host) to start at once.
@@ -63,7 +65,7 @@ struct Peer {
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   proto::ShapedLink down;     // the coordinator -> node link (shaped by the profile)
   // Its outstanding grants, oldest first, and when each is due (Policy::grant_time_bound after
-  // the one before it, plus the liveness window): a grant past due declares the node dead.
+  // the one before it, plus grant_slack): a grant past due declares the node dead.
   std::deque<std::pair<uint64_t, Clock::time_point>> due;
   bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
 };
@@ -239,10 +241,14 @@ class Coordinator {
     }
   }
 
-  // How long a peer may be silent (heartbeat_ms x liveness), which a grant's due time allows
-  // beyond its bound too; before the node's first report, kFirstGrantS more (its first bundles
-  // can carry the OpenCL compiler's first use of the kernels).
+  // How long a peer may be silent (heartbeat_ms x liveness).
   Clock::duration liveness_window() const { return std::chrono::milliseconds(config_.heartbeat_ms) * config_.liveness; }
+  // What a grant's due time allows beyond its bound: the liveness window, and at least
+  // kGrantSlackS (a loaded machine can stall an honest node for seconds; a node declared dead
+  // for it rejoins, but its grant would run twice).
+  Clock::duration grant_slack() const {
+    return std::max<Clock::duration>(liveness_window(), std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(kGrantSlackS)));
+  }
 
   void declare_dead(Peer& p, const std::string& why) {
     uint64_t back = policy_.dead(p.index);
@@ -402,11 +408,11 @@ class Coordinator {
       uint64_t bundles = 0;
       for (const Range& r : o.ranges) bundles += r.size();
       const auto now = Clock::now();
-      const auto from = p.due.empty() ? now : std::max(now, p.due.back().second - liveness_window());  // queued behind
+      const auto from = p.due.empty() ? now : std::max(now, p.due.back().second - grant_slack());  // queued behind
       const double bound = policy_.grant_time_bound(p.index, bundles, p.ms_per_bundle / 1e3);
       const double first = policy_.node(p.index).bundles == 0 ? kFirstGrantS : 0.0;
       p.due.emplace_back(o.id, from + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bound + first)) +
-                                   liveness_window());
+                                   grant_slack());
       send(p, {Command::grant, g, {}});
     }
     for (uint32_t n : orders.stops) {

@@ -338,7 +338,7 @@ def case_big_hello(build, work, ctx):
 def case_never_reports(build, work, ctx):
     """Class 2: a node that joins, takes its grant, heartbeats, and never reports. The run waits
     for it (--min-nodes 3), so it holds a grant; its deadline (Policy::grant_time_bound, plus the
-    first grant's 30 s and the 1 s liveness window) passes, it is declared dead, its grant goes
+    first grant's 30 s and the 10 s least slack) passes, it is declared dead, its grant goes
     back to the budget and the honest nodes run it: the run ends with every bundle."""
     run = Run(build, work, 2048, 3)
     p = Peer(ctx, run.endpoint, "sleeper")
