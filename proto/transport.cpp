@@ -30,11 +30,11 @@ void check_endpoint(const std::string& flag, const std::string& endpoint, bool b
 }
 
 void harden(zmq::socket_t& socket, int64_t max_frame_bytes) {
+  const bool router = socket.get(zmq::sockopt::type) == static_cast<int>(zmq::socket_type::router);
   socket.set(zmq::sockopt::maxmsgsize, max_frame_bytes);
-  socket.set(zmq::sockopt::sndtimeo, kSendTimeoutMs);
+  socket.set(zmq::sockopt::sndtimeo, router ? 0 : kSendTimeoutMs);
   socket.set(zmq::sockopt::handshake_ivl, kHandshakeMs);
-  if (socket.get(zmq::sockopt::type) == static_cast<int>(zmq::socket_type::router))
-    socket.set(zmq::sockopt::router_mandatory, 1);
+  if (router) socket.set(zmq::sockopt::router_mandatory, 1);
 }
 
 int64_t max_frame_bytes(std::size_t patches, bool with_scene) {
@@ -54,7 +54,7 @@ bool send_frames(zmq::socket_t& socket, const std::vector<std::string>& frames) 
     try {
       // Only the first frame can fail (the peer's queue is chosen there); the rest follow it.
       if (!socket.send(zmq::buffer(frames[i]), i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::none))
-        return false;  // EAGAIN: its queue stayed full for the send timeout
+        return false;  // EAGAIN: its queue was full (for the send timeout, if any)
     } catch (const zmq::error_t& e) {
       if (e.num() == EHOSTUNREACH) return false;  // ROUTER_MANDATORY: no such peer (any more)
       throw;

@@ -20,11 +20,13 @@ void check_endpoint(const std::string& flag, const std::string& endpoint, bool b
 
 // Socket settings of section 2 (PROTOCOL.md), before bind or connect:
 //  - ZMQ_MAXMSGSIZE `max_frame_bytes`: a peer cannot make this side allocate more per frame;
-//  - a finite send timeout, so no send blocks for long on a peer that does not read;
+//  - a send timeout: kSendTimeoutMs on a node's DEALER (its one peer), none on a ROUTER: a send
+//    to a peer whose queue is full fails at once, so a peer that never reads (and rejoins,
+//    and stops reading again) cannot make the coordinator's loop wait on it;
 //  - ZMQ_HANDSHAKE_IVL kHandshakeMs: a connection that does not complete its ZMTP (and CURVE)
 //    handshake is dropped soon;
 //  - on a ROUTER, ZMQ_ROUTER_MANDATORY: a message to a peer that is gone, or whose queue is
-//    full past the timeout, fails the send instead of vanishing.
+//    full, fails the send instead of vanishing.
 inline constexpr int kHandshakeMs = 3000;
 inline constexpr int kSendTimeoutMs = 250;
 void harden(zmq::socket_t& socket, int64_t max_frame_bytes);
@@ -35,7 +37,7 @@ void harden(zmq::socket_t& socket, int64_t max_frame_bytes);
 int64_t max_frame_bytes(std::size_t patches, bool with_scene = false);
 
 // Sends `message`, preceded by `routing_id` on a ROUTER socket. False when it could not go: the
-// peer is unknown to the ROUTER (gone) or its queue stayed full for the send timeout.
+// peer is unknown to the ROUTER (gone) or its queue was full (for the send timeout, on a DEALER).
 bool send(zmq::socket_t& socket, const Message& message, const std::string* routing_id = nullptr);
 
 // Frames as they are (a routing id first on a ROUTER socket), one multipart message; false as
