@@ -23,13 +23,15 @@ std::vector<glm::dvec3> unflatten(std::span<const double> flat) {
 }
 
 Worker::Worker(const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots, const RunSettings& settings, uint32_t index,
-               std::span<const uint32_t> starts) {
+               std::span<const uint32_t> starts, std::function<bool()> cancelled) {
   if (starts.empty() || starts.front() != 0) fail("the run's chunks do not start at patch 0");
   for (std::size_t c = 1; c < starts.size(); ++c)
     if (starts[c] <= starts[c - 1] || starts[c] >= mesh.size()) fail("the run's chunk {} starts out of order or beyond the mesh", c);
   starts_.assign(starts.begin(), starts.end());
   starts_.push_back(static_cast<uint32_t>(mesh.size()));
-  solver_ = std::make_unique<Solver>(mesh, engine, solver_options(settings, mesh, index), shots);
+  SolverOptions options = solver_options(settings, mesh, index);
+  options.cancelled = std::move(cancelled);
+  solver_ = std::make_unique<Solver>(mesh, engine, options, shots);
 }
 
 bool Worker::run(std::span<const Range> ranges, const std::function<bool()>& between) {

@@ -31,9 +31,10 @@ class Worker {
  public:
   // Chain `index` of a run of `settings` on `mesh`. `starts`: the first patch of each chunk
   // (as on the wire, without the end); throws sirad::Error unless they start at 0, increase
-  // and stay within the mesh. Builds the solver, which runs the chain's burn-in.
+  // and stay within the mesh. Builds the solver, which runs the chain's burn-in; `cancelled`,
+  // asked between its bundles, ends it with sirad::Error (SolverOptions::cancelled).
   Worker(const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots, const RunSettings& settings, uint32_t index,
-         std::span<const uint32_t> starts);
+         std::span<const uint32_t> starts, std::function<bool()> cancelled = {});
 
   // Runs the bundles of `ranges` in order; `between` is called after each and may stop the
   // grant (returns false: stopped, the report is not to be sent). True when every bundle ran.

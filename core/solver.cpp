@@ -73,6 +73,7 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   direct_sum_.assign(n, glm::dvec3(0.0));
   // Burn-in: advance the chain from E without counting, on its own stream of bundles.
   for (int k = 0; k < burn_in_; ++k) {
+    if (options.cancelled && options.cancelled()) fail("set-up interrupted after {} of {} burn-in bundles", k, burn_in_);
     uint64_t index = (options.chain_id << 32) | static_cast<uint64_t>(k);
     update_source(index, Stream::burn_in_shots);
     run_bundle(index, Stream::burn_in);

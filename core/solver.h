@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include <functional>
+
 #include <glm/vec3.hpp>
 
 #include <memory>
@@ -43,6 +45,9 @@ struct SolverOptions {
   // The transport's constant control variate (Solver::transport): unbiased either way; on,
   // it removes the noise of how many lines happen to cross a patch and of their cosine.
   bool control_variate = true;
+  // Asked between burn-in bundles (a burn-in may run up to 2^20 of them); true: the solver's
+  // construction stops with sirad::Error "set-up interrupted" (a node told to stop).
+  std::function<bool()> cancelled;
 };
 
 // The shots step `index` of `stream` uses under `shots_per_bundle` X: [first, first + count).

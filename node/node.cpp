@@ -293,8 +293,9 @@ class Node {
       if (settings.shots_per_bundle > 0) pending_->shots = make_cl_shot_engine(pending_->mesh, options_.device);
       auto t0 = Clock::now();
       const std::vector<uint32_t> starts(run.chunk_starts().begin(), run.chunk_starts().end());
+      // The burn-in can be long (up to 2^20 bundles): a stop ends it.
       pending_->worker = std::make_unique<cluster::Worker>(pending_->mesh, *pending_->engine, pending_->shots.get(), settings,
-                                                           pending_->index, starts);
+                                                           pending_->index, starts, [this] { return stopping(); });
       double ms = seconds(Clock::now() - t0) * 1e3 / std::max(1, pending_->worker->solver().burn_in());
       state_ = std::move(pending_);
       wire::Ready ready;

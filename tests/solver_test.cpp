@@ -238,6 +238,28 @@ TEST(SolverDeterminism, SameSeedSameBits) {
   EXPECT_NE(0, std::memcmp(a.data(), c.data(), a.size() * sizeof(a[0])));
 }
 
+// A burn-in can be long (a run may ask 2^20 bundles): `cancelled`, asked before each of its
+// bundles, ends the solver's construction with one error saying how far it got; without it,
+// or while it says no, the burn-in runs whole.
+TEST(SolverBurnIn, CancelledEndsTheBurnIn) {
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 300});
+  auto engine = make_reference_engine(mesh);
+  int asked = 0;
+  SolverOptions o{.burn_in = 100};
+  o.cancelled = [&] { return ++asked > 3; };
+  try {
+    Solver solver(mesh, *engine, o);
+    ADD_FAILURE() << "the burn-in ran whole";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("set-up interrupted after 3 of 100 burn-in bundles"), std::string::npos) << e.what();
+  }
+  asked = 0;
+  o.burn_in = 5;
+  o.cancelled = [&] { return ++asked > 1000; };
+  Solver whole(mesh, *engine, o);
+  EXPECT_EQ(asked, 5);
+}
+
 // Convergence: the relative RMS difference D(m) of two independent runs falls as 1/sqrt(m).
 // D(m)^2 is an area-weighted sum of per-patch squared differences; with independent runs its
 // expectation is 2 Var(estimate at m) ~ 2 sigma^2 tau / m (tau: the chain's correlation time),
