@@ -69,9 +69,8 @@ wire::Checkpoint decode_checkpoint(std::string_view all, const std::string& path
   if (c.version() != kCheckpointVersion)
     fail("{}: checkpoint version {}; this sirad reads version {}", path, c.version(), kCheckpointVersion);
   // Every field within what a run of this sirad can have, as the wire decoder checks a message.
-  RunSettings settings;
   try {
-    settings = settings_of(c);  // the run's settings and its chunks (from_wire, check)
+    settings_of(c);  // the run's settings and its chunks (from_wire, check)
   } catch (const Error& e) {
     fail("{}: {}", path, e.what());
   }

@@ -5,7 +5,6 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
-#include <sstream>
 #include <utility>
 #include <vector>
 
@@ -105,13 +104,8 @@ std::string read_regular_file(const std::string& path, const std::string& label,
 
 std::string read_file_whole(const std::string& path, const std::string& what, std::size_t max_bytes) {
   const std::string size = max_bytes % (1 << 20) == 0 ? fmt::format("{} MiB", max_bytes >> 20) : fmt::format("{} KiB", max_bytes >> 10);
-  try {
-    return read_regular_file(path, path, max_bytes, fmt::format("not a {} (over {})", what, size));
-  } catch (const Error& e) {
-    const std::string m = e.what();
-    if (m.find("not a " + what) != std::string::npos) throw;
-    fail("{}: cannot read the {}: {}", path, what, m.substr(path.size() + 2));
-  }
+  return read_regular_file(path, fmt::format("{}: cannot read the {}", path, what), max_bytes,
+                           fmt::format("larger than {} (no {} is)", size, what));
 }
 
 }  // namespace sirad

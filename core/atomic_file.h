@@ -42,8 +42,8 @@ std::string read_regular_file(const std::string& path, const std::string& label,
                               const std::string& too_large);
 
 // The whole of the file at `path` (a profile, a key file, a checkpoint), at most `max_bytes`,
-// or one error: "PATH: cannot read the WHAT: REASON" (no such file, not a regular file, ...),
-// or "PATH: not a WHAT (over N KiB or MiB)".
+// or one error: "PATH: cannot read the WHAT: REASON" (no such file, not a regular file, ...,
+// or "larger than N KiB or MiB (no WHAT is)").
 std::string read_file_whole(const std::string& path, const std::string& what, std::size_t max_bytes);
 
 }  // namespace sirad

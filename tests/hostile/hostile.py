@@ -153,6 +153,25 @@ class Peer:
         h = pb.Hello(node_name=self.name, sirad_version="hostile", max_message_bytes=1 << 30)
         self.send("hello", h)
 
+    def wait_grant(self, coordinator):
+        """The next GRANT's header; fails if the coordinator exits first."""
+        while True:
+            check(coordinator.poll() is None, f"the coordinator ended before {self.name}'s grant")
+            m = self.recv(100)
+            if m is not None and m[0] == "grant":
+                return m[1]
+
+    def idle_until_exit(self, coordinator):
+        """Heartbeats (running nothing, reading what comes) until the coordinator exits; the
+        commands it received, in order."""
+        seen = []
+        while coordinator.poll() is None:
+            m = self.recv(100)
+            if m is not None:
+                seen.append(m[0])
+            self.send("heartbeat")
+        return seen
+
     def join(self, procs, ms_per_bundle=1.0):
         """HELLO, WELCOME, the SCENE chunks, READY: as a node joins, without running anything."""
         self.hello()
@@ -344,12 +363,7 @@ def case_never_reports(build, work, ctx):
     p = Peer(ctx, run.endpoint, "sleeper")
     run.honest(2)
     p.join([run.coordinator])
-    granted = False
-    while run.coordinator.poll() is None:
-        m = p.recv(100)
-        granted = granted or (m is not None and m[0] == "grant")
-        p.send("heartbeat")
-    check(granted, "the sleeper never got a grant")
+    check("grant" in p.idle_until_exit(run.coordinator), "the sleeper never got a grant")
     run.finish()
     log = run.check_result({"h0", "h1"})
     check("sleeper: declared dead (grant" in log and "overdue" in log, f"no overdue grant in the log:\n{log[-3000:]}")
@@ -556,21 +570,14 @@ def case_stolen_routing_id(build, work, ctx):
                               os.path.join(work, f"{name}.log")))
     a = curve_peer("a", b"node-shared")
     a.join([run.coordinator])
-    grant = None
-    while grant is None:
-        check(run.coordinator.poll() is None, "the coordinator ended before A's grant")
-        m = a.recv(100)
-        if m is not None and m[0] == "grant":
-            grant = m[1]
+    grant = a.wait_grant(run.coordinator)
     b = curve_peer("b", b"node-shared")
     nan = struct.pack("<d", float("nan")) * (3 * 300)
     r = pb.Report(run_id=grant.run_id, grant_id=grant.grant_id, chunks=[0], counts=[1])
     r.done.extend(grant.ranges)
     b.send("report", r, [nan[:24 * 19]])
     wait_until("B's refusal", lambda: "from another key: refused" in run.coordinator.log(), [run.coordinator])
-    while run.coordinator.poll() is None:
-        a.recv(100)
-        a.send("heartbeat")
+    a.idle_until_exit(run.coordinator)
     run.finish()
     run.check_result({"h0", "h1"})
     status = read_status(run.status)
@@ -658,9 +665,7 @@ def case_name_injection(build, work, ctx):
     p = Peer(ctx, run.endpoint, forged)
     run.honest(2)
     p.join([run.coordinator])
-    while run.coordinator.poll() is None:
-        p.recv(100)
-        p.send("heartbeat")
+    p.idle_until_exit(run.coordinator)
     run.finish()
     log = run.check_result({"h0", "h1"})
     check(not any(l.startswith("sirad-coordinator: h0: quarantined") for l in log.splitlines()), "a forged line")
@@ -677,18 +682,11 @@ def case_foreign_run_report(build, work, ctx):
     p = Peer(ctx, run.endpoint, "foreign")
     run.honest(2)
     p.join([run.coordinator])
-    grant = None
-    while grant is None:
-        check(run.coordinator.poll() is None, "the run ended before the grant")
-        m = p.recv(100)
-        if m is not None and m[0] == "grant":
-            grant = m[1]
+    grant = p.wait_grant(run.coordinator)
     r = pb.Report(run_id=grant.run_id ^ 0xFFFF, grant_id=grant.grant_id)
     r.done.extend(grant.ranges)
     p.send("report", r)
-    while run.coordinator.poll() is None:
-        p.recv(100)
-        p.send("heartbeat")
+    p.idle_until_exit(run.coordinator)
     run.finish()
     run.check_result({"h0", "h1"})  # the ledger: every index once, by honest nodes only
     status = read_status(run.status)
