@@ -176,11 +176,22 @@ Aggregate::Aggregate(std::vector<uint32_t> starts, uint32_t nodes) : starts_(std
   for (uint32_t p = 0; p < nodes; ++p) add_node();
 }
 
-void Aggregate::add_node() { state_.emplace_back(chunks()); }  // empty sums: zeros, allocated at the first set
+void Aggregate::add_node() { state_.emplace_back(); }  // nothing held: its parts are allocated at its first set
+
+const Aggregate::Part* Aggregate::held(uint32_t node, uint32_t chunk) const {
+  const std::vector<Part>& parts = state_.at(node);
+  return parts.empty() || parts.at(chunk).sum.empty() ? nullptr : &parts[chunk];
+}
+
+bool Aggregate::holds_nothing(uint32_t node) const {
+  for (const Part& p : state_.at(node))
+    if (p.count > 0) return false;
+  return true;
+}
 
 Aggregate::Part Aggregate::state(uint32_t node, uint32_t chunk) const {
-  const Part& p = state_.at(node).at(chunk);
-  if (!p.sum.empty()) return p;
+  if (chunk >= chunks()) fail("aggregate: no chunk {}", chunk);
+  if (const Part* p = held(node, chunk)) return *p;
   return {std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
 }
 
@@ -189,8 +200,8 @@ void Aggregate::check(uint32_t node, uint32_t chunk, const std::vector<double>& 
   if (chunk >= chunks()) fail("node {}: no chunk {} (the run has {})", node, chunk, chunks());
   if (sum.size() != 3 * static_cast<std::size_t>(chunk_size(chunk)))
     fail("node {}: chunk {} has {} values, expected {}", node, chunk, sum.size(), 3 * chunk_size(chunk));
-  const Part& part = state_[node][chunk];
-  if (count < part.count) fail("node {}: count of chunk {} went back from {} to {}", node, chunk, part.count, count);
+  const uint64_t before = state_[node].empty() ? 0 : state_[node][chunk].count;
+  if (count < before) fail("node {}: count of chunk {} went back from {} to {}", node, chunk, before, count);
   // Sums are signed: the transport's control variate (core/solver.cpp) makes a single
   // estimate of a nearly dark patch negative at times. What no node can send: a non-finite
   // value, one beyond count x the largest float (every estimate is made from floats), or
@@ -203,6 +214,7 @@ void Aggregate::check(uint32_t node, uint32_t chunk, const std::vector<double>& 
 
 void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint64_t count) {
   check(node, chunk, sum, count);
+  if (state_[node].empty()) state_[node].resize(chunks());
   Part& part = state_[node][chunk];
   part.sum = std::move(sum);
   part.count = count;
@@ -210,24 +222,25 @@ void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint
 
 void Aggregate::clear(uint32_t node) {
   if (node >= nodes()) fail("aggregate: no node {}", node);
-  for (Part& part : state_[node]) part = Part{};  // back to zeros, its memory freed
+  state_[node] = {};  // back to zeros, its memory freed
 }
 
 Aggregate::Part Aggregate::others(uint32_t node, uint32_t chunk, Topology topology) const {
   if (topology == Topology::ring) return nodes() > 1 ? state((node + 1) % nodes(), chunk) : Part{std::vector<double>(3 * chunk_size(chunk), 0.0), 0};
   Part out{std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
   for (uint32_t p = 0; p < nodes(); ++p) {
-    if (p == node) continue;
-    const Part& s = state_[p][chunk];
-    for (std::size_t i = 0; i < s.sum.size(); ++i) out.sum[i] += s.sum[i];
-    out.count += s.count;
+    const Part* s = p == node ? nullptr : held(p, chunk);
+    if (!s) continue;
+    for (std::size_t i = 0; i < s->sum.size(); ++i) out.sum[i] += s->sum[i];
+    out.count += s->count;
   }
   return out;
 }
 
 uint64_t Aggregate::count(uint32_t chunk) const {
   uint64_t n = 0;
-  for (const auto& parts : state_) n += parts[chunk].count;
+  for (const auto& parts : state_)
+    if (!parts.empty()) n += parts[chunk].count;
   return n;
 }
 
@@ -235,9 +248,9 @@ std::vector<double> Aggregate::estimate(uint32_t chunk) const {
   std::vector<double> out(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0);
   uint64_t n = count(chunk);
   if (n == 0) return out;
-  for (const auto& parts : state_)
-    if (!parts[chunk].sum.empty())  // empty: zeros
-      for (std::size_t i = 0; i < out.size(); ++i) out[i] += parts[chunk].sum[i];
+  for (uint32_t p = 0; p < nodes(); ++p)
+    if (const Part* part = held(p, chunk))
+      for (std::size_t i = 0; i < out.size(); ++i) out[i] += part->sum[i];
   for (double& v : out) v /= static_cast<double>(n);
   return out;
 }
@@ -247,7 +260,7 @@ double Aggregate::spread_error(const std::vector<double>& weight) const {
   bool any = false;
   for (uint32_t c = 0; c < chunks(); ++c) {
     uint32_t holders = 0;
-    for (const auto& parts : state_) holders += parts[c].count > 0;
+    for (uint32_t p = 0; p < nodes(); ++p) holders += held(p, c) && held(p, c)->count > 0;
     if (holders < 2) continue;
     any = true;
     std::vector<double> g = estimate(c);
@@ -258,11 +271,11 @@ double Aggregate::spread_error(const std::vector<double>& weight) const {
       for (int k = 0; k < 3; ++k) {
         std::size_t i = 3 * static_cast<std::size_t>(j) + static_cast<std::size_t>(k);
         double ss = 0;
-        for (const auto& parts : state_) {
-          const Part& part = parts[c];
-          if (part.count == 0) continue;
-          double d = part.sum[i] / static_cast<double>(part.count) - g[i];
-          ss += static_cast<double>(part.count) * d * d;
+        for (uint32_t p = 0; p < nodes(); ++p) {
+          const Part* part = held(p, c);
+          if (!part || part->count == 0) continue;
+          double d = part->sum[i] / static_cast<double>(part->count) - g[i];
+          ss += static_cast<double>(part->count) * d * d;
         }
         var_sum += w * ss / (holders - 1) / total / 3;
         mean_sum += w * g[i] * g[i] / 3;
@@ -284,7 +297,8 @@ double Aggregate::combined_error(const std::vector<double>& error, const std::ve
     if (m_total <= 0) return -1.0;
     double v = 0;
     for (uint32_t p = 0; p < nodes(); ++p) {
-      const double m = static_cast<double>(state_[p][c].count);
+      const Part* part = held(p, c);
+      const double m = part ? static_cast<double>(part->count) : 0.0;
       if (m == 0) continue;
       if (!(error[p] > 0)) return -1.0;
       const double n = std::max(m, static_cast<double>(bundles[p]));

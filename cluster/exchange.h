@@ -87,6 +87,8 @@ class Aggregate {
   void check(uint32_t node, uint32_t chunk, const std::vector<double>& sum, uint64_t count) const;
   // Drops everything node has sent (a quarantined node): its sums and counts become zero.
   void clear(uint32_t node);
+  // Whether node holds no state with a count (never reported one, or cleared).
+  bool holds_nothing(uint32_t node) const;
 
   struct Part {
     std::vector<double> sum;  // 3 per patch of the chunk
@@ -125,8 +127,9 @@ class Aggregate {
                         const std::vector<double>& weight) const;
 
  private:
+  const Part* held(uint32_t node, uint32_t chunk) const;  // nullptr: zeros
   std::vector<uint32_t> starts_;
-  std::vector<std::vector<Part>> state_;  // [node][chunk]
+  std::vector<std::vector<Part>> state_;  // [node][chunk]; empty until the node's first state
 };
 
 }  // namespace sirad::cluster

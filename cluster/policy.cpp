@@ -86,8 +86,9 @@ const char* NodeState::state() const {
   return quarantined ? "quarantined" : dead ? "dead" : final_in ? "done" : !ready ? "joining" : !grants.empty() ? "working" : "waiting";
 }
 
-Policy::Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight)
-    : config_(config), starts_(starts), weight_(std::move(weight)), ledger_(config.bundles), aggregate_(std::move(starts), 0) {
+Policy::Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight, ChunkBounds bounds)
+    : config_(config), starts_(starts), weight_(std::move(weight)), ledger_(config.bundles), aggregate_(starts, 0),
+      plausible_(std::move(starts), std::move(bounds), config.batch_bundles, config.rule == UpdateRule::chain) {
   if (config_.grant_unit == 0) config_.grant_unit = 1;
 }
 
@@ -138,10 +139,24 @@ void Policy::restore(const PolicySnapshot& s) {
 }
 
 uint32_t Policy::join() {
-  nodes_.emplace_back();
-  bundle_time_.push_back(0.0);
-  aggregate_.add_node();
-  return nodes() - 1;
+  if (nodes() < kMaxNodeEntries) {
+    nodes_.emplace_back();
+    bundle_time_.push_back(0.0);
+    aggregate_.add_node();
+    plausible_.add_node();
+    return nodes() - 1;
+  }
+  for (uint32_t n = 0; n < nodes(); ++n) {
+    const NodeState& p = nodes_[n];
+    if (p.dead && aggregate_.holds_nothing(n) && ledger_.done_by(n).empty() && ledger_.outstanding(n) == 0) {
+      nodes_[n] = NodeState{};
+      bundle_time_[n] = 0.0;
+      aggregate_.clear(n);
+      plausible_.forget(n);
+      return n;
+    }
+  }
+  fail("the run has {} node entries, each holding data: no more nodes can join", kMaxNodeEntries);
 }
 
 void Policy::ready(uint32_t n) {
@@ -199,6 +214,7 @@ uint64_t Policy::quarantine(uint32_t n, const std::string& why) {
   NodeState& p = nodes_.at(n);
   uint64_t done = ledger_.revoke(n);
   aggregate_.clear(n);
+  plausible_.clear(n);
   p.dead = p.quarantined = true;
   p.why = why;
   p.grants.clear();
@@ -259,8 +275,10 @@ Orders Policy::schedule() {
 }
 
 void Policy::take_chunks(uint32_t n, std::vector<ChunkState>& chunks) {
-  const NodeState& p = nodes_.at(n);
+  NodeState& p = nodes_.at(n);
   std::vector<bool> seen(aggregate_.chunks(), false);
+  double suspicion = p.suspicion;
+  std::vector<Plausibility::Observation> seen_as;
   for (const ChunkState& c : chunks) {
     try {
       aggregate_.check(n, c.chunk, c.sum, c.count);
@@ -272,8 +290,16 @@ void Policy::take_chunks(uint32_t n, std::vector<ChunkState>& chunks) {
     if (c.count > p.bundles) quarantine_and_fail(n, fmt::format("chunk {} count {} exceeds its {} bundles", c.chunk, c.count, p.bundles));
     if (seen[c.chunk]) quarantine_and_fail(n, fmt::format("chunk {} twice in one message", c.chunk));
     seen[c.chunk] = true;
+    seen_as.push_back(plausible_.observe(c.chunk, c.sum, c.count));
+    Plausibility::Verdict v = plausible_.assess(n, c.chunk, seen_as.back());
+    if (!v.why.empty()) quarantine_and_fail(n, v.why);
+    suspicion = std::max(suspicion, v.score);
   }
-  for (ChunkState& c : chunks) aggregate_.set(n, c.chunk, std::move(c.sum), c.count);
+  p.suspicion = suspicion;
+  for (std::size_t i = 0; i < chunks.size(); ++i) {
+    plausible_.take(n, chunks[i].chunk, seen_as[i]);
+    aggregate_.set(n, chunks[i].chunk, std::move(chunks[i].sum), chunks[i].count);
+  }
 }
 
 std::optional<Exchange> Policy::report(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
@@ -281,7 +307,7 @@ std::optional<Exchange> Policy::report(uint32_t n, uint64_t grant_id, const std:
   NodeState& p = nodes_.at(n);
   if (p.dead) fail("report from a node declared dead");
   if (p.grants.empty() || grant_id != p.grants.front()) fail("report for grant {} it does not hold", grant_id);
-  p.grants.pop_front();  // answered, whatever follows: a refused report must not wedge the run
+  p.grants.erase(p.grants.begin());  // answered, whatever follows: a refused report must not wedge the run
   for (const Range& d : done) {
     try {
       ledger_.done(n, d);
@@ -367,13 +393,25 @@ bool Policy::done() const {
 // counts the aggregate holds for it (Aggregate::combined_error; every node holding data must
 // have an estimate); otherwise (the average rule couples the nodes, or a node has too few
 // bundles yet) the spread of the node states (Aggregate::spread_error).
+// A node's estimate is its own word: the nodes run one algorithm, so their error per bundle,
+// e_p sqrt(n_p), is one value up to the noise of batch means (tens of per cent); none counts
+// for less than half the nodes' median of it, so a node that claims to be exact cannot end a
+// run at its target early (and honest ones are not touched).
 double Policy::error_estimate() const {
   if (config_.rule == UpdateRule::chain) {
-    std::vector<double> error(nodes(), -1.0);
+    std::vector<double> error(nodes(), -1.0), per_bundle;
     std::vector<uint64_t> bundles(nodes(), 0);
     for (uint32_t n = 0; n < nodes(); ++n) {
       error[n] = nodes_[n].error;
       bundles[n] = nodes_[n].error_bundles;
+      if (error[n] > 0 && bundles[n] > 0) per_bundle.push_back(error[n] * std::sqrt(static_cast<double>(bundles[n])));
+    }
+    if (!per_bundle.empty()) {
+      std::sort(per_bundle.begin(), per_bundle.end());
+      const std::size_t k = per_bundle.size();
+      const double median = k % 2 ? per_bundle[k / 2] : 0.5 * (per_bundle[k / 2 - 1] + per_bundle[k / 2]);
+      for (uint32_t n = 0; n < nodes(); ++n)
+        if (error[n] > 0 && bundles[n] > 0) error[n] = std::max(error[n], 0.5 * median / std::sqrt(static_cast<double>(bundles[n])));
     }
     double e = aggregate_.combined_error(error, bundles, weight_);
     if (e > 0) return e;

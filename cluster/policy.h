@@ -6,7 +6,6 @@
 // an emulated timeline is decided exactly as a real run would be.
 #pragma once
 #include <cstdint>
-#include <deque>
 #include <functional>
 #include <optional>
 #include <string>
@@ -15,6 +14,7 @@
 #include <glm/vec3.hpp>
 
 #include "cluster/exchange.h"
+#include "cluster/plausibility.h"
 #include "cluster/profile.h"
 #include "core/bundle.h"
 #include "core/mesh.h"
@@ -55,6 +55,8 @@ struct PolicyConfig {
   // the same time, so sync barriers do not wait on the slow and a closing run is held up less
   // by a slow node's grant. Off: every grant has the same bundle count.
   bool balance = true;
+  // Bundles per batch of a node's states in the plausibility tests (chain_memory).
+  uint64_t batch_bundles = 1;
   // With exchange_every = kExchangeAuto: called once, when the first grants are about to go
   // out, with the ready nodes' indices; the driver measures what the model needs (auto_exchange).
   std::function<ExchangeSetting(const std::vector<uint32_t>& ready)> choose;
@@ -103,10 +105,11 @@ struct NodeState {
   // Sent an impossible state (quarantine()): dead too, its data and its bundles dropped.
   bool quarantined = false;
   std::string why;              // why it was quarantined
-  std::deque<uint64_t> grants;  // outstanding grant ids, oldest first
+  std::vector<uint64_t> grants;  // outstanding grant ids, oldest first (at most 2)
   uint32_t rotation = 0;        // grants given with report chunks (the rotation of S)
   uint32_t exchanges = 0;
   uint64_t bundles = 0;
+  double suspicion = 0;         // the largest plausibility score of its states taken (Plausibility)
   double error = -1;            // its last reported error estimate (<= 0: none)
   uint64_t error_bundles = 0;   // the bundles it had done then
   // "quarantined" | "dead" | "done" | "joining" | "working" | "waiting" (Status::Node::state)
@@ -162,8 +165,9 @@ struct PolicySnapshot {
 
 class Policy {
  public:
-  // `starts`: chunk_starts of the mesh; `weight`: error_weights of the mesh.
-  Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight);
+  // `starts`: chunk_starts of the mesh; `weight`: error_weights of the mesh; `bounds`:
+  // chunk_bounds of the mesh (empty: no scene bound, chunks' patches weigh the same).
+  Policy(const PolicyConfig& config, std::vector<uint32_t> starts, std::vector<double> weight, ChunkBounds bounds = {});
 
   PolicySnapshot snapshot() const;
   // Continues a checkpointed run (before any join): every node of `s` is in again with its
@@ -172,7 +176,13 @@ class Policy {
   // a snapshot that does not fit this run (chunk sizes, bundle ranges).
   void restore(const PolicySnapshot& s);
 
-  uint32_t join();  // a new node (not ready yet); its index
+  // A new node (not ready yet); its index. A run keeps at most kMaxNodeEntries entries: beyond
+  // that a new node takes the index of the oldest departed entry that holds nothing (dead or
+  // quarantined, no state in the aggregate, no bundle in the ledger: a node that joined and
+  // left, or cycled HELLO and READY), which is forgotten. Throws sirad::Error when every entry
+  // holds something.
+  uint32_t join();
+  static constexpr uint32_t kMaxNodeEntries = 4096;
   uint32_t nodes() const { return static_cast<uint32_t>(nodes_.size()); }
   const NodeState& node(uint32_t n) const { return nodes_.at(n); }
   void ready(uint32_t n);  // throws sirad::Error for a second READY
@@ -196,7 +206,8 @@ class Policy {
   // the ledger, the chunks into the aggregate. Returns the exchange to answer with (none when
   // the report carried no chunks). Throws sirad::Error when refused: a report for a grant the
   // node does not hold changes nothing; one whose data (or error estimate, or done ranges) no
-  // honest node sends quarantines the node. Call schedule() next, always.
+  // honest node sends, or whose chunks are implausible (cluster/plausibility.h), quarantines
+  // the node. Call schedule() next, always.
   std::optional<Exchange> report(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
                                  std::vector<ChunkState> chunks, double error_estimate);
   // Node n's FINAL (after its STOP): its end states (impossible ones quarantine it, as above).
@@ -250,8 +261,8 @@ class Policy {
   const std::string& exchange_why() const { return exchange_why_; }
 
  private:
-  // Every chunk checked (Aggregate::check, and its count within the node's bundles), then all
-  // taken, or none and the node quarantined.
+  // Every chunk checked (Aggregate::check, its count within the node's bundles, Plausibility),
+  // then all taken, or none and the node quarantined.
   void take_chunks(uint32_t n, std::vector<ChunkState>& chunks);
   [[noreturn]] void quarantine_and_fail(uint32_t n, const std::string& why);
 
@@ -260,6 +271,7 @@ class Policy {
   std::vector<double> weight_;
   Ledger ledger_;
   Aggregate aggregate_;
+  Plausibility plausible_;
   std::vector<NodeState> nodes_;
   std::vector<double> bundle_time_;  // per node (0: unknown)
   uint64_t grants_ = 0, reports_ = 0, last_error_check_ = 0;

@@ -47,6 +47,7 @@ Status policy_status(const Policy& p, const RunSettings& settings, bool last) {
     Status::Node n;
     n.state = ns.state();
     n.why = ns.why;
+    n.suspicion = ns.suspicion;
     n.bundles = ns.bundles;
     n.exchanges = ns.exchanges;
     s.nodes.push_back(std::move(n));

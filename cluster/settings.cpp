@@ -120,7 +120,8 @@ PolicyConfig policy_config(const RunSettings& s, const PatchMesh& mesh, uint32_t
   return {.bundles = s.bundles, .exchange_every = s.exchange_every, .fraction = s.fraction, .topology = s.topology,
           .mode = s.mode, .rule = s.rule, .min_nodes = min_nodes,
           .grant_unit = grant_unit(mesh, s.directions, s.shots_per_bundle), .time_limit_s = s.time_limit_s,
-          .target_error = s.target_error, .balance = s.balance};
+          .target_error = s.target_error, .balance = s.balance,
+          .batch_bundles = chain_memory(mesh, s.shots_per_bundle)};
 }
 
 Policy make_policy(const RunSettings& s, const PatchMesh& mesh, uint32_t min_nodes,
@@ -128,7 +129,9 @@ Policy make_policy(const RunSettings& s, const PatchMesh& mesh, uint32_t min_nod
   PolicyConfig pc = policy_config(s, mesh, min_nodes);
   if (s.exchange_every == kExchangeAuto) pc.choose = std::move(choose);
   const auto patches = static_cast<uint32_t>(mesh.size());
-  return Policy(pc, chunk_starts(patches, std::min(s.chunks, patches)), error_weights(mesh));
+  std::vector<uint32_t> starts = chunk_starts(patches, std::min(s.chunks, patches));
+  ChunkBounds bounds = chunk_bounds(mesh, starts);
+  return Policy(pc, std::move(starts), error_weights(mesh), std::move(bounds));
 }
 
 Attributes run_attributes(const RunSettings& s, const RunOutcome& o, const PatchMesh& mesh, const std::string& scene,

@@ -30,9 +30,9 @@ std::string to_json(const Status& s) {
   std::string nodes;
   for (const auto& n : s.nodes)
     nodes += fmt::format("{}{{\"name\": {}, \"device\": {}, \"state\": {}, \"bundles\": {}, \"exchanges\": {}, "
-                         "\"last_seen_s\": {:.3f}, \"bundles_per_s\": {:.3f}, \"busy_s\": {:.3f}, \"idle_s\": {:.3f}{}}}",
+                         "\"last_seen_s\": {:.3f}, \"bundles_per_s\": {:.3f}, \"busy_s\": {:.3f}, \"idle_s\": {:.3f}, \"suspicion\": {:.3f}{}}}",
                          nodes.empty() ? "" : ", ", json_string(n.name), json_string(n.device), json_string(n.state),
-                         n.bundles, n.exchanges, n.last_seen_s, n.rate, n.busy_s, n.idle_s,
+                         n.bundles, n.exchanges, n.last_seen_s, n.rate, n.busy_s, n.idle_s, n.suspicion,
                          n.why.empty() ? "" : ", \"why\": " + json_string(n.why));
   double rate = s.elapsed_s > 0 ? static_cast<double>(s.bundles_done) / s.elapsed_s : 0.0;
   std::string error = s.error_estimate < 0 ? "null" : fmt::format("{:.6g}", s.error_estimate);
@@ -95,6 +95,7 @@ Status read_status(const std::string& path) {
     n.busy_s = field<double>(nodes[i], "busy_s", path, where);
     n.idle_s = field<double>(nodes[i], "idle_s", path, where);
     if (nodes[i]["why"]) n.why = field<std::string>(nodes[i], "why", path, where);
+    if (nodes[i]["suspicion"]) n.suspicion = field<double>(nodes[i], "suspicion", path, where);
     if (!std::isfinite(n.busy_s) || n.busy_s < 0 || !std::isfinite(n.idle_s) || n.idle_s < 0)
       fail("{}: {}busy_s and idle_s must be finite and non-negative", path, where);
     s.nodes.push_back(n);

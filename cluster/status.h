@@ -36,6 +36,9 @@ struct Status {
     double busy_s = 0;         // its own time running bundles (as last reported)
     double idle_s = 0;         // its own time waiting for a grant while the run had work
     std::string why;           // quarantined: what it sent (empty otherwise)
+    // The largest plausibility score of the states taken from it (cluster/plausibility.h):
+    // how near it came to a quarantine for implausible data, which is above 1.
+    double suspicion = 0;
   };
   std::vector<Node> nodes;
 };

@@ -5,7 +5,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <deque>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -66,7 +65,7 @@ struct Peer {
   proto::ShapedLink down;     // the coordinator -> node link (shaped by the profile)
   // Its outstanding grants, oldest first, and when each is due (Policy::grant_time_bound after
   // the one before it, plus grant_slack): a grant past due declares the node dead.
-  std::deque<std::pair<uint64_t, Clock::time_point>> due;
+  std::vector<std::pair<uint64_t, Clock::time_point>> due;
   bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
 };
 
@@ -344,10 +343,13 @@ class Coordinator {
     // chunk states are allocated only when it sends one).
     if (!join_limit_.allow(key.empty() ? address : key, clock(Clock::now())))
       fail("HELLO: more than {} joins from {} in {} s: refused", kJoinBurst, key.empty() ? address : "its key", kJoinWindowS);
+    const uint32_t index = policy_.join();
+    // A reused index (Policy::join): the departed entry it held is forgotten.
+    std::erase_if(departed_, [&](const Peer& d) { return d.index == index; });
     Peer& p = peers_[id];
     p.id = id;
     p.key = key;
-    p.index = policy_.join();
+    p.index = index;
     // What a peer names itself reaches logs, the summary and the status: printable ASCII only.
     p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : peer_text(h.node_name(), 64);
     if (h.has_device()) p.device = peer_text(h.device().name(), 128);
@@ -473,7 +475,7 @@ class Coordinator {
         }
       }
       x = policy_.report(p.index, r.grant_id(), done, std::move(chunks), refused.empty() ? r.error_estimate() : 0.0);
-      if (!p.due.empty() && p.due.front().first == r.grant_id()) p.due.pop_front();
+      if (!p.due.empty() && p.due.front().first == r.grant_id()) p.due.erase(p.due.begin());
       if (!refused.empty()) throw Error(refused);
       record_.bytes_in += bytes;
     } catch (const Error&) {

@@ -129,14 +129,14 @@ class Golden : public ::testing::Test {
   // Runs `args` (a binary and its flags) to exit status 0.
   void run(std::vector<std::string> args, const std::string& log) {
     Child c(std::move(args), dir_ / log);
-    ASSERT_EQ(c.wait(300), 0) << slurp(dir_ / log);
+    ASSERT_EQ(c.wait(sirad::test::kHangS), 0) << slurp(dir_ / log);
   }
 
   // The coordinator `args` (its flags after the scene) with `nodes` node processes over
   // loopback TCP; the coordinator waits for all of them (--min-nodes) where the run is new.
   void run_tcp(std::vector<std::string> args, int nodes, const std::string& name) {
     std::vector<std::string> coord = {SIRAD_COORDINATOR_BINARY, "cornell", "--listen", "tcp://127.0.0.1:*", "--insecure", "-q",
-                                      "--endpoint-file", (dir_ / (name + ".endpoint")).string(), "--timeout", "240"};
+                                      "--endpoint-file", (dir_ / (name + ".endpoint")).string(), "--timeout", sirad::test::kHangTimeout};
     coord.insert(coord.end(), args.begin(), args.end());
     Child coordinator(coord, dir_ / (name + ".coordinator.log"));
     // An event, not a clock: the endpoint file appears once the socket is bound.
@@ -148,10 +148,10 @@ class Golden : public ::testing::Test {
           std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", slurp(dir_ / (name + ".endpoint")), "--insecure", "--name",
                                    fmt::format("{}-{}", name, i)},
           dir_ / fmt::format("{}.node{}.log", name, i)));
-    ASSERT_EQ(coordinator.wait(300), 0) << slurp(dir_ / (name + ".coordinator.log"));
+    ASSERT_EQ(coordinator.wait(sirad::test::kHangS), 0) << slurp(dir_ / (name + ".coordinator.log"));
     for (auto& n : node) {
       n->terminate();
-      EXPECT_EQ(n->wait(30), 0);
+      EXPECT_EQ(n->wait(sirad::test::kHangS), 0);
     }
   }
 

@@ -158,5 +158,43 @@ TEST(Policy, ChainRuleAutoLetsEveryLinkKeepUp) {
   EXPECT_EQ(capped.exchange_every, 20u);  // 320 / (8 x 2)
 }
 
+// Node entries are capped: past kMaxNodeEntries a new node takes the index of the oldest
+// departed entry that holds nothing (here: entries that joined and died, and one quarantined),
+// never one whose data are in the estimate or whose bundles are in the ledger; when every entry
+// holds something, joining is refused.
+TEST(Policy, NodeEntriesAreCappedByReusingEmptyDepartedOnes) {
+  PolicyConfig c{.bundles = 1u << 20, .exchange_every = 4, .mode = Mode::async, .min_nodes = 1, .balance = false};
+  Policy p(c, chunk_starts(64, 4), std::vector<double>(64, 1.0));
+  // Node 0 works: reports a state and done bundles, then dies (its record must stay).
+  p.join();
+  p.ready(0);
+  GrantOrder g = p.schedule().grants.front();
+  p.report(0, g.id, g.ranges, {ChunkState{0, std::vector<double>(48, 4.0), 4}}, 0.0);
+  p.dead(0);
+  for (uint32_t n = 1; n < Policy::kMaxNodeEntries; ++n) {
+    ASSERT_EQ(p.join(), n);
+    p.dead(n);
+  }
+  EXPECT_EQ(p.nodes(), Policy::kMaxNodeEntries);
+  EXPECT_EQ(p.join(), 1u);  // the oldest empty one: node 0 holds data
+  EXPECT_EQ(p.nodes(), Policy::kMaxNodeEntries);
+  EXPECT_FALSE(p.node(1).dead);
+  EXPECT_EQ(p.ledger().done_by(0).size(), 1u);
+  EXPECT_EQ(p.aggregate().state(0, 0).count, 4u);
+  EXPECT_EQ(p.join(), 2u);
+  // Every entry holding something: refused.
+  Policy q(c, chunk_starts(64, 4), std::vector<double>(64, 1.0));
+  for (uint32_t n = 0; n < Policy::kMaxNodeEntries; ++n) {
+    q.join();
+    q.ready(n);
+  }
+  for (const GrantOrder& o : q.schedule().grants)
+    if (q.node(o.node).grants.front() == o.id) q.report(o.node, o.id, o.ranges, {}, 0.0);
+  for (uint32_t n = 0; n < Policy::kMaxNodeEntries; ++n) q.dead(n);
+  EXPECT_THROW(q.join(), Error);
+  q.quarantine(7, "test");  // its bundles go back: it holds nothing now
+  EXPECT_EQ(q.join(), 7u);
+}
+
 }  // namespace
 }  // namespace sirad::cluster

@@ -20,6 +20,13 @@ namespace sirad::test {
 
 namespace fs = std::filesystem;
 
+// The longest any test waits for an event of a child process (an exit, a file, a log line)
+// before it calls it hung, and the --timeout its coordinators run under. Every wait ends at its
+// event; this bound only turns a hang into a failure, so it is far beyond what the slowest
+// event takes on a loaded machine (the suite is run with two CPU burners beside ctest -j 2).
+inline constexpr double kHangS = 900;
+inline const char* kHangTimeout = "900";
+
 // A child process, killed if still running when it goes out of scope.
 class Child {
  public:
@@ -70,7 +77,7 @@ class Child {
 
 // Waits for the file `path` that `writer` writes (an endpoint file, say): true once it exists,
 // false when `writer` exited without it. The cap is for a hung child, far beyond any load.
-inline bool wait_for_file(const fs::path& path, Child& writer, double seconds = 300) {
+inline bool wait_for_file(const fs::path& path, Child& writer, double seconds = kHangS) {
   auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
   while (!fs::exists(path)) {
     if (writer.wait(0.02) >= 0 || std::chrono::steady_clock::now() > until) return fs::exists(path);

@@ -70,7 +70,7 @@ int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coord
   args.insert(args.end(), coordinator_args.begin(), coordinator_args.end());
   for (std::string a : std::vector<std::string>{"--listen", "tcp://127.0.0.1:*", "--insecure", "--endpoint-file",
                                                 (dir / "endpoint").string(), "--min-nodes", fmt::format("{}", nodes),
-                                                "--timeout", "120", "-q"})
+                                                "--timeout", sirad::test::kHangTimeout, "-q"})
     args.push_back(a);
   Child coordinator(args, dir / "coordinator.log");
   if (!coordinator.started()) return -1;
@@ -81,10 +81,10 @@ int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coord
     children.push_back(std::make_unique<Child>(
         std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", fmt::format("p{}", i)},
         dir / fmt::format("node{}.log", i)));
-  int status = coordinator.wait(150);
+  int status = coordinator.wait(sirad::test::kHangS);
   for (auto& n : children) {
     n->terminate();
-    if (n->wait(10) != 0) status = status == 0 ? -2 : status;
+    if (n->wait(sirad::test::kHangS) != 0) status = status == 0 ? -2 : status;
   }
   return status;
 }
@@ -92,7 +92,7 @@ int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coord
 // `sirad keygen NAME` in `dir`; returns the allow-list line it prints.
 std::string keygen(const fs::path& dir, const std::string& name) {
   Child k({SIRAD_BINARY, "keygen", (dir / name).string()}, dir / (name + ".keygen.log"));
-  EXPECT_EQ(k.wait(30), 0);
+  EXPECT_EQ(k.wait(sirad::test::kHangS), 0);
   std::string log = slurp(dir / (name + ".keygen.log"));
   auto at = log.find("allow-list line: ");
   EXPECT_NE(at, std::string::npos) << log;
@@ -117,7 +117,7 @@ TEST(Processes, CoordinatorAndThreeNodesOverTcp) {
                      (dir / "coordinator.key_secret").string(), "--allow", (dir / "allow").string(), "--endpoint-file",
                      (dir / "endpoint").string(), "--bundles", "512", "--patches", "300", "--min-nodes", "3",
                      "--exchange-every", "16", "--out", (dir / "furnace").string(), "--width", "16", "--height", "16",
-                     "--timeout", "120"},
+                     "--timeout", sirad::test::kHangTimeout},
                     dir / "coordinator.log");
   ASSERT_TRUE(coordinator.started());
   ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", coordinator)) << slurp(dir / "coordinator.log");
@@ -130,7 +130,7 @@ TEST(Processes, CoordinatorAndThreeNodesOverTcp) {
                                  (dir / fmt::format("p{}.key_secret", i)).string(), "--server-key",
                                  (dir / "coordinator.key").string()},
         dir / fmt::format("node{}.log", i)));
-  ASSERT_EQ(coordinator.wait(150), 0) << slurp(dir / "coordinator.log");
+  ASSERT_EQ(coordinator.wait(sirad::test::kHangS), 0) << slurp(dir / "coordinator.log");
   std::string log = slurp(dir / "coordinator.log");
   uint64_t total = 0;
   for (int i = 0; i < 3; ++i) {
@@ -149,7 +149,7 @@ TEST(Processes, CoordinatorAndThreeNodesOverTcp) {
   EXPECT_NEAR(mean, 2.0, 0.055);
   for (auto& n : nodes) {
     n->terminate();
-    EXPECT_EQ(n->wait(10), 0);
+    EXPECT_EQ(n->wait(sirad::test::kHangS), 0);
   }
   fs::remove_all(dir);
 }
@@ -168,21 +168,21 @@ TEST(Processes, EmbeddedDefaultEqualsTcpClusterBitForBit) {
                                        (dir / "embedded").string()};
   embedded.insert(embedded.end(), run.begin(), run.end());
   Child e(embedded, dir / "embedded.log");
-  ASSERT_EQ(e.wait(120), 0) << slurp(dir / "embedded.log");
+  ASSERT_EQ(e.wait(sirad::test::kHangS), 0) << slurp(dir / "embedded.log");
   std::vector<std::string> coord = {SIRAD_COORDINATOR_BINARY, "cornell", "--listen", "tcp://127.0.0.1:*", "--insecure", "-q",
                                     "--endpoint-file", (dir / "endpoint").string(), "--out", (dir / "tcp").string(),
-                                    "--timeout", "120"};
+                                    "--timeout", sirad::test::kHangTimeout};
   coord.insert(coord.end(), run.begin(), run.end());
   Child coordinator(coord, dir / "coordinator.log");
   ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", coordinator)) << slurp(dir / "coordinator.log");
   Child node({SIRAD_NODE_BINARY, "--connect", slurp(dir / "endpoint"), "--insecure", "--name", "tcp-node"}, dir / "node.log");
-  ASSERT_EQ(coordinator.wait(150), 0) << slurp(dir / "coordinator.log");
+  ASSERT_EQ(coordinator.wait(sirad::test::kHangS), 0) << slurp(dir / "coordinator.log");
   EXPECT_NE(slurp(dir / "coordinator.log").find("WARNING: --insecure"), std::string::npos) << "it says so on start";
   std::string a = slurp(dir / "embedded.ply"), b = slurp(dir / "tcp.ply");
   ASSERT_GT(a.size(), 1000u);
   EXPECT_TRUE(a == b) << "the embedded default and the TCP cluster differ";
   node.terminate();
-  EXPECT_EQ(node.wait(10), 0);
+  EXPECT_EQ(node.wait(sirad::test::kHangS), 0);
   fs::remove_all(dir);
 }
 
@@ -328,7 +328,7 @@ bool wait_until(F event, double seconds) {
 KillRun run_with_kill(const fs::path& dir, std::vector<std::string> run_args, uint64_t bundles, bool restart) {
   const fs::path status = dir / "status.json";
   std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY, "--listen", "tcp://127.0.0.1:*", "--insecure",
-                                   "--endpoint-file", (dir / "endpoint").string(), "--min-nodes", "3", "--timeout", "120",
+                                   "--endpoint-file", (dir / "endpoint").string(), "--min-nodes", "3", "--timeout", sirad::test::kHangTimeout,
                                    "--heartbeat-ms", "250", "--liveness", "100", "--status-json", status.string(),
                                    "--ledger", (dir / "ledger.csv").string(), "--bundles", std::to_string(bundles), "-q"};
   args.insert(args.end(), run_args.begin(), run_args.end());
@@ -352,24 +352,24 @@ KillRun run_with_kill(const fs::path& dir, std::vector<std::string> run_args, ui
   std::vector<std::unique_ptr<Child>> nodes(3);
   nodes[0] = node(0, "node0.log");
   nodes[2] = node(2, "node2.log");
-  EXPECT_TRUE(wait_until([&] { return shows("p0", 1, {"waiting"}, false) && shows("p2", 1, {"waiting"}, false); }, 90))
+  EXPECT_TRUE(wait_until([&] { return shows("p0", 1, {"waiting"}, false) && shows("p2", 1, {"waiting"}, false); }, sirad::test::kHangS))
       << "p0 and p2 never joined: " << slurp(dir / "coordinator.log");
   nodes[0]->pause();
   nodes[2]->pause();
   nodes[1] = node(1, "node1.log");
-  EXPECT_TRUE(wait_until([&] { return shows("p1", 1, {"working", "waiting"}, true); }, 90)) << "p1 never ran a bundle";
+  EXPECT_TRUE(wait_until([&] { return shows("p1", 1, {"working", "waiting"}, true); }, sirad::test::kHangS)) << "p1 never ran a bundle";
   nodes[1]->kill9();
   out.done_at_kill = bundles_done(status);
-  EXPECT_TRUE(wait_until([&] { return slurp(dir / "coordinator.log").find("p1: declared dead") != std::string::npos; }, 60))
+  EXPECT_TRUE(wait_until([&] { return slurp(dir / "coordinator.log").find("p1: declared dead") != std::string::npos; }, sirad::test::kHangS))
       << "p1 was never declared dead";
   if (restart) {
     nodes.push_back(node(1, "node1-restarted.log"));
-    EXPECT_TRUE(wait_until([&] { return shows("p1", 2, {"working", "waiting"}, true); }, 90))
+    EXPECT_TRUE(wait_until([&] { return shows("p1", 2, {"working", "waiting"}, true); }, sirad::test::kHangS))
         << "the new p1 never ran a bundle";
   }
   nodes[0]->resume();
   nodes[2]->resume();
-  out.status = coordinator.wait(150);
+  out.status = coordinator.wait(sirad::test::kHangS);
   out.log = slurp(dir / "coordinator.log");
   for (auto& n : nodes) n->terminate();
   if (fs::exists(dir / "ledger.csv")) out.ledger = read_ledger(dir / "ledger.csv");
@@ -470,10 +470,10 @@ TEST(Processes, RenderInterruptedWritesTheResultSoFar) {
   Child render({SIRAD_BINARY, "render", "furnace", "--patches", "200", "--bundles", "1000000000", "--shots-per-bundle", "0", "--out",
                 (dir / "partial").string(), "--width", "16", "--height", "16"},
                dir / "render.log");
-  ASSERT_TRUE(wait_until([&] { return slurp(dir / "render.log").find(" patches, grid ") != std::string::npos; }, 120))
+  ASSERT_TRUE(wait_until([&] { return slurp(dir / "render.log").find(" patches, grid ") != std::string::npos; }, sirad::test::kHangS))
       << slurp(dir / "render.log");
   render.interrupt();
-  ASSERT_EQ(render.wait(120), 130) << slurp(dir / "render.log");
+  ASSERT_EQ(render.wait(sirad::test::kHangS), 130) << slurp(dir / "render.log");
   std::string log = slurp(dir / "render.log");
   EXPECT_NE(log.find("ended early: interrupted (SIGINT)"), std::string::npos) << log;
   EXPECT_NE(log.find("interrupted after "), std::string::npos) << log;
@@ -494,9 +494,10 @@ TEST(Processes, RenderInterruptedWritesTheResultSoFar) {
   fs::remove_all(dir);
 }
 
-// Waits (up to `seconds`) until the status JSON says at least `bundles` are done; returns them.
-uint64_t wait_for_bundles(const fs::path& status, uint64_t bundles, double seconds) {
-  for (int i = 0; i < seconds * 40 && bundles_done(status) < bundles; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+// Waits until the status JSON says at least `bundles` are done (a hang, past kHangS, fails the
+// test); returns them.
+uint64_t wait_for_bundles(const fs::path& status, uint64_t bundles) {
+  EXPECT_TRUE(wait_until([&] { return bundles_done(status) >= bundles; }, sirad::test::kHangS)) << "never " << bundles << " bundles";
   return bundles_done(status);
 }
 
@@ -516,7 +517,7 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
   std::ofstream(dir / "wan.yaml") << "defaults:\n  latency_ms: 10\n";
   auto coordinator = [&](const std::string& listen, std::vector<std::string> extra, int n) {
     std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY, "furnace", "--listen", listen, "--insecure",
-                                     "--endpoint-file", (dir / "endpoint").string(), "--timeout", "120",
+                                     "--endpoint-file", (dir / "endpoint").string(), "--timeout", sirad::test::kHangTimeout,
                                      "--heartbeat-ms", "200", "--liveness", "100", "--status-json", (dir / "status.json").string(),
                                      "--checkpoint", (dir / "run.checkpoint").string(), "--checkpoint-every", "0.2",
                                      "--ledger", (dir / "ledger.csv").string(), "--profile", (dir / "wan.yaml").string(),
@@ -541,25 +542,25 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
   auto hold = [&] {
     for (auto& n : nodes) n->pause();
     auto before = fs::last_write_time(dir / "run.checkpoint");
-    EXPECT_TRUE(wait_until([&] { return fs::last_write_time(dir / "run.checkpoint") != before; }, 30));
+    EXPECT_TRUE(wait_until([&] { return fs::last_write_time(dir / "run.checkpoint") != before; }, sirad::test::kHangS));
   };
   auto release = [&] {
     for (auto& n : nodes) n->resume();
   };
-  uint64_t at_kill = wait_for_bundles(dir / "status.json", K / 4, 60);
-  ASSERT_TRUE(wait_until([&] { return fs::exists(dir / "run.checkpoint"); }, 30));
+  uint64_t at_kill = wait_for_bundles(dir / "status.json", K / 4);
+  ASSERT_TRUE(wait_until([&] { return fs::exists(dir / "run.checkpoint"); }, sirad::test::kHangS));
   hold();
   first->kill9();
-  ASSERT_EQ(first->wait(10), 128 + SIGKILL);
+  ASSERT_EQ(first->wait(sirad::test::kHangS), 128 + SIGKILL);
   ASSERT_TRUE(fs::exists(dir / "run.checkpoint"));
   ASSERT_LT(at_kill, K) << "the kill came after the run";
   // The same endpoint; the settings come from the checkpoint.
   auto second = coordinator(endpoint, {"--resume", (dir / "run.checkpoint").string()}, 1);
   release();
-  uint64_t at_term = wait_for_bundles(dir / "status.json", at_kill + K / 8, 60);
+  uint64_t at_term = wait_for_bundles(dir / "status.json", at_kill + K / 8);
   hold();
   second->terminate();
-  EXPECT_NE(second->wait(30), 0);
+  EXPECT_NE(second->wait(sirad::test::kHangS), 0);
   std::string log1 = slurp(dir / "coordinator1.log");
   EXPECT_NE(log1.find("resumed after"), std::string::npos) << log1;
   EXPECT_NE(log1.find("interrupted after"), std::string::npos) << log1;
@@ -567,7 +568,7 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
   ASSERT_LT(at_term, K) << "the SIGTERM came after the run";
   auto third = coordinator(endpoint, {"--resume", (dir / "run.checkpoint").string()}, 2);
   release();
-  ASSERT_EQ(third->wait(150), 0) << slurp(dir / "coordinator2.log");
+  ASSERT_EQ(third->wait(sirad::test::kHangS), 0) << slurp(dir / "coordinator2.log");
   std::string log = slurp(dir / "coordinator2.log");
   std::printf("coordinator killed at %llu, terminated at %llu of %llu bundles\n", static_cast<unsigned long long>(at_kill),
               static_cast<unsigned long long>(at_term), static_cast<unsigned long long>(K));

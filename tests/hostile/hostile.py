@@ -656,6 +656,43 @@ def case_join_cycles(build, work, ctx):
     check(peak < 60, f"coordinator peak {peak:.0f} MiB, over 60 MiB")
 
 
+def case_join_cycles_many_addresses(build, work, ctx):
+    """Class 7: the join limit is per address, so a peer with many addresses (here 20 loopback
+    addresses, 127.0.0.10 to .29, each 600 HELLO + READY pairs: 5,120 joins the limit lets
+    through in 10 s, 4 times that refused) could still grow the node entries. They are capped:
+    at Policy::kMaxNodeEntries (4096) a new node takes the index of the oldest departed entry
+    that holds nothing, so the status lists exactly 4096 entries at the end, the honest nodes
+    (joining last) finish the run, and the coordinator's peak stays under 100 MiB (23 in the
+    control case; an entry costs about 1 KB)."""
+    run = Run(build, work, 4096, 2)
+    first = Peer(ctx, run.endpoint, "cycler")
+    first.join([run.coordinator])
+    port = run.endpoint.rsplit(":", 1)[1]
+    hello = encode("hello", pb.Hello(node_name="cycler", sirad_version="hostile"))
+    ready = encode("ready", pb.Ready(run_id=first.run.run_id, scene_hash=first.run.scene_hash, ms_per_bundle=1.0))
+    peers = []
+    for a in range(10, 30):
+        s = ctx.socket(zmq.DEALER)
+        s.setsockopt(zmq.LINGER, 0)
+        s.setsockopt(zmq.SNDHWM, 100000)
+        s.connect(f"tcp://127.0.0.{a}:0;127.0.0.1:{port}")
+        peers.append(s)
+    t0 = time.monotonic()
+    for _ in range(600):
+        for s in peers:
+            s.send_multipart(hello)
+            s.send_multipart(ready)
+    run.honest(2)
+    run.finish()
+    seconds = time.monotonic() - t0
+    run.check_result({"h0", "h1"})
+    entries = len(read_status(run.status)["nodes"])
+    peak = run.coordinator.maxrss_kib / 1024
+    print(f"{entries} node entries after 12,000 HELLO + READY pairs from 20 addresses in {seconds:.1f} s; peak {peak:.0f} MiB")
+    check(entries == 4096, f"{entries} node entries, not the cap of 4096")
+    check(peak < 100, f"coordinator peak {peak:.0f} MiB, over 100 MiB")
+
+
 def case_name_injection(build, work, ctx):
     """Class 9: a node whose HELLO name carries a newline, a forged log line and ANSI escapes.
     Names reach the log, the summary and the status as printable ASCII only: no line of the
@@ -691,6 +728,115 @@ def case_foreign_run_report(build, work, ctx):
     run.check_result({"h0", "h1"})  # the ledger: every index once, by honest nodes only
     status = read_status(run.status)
     check(any(n["name"] == "foreign" and n["state"] == "quarantined" for n in status["nodes"]), f"not quarantined: {status}")
+
+
+class LyingProxy:
+    """A real sirad-node that lies: the node connects to this proxy (a ROUTER on loopback), which
+    passes every message between it and the coordinator (a DEALER) unchanged, except the chunk
+    sums of its REPORTs and FINAL, which it multiplies by `factor` (0: zeros). The lie has the
+    batch structure of an honest chain, scaled: the plausible lie of class 17."""
+
+    def __init__(self, ctx, coordinator_endpoint, factor):
+        import array
+        import threading
+        self.array = array
+        self.factor = factor
+        self.front = ctx.socket(zmq.ROUTER)
+        self.front.setsockopt(zmq.LINGER, 0)
+        port = self.front.bind_to_random_port("tcp://127.0.0.1")
+        self.endpoint = f"tcp://127.0.0.1:{port}"
+        self.back = ctx.socket(zmq.DEALER)
+        self.back.setsockopt(zmq.LINGER, 0)
+        self.back.connect(coordinator_endpoint)
+        self.lied = 0
+        self.stopping = False
+        self.thread = threading.Thread(target=self.loop, daemon=True)
+        self.thread.start()
+
+    def scaled(self, frame):
+        values = self.array.array("d")
+        values.frombytes(frame)
+        for i in range(len(values)):
+            values[i] *= self.factor
+        return values.tobytes()
+
+    def loop(self):
+        poller = zmq.Poller()
+        poller.register(self.front, zmq.POLLIN)
+        poller.register(self.back, zmq.POLLIN)
+        node = None
+        while not self.stopping:
+            for sock, _ in poller.poll(50):
+                if sock is self.front:
+                    node, *frames = self.front.recv_multipart()
+                    if len(frames) > 3 and frames[0] == SIG and frames[1][0] in (CMD["report"], CMD["final"]):
+                        frames = frames[:3] + [self.scaled(f) for f in frames[3:]]
+                        self.lied += 1
+                    self.back.send_multipart(frames)
+                else:
+                    frames = self.back.recv_multipart()
+                    if node is not None:
+                        self.front.send_multipart([node] + frames)
+
+    def stop(self):
+        self.stopping = True
+        self.thread.join(10)
+
+
+def lying_node_case(build, work, ctx, factor, honest, what):
+    """Class 17: `honest` honest nodes and a real node behind a LyingProxy (`factor`). The liar
+    is quarantined for `what` (the reason in the log: the scene's bound, or the median of the
+    nodes; plausibility.h derives both), its bundles run again on the honest nodes, and the
+    furnace comes out right (check_result: every index once, by honest nodes, the mean 2 within
+    its tolerance, no honest node quarantined). The coordinator's peak stays under 60 MiB (23 in
+    the control case)."""
+    run = Run(build, work, 4096, honest + 1)
+    proxy = LyingProxy(ctx, run.endpoint, factor)
+    run.honest(honest)
+    liar = Proc([os.path.join(build, "sirad-node"), "--connect", proxy.endpoint, "--name", "liar", "--insecure"],
+                os.path.join(work, "liar.log"))
+    try:
+        run.finish()
+    finally:
+        liar.stop()
+        proxy.stop()
+    log = run.check_result({f"h{i}" for i in range(honest)})
+    status = read_status(run.status)
+    liars = [n for n in status["nodes"] if n["name"] == "liar"]
+    check(liars and liars[0]["state"] == "quarantined", f"the liar was not quarantined: {liars}")
+    check(what in liars[0]["why"], f"the liar was quarantined for something else: {liars[0]['why']}")
+    honest_suspicion = max(n["suspicion"] for n in status["nodes"] if n["name"] != "liar")
+    peak = run.coordinator.maxrss_kib / 1024
+    print(f"liar x{factor}: {proxy.lied} lying messages; quarantined: {liars[0]['why']}; "
+          f"honest nodes' largest suspicion {honest_suspicion:.3f}; coordinator peak {peak:.0f} MiB")
+    check(honest_suspicion < 1, "an honest node's score is over 1")
+    check(peak < 60, f"coordinator peak {peak:.0f} MiB, over 60 MiB")
+
+
+def case_liar_x1000(build, work, ctx):
+    """Class 17: a node whose sums are 1000 times its chain's, beside two honest nodes: far from
+    the median of the three (and beyond the furnace's bound, B <= 2)."""
+    lying_node_case(build, work, ctx, 1000.0, 2, "chunk ")
+
+
+def case_liar_zero(build, work, ctx):
+    """Class 17: a node that sends zeros for its sums (with its true counts), beside two honest
+    nodes: below the furnace's emission, E = 1, and far from the median."""
+    lying_node_case(build, work, ctx, 0.0, 2, "chunk ")
+
+
+def case_liar_x1000_of_two(build, work, ctx):
+    """Class 17: one honest node and one that sends 1000 times its sums: no median of two can say
+    which lies, but the scene's bound can (the furnace's radiosity is at most 2)."""
+    lying_node_case(build, work, ctx, 1000.0, 1, "above what the scene allows")
+
+
+def case_liar_small_bias(build, work, ctx):
+    """Class 17: a node whose sums are 0.8 times its chain's (the furnace at 1.6, within the
+    scene's bounds [1, 2]), beside two honest nodes: caught by the median of the three once it
+    is 12 standard errors off, which the honest spread of this setting reaches after a few
+    hundred bundles of each node (plausibility.h)."""
+    lying_node_case(build, work, ctx, 0.8, 2, "the median of 3 nodes")
 
 
 CASES = {name[len("case_"):]: fn for name, fn in globals().items() if name.startswith("case_")}
