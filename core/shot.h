@@ -78,8 +78,10 @@ std::unique_ptr<ShotEngine> make_reference_shot_engine(const PatchMesh& mesh);
 void reference_shot_ambiguity(const PatchMesh& mesh, const SiradShot& shot, double edge_eps,
                               std::vector<uint8_t>& ambiguous);
 
-// The OpenCL engine (kernels/shot.cl) on the device `device` names (see select_device).
-std::unique_ptr<ShotEngine> make_cl_shot_engine(const PatchMesh& mesh, const std::string& device = {});
+// The OpenCL engine (kernels/shot.cl) on the device `device` names (see select_device),
+// projecting and rasterising `block` patches at a time (0: its own block size, 131072; the
+// image does not depend on it).
+std::unique_ptr<ShotEngine> make_cl_shot_engine(const PatchMesh& mesh, const std::string& device = {}, std::size_t block = 0);
 
 // The per-pixel form-factor weights dF of a shot (double), in image order.
 std::vector<double> shot_weights(const SiradShot& shot);

@@ -1,5 +1,8 @@
-// sirad: the first shot's view on an OpenCL device (kernels/shot.cl): buffers, two launches and
-// the read-back of the image per shot.
+// sirad: the first shot's view on an OpenCL device (kernels/shot.cl): buffers, the launches and
+// the read-back of the image per shot. Patches are projected and rasterised in blocks of
+// kShotBlock, so the scratch (10 projected triangles of 112 bytes per patch: 5 faces, up to
+// two after the near clip) is a block's: 147 MB however large the mesh (1.1 KB per patch
+// before, the most of a node's memory at a million patches).
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -13,9 +16,12 @@ namespace sirad {
 
 namespace {
 
+constexpr std::size_t kShotBlock = 131072;  // patches per block of project_shot and raster_shot
+
 class ClShotEngine final : public ShotEngine {
  public:
-  ClShotEngine(const PatchMesh& mesh, const std::string& device, bool profile) : n_(mesh.size()) {
+  ClShotEngine(const PatchMesh& mesh, const std::string& device, bool profile, std::size_t block)
+      : n_(mesh.size()), block_(std::max<std::size_t>(1, std::min(n_, block ? block : kShotBlock))) {
     device_ = select_device(device);
     info_ = describe_device(device_);
     max_alloc_ = device_.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
@@ -28,7 +34,7 @@ class ClShotEngine final : public ShotEngine {
     vertex_kernel_ = cl::Kernel(program, "shot_vertices");
     project_ = cl::Kernel(program, "project_shot");
     raster_ = cl::Kernel(program, "raster_shot");
-    WorkRuns patch_runs = work_runs(info_, n_);
+    WorkRuns patch_runs = work_runs(info_, block_);
     patch_items_ = patch_runs.items;
     per_item_ = patch_runs.per_item;
     std::vector<glm::vec4> verts = centred_vertices(mesh);
@@ -42,8 +48,8 @@ class ClShotEngine final : public ShotEngine {
     patches_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, std::max<std::size_t>(n_, 1) * sizeof(cl_uint4), tris.data());
     params_ = cl::Buffer(context_, CL_MEM_READ_ONLY, sizeof(SiradShot));
     face_coords_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(5 * nv_, 1) * sizeof(glm::vec4));
-    projected_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(10 * n_, 1) * sizeof(SiradProjected));
-    rows_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(10 * n_, 1) * sizeof(cl_int2));
+    projected_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 10 * block_ * sizeof(SiradProjected));
+    rows_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 10 * block_ * sizeof(cl_int2));
   }
 
   std::string description() const override { return fmt::format("{} / {}", info_.platform_name, info_.device_name); }
@@ -74,8 +80,8 @@ class ClShotEngine final : public ShotEngine {
     params_host_.bands_top = (H + rpb - 1) / rpb;
     params_host_.bands_side = (H / 2 + rpb - 1) / rpb;
     const int bands = params_host_.bands_top + 4 * params_host_.bands_side;
-    if (capacity_ == 0) capacity_ = 4 * 2 * n_ / std::max(1, bands / 5) + 4096;
-    capacity_ = std::min<uint64_t>(capacity_, 2 * std::max<std::size_t>(n_, 1));
+    if (capacity_ == 0) capacity_ = 4 * 2 * block_ / std::max(1, bands / 5) + 4096;
+    capacity_ = std::min<uint64_t>(capacity_, 2 * block_);
     if (capacity_ > 0xffffffffu / static_cast<uint64_t>(bands)) fail("shot scratch of {} triangles x {} bands is beyond 32-bit indexing", capacity_, bands);
     // One busy band sets the capacity of all (a GPU has a band per row): refuse clearly before
     // the device does.
@@ -95,7 +101,6 @@ class ClShotEngine final : public ShotEngine {
       allocated_bands_ = bands;
       allocated_capacity_ = capacity_;
     }
-    cl_uint n = static_cast<cl_uint>(n_);
     queue_.enqueueWriteBuffer(params_, CL_FALSE, 0, sizeof(SiradShot), &params_host_);
     cl::NDRange one_per_group = info_.is_cpu ? cl::NDRange(1) : cl::NullRange;
     vertex_kernel_.setArg(0, vertices_);
@@ -104,17 +109,26 @@ class ClShotEngine final : public ShotEngine {
     vertex_kernel_.setArg(3, params_);
     vertex_kernel_.setArg(4, face_coords_);
     queue_.enqueueNDRangeKernel(vertex_kernel_, cl::NullRange, cl::NDRange(vertex_items_), one_per_group);
-    int arg = 0;
-    for (const cl::Buffer* b : {&face_coords_, &patches_}) project_.setArg(arg++, *b);
-    project_.setArg(arg++, n);
-    project_.setArg(arg++, per_item_);
-    for (const cl::Buffer* b : {&params_, &projected_, &rows_}) project_.setArg(arg++, *b);
-    queue_.enqueueNDRangeKernel(project_, cl::NullRange, cl::NDRange(patch_items_), one_per_group, nullptr, &events_[0]);
-    arg = 0;
-    for (const cl::Buffer* b : {&projected_, &rows_}) raster_.setArg(arg++, *b);
-    raster_.setArg(arg++, n);
-    for (const cl::Buffer* b : {&params_, &band_list_, &zbuf_, &zwin_, &image_, &stats_}) raster_.setArg(arg++, *b);
-    queue_.enqueueNDRangeKernel(raster_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(bands)), one_per_group, nullptr, &events_[1]);
+    project_.setArg(0, face_coords_);
+    project_.setArg(1, patches_);
+    project_.setArg(4, per_item_);
+    for (int arg = 5; const cl::Buffer* b : {&params_, &projected_, &rows_}) project_.setArg(arg++, *b);
+    raster_.setArg(0, projected_);
+    raster_.setArg(1, rows_);
+    for (int arg = 5; const cl::Buffer* b : {&params_, &band_list_, &zbuf_, &zwin_, &image_, &stats_}) raster_.setArg(arg++, *b);
+    for (std::size_t first = 0; first < std::max<std::size_t>(n_, 1); first += block_) {
+      const cl_uint count = static_cast<cl_uint>(std::min(block_, n_ - std::min(first, n_)));
+      const cl_uint stage = (first == 0 ? 1u : 0u) | (first + block_ >= n_ ? 2u : 0u);
+      project_.setArg(2, static_cast<cl_uint>(first));
+      project_.setArg(3, count);
+      queue_.enqueueNDRangeKernel(project_, cl::NullRange, cl::NDRange(patch_items_), one_per_group, nullptr, &events_[0]);
+      raster_.setArg(2, static_cast<cl_uint>(first));
+      raster_.setArg(3, count);
+      raster_.setArg(4, stage);
+      queue_.enqueueNDRangeKernel(raster_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(bands)), one_per_group, nullptr,
+                                  &events_[1]);
+      if (profile_) add_profile();
+    }
     std::vector<cl_uint> stats(static_cast<std::size_t>(bands));
     image.resize(shot_pixels(H));
     queue_.enqueueReadBuffer(image_, CL_FALSE, 0, image.size() * sizeof(cl_uint), image.data());
@@ -125,16 +139,20 @@ class ClShotEngine final : public ShotEngine {
     return 0;
   }
 
-  // SIRAD_PROFILE set: the two kernels' device times, printed every 10 shots.
-  void report_profile() {
-    for (int k = 0; k < 2; ++k)
+  // SIRAD_PROFILE set: the two kernels' device times (summed over blocks), printed every 10 shots.
+  void add_profile() {
+    for (int k = 0; k < 2; ++k) {
+      events_[k].wait();
       kernel_ns_[k] += events_[k].getProfilingInfo<CL_PROFILING_COMMAND_END>() - events_[k].getProfilingInfo<CL_PROFILING_COMMAND_START>();
+    }
+  }
+  void report_profile() {
     if (++profiled_ % 10 == 0)
       std::fprintf(stderr, "sirad profile (ms/shot): project %.3f raster %.3f\n", kernel_ns_[0] * 1e-6 / profiled_,
                    kernel_ns_[1] * 1e-6 / profiled_);
   }
 
-  std::size_t n_;
+  std::size_t n_, block_;
   cl::Device device_;
   DeviceInfo info_;
   cl::Context context_;
@@ -156,10 +174,10 @@ class ClShotEngine final : public ShotEngine {
 
 }  // namespace
 
-std::unique_ptr<ShotEngine> make_cl_shot_engine(const PatchMesh& mesh, const std::string& device) {
+std::unique_ptr<ShotEngine> make_cl_shot_engine(const PatchMesh& mesh, const std::string& device, std::size_t block) {
   try {
     // Its one tuning, SIRAD_PROFILE, as the bundle engine reads it (core/bundle_cl.h).
-    return std::make_unique<ClShotEngine>(mesh, device, with_environment({}).profile);
+    return std::make_unique<ClShotEngine>(mesh, device, with_environment({}).profile, block);
   } catch (const cl::Error& e) {
     fail("OpenCL: setting up the first shot for {} patches failed: {}", mesh.size(), describe_cl_error(e));
   }

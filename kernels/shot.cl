@@ -4,7 +4,7 @@
  * shot_types.h. Per shot it enqueues:
  *   shot_vertices (runs of vertices) every vertex into the five faces' coordinates, with an
  *                 outcode per face (which side of the face's pyramid it is on);
- *   project_shot  (runs of patches)  every patch into the five hemicube faces: clipped
+ *   project_shot  (runs of patches)  every patch of a block into the five hemicube faces: clipped
  *                 against z >= near_z (a triangle becomes 0, 1 or 2 triangles), projected
  *                 (X, Y) = (x / z, y / z) scaled, counter-clockwise, with the plane of 1 / z
  *                 (affine in X, Y for a planar patch) as its depth;
@@ -12,6 +12,10 @@
  *                 samples, triangle by triangle: the nearest patch at each sample (largest
  *                 1 / z; back faces occlude too) and, if its front faces the eye, its index in
  *                 the image.
+ * The patches go through the last two in blocks of consecutive patches (the host's block
+ * size), in patch order, the z-buffers kept from block to block: every sample meets the
+ * triangles in the same order as in one pass, so the image is the same bit for bit, and the
+ * scratch is a block's, not the mesh's.
  * The host turns the image into form factors (kernels decide visibility only; the weights and
  * sums are the host's, in double). Each image element has one writer; no atomics.
  */
@@ -116,18 +120,19 @@ __kernel void shot_vertices(__global const float4* vertices, uint vertex_count, 
   }
 }
 
-/* Slots: triangle t (0 or 1) of patch j in face f is projected[(f * patch_count + j) * 2 + t].
- * Work-item i takes patches [i * per_item, (i + 1) * per_item). */
+/* The block of patches [first, first + count). Slots: triangle t (0 or 1) of patch first + j in
+ * face f is projected[(f * count + j) * 2 + t]. Work-item i takes the block's patches
+ * [i * per_item, (i + 1) * per_item). */
 __kernel void project_shot(__global const float4* face_coords, __global const uint4* patches,
-                           uint patch_count, uint per_item, __constant SiradShot* s,
+                           uint first, uint count, uint per_item, __constant SiradShot* s,
                            __global SiradProjected* projected, __global int2* rows) {
-  uint last = min((uint)get_global_id(0) * per_item + per_item, patch_count);
+  uint last = min((uint)get_global_id(0) * per_item + per_item, count);
   const float near_z = s->near_z;
   for (uint j = get_global_id(0) * per_item; j < last; ++j) {
-    uint4 idx = patches[j];
+    uint4 idx = patches[first + j];
     uint id[3] = {idx.x, idx.y, idx.z};
     for (int f = 0; f < 5; ++f) {
-      size_t slot = ((size_t)f * patch_count + j) * 2;
+      size_t slot = ((size_t)f * count + j) * 2;
       float4 c0 = face_coords[5 * (size_t)idx.x + f], c1 = face_coords[5 * (size_t)idx.y + f],
              c2 = face_coords[5 * (size_t)idx.z + f];
       uint o0 = (uint)c0.w, o1 = (uint)c1.w, o2 = (uint)c2.w;
@@ -165,15 +170,18 @@ __kernel void project_shot(__global const float4* face_coords, __global const ui
   }
 }
 
-/* One band of one face's rows. Bands 0 .. bands_top - 1 split face 0's rows [0, H); then each
- * side face has bands_side bands over its rows [H / 2, H). Scratch per band: band_list
- * (capacity triangle slots of the face reaching the band), zbuf and zwin (one row of H pixel
- * samples: nearest 1 / z, and the patch index with bit 31 set when its front faces the eye).
- * image: face 0's H x H samples, then faces 1..4's H / 2 x H each, row-major; an element is
- * the patch index, or SIRAD_NO_PATCH. band_stats[band] = triangles reaching the band (also
- * when they do not fit, so the host can grow the scratch and render the shot again). */
+/* One band of one face's rows, for the block of patches [first, first + count) as
+ * project_shot left it. Bands 0 .. bands_top - 1 split face 0's rows [0, H); then each side
+ * face has bands_side bands over its rows [H / 2, H). Scratch per band: band_list (capacity
+ * triangle slots of the face reaching the band), zbuf and zwin (the band's rows of H pixel
+ * samples: nearest 1 / z, and the patch index with bit 31 set when its front faces the eye),
+ * cleared by the first block (stage bit 1) and kept for the next. image (written by the last
+ * block, stage bit 2): face 0's H x H samples, then faces 1..4's H / 2 x H each, row-major; an
+ * element is the patch index, or SIRAD_NO_PATCH. band_stats[band] = the most triangles of one
+ * block reaching the band (also when they do not fit, so the host can grow the scratch and
+ * render the shot again). */
 __kernel void raster_shot(__global const SiradProjected* restrict projected,
-                          __global const int2* restrict rows, uint patch_count,
+                          __global const int2* restrict rows, uint first, uint count, uint stage,
                           __constant SiradShot* s, __global uint* restrict band_list,
                           __global float* restrict zbuf, __global uint* restrict zwin,
                           __global uint* restrict image, __global uint* restrict band_stats) {
@@ -194,34 +202,37 @@ __kernel void raster_shot(__global const SiradProjected* restrict projected,
   band_list += (size_t)band * cap;
   zbuf += (size_t)band * rpb * H;
   zwin += (size_t)band * rpb * H;
-  __global const SiradProjected* face = projected + (size_t)f * patch_count * 2;
-  __global const int2* face_rows = rows + (size_t)f * patch_count * 2;
+  __global const SiradProjected* face = projected + (size_t)f * count * 2;
+  __global const int2* face_rows = rows + (size_t)f * count * 2;
 
+  if (stage & 1u) {
+    /* The band's z-buffer holds all its rows: each listed triangle is drawn over the rows it
+     * covers at once (no per-row scan of the whole list); a sample still sees the triangles in
+     * list order, so the result is the same as drawing row by row. */
+    for (int i = 0; i < (r1 - r0) * H; ++i) {
+      zbuf[i] = 0.0f;
+      zwin[i] = SIRAD_NO_PATCH;
+    }
+    band_stats[band] = 0u;
+  }
   uint listed = 0;
-  for (uint t = 0; t < 2 * patch_count; ++t) {
+  for (uint t = 0; t < 2 * count; ++t) {
     int2 r = face_rows[t];
     if (r.y < r0 || r.x >= r1) continue;
     if (listed < cap) band_list[listed] = t;
     ++listed;
   }
-  band_stats[band] = listed;
+  band_stats[band] = max(band_stats[band], listed);
   if (listed > cap) return;
 
   const float tie = s->depth_tie;
   __global uint* out = image + (f == 0 ? (size_t)0 : (size_t)H * H + (size_t)(f - 1) * half_h * H);
   const int out_row0 = f == 0 ? 0 : half_h;
-  /* The band's z-buffer holds all its rows: each listed triangle is drawn over the rows it
-   * covers at once (no per-row scan of the whole list); a sample still sees the triangles in
-   * list order, so the result is the same as drawing row by row. */
-  for (int i = 0; i < (r1 - r0) * H; ++i) {
-    zbuf[i] = 0.0f;
-    zwin[i] = SIRAD_NO_PATCH;
-  }
   for (uint i = 0; i < listed; ++i) {
     uint t = band_list[i];
     int2 r = face_rows[t];
     SiradProjected p = face[t];
-    uint tag = (t >> 1) | ((p.flags & SIRAD_FRONT_POS) ? 0x80000000u : 0u);
+    uint tag = (first + (t >> 1)) | ((p.flags & SIRAD_FRONT_POS) ? 0x80000000u : 0u);
     const int ylo = max(r.x, r0), yhi = min(r.y, r1 - 1);
     for (int y = ylo; y <= yhi; ++y) {
       __global float* zrow = zbuf + (size_t)(y - r0) * H;
@@ -248,6 +259,7 @@ __kernel void raster_shot(__global const SiradProjected* restrict projected,
       }
     }
   }
+  if (!(stage & 2u)) return;
   for (int y = r0; y < r1; ++y) {
     __global const uint* wrow = zwin + (size_t)(y - r0) * H;
     __global uint* o = out + (size_t)(y - out_row0) * H;
