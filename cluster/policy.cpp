@@ -196,7 +196,7 @@ double Policy::grant_time_bound(uint32_t n, uint64_t bundles, double claimed_s) 
   return kSlack * static_cast<double>(bundles) * t;
 }
 
-uint64_t Policy::grant_size(uint32_t n) const {
+uint64_t Policy::balanced_size(uint32_t n) const {
   const uint64_t base = grant_size();
   if (!config_.balance || n >= nodes() || bundle_time_[n] <= 0) return base;
   std::vector<double> t;
@@ -208,6 +208,39 @@ uint64_t Policy::grant_size(uint32_t n) const {
   const double size = std::max(1.0, std::round(static_cast<double>(base) * f));
   const uint64_t u = config_.grant_unit;
   return (static_cast<uint64_t>(size) + u - 1) / u * u;
+}
+
+double Policy::speed_share(uint32_t n) const {
+  // Speeds 1 / t of the live ready nodes; one not measured yet counts as their mean.
+  double known = 0, sum = 0;
+  uint32_t count = 0, unknown = 0;
+  for (uint32_t m = 0; m < nodes(); ++m) {
+    const NodeState& p = nodes_[m];
+    if (p.dead || !p.ready || p.stopped) continue;
+    if (bundle_time_[m] > 0) known += 1.0 / bundle_time_[m], ++count;
+    else ++unknown;
+  }
+  const double mean = count ? known / count : 1.0;
+  sum = known + mean * unknown;
+  const double own = n < nodes() && bundle_time_[n] > 0 ? 1.0 / bundle_time_[n] : mean;
+  return sum > 0 ? own / sum : 1.0;
+}
+
+uint64_t Policy::grant_size(uint32_t n) const {
+  const uint64_t size = balanced_size(n);
+  // Guided self-scheduling: near the end each grant is at most half this node's share (by
+  // speed) of the bundles not granted yet, so grants shrink as the budget runs out and the
+  // nodes run out of work together, within a bundle or two, instead of waiting on the last
+  // full-size grant. Below one grant unit the last grants are split further, down to a single
+  // bundle: the few bundles of a stratified block that may then run fewer than G chain steps
+  // apart bias the estimate by far less than anything measurable (DESIGN.md, "the ledger's
+  // tail"), and the k steps of a shot that end on two nodes are only correlated, not biased.
+  // Sync runs keep their period to the end: every round is a barrier anyway, sized by speed.
+  if (config_.mode != Mode::async) return size;
+  const double guided = std::ceil(static_cast<double>(ledger_.available()) * speed_share(n) / 2.0);
+  if (guided >= static_cast<double>(size)) return size;
+  const uint64_t u = config_.grant_unit, g = static_cast<uint64_t>(std::max(1.0, guided));
+  return g >= u ? g / u * u : g;
 }
 
 uint64_t Policy::quarantine(uint32_t n, const std::string& why) {

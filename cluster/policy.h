@@ -237,6 +237,9 @@ class Policy {
   // exactly I: measured times are noisy) and at least 1/16: each grant then takes about I of
   // the fastest node's bundles (or one grant unit, if that is longer). No grant grows: a long
   // one would hold up a run that closes at its target.
+  // Near the end of the budget of an async run a grant is also at most half of node n's share
+  // (by speed) of the bundles not granted yet (guided self-scheduling), down to one bundle: the
+  // nodes run out of work together (see the .cpp).
   uint64_t grant_size() const;
   uint64_t grant_size(uint32_t n) const;
   // Node n's seconds per bundle, as its driver measures it (READY, then busy / bundles of its
@@ -261,6 +264,8 @@ class Policy {
   const std::string& exchange_why() const { return exchange_why_; }
 
  private:
+  uint64_t balanced_size(uint32_t n) const;  // grant_size(n) before the end of the budget
+  double speed_share(uint32_t n) const;      // node n's part of the live ready nodes' speed
   // Every chunk checked (Aggregate::check, its count within the node's bundles, Plausibility),
   // then all taken, or none and the node quarantined.
   void take_chunks(uint32_t n, std::vector<ChunkState>& chunks);
