@@ -94,8 +94,8 @@ class Emulator {
       v.figures.speed = v.spec.speed;
       v.figures.slowdown = v.slowdown;
       if (policy_.join() != n) fail("emulate: node index out of order");
-      // WELCOME and the scene go out at 0; the node meshes (not timed), builds its solver (its
-      // burn-in, charged as Solver::burn_in_cost bundles) and says READY.
+      // WELCOME and the scene go out at 0; the node meshes (not timed), builds its solver (the
+      // burn-in bundles, timed) and says READY.
       double arrival = v.down.deliver(0.0, kHeaderBytes + scene_bytes);
       at(arrival, [this, n] { setup(n); });
     }
@@ -116,6 +116,7 @@ class Emulator {
     known.exchange_bytes_out = r.exchange_bytes_out;
     known.final_bytes = r.final_bytes;
     known.crossings = r.crossings;
+    known.seconds = now_;
     r = std::move(known);
     for (uint32_t n = 0; n < P; ++n) {
       EmulatedNode& f = nodes_[n].figures;
@@ -163,7 +164,7 @@ class Emulator {
     VNode& v = nodes_[n];
     const std::vector<uint32_t>& starts = policy_.starts();  // with the end
     v.worker = std::make_unique<Worker>(mesh_, engine_, shots_, run_, n, std::span(starts.data(), starts.size() - 1));
-    double t = now_ + v.worker->solver().burn_in_cost() * result_.bundle_s * v.slowdown;
+    double t = now_ + cost(n, static_cast<uint64_t>(v.worker->solver().burn_in()));
     at(v.up.deliver(t, kHeaderBytes), [this, n] { ready(n); });
   }
 

@@ -8,8 +8,8 @@
 // by the same Policy (cluster/policy.h) as a real run. For a given seed and bundle time the
 // run is deterministic: the same timeline and the same result, bit for bit.
 //
-// What is modelled: per node, setup (the scene's transfer on the downlink, then the burn-in:
-// Solver::burn_in_cost bundles, its coarse ones at a fixed fraction of a bundle), grants run back to back, a node's messages handled in arrival order between grants
+// What is modelled: per node, setup (the scene's transfer on the downlink, then the burn-in
+// bundles), grants run back to back, a node's messages handled in arrival order between grants
 // (as node/node.cpp does), REPORT / UPDATE / FINAL sizes of 24 bytes per patch of each chunk
 // plus a 64-byte header (proto/PROTOCOL.md), the coordinator answering at once. Not modelled:
 // the coordinator's own processing time, heartbeats, and disconnects (a profile with

@@ -68,6 +68,7 @@ std::string bar_line(const Status& s, int columns) {
       fmt::format("{} exchanges", s.exchanges),
       fmt::format("{} in / {} out", bytes(s.bytes_in), bytes(s.bytes_out)),
   };
+  if (s.patches > 0) fields.insert(fields.begin() + 2, fmt::format("{:.3g} patch-bundles/s", rate * static_cast<double>(s.patches)));
   std::string text;
   for (;;) {
     text.clear();

@@ -186,7 +186,7 @@ Plausibility::Verdict Plausibility::assess(uint32_t n, uint32_t chunk, const Obs
                            kChannel[k], y[k], low, sigmas(low - y[k], se));
       });
     }
-  if (!compare_ || p.batches.size() < 2) return v;
+  if (!compare_ || next.batches.size() < kMinBatches) return v;
   // The references: other nodes with enough whole batches of this chunk.
   std::vector<Stats> refs;
   for (uint32_t q = 0; q < stats_.size(); ++q)

@@ -37,7 +37,10 @@
 //         |y_p - med| <= kZ sqrt(max(v_ref / m_p, Var(y_p)) + v_ref / m_min) + kFloor |med|,
 //     v_ref the upper median of the references' v (a lying reference cannot shrink it), m_min
 //     their least count; p's own variance widens its test (its rare large estimates), and a
-//     liar's made-up calm cannot narrow it below the references'.
+//     liar's made-up calm cannot narrow it below the references'. p itself is compared only
+//     once it has kMinBatches batches too: a young chain (a node that joined late) is noisier
+//     per bundle than mature ones (its control variate's constant has learnt from few steps),
+//     which only its own batches show.
 //     With one liar among three or more nodes the median is an honest node's value; an honest
 //     p is then at most one honest difference from it, whose variance is v (1/m_p + 1/m_q),
 //     m_q >= m_min.

@@ -10,7 +10,7 @@
 namespace sirad::cluster {
 
 RunOutcome outcome_of(const RunResult& r) {
-  return {r.bundles, r.grid, static_cast<uint32_t>(r.nodes.size()), r.exchange_every, r.fraction, r.ended_by};
+  return {r.bundles, r.grid, static_cast<uint32_t>(r.nodes.size()), r.exchange_every, r.fraction, r.ended_by, r.seconds, r.crossings};
 }
 
 RunResult policy_result(const Policy& p, int grid) {
@@ -36,6 +36,7 @@ Status policy_status(const Policy& p, const RunSettings& settings, bool last) {
   }
   s.bundles_done = p.ledger().done_count();
   s.bundles = settings.bundles;
+  s.patches = p.starts().empty() ? 0 : p.starts().back();  // the starts end with the patch count
   s.error_estimate = p.error_estimate();
   s.exchanges = p.exchanges();
   s.exchange_every = p.exchange_every() == kExchangeAuto ? 0 : p.exchange_every();
@@ -84,9 +85,10 @@ std::string node_lines(const RunResult& r) {
 std::string summary_line(std::size_t patches, uint64_t bundles, int grid, uint32_t nodes, double seconds, uint64_t crossings,
                          const std::string& extra) {
   const double s = std::max(seconds, 1e-9);
-  return fmt::format("patches {}, bundles {}, grid {}{}, {:.2f} s, {:.1f} bundles/s, {:.3g} line crossings/s{}", patches, bundles,
-                     grid, nodes > 0 ? fmt::format(", nodes {}", nodes) : "", seconds, static_cast<double>(bundles) / s,
-                     static_cast<double>(crossings) / s, extra);
+  const double rate = static_cast<double>(bundles) / s;
+  return fmt::format("patches {}, bundles {}, grid {}{}, {:.2f} s, {:.1f} bundles/s, {:.3g} patch-bundles/s, {:.3g} line crossings/s{}",
+                     patches, bundles, grid, nodes > 0 ? fmt::format(", nodes {}", nodes) : "", seconds, rate,
+                     rate * static_cast<double>(patches), static_cast<double>(crossings) / s, extra);
 }
 
 std::string cluster_summary(const RunResult& r, std::size_t patches, double seconds) {

@@ -37,6 +37,7 @@ struct RunResult {
   uint64_t final_bytes = 0;                                // FINAL bulk (the end states)
   uint32_t exchanges = 0;
   uint64_t crossings = 0;  // line-patch crossings of all counted bundles
+  double seconds = 0;      // the run's time, from its start to its last FINAL (emulated: virtual)
   int grid = 0;            // the run's grid (as set, or the auto grid of the mesh)
   uint64_t bundles = 0;    // bundles done (the budget unless a time limit or target ended it)
   std::string ended_by;    // "budget", "time limit", "target error ..." or "interrupted"

@@ -63,6 +63,9 @@ RunSettings from_wire(const wire::Run& r) {
         r.chunk_starts(static_cast<int>(i)) >= r.patches())
       fail("chunk {} starts at patch {}: out of order (it must be after chunk {}'s and below the {} patches)", i,
            r.chunk_starts(static_cast<int>(i)), i - 1, r.patches());
+  const std::string& source = r.scene_source();
+  if (!source.empty() && (source.size() != 32 || source.find_first_not_of("0123456789abcdef") != std::string::npos))
+    fail("the run's scene source ({} bytes) is not 32 hex digits", source.size());
   RunSettings s;
   s.bundles = r.bundles();
   s.seed = r.seed();
@@ -153,6 +156,13 @@ Attributes run_attributes(const RunSettings& s, const RunOutcome& o, const Patch
       {"sirad.exchange_fraction", o.fraction},
       {"sirad.ended_by", o.ended_by},
   };
+  if (o.seconds > 0) {
+    const double rate = static_cast<double>(o.bundles) / o.seconds;
+    a.emplace_back("sirad.seconds", o.seconds);
+    a.emplace_back("sirad.bundles_per_s", rate);
+    a.emplace_back("sirad.patch_bundles_per_s", rate * static_cast<double>(mesh.size()));
+    a.emplace_back("sirad.crossings_per_s", static_cast<double>(o.crossings) / o.seconds);
+  }
   if (cluster) {
     a.emplace_back("sirad.topology", std::string(s.topology == Topology::star ? "star" : "ring"));
     a.emplace_back("sirad.mode", std::string(s.mode == Mode::sync ? "sync" : "async"));

@@ -107,11 +107,14 @@ struct RunOutcome {
   uint32_t exchange_every = 0;  // as in force (what auto chose)
   double fraction = 1.0;
   std::string ended_by;         // "budget", "time limit", ... as the EXR says it
+  double seconds = 0;           // the run's time (0: unknown; then no rates are written)
+  uint64_t crossings = 0;       // line-patch crossings of the counted bundles
 };
 
 // The EXR header attributes of a run (DESIGN.md section 4: version, scene as the user named it,
 // scene hash, patches, bundles, grid, seed, rule, directions, control variate, first shot,
-// nodes, I, S, how it ended; the topology and mode of a cluster), one writer for every driver.
+// nodes, I, S, how it ended; the topology and mode of a cluster; its time and rates: bundles,
+// patch-bundles and line crossings per second), one writer for every driver.
 // `cluster`: a run of the cluster's drivers (their topology and mode are part of it).
 Attributes run_attributes(const RunSettings& s, const RunOutcome& outcome, const PatchMesh& mesh, const std::string& scene,
                           bool cluster);

@@ -36,11 +36,13 @@ std::string to_json(const Status& s) {
                          n.why.empty() ? "" : ", \"why\": " + json_string(n.why));
   double rate = s.elapsed_s > 0 ? static_cast<double>(s.bundles_done) / s.elapsed_s : 0.0;
   std::string error = s.error_estimate < 0 ? "null" : fmt::format("{:.6g}", s.error_estimate);
-  return fmt::format("{{\"bundles_done\": {}, \"bundles\": {}, \"elapsed_s\": {:.3f}, \"bundles_per_s\": {:.3f}, "
-                     "\"error_estimate\": {}, \"exchanges\": {}, \"bytes_in\": {}, \"bytes_out\": {}, "
+  return fmt::format("{{\"bundles_done\": {}, \"bundles\": {}, \"patches\": {}, \"elapsed_s\": {:.3f}, \"bundles_per_s\": {:.3f}, "
+                     "\"patch_bundles_per_s\": {:.4g}, \"error_estimate\": {}, \"exchanges\": {}, \"bytes_in\": {}, \"bytes_out\": {}, "
+                     "\"scenes_sent\": {}, \"scenes_from_cache\": {}, "
                      "\"exchange_every\": {}, \"exchange_fraction\": {}, \"mode\": {}, \"topology\": {}, "
                      "\"target_error\": {}, \"ended_by\": {}, \"nodes\": [{}]}}\n",
-                     s.bundles_done, s.bundles, s.elapsed_s, rate, error, s.exchanges, s.bytes_in, s.bytes_out,
+                     s.bundles_done, s.bundles, s.patches, s.elapsed_s, rate, rate * static_cast<double>(s.patches), error,
+                     s.exchanges, s.bytes_in, s.bytes_out, s.scenes_sent, s.scenes_from_cache,
                      s.exchange_every, s.exchange_fraction, json_string(s.mode), json_string(s.topology),
                      s.target_error > 0 ? fmt::format("{:.6g}", s.target_error) : "null",
                      s.ended_by.empty() ? "null" : json_string(s.ended_by), nodes);
@@ -81,6 +83,10 @@ Status read_status(const std::string& path) {
   s.exchange_fraction = field<double>(root, "exchange_fraction", path, "");
   s.mode = field<std::string>(root, "mode", path, "");
   s.topology = field<std::string>(root, "topology", path, "");
+  // Fields a status file of an earlier version does not have: 0 where missing.
+  if (root["patches"]) s.patches = field<uint64_t>(root, "patches", path, "");
+  if (root["scenes_sent"]) s.scenes_sent = field<uint32_t>(root, "scenes_sent", path, "");
+  if (root["scenes_from_cache"]) s.scenes_from_cache = field<uint32_t>(root, "scenes_from_cache", path, "");
   if (root["ended_by"] && !root["ended_by"].IsNull()) s.ended_by = field<std::string>(root, "ended_by", path, "");
   const YAML::Node nodes = root["nodes"];
   if (!nodes || !nodes.IsSequence()) fail("{}: 'nodes' is missing or not a list", path);

@@ -10,6 +10,7 @@ namespace sirad::cluster {
 
 struct Status {
   uint64_t bundles_done = 0, bundles = 0;
+  uint64_t patches = 0;  // of the run's mesh (patch-bundles per second: bundles per second x patches)
   double elapsed_s = 0;
   // Relative RMS error of the estimate per patch (area-weighted, non-emitting patches) from the
   // spread of the nodes' independent estimates; negative while fewer than two nodes have sent
@@ -17,6 +18,8 @@ struct Status {
   double error_estimate = -1;
   uint32_t exchanges = 0;
   uint64_t bytes_in = 0, bytes_out = 0;  // exchange traffic so far (REPORT / UPDATE bulk)
+  // Nodes the scene was sent to, and nodes that held it already (Hello.scene_hashes).
+  uint32_t scenes_sent = 0, scenes_from_cache = 0;
   // The run's exchange settings (for `sirad model --from-run`): I (0: only at the end), S.
   uint64_t exchange_every = 0;
   double exchange_fraction = 1.0;

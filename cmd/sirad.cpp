@@ -268,8 +268,9 @@ int render(RenderArgs a) {
 
   const std::string short_of = short_of_target(settings, ended_by, error);
   Attributes attrs = cluster::run_attributes(
-      settings, {static_cast<uint64_t>(done), solver.grid(), 1, 0, 1.0, short_of.empty() ? ended_by : short_of}, mesh, a.scene,
-      false);
+      settings,
+      {static_cast<uint64_t>(done), solver.grid(), 1, 0, 1.0, short_of.empty() ? ended_by : short_of, seconds, solver.crossings()},
+      mesh, a.scene, false);
   attrs.emplace_back("sirad.burn_in", static_cast<int64_t>(solver.burn_in()));
   attrs.emplace_back("sirad.shot_resolution", static_cast<int64_t>(solver.shot_resolution()));
   attrs.emplace_back("sirad.shots", static_cast<int64_t>(solver.shots_rendered()));

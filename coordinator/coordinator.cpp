@@ -79,6 +79,7 @@ class Coordinator {
     router_.set(zmq::sockopt::router_handover, 1);
     proto::harden(router_, proto::max_frame_bytes(mesh.size()));
     run_ = to_wire(config, mesh, policy_.starts());
+    run_.set_scene_source(scene_bytes_hash(scene_bytes_));
     std::random_device rd;
     run_.set_run_id((static_cast<uint64_t>(rd()) << 32 | rd()) | 1);  // a stale message names another run
     if (config.resume) resume(*config.resume);
@@ -162,6 +163,7 @@ class Coordinator {
     result.exchange_bytes_out = record_.bytes_out;
     result.final_bytes = record_.final_bytes;
     result.crossings = record_.crossings;
+    result.seconds = seconds(Clock::now() - start_);
     return result;
   }
 
@@ -202,6 +204,8 @@ class Coordinator {
     s.elapsed_s = seconds(now - start_);
     s.bytes_in = record_.bytes_in;
     s.bytes_out = record_.bytes_out;
+    s.scenes_sent = scenes_sent_;
+    s.scenes_from_cache = scenes_from_cache_;
     for (const Peer* p : all_peers()) {
       const NodeState& ns = policy_.node(p->index);
       Status::Node& n = s.nodes.at(p->index);
@@ -374,9 +378,16 @@ class Coordinator {
       e->set_seed(seed + 1);
     }
     send(p, {Command::welcome, w, {}});
+    // A node that holds the scene (by its source hash) meshes it from its cache: nothing to send.
+    const auto& held = h.scene_hashes();
+    if (std::find(held.begin(), held.end(), run_.scene_source()) != held.end()) {
+      ++scenes_from_cache_;
+      return;
+    }
+    ++scenes_sent_;
     for (std::size_t off = 0; off < scene_bytes_.size() || off == 0; off += proto::kMaxSceneFrameBytes) {
       wire::SceneChunk c;
-      c.set_scene_hash(mesh_.hash);
+      c.set_scene_hash(run_.scene_source());
       c.set_total_bytes(scene_bytes_.size());
       c.set_offset(off);
       c.set_last(off + proto::kMaxSceneFrameBytes >= scene_bytes_.size());
@@ -551,6 +562,7 @@ class Coordinator {
   const PatchMesh& mesh_;
   Policy policy_;
   std::string scene_bytes_;
+  uint32_t scenes_sent_ = 0, scenes_from_cache_ = 0;  // joins that were sent the scene, or held it
   wire::Run run_;
   std::map<std::string, Peer> peers_;
   std::vector<Peer> departed_;

@@ -5,6 +5,9 @@
 #include <cmath>
 #include <cstring>
 
+#include <fmt/format.h>
+#include <xxhash.h>
+
 #include "core/error.h"
 
 namespace sirad {
@@ -158,6 +161,11 @@ Scene decode_scene(std::string_view bytes, const std::string& label) {
   }
   if (!r.done()) fail("{}: {} bytes after the scene", label, bytes.size() - kTag.size() - r.at());
   return scene;
+}
+
+std::string scene_bytes_hash(std::string_view bytes) {
+  const XXH128_hash_t h = XXH3_128bits(bytes.data(), bytes.size());
+  return fmt::format("{:016x}{:016x}", h.high64, h.low64);
 }
 
 }  // namespace sirad

@@ -18,4 +18,8 @@ std::string encode_scene(const Scene& scene);
 // sirad::Error naming `label` and the problem.
 Scene decode_scene(std::string_view bytes, const std::string& label);
 
+// The XXH3-128 of encoded scene bytes, as 32 lower-case hex digits: the name a scene goes by
+// before it is meshed (Run.scene_source, Hello.scene_hashes; a node's scene cache).
+std::string scene_bytes_hash(std::string_view bytes);
+
 }  // namespace sirad

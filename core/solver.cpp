@@ -71,40 +71,16 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   input_.resize(n);
   incoming_sum_.assign(n, glm::dvec3(0.0));
   direct_sum_.assign(n, glm::dvec3(0.0));
-  // Burn-in: advance the chain from E without counting, on its own stream of bundles. Each
-  // transport is unbiased at any grid, so the chain's expected state, E + D + T E[state],
-  // approaches B as rho^k whatever grid the steps use: the first steps use a coarse grid
-  // (kBurnInCoarsening times fewer lines per side, far cheaper on a large mesh), the last
-  // burn_in_fine_ the run's own. A coarse step's noise is at most kBurnInCoarsening^2 times a
-  // fine one's (the lattice counts; a direction's noise does not depend on the grid), and the
-  // fine steps damp what is left of it by rho_max^2 each, down to at most the noise of a
-  // chain that never left the run's grid (rho_max^(2 f) <= 1 / kBurnInCoarsening^2). The
-  // coarse steps' incoming estimates stay out of the control variate's history: its constant
-  // is a mean over the whole run, so their spikes (a small patch hit by one wide line) would
-  // weigh on every later step (measured: 7x the error on the bright room).
-  coarse_grid_ = std::max(2, (grid_ + kBurnInCoarsening - 1) / kBurnInCoarsening);
-  burn_in_fine_ = burn_in_ == 0 || coarse_grid_ >= grid_ ? burn_in_ : std::min(burn_in_, fine_steps(mesh));
+  // Burn-in: advance the chain from E without counting, on its own stream of bundles.
   for (int k = 0; k < burn_in_; ++k) {
     if (options.cancelled && options.cancelled()) fail("set-up interrupted after {} of {} burn-in bundles", k, burn_in_);
     uint64_t index = (options.chain_id << 32) | static_cast<uint64_t>(k);
-    const int grid = k < burn_in_ - burn_in_fine_ ? coarse_grid_ : grid_;
     update_source(index, Stream::burn_in_shots);
-    run_bundle(index, Stream::burn_in, grid);
-    transport(result_, 2.0 * cell_area(mesh_, grid), grid == grid_);
+    run_bundle(index, Stream::burn_in);
+    transport(result_);
     state_.swap(next_state_);
   }
 }
-
-int Solver::fine_steps(const PatchMesh& mesh) {
-  float rho_max = 0.0f;
-  for (const auto& m : mesh.materials) rho_max = std::max({rho_max, m.reflectance.x, m.reflectance.y, m.reflectance.z});
-  if (rho_max <= 0.0f) return 0;
-  if (rho_max >= 1.0f) return std::numeric_limits<int>::max();
-  const double k = kBurnInCoarsening;
-  return static_cast<int>(std::ceil(std::log(1.0 / (k * k)) / (2.0 * std::log(static_cast<double>(rho_max))) - 1e-9));
-}
-
-double Solver::burn_in_cost() const { return burn_in_fine_ + kBurnInCoarseCost * (burn_in_ - burn_in_fine_); }
 
 bool Solver::error_estimate_ready() const {
   if (!batches_ || batches_->full_batches() < 8) return false;
@@ -131,18 +107,16 @@ void Solver::update_source(uint64_t index, Stream stream) {
   cached_ = range;
 }
 
-void Solver::run_bundle(uint64_t index, Stream stream, int grid) {
+void Solver::run_bundle(uint64_t index, Stream stream) {
   // With a first shot the bundles transport Y = B - E: the emission is already in D.
   for (std::size_t j = 0; j < state_.size(); ++j)
     input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - glm::dvec3(mesh_.emission(j)) : state_[j]), 0.0f);
-  SiradBundle b = make_bundle(mesh_, grid, options_.seed, index, stream, sampling_);
+  SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream, sampling_);
   engine_.run(b, input_, result_);
   crossings_ += result_.crossings;
 }
 
-std::vector<glm::dvec3> Solver::transport(const BundleResult& r) { return transport(r, two_delta_, true); }
-
-std::vector<glm::dvec3> Solver::transport(const BundleResult& r, double two_delta, bool record) {
+std::vector<glm::dvec3> Solver::transport(const BundleResult& r) {
   // The incoming radiance of patch j, I_j = sum_i F_ji X_i, estimated by one bundle:
   //     I*_j = (2 delta / A_j) g_j                       (g_j: the front neighbours' X summed over
   //                                                       the h_j lines crossing j; DESIGN.md)
@@ -167,21 +141,21 @@ std::vector<glm::dvec3> Solver::transport(const BundleResult& r, double two_delt
   const double past = incoming_count_ > 0 ? 1.0 / static_cast<double>(incoming_count_) : 0.0;
   std::vector<glm::dvec3> out(mesh_.size());
   for (std::size_t j = 0; j < out.size(); ++j) {
-    double w = two_delta / mesh_.area[j];
+    double w = two_delta_ / mesh_.area[j];
     glm::dvec3 in = w * glm::dvec3(r.gathered[j]);
     if (cv) in += incoming_sum_[j] * past * (1.0 - w * static_cast<double>(r.hits[j]));
-    if (record) incoming_sum_[j] += in;
+    incoming_sum_[j] += in;
     glm::dvec3 reflected = glm::dvec3(mesh_.reflectance(j)) * in;
     out[j] = source_[j] + reflected;
     next_state_[j] = shots_ ? glm::dvec3(mesh_.emission(j)) + direct_sum_[j] * shots + reflected : out[j];
   }
-  if (record) ++incoming_count_;
+  ++incoming_count_;
   return out;
 }
 
 void Solver::step(uint64_t index) {
   update_source(index, Stream::shots);
-  run_bundle(index, Stream::bundles, grid_);
+  run_bundle(index, Stream::bundles);
   std::vector<glm::dvec3> estimate = transport(result_);
   ++count_;
   for (std::size_t j = 0; j < estimate.size(); ++j) sum_[j] += estimate[j];

@@ -93,20 +93,6 @@ class Solver {
   uint64_t crossings() const { return crossings_; }
   int grid() const { return grid_; }
   int burn_in() const { return burn_in_; }
-  // The burn-in's coarse grid and how many of its bundles ran on the run's own grid (the last).
-  int burn_in_grid() const { return coarse_grid_; }
-  int burn_in_fine() const { return burn_in_fine_; }
-  // What the burn-in costs in the run's bundles (kBurnInCoarseCost per coarse bundle): the
-  // virtual-time cluster charges a node's set-up with it.
-  double burn_in_cost() const;
-  // The burn-in's first bundles use a grid this many times coarser; the last fine_steps(mesh)
-  // the run's own (the least f with rho_max^(2 f) <= 1 / kBurnInCoarsening^2).
-  static constexpr int kBurnInCoarsening = 4;
-  static int fine_steps(const PatchMesh& mesh);
-  // A coarse burn-in bundle's cost over a counted one's, whole steps (`sirad render cornell
-  // --grid R --burn-in 0`, 300 bundles): 0.69 at 20,000 patches, 0.72 at 100,000; the engine
-  // alone 0.52, 0.47 and 0.25 at 10^6 (the host's part of a step does not shrink with the grid).
-  static constexpr double kBurnInCoarseCost = 0.7;
   const Sampling& sampling() const { return sampling_; }
   const SolverOptions& options() const { return options_; }
 
@@ -130,16 +116,13 @@ class Solver {
   std::vector<glm::dvec3> transport(const BundleResult& gathered);
 
  private:
-  // `record`: the incoming estimate joins the control variate's history.
-  std::vector<glm::dvec3> transport(const BundleResult& gathered, double two_delta, bool record);
-  void run_bundle(uint64_t index, Stream stream, int grid);
+  void run_bundle(uint64_t index, Stream stream);
 
   const PatchMesh& mesh_;
   BundleEngine& engine_;
   SolverOptions options_;
   int grid_;
   int burn_in_;
-  int coarse_grid_ = 0, burn_in_fine_ = 0;
   Sampling sampling_;
   double two_delta_;
   void update_average_state();

@@ -1,6 +1,7 @@
 // sirad-node: a worker that serves runs from a coordinator until stopped (SIGINT/SIGTERM).
 //   sirad-node --connect tcp://HOST:5555 [--device D] [--name NAME] [--check-config]
 //     [--curve-secret FILE --server-key FILE | --insecure]   (one of them over tcp://)
+//     [--scene-cache DIR] [--max-patches N]
 #include <csignal>
 #include <cstdio>
 
@@ -10,6 +11,7 @@
 #include "core/error.h"
 #include "core/opencl.h"
 #include "node/node.h"
+#include "node/scene_cache.h"
 #include "proto/transport.h"
 
 namespace {
@@ -30,6 +32,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-patches", options.max_patches, "Refuse runs of more patches (bounds this node's memory and largest message)")
       ->check(CLI::Range(uint32_t{1}, uint32_t{1} << 31))
       ->capture_default_str();
+  app.add_option("--scene-cache", options.scene_cache,
+                 "Keep the scenes this node is sent in this folder (named by their hash), so a restarted node is not sent them again");
   std::string curve_secret, server_key;
   bool check_config = false, insecure = false;
   auto* secret_opt = app.add_option("--curve-secret", curve_secret, "This node's CURVE secret key file (NAME.key_secret from sirad keygen; mode 0600)");
@@ -53,6 +57,7 @@ int main(int argc, char** argv) {
       options.curve_keys = sirad::proto::load_secret_key(curve_secret);
       options.server_key = sirad::proto::load_public_key(server_key);
     }
+    if (!options.scene_cache.empty()) sirad::node::SceneCache check(options.scene_cache);  // a folder, or one is made
     if (check_config) {
       sirad::DeviceInfo d = sirad::describe_device(sirad::select_device(device));
       std::printf("sirad-node: config ok: %s -> %s, device %s / %s\n", name.c_str(), endpoint.c_str(),

@@ -22,6 +22,7 @@
 #include "core/mesh.h"
 #include "core/scene_io.h"
 #include "core/solver.h"
+#include "node/scene_cache.h"
 #include "proto/transport.h"
 
 namespace sirad::node {
@@ -58,7 +59,7 @@ struct RunState {
 class Node {
  public:
   Node(zmq::context_t& context, const std::string& endpoint, const NodeOptions& options)
-      : context_(context), endpoint_(endpoint), options_(options) {
+      : context_(context), endpoint_(endpoint), options_(options), cache_(options.scene_cache) {
     device_ = describe_device(select_device(options.device));
     connect();
   }
@@ -141,6 +142,11 @@ class Node {
     d->set_compute_units(device_.compute_units);
     d->set_opencl_version(device_.version);
     h.set_max_message_bytes(static_cast<uint64_t>(proto::max_frame_bytes(options_.max_patches, true)));
+    said_held_.clear();
+    for (const std::string& hash : cache_.hashes()) {
+      h.add_scene_hashes(hash);
+      said_held_.insert(hash);
+    }
     send({Command::hello, h, {}});
   }
 
@@ -266,6 +272,20 @@ class Node {
     if (disconnected_runs_.count(w.run().run_id())) emulation_.set_disconnect_at_s(-1);  // once per run
     up_ = proto::ShapedLink(emulation::LinkModel(emulation_.up_mbit(), emulation_.latency_ms(), emulation_.jitter_ms(),
                                                  emulation_.loss(), emulation_.seed()));
+    // A scene this node said it holds is not sent: set up from the cache. Should its file have
+    // been damaged or removed since the HELLO (the cache drops it), join afresh on a new socket,
+    // whose HELLO no longer names it; the coordinator declares the old identity dead.
+    const std::string& source = w.run().scene_source();
+    if (source.empty() || !said_held_.count(source)) return;
+    if (std::optional<std::string> bytes = cache_.get(source)) {
+      std::fprintf(stderr, "sirad-node %s: scene %s from the cache\n", options_.name.c_str(), source.c_str());
+      set_up(*bytes);
+      return;
+    }
+    std::fprintf(stderr, "sirad-node %s: scene %s is no longer in the cache; joining again\n", options_.name.c_str(), source.c_str());
+    leave_run();
+    connect();
+    hello();
   }
 
   // Scene chunks in order; the last one completes the scene: mesh it, check the hash, start.
@@ -280,10 +300,23 @@ class Node {
     }
     scene_bytes_ += bytes;
     if (!c.last()) return;
+    std::string received = std::move(scene_bytes_);
+    scene_bytes_.clear();
+    if (set_up(received)) {
+      std::string why;
+      cache_.put(received, &why);
+      if (!why.empty()) std::fprintf(stderr, "sirad-node %s: scene not kept in %s: %s\n", options_.name.c_str(),
+                                     options_.scene_cache.c_str(), cluster::peer_text(why, 300).c_str());
+    }
+  }
+
+  // The run's set-up from the scene's bytes (sent, or from the cache): mesh it, check its hash,
+  // build the engines, run the burn-in and say READY. False (and ERROR sent): it failed.
+  bool set_up(const std::string& scene_bytes) {
     try {
       const wire::Run& run = pending_->run;
       const cluster::RunSettings settings = cluster::from_wire(run);  // as the coordinator has them
-      Scene scene = decode_scene(scene_bytes_, "scene from coordinator");
+      Scene scene = decode_scene(scene_bytes, "scene from coordinator");
       MeshOptions mesh_options = settings.mesh_options;
       mesh_options.max_patches = run.patches();  // no more than the run says it has
       pending_->mesh = mesh_scene(scene, mesh_options);
@@ -304,9 +337,11 @@ class Node {
       ready.set_ms_per_bundle(ms * emulation_.slowdown());
       send({Command::ready, ready, {}});
       last_heard_ = ready_at_ = Clock::now();  // setup blocked the loop; count from now
+      return true;
     } catch (const Error& e) {
       error(e.what());
       pending_.reset();
+      return false;
     }
   }
 
@@ -405,6 +440,8 @@ class Node {
   std::unique_ptr<zmq::socket_t> socket_;
   std::unique_ptr<RunState> pending_, state_;
   std::string scene_bytes_;
+  SceneCache cache_;
+  std::set<std::string> said_held_;  // the scene hashes of the last HELLO
   // Time: the heartbeat, the coordinator's liveness, this run's busy and idle time.
   Clock::time_point epoch_ = Clock::now(), last_sent_ = Clock::now(), last_heard_ = Clock::now();
   Clock::time_point ready_at_ = Clock::now(), fresh_at_ = Clock::now();

@@ -1,5 +1,6 @@
 // sirad: the worker node (proto/PROTOCOL.md): connects a DEALER to a coordinator, says HELLO,
-// receives the run and the scene, meshes it and checks its hash, then runs the bundles it is
+// receives the run and the scene (unless it holds it: node/scene_cache.h), meshes it and checks
+// its hash, then runs the bundles it is
 // granted on its OpenCL device and exchanges chunk states as the grants say, until STOP; then
 // it waits for the next run. The bundle engine and the solver know nothing of the network.
 #pragma once
@@ -28,6 +29,9 @@ struct NodeOptions {
   // server_key: none (inproc, or a TCP cluster run with --insecure).
   proto::KeyPair curve_keys;
   std::string server_key;
+  // A folder that keeps the scenes this node was sent, named by their hash, across restarts
+  // (node/scene_cache.h); empty: in memory only, for the process's life.
+  std::string scene_cache;
 };
 
 // Serves runs until `stop` is set or the coordinator sends BYE. Throws sirad::Error on a local

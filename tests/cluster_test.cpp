@@ -34,7 +34,10 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   Status s;
   s.bundles_done = 3;
   s.bundles = 10;
+  s.patches = 1000;
   s.elapsed_s = 1.5;
+  s.scenes_sent = 2;
+  s.scenes_from_cache = 1;
   Status::Node n;
   n.name = "a\"b\\c\nd";
   n.bundles = 3;
@@ -42,8 +45,9 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   n.last_seen_s = 0.25;
   s.nodes.push_back(n);
   EXPECT_EQ(to_json(s),
-            "{\"bundles_done\": 3, \"bundles\": 10, \"elapsed_s\": 1.500, \"bundles_per_s\": 2.000, \"error_estimate\": null, "
-            "\"exchanges\": 0, \"bytes_in\": 0, \"bytes_out\": 0, \"exchange_every\": 0, \"exchange_fraction\": 1, "
+            "{\"bundles_done\": 3, \"bundles\": 10, \"patches\": 1000, \"elapsed_s\": 1.500, \"bundles_per_s\": 2.000, "
+            "\"patch_bundles_per_s\": 2000, \"error_estimate\": null, \"exchanges\": 0, \"bytes_in\": 0, \"bytes_out\": 0, "
+            "\"scenes_sent\": 2, \"scenes_from_cache\": 1, \"exchange_every\": 0, \"exchange_fraction\": 1, "
             "\"mode\": \"\", \"topology\": \"\", \"target_error\": null, \"ended_by\": null, \"nodes\": [{\"name\": \"a\\\"b\\\\c\\u000ad\", "
             "\"device\": \"\", \"state\": \"\", \"bundles\": 3, \"exchanges\": 1, \"last_seen_s\": 0.250, "
             "\"bundles_per_s\": 0.000, \"busy_s\": 0.000, \"idle_s\": 0.000, \"suspicion\": 0.000}]}\n");
@@ -63,6 +67,9 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   EXPECT_EQ(back.exchange_every, 8u);
   EXPECT_DOUBLE_EQ(back.exchange_fraction, 0.25);
   EXPECT_EQ(back.mode, "sync");
+  EXPECT_EQ(back.patches, 1000u);
+  EXPECT_EQ(back.scenes_sent, 2u);
+  EXPECT_EQ(back.scenes_from_cache, 1u);
 }
 
 // Three nodes over loopback TCP (a port the system picks): the bundles add up to the budget

@@ -18,16 +18,12 @@
 #include <string>
 #include <vector>
 
-#include <OpenEXR/ImfChannelList.h>
-#include <OpenEXR/ImfFrameBuffer.h>
-#include <OpenEXR/ImfHeader.h>
-#include <OpenEXR/ImfInputFile.h>
-#include <OpenEXR/ImfAttribute.h>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <xxhash.h>
 
 #include "cluster/status.h"
+#include "tests/exr_content.h"
 #include "tests/process_util.h"
 
 namespace fs = std::filesystem;
@@ -39,42 +35,6 @@ namespace {
 const fs::path kDigests = fs::path(SIRAD_SOURCE_DIR) / "tests/data/golden/digests.txt";
 
 std::string hex(const std::string& bytes) { return fmt::format("{:016x}", XXH64(bytes.data(), bytes.size(), 0)); }
-
-// An EXR's pixels (every channel, row by row) and its attributes but the device's description
-// (the machine's) and the version, as one string.
-std::string exr_content(const fs::path& path) {
-  Imf::InputFile in(path.c_str());
-  const Imath::Box2i dw = in.header().dataWindow();
-  const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
-  std::string out = fmt::format("{}x{}\n", w, h);
-  std::map<std::string, std::vector<float>> channels;
-  Imf::FrameBuffer fb;
-  for (auto c = in.header().channels().begin(); c != in.header().channels().end(); ++c) {
-    auto& v = channels[c.name()];
-    v.resize(static_cast<std::size_t>(w) * h);
-    fb.insert(c.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(v.data() - dw.min.x - dw.min.y * w), sizeof(float),
-                                   sizeof(float) * w));
-  }
-  in.setFrameBuffer(fb);
-  in.readPixels(dw.min.y, dw.max.y);
-  for (const auto& [name, v] : channels) out += name + ":" + std::string(reinterpret_cast<const char*>(v.data()), v.size() * 4);
-  for (auto a = in.header().begin(); a != in.header().end(); ++a) {
-    const std::string name = a.name();
-    if (name.rfind("sirad.", 0) != 0 || name == "sirad.device" || name == "sirad.version") continue;
-    // The attribute's value as OpenEXR writes it.
-    Imf::Attribute* copy = a.attribute().copy();
-    const std::string type = copy->typeName();
-    std::string value;
-    if (auto* s = dynamic_cast<Imf::TypedAttribute<std::string>*>(copy)) value = s->value();
-    else if (auto* i = dynamic_cast<Imf::TypedAttribute<int>*>(copy)) value = std::to_string(i->value());
-    else if (auto* d = dynamic_cast<Imf::TypedAttribute<double>*>(copy)) value = fmt::format("{}", d->value());
-    else if (auto* f = dynamic_cast<Imf::TypedAttribute<float>*>(copy)) value = fmt::format("{}", f->value());
-    else value = "?";
-    delete copy;
-    out += fmt::format("\n{} {} {}", name, type, value);
-  }
-  return out;
-}
 
 // A --status-json file less what depends on the clock or the machine (times, rates, device,
 // and node names, which follow the order the nodes happened to say HELLO in).
@@ -105,7 +65,7 @@ std::string ledger_content(const fs::path& path) {
 
 std::string digest_of(const fs::path& file) {
   const std::string ext = file.extension().string();
-  if (ext == ".exr") return hex(exr_content(file));
+  if (ext == ".exr") return hex(sirad::test::exr_content(file));
   if (file.filename().string().find("status") != std::string::npos) return hex(status_content(file));
   if (file.filename().string().find("ledger") != std::string::npos) return hex(ledger_content(file));
   return hex(slurp(file));

@@ -57,6 +57,12 @@ TEST(LiveViewLines, BarShowsFractionAndNumbers) {
             "12 exchanges  3.1 MB in / 3.1 MB out");
   // Narrow: fields are left off from the end, the bar is 40 - 3 - 16 = 21 wide, 41.2% of it filled.
   EXPECT_EQ(live_lines(three_nodes(), 40)[0], "[########.............] 412/1000 bundles");
+  // With the run's patch count, patch-bundles per second follow bundles per second (87.3 x 20040).
+  Status with_patches = three_nodes();
+  with_patches.patches = 20040;
+  EXPECT_EQ(live_lines(with_patches, 200)[0],
+            "[############..................] 412/1000 bundles  87.3 bundles/s  1.75e+06 patch-bundles/s  error 2.31%  "
+            "ETA 7s  12 exchanges  3.1 MB in / 3.1 MB out");
 }
 
 TEST(LiveViewLines, ErrorIsNaUntilThereIsAnEstimate) {
