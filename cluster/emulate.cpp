@@ -70,7 +70,7 @@ class Emulator {
  public:
   Emulator(const EmulateConfig& config, const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots)
       : config_(config), run_(config.run), mesh_(mesh), engine_(engine), shots_(shots),
-        policy_(make_policy(config.run, mesh, config.nodes, [this](const std::vector<uint32_t>& ready) { return choose(ready); })) {}
+        policy_(make_policy(config.run, mesh, std::clamp(config.run.min_nodes, 1u, std::max(1u, config.nodes)), [this](const std::vector<uint32_t>& ready) { return choose(ready); })) {}
 
   EmulateResult run() {
     auto real_start = Clock::now();

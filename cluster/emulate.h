@@ -27,7 +27,8 @@ namespace sirad::cluster {
 
 struct EmulateConfig {
   RunConfig run;           // the run's settings and profile, as for coordinate() (min_nodes:
-                           // every node; the clocks' settings: virtual seconds)
+                           // nodes ready before the first grant, as there; the clocks'
+                           // settings: virtual seconds)
   uint32_t nodes = 0;      // P emulated nodes, named emu-0, emu-1, ...
   double bundle_s = 0;     // seconds of one bundle (a solver step) at slowdown 1; 0: measure
                            // it (measure_bundle_seconds) before the run

@@ -177,6 +177,9 @@ uint64_t Policy::dead(uint32_t n) {
 uint64_t Policy::grant_size() const {
   uint64_t n = config_.exchange_every > 0 ? config_.exchange_every
                                           : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, nodes())));
+  // A run that ends at a target error hears of it with each report: without exchanges, a
+  // report (no chunks, a few bytes) every kTargetReportBundles at the most.
+  if (config_.exchange_every == 0 && config_.target_error > 0) n = std::min<uint64_t>(n, kTargetReportBundles);
   // Whole multiples of the grant unit, so ranges start at multiples of it (the ledger hands out
   // its free ranges from the front).
   return (n + config_.grant_unit - 1) / config_.grant_unit * config_.grant_unit;
@@ -448,6 +451,20 @@ double Policy::error_estimate() const {
     }
     double e = aggregate_.combined_error(error, bundles, weight_);
     if (e > 0) return e;
+    const double spread = aggregate_.spread_error(weight_);
+    if (spread >= 0) return spread;
+    // No states held from two nodes yet (exchanges only at the end): the count-weighted mean of
+    // independent chains has the relative error sqrt(sum n_p^2 e_p^2) / sum n_p, from every
+    // node that has run bundles (none may lack an estimate).
+    double v = 0, n = 0;
+    for (uint32_t p = 0; p < nodes(); ++p) {
+      if (nodes_[p].quarantined || nodes_[p].bundles == 0) continue;
+      if (!(error[p] > 0) || bundles[p] == 0) return spread;
+      const double m = static_cast<double>(bundles[p]);
+      v += m * m * error[p] * error[p];
+      n += m;
+    }
+    return n > 0 ? std::sqrt(v) / n : spread;
   }
   return aggregate_.spread_error(weight_);
 }

@@ -240,7 +240,10 @@ class Policy {
   // Near the end of the budget of an async run a grant is also at most half of node n's share
   // (by speed) of the bundles not granted yet (guided self-scheduling), down to one bundle: the
   // nodes run out of work together (see the .cpp).
+  // Without exchanges (I = 0) a grant is K / (8 P), and at most kTargetReportBundles when the
+  // run ends at a target error (its estimate comes with each report).
   uint64_t grant_size() const;
+  static constexpr uint64_t kTargetReportBundles = 64;
   uint64_t grant_size(uint32_t n) const;
   // Node n's seconds per bundle, as its driver measures it (READY, then busy / bundles of its
   // reports); <= 0 or non-finite: unknown.

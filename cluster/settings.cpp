@@ -28,6 +28,13 @@ void check(const RunSettings& s) {
     fail("max edge {:.6g} is not a finite length >= 0", s.mesh_options.max_edge);
 }
 
+std::string target_error_problem(const RunSettings& s) {
+  if (s.target_error > 0 && s.rule == UpdateRule::average && s.exchange_every == 0)
+    return "--target-error under the average rule needs --exchange-every (its estimate is the spread of the nodes' "
+           "exchanged states; the chain rule's needs no exchanges)";
+  return "";
+}
+
 int run_grid(const RunSettings& s, const PatchMesh& mesh) { return s.grid == 0 ? auto_grid(mesh) : s.grid; }
 
 wire::Run to_wire(const RunSettings& s, const PatchMesh& mesh, const std::vector<uint32_t>& chunk_starts) {

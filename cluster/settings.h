@@ -70,6 +70,12 @@ inline constexpr double kMaxSeconds = 1e9;              // a time limit or a run
 void check(const RunSettings& s);
 
 // The grid the run uses on `mesh`: s.grid, or auto_grid(mesh) where it is 0.
+// Why a cluster run of `s` cannot end at its target error (empty: it can). Under the chain rule
+// the estimate combines the nodes' own batch means, reported with every grant, so any exchange
+// setting works; under the average rule it is the spread of the nodes' exchanged states, which
+// an exchange only at the end does not give.
+std::string target_error_problem(const RunSettings& s);
+
 int run_grid(const RunSettings& s, const PatchMesh& mesh);
 
 // The wire Run of `s` on `mesh` (scene hash, grid as resolved, chunk starts, patches); the

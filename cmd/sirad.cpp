@@ -220,9 +220,9 @@ int render(RenderArgs a) {
     refuse_given(a, cluster_only, "has no effect on one node: it is a cluster setting (--nodes N)");
   }
   const cluster::RunSettings settings = cli::settings_from(a.run, a.given);
-  if (a.nodes > 0 && settings.target_error > 0 && (a.nodes < 2 || settings.exchange_every == 0))
-    fail("--target-error with --nodes needs 2 or more nodes and --exchange-every (its estimate is the spread of the "
-         "nodes' exchanged states)");
+  if (a.nodes > 0) {
+    if (std::string why = cluster::target_error_problem(settings); !why.empty()) fail("{}", why);
+  }
   std::optional<emulation::Profile> profile;
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   if (settings.target_error > 0 && a.nodes == 0 && settings.rule != UpdateRule::chain)
@@ -300,9 +300,7 @@ int emulate(EmulateArgs& e) {
     a.nodes = static_cast<int>(profile->nodes.size());
   }
   const cluster::RunSettings settings = cli::settings_from(a.run, a.given);
-  if (settings.target_error > 0 && (a.nodes < 2 || settings.exchange_every == 0))
-    fail("--target-error on emulate needs 2 or more nodes and --exchange-every (its estimate is the spread of the "
-         "nodes' exchanged states)");
+  if (std::string why = cluster::target_error_problem(settings); !why.empty()) fail("{}", why);
   std::string out = output_name(a.output.out, a.scene);
   Meshed m = load_meshed(a.scene, settings.mesh_options,
                          {.skip_degenerate = a.output.skip_degenerate, .two_sided = a.output.two_sided}, a.output.camera);
@@ -311,7 +309,11 @@ int emulate(EmulateArgs& e) {
   cluster::EmulateConfig ec;
   static_cast<cluster::RunSettings&>(ec.run) = settings;
   ec.run.scene = m.scene;
-  ec.run.min_nodes = static_cast<uint32_t>(a.nodes);
+  // An async run grants to each node as soon as it is ready: a fast node never waits for a
+  // slow one's set-up. Sync rounds and the auto exchange setting (chosen from every node's
+  // speed when the first grants go out) wait for all.
+  const bool wait_for_all = settings.mode == cluster::Mode::sync || settings.exchange_every == cluster::kExchangeAuto;
+  ec.run.min_nodes = wait_for_all ? static_cast<uint32_t>(a.nodes) : 1;
   ec.run.profile = std::move(profile);
   ec.nodes = static_cast<uint32_t>(a.nodes);
   ec.bundle_s = e.bundle_ms / 1e3;

@@ -95,8 +95,7 @@ int main(int argc, char** argv) {
       if (checkpoint.empty()) checkpoint = resume;
     } else {
       static_cast<cluster::RunSettings&>(rc) = cli::settings_from(run, given);
-      if (rc.target_error > 0 && rc.exchange_every == 0)
-        fail("--target-error needs --exchange-every (its estimate is the spread of the nodes' exchanged states)");
+      if (std::string why = cluster::target_error_problem(rc); !why.empty()) fail("{}", why);
     }
     rc.scene = load_scene(scene_spec, {.skip_degenerate = output.skip_degenerate, .two_sided = output.two_sided});
     rc.min_nodes = static_cast<uint32_t>(min_nodes);

@@ -218,17 +218,37 @@ TEST_F(Cli, CameraFromTheFlagTheSceneOrChosen) {
 }
 
 // A flag that has no effect in a mode is refused, never ignored: cluster settings on one node,
-// a target error that no estimate of the mode can reach (a cluster that never exchanges).
+// a target error that no estimate of the mode can reach (the average rule's spread of the
+// nodes' states, in a cluster that exchanges only at the end).
 TEST_F(Cli, FlagsWithoutEffectAreRefused) {
   for (const char* flag : {"--exchange-every 8", "--exchange-fraction 0.5", "--topology ring", "--mode sync",
                            "--balance off", "--chunks 4", "--status-json s.json"}) {
     SCOPED_TRACE(flag);
     expect_error(sirad(std::string("render furnace --patches 50 --bundles 4 ") + flag), "has no effect on one node");
   }
-  expect_error(sirad("render furnace --patches 50 --bundles 4 --nodes 2 --target-error 0.1"), "--exchange-every");
-  expect_error(sirad("render furnace --patches 50 --bundles 4 --nodes 1 --exchange-every 4 --target-error 0.1"),
-               "2 or more nodes");
-  expect_error(sirad("emulate furnace --patches 50 --bundles 4 --nodes 2 --target-error 0.1"), "--exchange-every");
+  expect_error(sirad("render furnace --patches 50 --bundles 4 --nodes 2 --rule average --target-error 0.1"), "--exchange-every");
+  expect_error(sirad("emulate furnace --patches 50 --bundles 4 --nodes 2 --rule average --target-error 0.1"), "--exchange-every");
+}
+
+// Under the chain rule a cluster ends at its target error in every mode: with exchanges only at
+// the end the nodes' own batch-means estimates, reported with each grant (at most 64 bundles
+// then), combine into the run's (sqrt(sum n_p^2 e_p^2) / sum n_p), so 2 % on 300 patches ends
+// long before the cap of 100,000 bundles, with the status and the EXR saying so; on one node
+// too, and in the virtual-time cluster.
+TEST_F(Cli, ClusterTargetErrorWorksWithoutExchanges) {
+  for (const char* run : {"render cornell --nodes 2", "render cornell --nodes 1", "render cornell --nodes 2 --mode sync",
+                          "emulate cornell --nodes 4 --bundle-ms 1"}) {
+    SCOPED_TRACE(run);
+    Outcome r = sirad(std::string(run) + " --patches 300 --bundles 100000 --target-error 0.02 --width 16 --height 16 "
+                                         "--out target -q");
+    ASSERT_EQ(r.status, 0) << r.err;
+    Imf::InputFile exr((dir_ / "target.exr").string().c_str());
+    const std::string ended = exr.header().typedAttribute<Imf::StringAttribute>("sirad.ended_by").value();
+    EXPECT_EQ(ended.rfind("target error (", 0), 0u) << ended;
+    const int bundles = exr.header().typedAttribute<Imf::IntAttribute>("sirad.bundles").value();
+    EXPECT_LT(bundles, 20000);
+    EXPECT_GT(bundles, 100);
+  }
 }
 
 TEST_F(Cli, EmbeddedClusterRendersWithTwoNodes) {
@@ -290,6 +310,36 @@ TEST_F(Cli, EmulateRunsTheHeterogeneousProfileInVirtualTime) {
   ASSERT_NE(emulated, nullptr);
   EXPECT_EQ(emulated->value(), "virtual time");
   fs::remove(dir_ / "nodes.csv");
+  fs::remove(dir_ / "timeline.csv");
+}
+
+// On unequal nodes an async run's fast nodes do not wait for the slow ones' set-up: on hetero-16
+// the first grant to a 4x node (emu-0) goes out before the 0.25x nodes (emu-14, emu-15; their
+// burn-in takes 16 times as long) are ready. A sync run waits for every node (its rounds need
+// them), so there no grant precedes the last READY.
+TEST_F(Cli, EmulatedFastNodesDoNotWaitForSlowOnesSetUp) {
+  for (const char* mode : {"async", "sync"}) {
+    Outcome r = sirad(std::string("emulate cornell --profile ") + SIRAD_SOURCE_DIR +
+                      "/deploy/profiles/hetero-16.yaml --patches 300 --bundles 480 --exchange-every 8 --bundle-ms 20 "
+                      "--width 8 --height 8 --out emu --mode " + mode + " --timeline timeline.csv");
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::ifstream csv(dir_ / "timeline.csv");
+    std::string line;
+    std::getline(csv, line);
+    double first_grant = -1, last_ready = -1;
+    while (std::getline(csv, line)) {
+      std::stringstream ss(line);
+      std::string t, node, event;
+      std::getline(ss, t, ',');
+      std::getline(ss, node, ',');
+      std::getline(ss, event, ',');
+      if (event == "grant" && node == "0" && first_grant < 0) first_grant = std::stod(t);
+      if (event == "ready") last_ready = std::max(last_ready, std::stod(t));
+    }
+    ASSERT_GE(first_grant, 0) << mode;
+    if (std::string(mode) == "async") EXPECT_LT(first_grant, last_ready) << mode;
+    else EXPECT_GE(first_grant, last_ready) << mode;
+  }
   fs::remove(dir_ / "timeline.csv");
 }
 

@@ -43,6 +43,7 @@ EmulateConfig furnace_on(uint32_t nodes, uint64_t bundles, uint32_t every, doubl
   c.run.mesh_options.target_patches = 200;
   c.run.exchange_every = every;
   c.nodes = nodes;
+  c.run.min_nodes = nodes;  // every node ready before the first grant: the runs below compare nodes
   c.bundle_s = bundle_s;
   return c;
 }
@@ -69,6 +70,7 @@ EmulateConfig cornell_run(uint64_t seed) {
   c.run.fraction = 0.5;
   c.run.profile = emulation::parse_profile(kHetero, "test-hetero");
   c.nodes = 6;  // two of them on the profile's defaults
+  c.run.min_nodes = 6;
   c.bundle_s = 0.004;
   return c;
 }
@@ -210,6 +212,7 @@ TEST(Emulate, WithEqualSpeedsAndFreeLinksItHasTheRealClustersStatistics) {
     EmulateConfig ec;
     ec.run = rc;
     ec.nodes = 8;
+    ec.run.min_nodes = 8;
     ec.bundle_s = 0.005;
     EmulateResult e = run(ec, b);
     test::Outcome r = test::run_cluster(rc, 8, fmt::format("inproc://emulate-stats-{}", k));
@@ -259,6 +262,7 @@ TEST(Emulate, ExchangeEveryAutoIsWithinTenPercentOfTheBestPeriod) {
   c.run.mode = Mode::sync;
   c.run.profile = emulation::parse_profile("defaults: {latency_ms: 5, up_mbit: 2, down_mbit: 2}\n", "slow-links");
   c.nodes = 8;
+  c.run.min_nodes = 8;
   c.bundle_s = 0.005;
   Bench b = bench_for(c.run);
   ReferenceOptions ro;
