@@ -21,6 +21,7 @@
 #include "node/node.h"
 #include "proto/security.h"
 #include "proto/transport.h"
+#include "tests/process_util.h"
 
 namespace sirad::cluster {
 namespace {
@@ -28,6 +29,20 @@ namespace {
 using test::furnace;
 using test::Outcome;
 using test::run_cluster;
+
+// The next message on a raw peer's socket, or none after the hang bound (tests/process_util.h
+// kHangS). With `heartbeat` it says HEARTBEAT every 100 ms while it waits, as a node does: a
+// peer that waits silently for a grant (which waits for the other nodes' set-up) is declared
+// dead by the coordinator's liveness on a loaded machine, and with min_nodes 2 the run then
+// never starts.
+std::optional<proto::Message> next_message(zmq::socket_t& s, bool heartbeat) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(sirad::test::kHangS);
+  while (std::chrono::steady_clock::now() < until) {
+    if (auto f = proto::receive(s, 100)) return proto::decode(*f);
+    if (heartbeat) proto::send(s, {proto::Command::heartbeat, {}, {}});
+  }
+  return std::nullopt;
+}
 
 // The status JSON escapes what a node may call itself.
 TEST(Cluster, StatusJsonEscapesNodeNames) {
@@ -436,11 +451,8 @@ TEST(Cluster, AQuarantineSticksToTheCurveKey) {
   };
   // The first answer to a HELLO that is WELCOME or ERROR.
   auto answer = [&](zmq::socket_t& s) {
-    for (int i = 0; i < 100; ++i)
-      if (auto f = proto::receive(s, 100)) {
-        proto::Message m = proto::decode(*f);
-        if (m.command == proto::Command::welcome || m.command == proto::Command::error) return m;
-      }
+    while (std::optional<proto::Message> m = next_message(s, false))
+      if (m->command == proto::Command::welcome || m->command == proto::Command::error) return *m;
     return proto::Message{};
   };
   bool refused = false, other_welcome = false;
@@ -453,21 +465,20 @@ TEST(Cluster, AQuarantineSticksToTheCurveKey) {
     wire::Ready ready;
     ready.set_run_id(run.run_id());
     proto::send(*s, {proto::Command::ready, ready, {}});
-    for (int i = 0; i < 100; ++i)
-      if (auto f = proto::receive(*s, 100)) {
-        proto::Message m = proto::decode(*f);
-        if (m.command != proto::Command::grant) continue;
-        const auto& g = std::get<wire::Grant>(m.header);
-        wire::Report r;
-        r.set_run_id(run.run_id());
-        r.set_grant_id(g.grant_id());
-        *r.mutable_done() = g.ranges();
-        r.add_chunks(0);
-        r.add_counts(1);
-        std::size_t n = run.chunk_starts_size() > 1 ? run.chunk_starts(1) : run.patches();
-        proto::send(*s, {proto::Command::report, r, {proto::pack(std::vector<double>(3 * n, std::nan("")))}});
-        break;
-      }
+    while (std::optional<proto::Message> next = next_message(*s, true)) {
+      proto::Message& m = *next;
+      if (m.command != proto::Command::grant) continue;
+      const auto& g = std::get<wire::Grant>(m.header);
+      wire::Report r;
+      r.set_run_id(run.run_id());
+      r.set_grant_id(g.grant_id());
+      *r.mutable_done() = g.ranges();
+      r.add_chunks(0);
+      r.add_counts(1);
+      std::size_t n = run.chunk_starts_size() > 1 ? run.chunk_starts(1) : run.patches();
+      proto::send(*s, {proto::Command::report, r, {proto::pack(std::vector<double>(3 * n, std::nan("")))}});
+      break;
+    }
     ASSERT_EQ(answer(*s).command, proto::Command::error);  // quarantined
     s.reset();
     auto again = dealer(liar);  // a new routing id, the same key
@@ -505,7 +516,6 @@ struct LiarRun {
 LiarRun run_with_liar(Lie lie) {
   RunConfig c = furnace(1024);
   c.exchange_every = 16;
-  c.heartbeat_ms = 100;
   c.min_nodes = 2;
   c.timeout_s = 900;  // a hang guard (tests/process_util.h kHangS)
   c.status_every_s = 0.05;
@@ -528,10 +538,10 @@ LiarRun run_with_liar(Lie lie) {
     wire::Run run_settings;
     int reports = 0;
     uint64_t bundles = 0;
-    for (int i = 0; i < 100 && reports < 2; ++i) {
-      auto f = proto::receive(s, 100);
-      if (!f) continue;
-      proto::Message m = proto::decode(*f);
+    while (reports < 2) {
+      std::optional<proto::Message> next = next_message(s, true);
+      if (!next) break;
+      proto::Message& m = *next;
       if (m.command == proto::Command::welcome) {
         run_settings = std::get<wire::Welcome>(m.header).run();
         wire::Ready r;
@@ -556,11 +566,13 @@ LiarRun run_with_liar(Lie lie) {
         ++run.errors;
       }
     }
-    for (int i = 0; i < 10 && run.errors == 0; ++i)  // the ERROR for the lie
-      if (auto f = proto::receive(s, 100)) run.errors += proto::decode(*f).command == proto::Command::error;
+    while (run.errors == 0)  // the ERROR for the lie (quarantined: no heartbeats now)
+      if (auto m = next_message(s, false)) run.errors += m->command == proto::Command::error;
+      else break;
     proto::send(s, {proto::Command::hello, h, {}});
-    for (int i = 0; i < 10 && !run.hello_refused; ++i)
-      if (auto f = proto::receive(s, 100)) run.hello_refused = proto::decode(*f).command == proto::Command::error;
+    while (!run.hello_refused)
+      if (auto m = next_message(s, false)) run.hello_refused = m->command == proto::Command::error;
+      else break;
   });
   run.out.result = coordinate(router, c, run.out.mesh);
   stop = true;
