@@ -7,6 +7,7 @@
 #include "cluster/policy.h"
 #include "core/error.h"
 #include "core/error_estimate.h"
+#include "core/scene_io.h"
 
 namespace sirad::cluster {
 
@@ -71,7 +72,7 @@ RunSettings from_wire(const wire::Run& r) {
       fail("chunk {} starts at patch {}: out of order (it must be after chunk {}'s and below the {} patches)", i,
            r.chunk_starts(static_cast<int>(i)), i - 1, r.patches());
   const std::string& source = r.scene_source();
-  if (!source.empty() && (source.size() != 32 || source.find_first_not_of("0123456789abcdef") != std::string::npos))
+  if (!source.empty() && !is_scene_hash(source))
     fail("the run's scene source ({} bytes) is not 32 hex digits", source.size());
   RunSettings s;
   s.bundles = r.bundles();

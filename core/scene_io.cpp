@@ -168,4 +168,8 @@ std::string scene_bytes_hash(std::string_view bytes) {
   return fmt::format("{:016x}{:016x}", h.high64, h.low64);
 }
 
+bool is_scene_hash(std::string_view s) {
+  return s.size() == 32 && s.find_first_not_of("0123456789abcdef") == std::string_view::npos;
+}
+
 }  // namespace sirad

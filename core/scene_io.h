@@ -21,5 +21,7 @@ Scene decode_scene(std::string_view bytes, const std::string& label);
 // The XXH3-128 of encoded scene bytes, as 32 lower-case hex digits: the name a scene goes by
 // before it is meshed (Run.scene_source, Hello.scene_hashes; a node's scene cache).
 std::string scene_bytes_hash(std::string_view bytes);
+// True for what scene_bytes_hash writes: 32 lower-case hex digits.
+bool is_scene_hash(std::string_view s);
 
 }  // namespace sirad

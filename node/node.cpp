@@ -279,7 +279,7 @@ class Node {
     if (source.empty() || !said_held_.count(source)) return;
     if (std::optional<std::string> bytes = cache_.get(source)) {
       std::fprintf(stderr, "sirad-node %s: scene %s from the cache\n", options_.name.c_str(), source.c_str());
-      set_up(*bytes);
+      set_up(*bytes, "scene " + source + " from the cache");
       return;
     }
     std::fprintf(stderr, "sirad-node %s: scene %s is no longer in the cache; joining again\n", options_.name.c_str(), source.c_str());
@@ -302,7 +302,7 @@ class Node {
     if (!c.last()) return;
     std::string received = std::move(scene_bytes_);
     scene_bytes_.clear();
-    if (set_up(received)) {
+    if (set_up(received, "scene from coordinator")) {
       std::string why;
       cache_.put(received, &why);
       if (!why.empty()) std::fprintf(stderr, "sirad-node %s: scene not kept in %s: %s\n", options_.name.c_str(),
@@ -312,11 +312,12 @@ class Node {
 
   // The run's set-up from the scene's bytes (sent, or from the cache): mesh it, check its hash,
   // build the engines, run the burn-in and say READY. False (and ERROR sent): it failed.
-  bool set_up(const std::string& scene_bytes) {
+  // `label` names where the bytes came from in an error.
+  bool set_up(const std::string& scene_bytes, const std::string& label) {
     try {
       const wire::Run& run = pending_->run;
       const cluster::RunSettings settings = cluster::from_wire(run);  // as the coordinator has them
-      Scene scene = decode_scene(scene_bytes, "scene from coordinator");
+      Scene scene = decode_scene(scene_bytes, label);
       MeshOptions mesh_options = settings.mesh_options;
       mesh_options.max_patches = run.patches();  // no more than the run says it has
       pending_->mesh = mesh_scene(scene, mesh_options);

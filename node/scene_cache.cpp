@@ -19,10 +19,6 @@ constexpr std::string_view kSuffix = ".scene";
 constexpr std::size_t kMaxListed = 4096;
 }  // namespace
 
-bool is_scene_hash(const std::string& s) {
-  return s.size() == 32 && std::all_of(s.begin(), s.end(), [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
-}
-
 SceneCache::SceneCache(std::string dir) : dir_(std::move(dir)) {
   if (dir_.empty()) return;
   std::error_code ec;

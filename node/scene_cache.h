@@ -57,7 +57,4 @@ class SceneCache {
   std::size_t memory_bytes_ = 0;
 };
 
-// True for the 32 lower-case hex digits of a scene hash.
-bool is_scene_hash(const std::string& s);
-
 }  // namespace sirad::node

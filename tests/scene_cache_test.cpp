@@ -28,7 +28,7 @@ TEST(SceneCache, KeepsScenesByTheHashOfTheirBytes) {
   const std::string a = "scene a", b = "scene b";
   const std::string ha = cache.put(a);
   EXPECT_EQ(ha, sirad::scene_bytes_hash(a));
-  EXPECT_TRUE(sirad::node::is_scene_hash(ha));
+  EXPECT_TRUE(sirad::is_scene_hash(ha));
   EXPECT_NE(sirad::scene_bytes_hash(a), sirad::scene_bytes_hash(b));
   cache.put(b);
   EXPECT_EQ(cache.get(ha).value_or(""), a);
