@@ -60,8 +60,6 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   two_delta_ = 2.0 * cell_area(mesh, grid_);
   const std::size_t n = mesh.size();
   sum_.assign(n, glm::dvec3(0.0));
-  others_sum_.assign(n, glm::dvec3(0.0));
-  others_count_.assign(n, 0);
   // Batch means assume the chain's estimates; under the average rule each one depends on the
   // running mean of all before it and batch means would understate the error: not tracked.
   if (options.track_error && options.rule == UpdateRule::chain) batches_ = std::make_unique<BatchMeans>(n);
@@ -116,7 +114,7 @@ void Solver::run_bundle(uint64_t index, Stream stream) {
   crossings_ += result_.crossings;
 }
 
-std::vector<glm::dvec3> Solver::transport(const BundleResult& r) {
+const std::vector<glm::dvec3>& Solver::transport(const BundleResult& r) {
   // The incoming radiance of patch j, I_j = sum_i F_ji X_i, estimated by one bundle:
   //     I*_j = (2 delta / A_j) g_j                       (g_j: the front neighbours' X summed over
   //                                                       the h_j lines crossing j; DESIGN.md)
@@ -139,7 +137,8 @@ std::vector<glm::dvec3> Solver::transport(const BundleResult& r) {
   const double shots = direct_shots_ > 0 ? 1.0 / static_cast<double>(direct_shots_) : 0.0;
   next_state_.resize(mesh_.size());
   const double past = incoming_count_ > 0 ? 1.0 / static_cast<double>(incoming_count_) : 0.0;
-  std::vector<glm::dvec3> out(mesh_.size());
+  std::vector<glm::dvec3>& out = estimate_;
+  out.resize(mesh_.size());
   for (std::size_t j = 0; j < out.size(); ++j) {
     double w = two_delta_ / mesh_.area[j];
     glm::dvec3 in = w * glm::dvec3(r.gathered[j]);
@@ -156,7 +155,7 @@ std::vector<glm::dvec3> Solver::transport(const BundleResult& r) {
 void Solver::step(uint64_t index) {
   update_source(index, Stream::shots);
   run_bundle(index, Stream::bundles);
-  std::vector<glm::dvec3> estimate = transport(result_);
+  const std::vector<glm::dvec3>& estimate = transport(result_);
   ++count_;
   for (std::size_t j = 0; j < estimate.size(); ++j) sum_[j] += estimate[j];
   if (batches_) batches_->add(estimate);
@@ -169,9 +168,10 @@ void Solver::step(uint64_t index) {
 
 void Solver::update_average_state() {
   // L_p = (S_p + O_p) / (m_p + M_p): the average over every sample this node has seen.
+  const bool others = !others_count_.empty();
   for (std::size_t j = 0; j < state_.size(); ++j) {
-    uint64_t m = count_ + others_count_[j];
-    if (m > 0) state_[j] = (sum_[j] + others_sum_[j]) / static_cast<double>(m);
+    uint64_t m = count_ + (others ? others_count_[j] : 0);
+    if (m > 0) state_[j] = (others ? sum_[j] + others_sum_[j] : sum_[j]) / static_cast<double>(m);
   }
 }
 
@@ -185,11 +185,17 @@ void Solver::absorb(std::size_t first, std::span<const glm::dvec3> others, uint6
     for (int k = 0; k < 3; ++k)
       if (!std::isfinite(others[i][k]) || std::fabs(others[i][k]) > limit)
         fail("absorb: patch {} value {} for {} bundles", first + i, others[i][k], others_count);
+  // Only the average rule's input uses them (allocated at the first exchange: 32 B per patch).
+  if (options_.rule != UpdateRule::average) return;
+  if (others_count_.empty()) {
+    others_sum_.assign(mesh_.size(), glm::dvec3(0.0));
+    others_count_.assign(mesh_.size(), 0);
+  }
   for (std::size_t i = 0; i < others.size(); ++i) {
     others_sum_[first + i] = others[i];
     others_count_[first + i] = others_count;
   }
-  if (options_.rule == UpdateRule::average) update_average_state();
+  update_average_state();
 }
 
 std::vector<glm::vec3> Solver::estimate() const {

@@ -108,12 +108,13 @@ class Solver {
   // The other nodes' aggregate for patches [first, first + others.size()) (DESIGN.md "Many
   // nodes"): their summed estimates and their count, as the last exchange gave them. Under the
   // average rule the next transport's input becomes (S_p + O_p) / (m_p + M_p) there; under
-  // chain it is kept (for the cluster's error estimate) and the chain itself is untouched.
+  // chain the values are checked and the chain is untouched (its estimate is the node's own).
   void absorb(std::size_t first, std::span<const glm::dvec3> others, uint64_t others_count);
 
   // E (+ D) + rho * (the incoming radiance estimated from `gathered`): one transport of the
   // radiance that produced it. Records the incoming estimate for the next control variate.
-  std::vector<glm::dvec3> transport(const BundleResult& gathered);
+  // The result lives in the solver until the next transport (no allocation per step).
+  const std::vector<glm::dvec3>& transport(const BundleResult& gathered);
 
  private:
   void run_bundle(uint64_t index, Stream stream);
@@ -137,14 +138,15 @@ class Solver {
   ShotRange cached_{0, 0};
   std::vector<glm::dvec3> source_;         // E, or E + D_m of the step with a first shot
   std::vector<glm::dvec3> sum_, state_;
-  std::vector<glm::dvec3> others_sum_;     // O_p per patch
-  std::vector<uint64_t> others_count_;     // M_p per patch
+  std::vector<glm::dvec3> others_sum_;     // O_p per patch (average rule, after an exchange)
+  std::vector<uint64_t> others_count_;     // M_p per patch (empty until then)
   std::vector<glm::vec4> input_;
   std::vector<glm::dvec3> incoming_sum_;   // per patch: sum of the incoming estimates so far
   uint64_t incoming_count_ = 0;            // transports summed there (burn-in included)
   std::vector<glm::dvec3> direct_sum_;     // sum of every shot's direct light so far (D-bar * shots)
   uint64_t direct_shots_ = 0;
   std::vector<glm::dvec3> next_state_;     // the chain's next input, made by transport()
+  std::vector<glm::dvec3> estimate_;       // the last transport's estimate L'(m)
   BundleResult result_;
   uint64_t count_ = 0, crossings_ = 0;
 };

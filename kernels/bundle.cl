@@ -358,7 +358,7 @@ __kernel void project_patches8(__global const float4* restrict vertices, __globa
 /* One band of grid rows, in blocks of rows_per_block rows (see the banner). Scratch per band:
  *   band_list, band_radiance, acc, acc_hits, out_patch: b->partial_capacity entries (the
  *     patches that reach the band, in patch order; their radiance; their sums; compacted at
- *     the end into the band partials);
+ *     the end into the band partials; out_patch first holds the visiting order below);
  *   e_x, e_sort, s_sort: b->capacity crossings of one block: line (within the block, row
  *     major) and crossing_key as collected, and the keys sorted by line; line_count:
  *     rows_per_block * grid counters (zero between blocks).
@@ -366,7 +366,13 @@ __kernel void project_patches8(__global const float4* restrict vertices, __globa
  * reach the band, crossings in the band; the first and third are reported even when they do
  * not fit, so the host can grow the scratch and run the bundle again.
  * Each patch's sum adds its lines in row-major order whatever the block height: a patch
- * crosses a line at most once and lines are gathered in order. */
+ * crosses a line at most once and lines are gathered in order.
+ * A block visits only the slots that reach it: the slots sorted by the first block they reach
+ * (a counting sort into out_patch), those still reaching it from earlier blocks kept compacted
+ * at the front of that order. A band costs the sum of its patches' blocks, not patches times
+ * blocks (blocks per band grow with the grid: 54 at a million patches on a CPU). The order of
+ * collection does not matter: each line's crossings are sorted by their whole key, slot
+ * included. */
 __kernel void transfer_band(__global const SiradProjected* restrict projected,
                             __global const int2* restrict rows, uint patch_count, int rows_per_block,
                             __constant SiradBundle* b, __global const float4* restrict radiance,
@@ -409,21 +415,39 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
     acc_hits[q] = 0;
     band_radiance[q] = radiance[band_list[q]];
   }
+  /* The visiting order: slots by first block (count[] as the histogram; blocks <= grid). */
+  __global uint* order = out_patch;
+  const int blocks = (r1 - r0 + rows_per_block - 1) / rows_per_block;
+  for (int k = 0; k < blocks; ++k) count[k] = 0;
+  for (uint q = 0; q < patches; ++q) count[(max(rows[band_list[q]].x, r0) - r0) / rows_per_block] += 1;
+  uint placed = 0;
+  for (int k = 0; k < blocks; ++k) {
+    uint c = count[k];
+    count[k] = placed;
+    placed += c;
+  }
+  for (uint q = 0; q < patches; ++q) order[count[(max(rows[band_list[q]].x, r0) - r0) / rows_per_block]++] = q;
   for (int i = 0; i < rows_per_block * grid; ++i) count[i] = 0;
 
   const float4 background = (float4)(b->background[0], b->background[1], b->background[2], 0.0f);
   uint block_max = 0, total = 0;
+  uint active = 0, next = 0; /* order[0, active): slots reaching this block from earlier ones */
   for (int y0 = r0; y0 < r1; y0 += rows_per_block) {
     const int y1 = min(y0 + rows_per_block, r1);
+    /* The slots whose first block this is: order[next, started). */
+    uint started = next;
+    while (started < patches && max(rows[band_list[order[started]]].x, r0) < y1) ++started;
     /* 2. Collect the block's crossings (line within the block; key: position in the band
      * list, front bit), patch by patch and row by row, counting per line, and the range of
-     * lines touched. */
-    uint m = 0;
+     * lines touched. Slots that reach the next block stay at the front of the order (written
+     * at or before the entry being read). */
+    uint m = 0, kept = 0;
     int la = rows_per_block * grid, lb = -1;
-    for (uint q = 0; q < patches; ++q) {
+    for (uint i = 0; i < active + (started - next); ++i) {
+      uint q = order[i < active ? i : next + (i - active)];
       uint j = band_list[q];
       int2 r = rows[j];
-      if (r.x >= y1 || r.y < y0) continue;
+      if (r.y >= y1) order[kept++] = q;
       SiradProjected p = projected[j];
       uint front_pos = (p.flags & SIRAD_FRONT_POS) ? 1u : 0u;
       const int ya = max(r.x, y0), yb = min(r.y, y1 - 1);
@@ -441,6 +465,8 @@ __kernel void transfer_band(__global const SiradProjected* restrict projected,
         }
       }
     }
+    active = kept;
+    next = started;
     total += m;
     block_max = max(block_max, m);
     if (m > cap) {
