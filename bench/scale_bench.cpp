@@ -10,7 +10,9 @@
 // first-shot renders at the run's resolution on an engine of that block size, and the
 // process's memory after it.
 //   sirad_bench_scale [--scene cornell|FILE] [--patches 20000,100000,400000,1000000] [--bundles 10]
-//                     [--shots-per-bundle X] [--shot-blocks 65536,0] [--device D]
+//                     [--shots-per-bundle X] [--shot-blocks 65536,0] [--device D] [--aggregate-nodes N]
+// --aggregate-nodes N: then the coordinator's aggregate with N nodes' states of every chunk
+// (row `aggregate_N_nodes`: its bytes per patch and node; its memory in rss_mib / peak_mib).
 // The settings are `sirad render`'s defaults (chain rule, stratified directions, the auto burn-in
 // and grid, 0.25 shots per bundle); each size runs in a fresh child of this program (one
 // process per size, so each peak is its own), a single size in this process.
@@ -27,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "cluster/exchange.h"
 #include "cluster/settings.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
@@ -67,7 +70,7 @@ struct Phases {
 };
 
 void run_size(const std::string& spec, std::size_t target, int bundles, double shots_per_bundle,
-              const std::vector<std::size_t>& shot_blocks, const std::string& device) {
+              const std::vector<std::size_t>& shot_blocks, const std::string& device, uint32_t aggregate_nodes) {
   Phases ph;
   ph.scene = spec;
   Scene scene = load_scene(spec);
@@ -106,6 +109,28 @@ void run_size(const std::string& spec, std::size_t target, int bundles, double s
   std::printf("# %s, %zu patches: grid %d, burn-in %d, shot resolution %d, %.0f bytes per patch at the peak\n", spec.c_str(),
               mesh.size(), solver.grid(), solver.burn_in(), solver.shot_resolution(), hwm * 1048576.0 / mesh.size());
   std::fflush(stdout);
+  if (aggregate_nodes > 0) {
+    // The coordinator's per-node memory: what its aggregate holds once every one of N nodes has
+    // reported every chunk of the run (this node's sums, as each node would send them).
+    const auto [rss0, hwm0] = memory_mib();
+    cluster::Aggregate aggregate(cluster::chunk_starts(static_cast<uint32_t>(mesh.size()), cluster::RunSettings{}.chunks),
+                                 aggregate_nodes);
+    const auto starts = cluster::chunk_starts(static_cast<uint32_t>(mesh.size()), aggregate.chunks());
+    for (uint32_t p = 0; p < aggregate_nodes; ++p)
+      for (uint32_t c = 0; c < aggregate.chunks(); ++c) {
+        std::vector<double> sum;
+        sum.reserve(3 * aggregate.chunk_size(c));
+        for (uint32_t j = starts[c]; j < starts[c + 1]; ++j)
+          for (int k = 0; k < 3; ++k) sum.push_back(solver.sum()[j][k]);
+        aggregate.set(p, c, std::move(sum), solver.bundles());
+      }
+    const auto [rss1, hwm1] = memory_mib();
+    std::printf("%s,%zu,aggregate_%u_nodes,%.1f,%.1f,%.1f\n", spec.c_str(), mesh.size(), aggregate_nodes,
+                (rss1 - rss0) * 1048576.0 / (static_cast<double>(mesh.size()) * aggregate_nodes), rss1, hwm1);
+    std::printf("# the aggregate of %u nodes: %.0f bytes per patch (%.1f per patch and node)\n", aggregate_nodes,
+                (rss1 - rss0) * 1048576.0 / mesh.size(), (rss1 - rss0) * 1048576.0 / (static_cast<double>(mesh.size()) * aggregate_nodes));
+    std::fflush(stdout);
+  }
   EmitterTable table = emitter_table(mesh);
   for (std::size_t block : shot_blocks) {
     auto engine = make_cl_shot_engine(mesh, device, block == 0 ? mesh.size() : block);
@@ -133,6 +158,7 @@ int main(int argc, char** argv) {
     int bundles = 10;
     std::vector<std::size_t> shot_blocks;
     double shots = 0.25;
+    uint32_t aggregate_nodes = 0;
     for (int i = 1; i < argc; ++i) {
       std::string k = argv[i];
       if (i + 1 >= argc) fail("{} needs a value", k);
@@ -145,6 +171,7 @@ int main(int argc, char** argv) {
       } else if (k == "--bundles") bundles = std::max(1, std::stoi(v));
       else if (k == "--shots-per-bundle") shots = std::stod(v);
       else if (k == "--device") device = v;
+      else if (k == "--aggregate-nodes") aggregate_nodes = static_cast<uint32_t>(std::stoul(v));
       else if (k == "--shot-blocks") {
         std::stringstream ss(v);
         for (std::string n; std::getline(ss, n, ',');) shot_blocks.push_back(std::stoul(n));
@@ -154,7 +181,7 @@ int main(int argc, char** argv) {
     std::printf("scene,patches,phase,seconds,rss_mib,peak_mib\n");
     std::fflush(stdout);
     if (sizes.size() == 1) {  // in this process (for heaptrack and the like)
-      run_size(scene, sizes[0], bundles, shots, shot_blocks, device);
+      run_size(scene, sizes[0], bundles, shots, shot_blocks, device, aggregate_nodes);
       return 0;
     }
     for (std::size_t n : sizes) {
@@ -162,7 +189,7 @@ int main(int argc, char** argv) {
       if (pid < 0) fail("fork: {}", std::strerror(errno));
       if (pid == 0) {
         try {
-          run_size(scene, n, bundles, shots, shot_blocks, device);
+          run_size(scene, n, bundles, shots, shot_blocks, device, aggregate_nodes);
           std::_Exit(0);
         } catch (const std::exception& e) {
           std::fprintf(stderr, "sirad_bench_scale: %s\n", e.what());

@@ -178,21 +178,25 @@ Aggregate::Aggregate(std::vector<uint32_t> starts, uint32_t nodes) : starts_(std
 
 void Aggregate::add_node() { state_.emplace_back(); }  // nothing held: its parts are allocated at its first set
 
-const Aggregate::Part* Aggregate::held(uint32_t node, uint32_t chunk) const {
-  const std::vector<Part>& parts = state_.at(node);
-  return parts.empty() || parts.at(chunk).sum.empty() ? nullptr : &parts[chunk];
+const Aggregate::Held* Aggregate::held(uint32_t node, uint32_t chunk) const {
+  const std::vector<Held>& parts = state_.at(node);
+  return parts.empty() || parts.at(chunk).mean.empty() ? nullptr : &parts[chunk];
 }
 
 bool Aggregate::holds_nothing(uint32_t node) const {
-  for (const Part& p : state_.at(node))
+  for (const Held& p : state_.at(node))
     if (p.count > 0) return false;
   return true;
 }
 
 Aggregate::Part Aggregate::state(uint32_t node, uint32_t chunk) const {
   if (chunk >= chunks()) fail("aggregate: no chunk {}", chunk);
-  if (const Part* p = held(node, chunk)) return *p;
-  return {std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
+  Part out{std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
+  if (const Held* h = held(node, chunk)) {
+    for (std::size_t i = 0; i < out.sum.size(); ++i) out.sum[i] = h->sum(i);
+    out.count = h->count;
+  }
+  return out;
 }
 
 void Aggregate::check(uint32_t node, uint32_t chunk, const std::vector<double>& sum, uint64_t count) const {
@@ -215,8 +219,10 @@ void Aggregate::check(uint32_t node, uint32_t chunk, const std::vector<double>& 
 void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint64_t count) {
   check(node, chunk, sum, count);
   if (state_[node].empty()) state_[node].resize(chunks());
-  Part& part = state_[node][chunk];
-  part.sum = std::move(sum);
+  Held& part = state_[node][chunk];
+  part.mean.resize(sum.size());
+  const double inverse = count > 0 ? 1.0 / static_cast<double>(count) : 0.0;
+  for (std::size_t i = 0; i < sum.size(); ++i) part.mean[i] = static_cast<float>(sum[i] * inverse);
   part.count = count;
 }
 
@@ -229,9 +235,9 @@ Aggregate::Part Aggregate::others(uint32_t node, uint32_t chunk, Topology topolo
   if (topology == Topology::ring) return nodes() > 1 ? state((node + 1) % nodes(), chunk) : Part{std::vector<double>(3 * chunk_size(chunk), 0.0), 0};
   Part out{std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
   for (uint32_t p = 0; p < nodes(); ++p) {
-    const Part* s = p == node ? nullptr : held(p, chunk);
+    const Held* s = p == node ? nullptr : held(p, chunk);
     if (!s) continue;
-    for (std::size_t i = 0; i < s->sum.size(); ++i) out.sum[i] += s->sum[i];
+    for (std::size_t i = 0; i < s->mean.size(); ++i) out.sum[i] += s->sum(i);
     out.count += s->count;
   }
   return out;
@@ -249,8 +255,8 @@ std::vector<double> Aggregate::estimate(uint32_t chunk) const {
   uint64_t n = count(chunk);
   if (n == 0) return out;
   for (uint32_t p = 0; p < nodes(); ++p)
-    if (const Part* part = held(p, chunk))
-      for (std::size_t i = 0; i < out.size(); ++i) out[i] += part->sum[i];
+    if (const Held* part = held(p, chunk))
+      for (std::size_t i = 0; i < out.size(); ++i) out[i] += part->sum(i);
   for (double& v : out) v /= static_cast<double>(n);
   return out;
 }
@@ -272,9 +278,9 @@ double Aggregate::spread_error(const std::vector<double>& weight) const {
         std::size_t i = 3 * static_cast<std::size_t>(j) + static_cast<std::size_t>(k);
         double ss = 0;
         for (uint32_t p = 0; p < nodes(); ++p) {
-          const Part* part = held(p, c);
+          const Held* part = held(p, c);
           if (!part || part->count == 0) continue;
-          double d = part->sum[i] / static_cast<double>(part->count) - g[i];
+          double d = static_cast<double>(part->mean[i]) - g[i];
           ss += static_cast<double>(part->count) * d * d;
         }
         var_sum += w * ss / (holders - 1) / total / 3;
@@ -297,7 +303,7 @@ double Aggregate::combined_error(const std::vector<double>& error, const std::ve
     if (m_total <= 0) return -1.0;
     double v = 0;
     for (uint32_t p = 0; p < nodes(); ++p) {
-      const Part* part = held(p, c);
+      const Held* part = held(p, c);
       const double m = part ? static_cast<double>(part->count) : 0.0;
       if (m == 0) continue;
       if (!(error[p] > 0)) return -1.0;

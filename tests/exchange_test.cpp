@@ -2,6 +2,7 @@
 // states with the count-weighted estimate, star and ring aggregates, the exchange rotation.
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 
@@ -140,6 +141,46 @@ TEST(ClusterAggregate, CombinedErrorWeighsTheCountsHeld) {
   EXPECT_NEAR(agg.combined_error({0.1, 0.05}, {100, 300}, {1, 1, 0, 0}), std::sqrt(v0), 1e-12);
   EXPECT_EQ(agg.combined_error({0.1, -1.0}, {100, 300}, weight), -1.0);
   EXPECT_THROW(agg.combined_error({0.1}, {100}, weight), Error);
+}
+
+// States are held as single-precision means (12 bytes per patch and node): every sum comes back
+// within one float rounding of the mean, |mean| 2^-24, times the count; so does the estimate,
+// a count-weighted mean of such means. A state read back and set again (a checkpoint's round
+// trip) is held bit for bit: float -> double x count is exact below 2^29 bundles, and / count
+// gives the same float back. Values span 1e-30 to 1e30 and both signs.
+TEST(ClusterAggregate, StatesAreHeldToSinglePrecisionAndRoundTripExactly) {
+  const uint32_t n = 500;
+  Aggregate agg(chunk_starts(n, 1), 3);
+  const uint64_t counts[3] = {7, 1000, (uint64_t{1} << 29) - 3};
+  std::vector<std::vector<double>> sent(3);
+  uint64_t state = 12345;
+  auto next = [&state] {  // a fixed LCG: values of every magnitude and sign
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<double>(state >> 11) / 9007199254740992.0;
+  };
+  for (uint32_t p = 0; p < 3; ++p) {
+    sent[p].resize(3 * n);
+    for (double& v : sent[p]) v = (next() < 0.1 ? -1.0 : 1.0) * std::pow(10.0, 60.0 * next() - 30.0) * static_cast<double>(counts[p]);
+    agg.set(p, 0, sent[p], counts[p]);
+  }
+  std::vector<double> exact(3 * n, 0.0), bound(3 * n, 0.0);
+  for (uint32_t p = 0; p < 3; ++p) {
+    auto back = agg.state(p, 0);
+    ASSERT_EQ(back.count, counts[p]);
+    for (std::size_t i = 0; i < back.sum.size(); ++i) {
+      const double tolerance = std::ldexp(std::fabs(sent[p][i]), -24) * (1.0 + 1e-9);
+      ASSERT_LE(std::fabs(back.sum[i] - sent[p][i]), tolerance) << p << " " << i;
+      exact[i] += sent[p][i];
+      bound[i] += tolerance;
+    }
+    agg.set(p, 0, back.sum, back.count);
+    auto again = agg.state(p, 0);
+    ASSERT_EQ(0, std::memcmp(again.sum.data(), back.sum.data(), back.sum.size() * sizeof(double))) << p;
+  }
+  const double total = static_cast<double>(counts[0] + counts[1] + counts[2]);
+  auto estimate = agg.estimate(0);
+  for (std::size_t i = 0; i < estimate.size(); ++i)
+    ASSERT_LE(std::fabs(estimate[i] - exact[i] / total), bound[i] / total + std::ldexp(std::fabs(exact[i] / total), -50)) << i;
 }
 
 TEST(ClusterAggregate, RefusesImpossibleStates) {
