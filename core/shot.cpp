@@ -138,8 +138,14 @@ std::size_t shot_pixel(int resolution, int face, int y, int x) {
 }
 
 std::vector<double> shot_weights(const SiradShot& shot) {
+  std::vector<double> w;
+  shot_weights(shot, w);
+  return w;
+}
+
+void shot_weights(const SiradShot& shot, std::vector<double>& w) {
   const int H = shot.resolution;
-  std::vector<double> w(shot_pixels(H));
+  w.resize(shot_pixels(H));
   const double inv = 1.0 / static_cast<double>(shot.scale), h2 = inv * inv;
   for (int f = 0; f < 5; ++f) {
     for (int y = f == 0 ? 0 : H / 2; y < H; ++y) {
@@ -152,16 +158,22 @@ std::vector<double> shot_weights(const SiradShot& shot) {
       }
     }
   }
-  return w;
 }
 
 void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const ShotDraw& draw,
                      const SiradShot& shot, std::span<const uint32_t> image,
                      std::span<const double> weights, std::vector<glm::dvec3>& direct) {
+  std::vector<double> ff;
+  accumulate_shot(mesh, table, draw, shot, image, weights, direct, ff);
+}
+
+void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const ShotDraw& draw,
+                     const SiradShot& shot, std::span<const uint32_t> image,
+                     std::span<const double> weights, std::vector<glm::dvec3>& direct, std::vector<double>& ff) {
   const std::size_t n = mesh.size();
   if (image.size() != shot_pixels(shot.resolution) || weights.size() != image.size() || direct.size() != n)
     fail("first shot: image of {} samples for resolution {}", image.size(), shot.resolution);
-  std::vector<double> ff(n, 0.0);
+  ff.assign(n, 0.0);
   for (std::size_t i = 0; i < image.size(); ++i) {
     uint32_t j = image[i];
     if (j == SIRAD_NO_PATCH) continue;
@@ -183,20 +195,27 @@ ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, ui
 ShotSums run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine& engine, int resolution,
                    uint64_t seed, uint64_t first, uint64_t count, Stream stream, bool stratified) {
   ShotSums sums;
+  ShotScratch scratch;
+  run_shots(mesh, table, engine, resolution, seed, first, count, stream, stratified, sums, scratch);
+  return sums;
+}
+
+void run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine& engine, int resolution, uint64_t seed,
+               uint64_t first, uint64_t count, Stream stream, bool stratified, ShotSums& sums, ShotScratch& scratch) {
   sums.direct.assign(mesh.size(), glm::dvec3(0.0));
+  sums.shots = 0;
   if (table.empty()) {
     sums.shots = count;
-    return sums;
+    return;
   }
-  std::vector<uint32_t> image;
   for (uint64_t k = first; k < first + count; ++k) {
     ShotDraw draw = draw_shot(mesh, table, seed, k, stream, stratified);
     SiradShot shot = make_shot(mesh, draw, resolution);
-    engine.render(shot, image);
-    accumulate_shot(mesh, table, draw, shot, image, shot_weights(shot), sums.direct);
+    engine.render(shot, scratch.image);
+    shot_weights(shot, scratch.weights);
+    accumulate_shot(mesh, table, draw, shot, scratch.image, scratch.weights, sums.direct, scratch.form_factors);
     ++sums.shots;
   }
-  return sums;
 }
 
 int auto_shot_resolution(const PatchMesh& mesh) {

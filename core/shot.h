@@ -85,6 +85,7 @@ std::unique_ptr<ShotEngine> make_cl_shot_engine(const PatchMesh& mesh, const std
 
 // The per-pixel form-factor weights dF of a shot (double), in image order.
 std::vector<double> shot_weights(const SiradShot& shot);
+void shot_weights(const SiradShot& shot, std::vector<double>& out);  // into out (resized)
 
 // Shots [first, first + count) of a run: the sum over them of each patch's estimate of D
 // (divide by the number of shots for the estimate). Emission-free meshes give zeros.
@@ -98,11 +99,26 @@ ShotSums run_shots(const PatchMesh& mesh, ShotEngine& engine, int resolution, ui
 ShotSums run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine& engine, int resolution,
                    uint64_t seed, uint64_t first, uint64_t count, Stream stream = Stream::shots,
                    bool stratified = false);
+// What a shot needs besides its sums: the image (3 H^2 samples), its weights and the form
+// factors per patch. Callers that shoot every few bundles keep one, so that no shot allocates
+// (at 100k patches and H = 512, 10 MB a shot, paid in page faults and zeroing).
+struct ShotScratch {
+  std::vector<uint32_t> image;
+  std::vector<double> weights, form_factors;
+};
+// The same into `sums` (its direct light resized to the mesh and zeroed first), with `scratch`.
+void run_shots(const PatchMesh& mesh, const EmitterTable& table, ShotEngine& engine, int resolution, uint64_t seed,
+               uint64_t first, uint64_t count, Stream stream, bool stratified, ShotSums& sums, ShotScratch& scratch);
 
 // Adds one rendered shot's estimates to `direct` (per patch).
 void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const ShotDraw& draw,
                      const SiradShot& shot, std::span<const uint32_t> image,
                      std::span<const double> weights, std::vector<glm::dvec3>& direct);
+// The same with the per-patch form factors in `form_factors` (resized and zeroed here).
+void accumulate_shot(const PatchMesh& mesh, const EmitterTable& table, const ShotDraw& draw,
+                     const SiradShot& shot, std::span<const uint32_t> image,
+                     std::span<const double> weights, std::vector<glm::dvec3>& direct,
+                     std::vector<double>& form_factors);
 
 // A hemicube resolution for the mesh: about 4 pixel samples on face 0 for the median patch
 // seen face-on from the scene's bounding radius, even, clamped to [32, 512].

@@ -93,8 +93,9 @@ void Solver::update_source(uint64_t index, Stream stream) {
   if (stream == cached_stream_ && range.first == cached_.first && range.count == cached_.count) return;
   // Stratified directions stratify the counted shots' points on the emitters too (core/shot.h).
   const bool stratified = sampling_.directions == Directions::stratified && stream == Stream::shots;
-  ShotSums sums = run_shots(mesh_, emitters_, *shots_, shot_resolution_, options_.seed, range.first, range.count,
-                            stream, stratified);
+  run_shots(mesh_, emitters_, *shots_, shot_resolution_, options_.seed, range.first, range.count, stream, stratified,
+            shot_sums_, shot_scratch_);
+  const ShotSums& sums = shot_sums_;
   shots_rendered_ += sums.shots;
   direct_shots_ += sums.shots;
   for (std::size_t j = 0; j < source_.size(); ++j) {

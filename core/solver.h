@@ -131,6 +131,8 @@ class Solver {
   void update_source(uint64_t index, Stream stream);
   ShotEngine* shots_ = nullptr;
   EmitterTable emitters_;                  // built once: every step's shots draw from it
+  ShotSums shot_sums_;                     // the last update_source's shots
+  ShotScratch shot_scratch_;               // reused by every shot
   std::unique_ptr<BatchMeans> batches_;
   int shot_resolution_ = 0;
   uint64_t shots_rendered_ = 0;
