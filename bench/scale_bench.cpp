@@ -113,9 +113,8 @@ void run_size(const std::string& spec, std::size_t target, int bundles, double s
     // The coordinator's per-node memory: what its aggregate holds once every one of N nodes has
     // reported every chunk of the run (this node's sums, as each node would send them).
     const auto [rss0, hwm0] = memory_mib();
-    cluster::Aggregate aggregate(cluster::chunk_starts(static_cast<uint32_t>(mesh.size()), cluster::RunSettings{}.chunks),
-                                 aggregate_nodes);
-    const auto starts = cluster::chunk_starts(static_cast<uint32_t>(mesh.size()), aggregate.chunks());
+    const auto starts = cluster::chunk_starts(static_cast<uint32_t>(mesh.size()), cluster::RunSettings{}.chunks);
+    cluster::Aggregate aggregate(starts, aggregate_nodes);
     for (uint32_t p = 0; p < aggregate_nodes; ++p)
       for (uint32_t c = 0; c < aggregate.chunks(); ++c) {
         std::vector<double> sum;
@@ -125,10 +124,11 @@ void run_size(const std::string& spec, std::size_t target, int bundles, double s
         aggregate.set(p, c, std::move(sum), solver.bundles());
       }
     const auto [rss1, hwm1] = memory_mib();
+    const double per_patch = (rss1 - rss0) * 1048576.0 / static_cast<double>(mesh.size());
     std::printf("%s,%zu,aggregate_%u_nodes,%.1f,%.1f,%.1f\n", spec.c_str(), mesh.size(), aggregate_nodes,
-                (rss1 - rss0) * 1048576.0 / (static_cast<double>(mesh.size()) * aggregate_nodes), rss1, hwm1);
-    std::printf("# the aggregate of %u nodes: %.0f bytes per patch (%.1f per patch and node)\n", aggregate_nodes,
-                (rss1 - rss0) * 1048576.0 / mesh.size(), (rss1 - rss0) * 1048576.0 / (static_cast<double>(mesh.size()) * aggregate_nodes));
+                per_patch / aggregate_nodes, rss1, hwm1);
+    std::printf("# the aggregate of %u nodes: %.0f bytes per patch (%.1f per patch and node)\n", aggregate_nodes, per_patch,
+                per_patch / aggregate_nodes);
     std::fflush(stdout);
   }
   EmitterTable table = emitter_table(mesh);

@@ -178,6 +178,10 @@ Aggregate::Aggregate(std::vector<uint32_t> starts, uint32_t nodes) : starts_(std
 
 void Aggregate::add_node() { state_.emplace_back(); }  // nothing held: its parts are allocated at its first set
 
+Aggregate::Part Aggregate::zeros(uint32_t chunk) const {
+  return {std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
+}
+
 const Aggregate::Held* Aggregate::held(uint32_t node, uint32_t chunk) const {
   const std::vector<Held>& parts = state_.at(node);
   return parts.empty() || parts.at(chunk).mean.empty() ? nullptr : &parts[chunk];
@@ -191,7 +195,7 @@ bool Aggregate::holds_nothing(uint32_t node) const {
 
 Aggregate::Part Aggregate::state(uint32_t node, uint32_t chunk) const {
   if (chunk >= chunks()) fail("aggregate: no chunk {}", chunk);
-  Part out{std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
+  Part out = zeros(chunk);
   if (const Held* h = held(node, chunk)) {
     for (std::size_t i = 0; i < out.sum.size(); ++i) out.sum[i] = h->sum(i);
     out.count = h->count;
@@ -232,8 +236,8 @@ void Aggregate::clear(uint32_t node) {
 }
 
 Aggregate::Part Aggregate::others(uint32_t node, uint32_t chunk, Topology topology) const {
-  if (topology == Topology::ring) return nodes() > 1 ? state((node + 1) % nodes(), chunk) : Part{std::vector<double>(3 * chunk_size(chunk), 0.0), 0};
-  Part out{std::vector<double>(3 * static_cast<std::size_t>(chunk_size(chunk)), 0.0), 0};
+  if (topology == Topology::ring) return nodes() > 1 ? state((node + 1) % nodes(), chunk) : zeros(chunk);
+  Part out = zeros(chunk);
   for (uint32_t p = 0; p < nodes(); ++p) {
     const Held* s = p == node ? nullptr : held(p, chunk);
     if (!s) continue;

@@ -139,6 +139,7 @@ class Aggregate {
     double sum(std::size_t i) const { return static_cast<double>(mean[i]) * static_cast<double>(count); }
   };
   const Held* held(uint32_t node, uint32_t chunk) const;  // nullptr: zeros
+  Part zeros(uint32_t chunk) const;                      // chunk c's values, all 0, count 0
   std::vector<uint32_t> starts_;
   std::vector<std::vector<Held>> state_;  // [node][chunk]; empty until the node's first state
 };
