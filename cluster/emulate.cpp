@@ -42,6 +42,8 @@ void check_memory(uint32_t nodes, std::size_t patches) {
          nodes, patches, need / (1 << 30), have / (1 << 30));
 }
 
+// The link seeds of the coordinator's own link (emulation::link_seed with an index no node has).
+constexpr uint32_t kCoordinatorLinkIndex = 0xFFFFFFF0u;
 // Bytes of a message carrying `patches` patches of chunk data (3 doubles each) and a header.
 constexpr std::size_t kHeaderBytes = 64;
 std::size_t message_bytes(std::size_t patches) { return kHeaderBytes + 24 * patches; }
@@ -81,6 +83,12 @@ class Emulator {
                                             : measure_bundle_seconds(mesh_, engine_, shots_, solver_options(run_, mesh_, P));
     const std::size_t scene_bytes = encode_scene(run_.scene).size();
     nodes_.resize(P);
+    if (run_.profile && run_.profile->coordinator) {
+      const emulation::LinkSpec& c = *run_.profile->coordinator;
+      uint64_t seed = emulation::link_seed(run_.seed, kCoordinatorLinkIndex);
+      coordinator_in_ = emulation::LinkModel(c.up_mbit, c.latency_ms, c.jitter_ms, c.loss, seed);
+      coordinator_out_ = emulation::LinkModel(c.down_mbit, c.latency_ms, c.jitter_ms, c.loss, seed + 1);
+    }
     for (uint32_t n = 0; n < P; ++n) {
       VNode& v = nodes_[n];
       v.figures.name = fmt::format("emu-{}", n);
@@ -96,8 +104,7 @@ class Emulator {
       if (policy_.join() != n) fail("emulate: node index out of order");
       // WELCOME and the scene go out at 0; the node meshes (not timed), builds its solver (the
       // burn-in bundles, timed) and says READY.
-      double arrival = v.down.deliver(0.0, kHeaderBytes + scene_bytes);
-      at(arrival, [this, n] { setup(n); });
+      at(to_node_link(n, kHeaderBytes + scene_bytes), [this, n] { setup(n); });
     }
     while (!events_.empty() && !policy_.done()) {
       Event e = events_.top();
@@ -143,12 +150,23 @@ class Emulator {
     std::vector<NodeCost> costs;
     for (uint32_t n : ready)
       costs.push_back({result_.bundle_s * nodes_[n].slowdown, exchange_seconds(mesh_.size(), run_.profile ? &nodes_[n].spec : nullptr)});
-    ExchangeSetting s = auto_setting(run_, mesh_, costs, policy_.aggregate().chunks(), &engine_);
+    const double hub = run_.profile && run_.profile->coordinator ? coordinator_seconds(mesh_.size(), *run_.profile->coordinator) : 0;
+    ExchangeSetting s = auto_setting(run_, mesh_, costs, policy_.aggregate().chunks(), &engine_, hub);
     result_.exchange_why = s.why;
     return s;
   }
 
   void at(double t, std::function<void()> fn) { events_.push({t, seq_++, std::move(fn)}); }
+
+  // When a message of `bytes` sent now reaches the coordinator from node n, or node n from the
+  // coordinator: it crosses the node's link and the coordinator's, which every node shares
+  // (both carry it at once, as a switch forwards packets; it is in when both have).
+  double to_coordinator_link(uint32_t n, std::size_t bytes) {
+    return std::max(nodes_[n].up.deliver(now_, bytes), coordinator_in_.deliver(now_, bytes));
+  }
+  double to_node_link(uint32_t n, std::size_t bytes) {
+    return std::max(nodes_[n].down.deliver(now_, bytes), coordinator_out_.deliver(now_, bytes));
+  }
   void log(uint32_t n, const char* what, uint64_t bundles) { result_.timeline.push_back({now_, n, what, bundles}); }
   double cost(uint32_t n, uint64_t bundles) const { return static_cast<double>(bundles) * result_.bundle_s * nodes_[n].slowdown; }
 
@@ -164,13 +182,13 @@ class Emulator {
     VNode& v = nodes_[n];
     const std::vector<uint32_t>& starts = policy_.starts();  // with the end
     v.worker = std::make_unique<Worker>(mesh_, engine_, shots_, run_, n, std::span(starts.data(), starts.size() - 1));
-    double t = now_ + cost(n, static_cast<uint64_t>(v.worker->solver().burn_in()));
-    at(v.up.deliver(t, kHeaderBytes), [this, n] { ready(n); });
+    // READY leaves when the burn-in is done (and only then takes its place on the shared link).
+    at(now_ + cost(n, static_cast<uint64_t>(v.worker->solver().burn_in())),
+       [this, n] { at(to_coordinator_link(n, kHeaderBytes), [this, n] { ready(n); }); });
   }
 
   void to_node(uint32_t n, ToNode m, std::size_t bytes) {
-    double arrival = nodes_[n].down.deliver(now_, bytes);
-    at(arrival, [this, n, m = std::move(m)]() mutable {
+    at(to_node_link(n, bytes), [this, n, m = std::move(m)]() mutable {
       VNode& v = nodes_[n];
       if (v.idle_since >= 0) {
         v.figures.idle_s += now_ - v.idle_since;
@@ -195,7 +213,7 @@ class Emulator {
       } else if (m.kind == ToNode::stop) {
         v.stopped = true;
         std::vector<ChunkState> chunks = v.worker->all_states();
-        at(v.up.deliver(now_, message_bytes(mesh_.size())), [this, n, chunks = std::move(chunks)]() mutable {
+        at(to_coordinator_link(n, message_bytes(mesh_.size())), [this, n, chunks = std::move(chunks)]() mutable {
           policy_.final_state(n, std::move(chunks));
           nodes_[n].figures.end_s = now_;
           log(n, "final", policy_.aggregate().chunks());
@@ -223,7 +241,7 @@ class Emulator {
       v.running = false;
       v.figures.busy_s += busy;
       std::size_t bytes = message_bytes(patches_of(g.report_chunks)) + 16 * g.ranges.size();
-      at(v.up.deliver(now_, bytes), [this, n, g = std::move(g), chunks = std::move(chunks), error, count]() mutable {
+      at(to_coordinator_link(n, bytes), [this, n, g = std::move(g), chunks = std::move(chunks), error, count]() mutable {
         report(n, g, std::move(chunks), error, count);
       });
       work(n);
@@ -278,6 +296,7 @@ class Emulator {
   ShotEngine* shots_;
   Policy policy_;
   std::vector<VNode> nodes_;
+  emulation::LinkModel coordinator_in_, coordinator_out_;  // the profile's coordinator link (unshaped without one)
   std::priority_queue<Event, std::vector<Event>, std::greater<Event>> events_;
   uint64_t seq_ = 0;
   double now_ = 0;

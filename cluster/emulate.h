@@ -10,7 +10,8 @@
 //
 // What is modelled: per node, setup (the scene's transfer on the downlink, then the burn-in
 // bundles), grants run back to back, a node's messages handled in arrival order between grants
-// (as node/node.cpp does), REPORT / UPDATE / FINAL sizes of 24 bytes per patch of each chunk
+// (as node/node.cpp does), the coordinator's own link when the profile gives one (shared by every
+// node's messages), REPORT / UPDATE / FINAL sizes of 24 bytes per patch of each chunk
 // plus a 64-byte header (proto/PROTOCOL.md), the coordinator answering at once. Not modelled:
 // the coordinator's own processing time, heartbeats, and disconnects (a profile with
 // disconnect_at_s is refused: liveness belongs to real runs).

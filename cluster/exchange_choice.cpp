@@ -23,7 +23,7 @@ model::Scene quick_scene_fit(const PatchMesh& mesh, BundleEngine& engine, uint64
 }
 
 ExchangeSetting auto_setting(const RunSettings& c, const PatchMesh& mesh, const std::vector<NodeCost>& nodes,
-                             uint32_t chunks, BundleEngine* engine) {
+                             uint32_t chunks, BundleEngine* engine, double coordinator_transfer) {
   model::Scene scene;
   if (c.rule == UpdateRule::average) {
     try {
@@ -38,12 +38,13 @@ ExchangeSetting auto_setting(const RunSettings& c, const PatchMesh& mesh, const 
       }
       scene = quick_scene_fit(mesh, *engine, c.seed);
     } catch (const Error& e) {
-      ExchangeSetting s = auto_exchange(UpdateRule::chain, scene, nodes, c.mode, c.bundles, chunks, c.time_limit_s);
+      ExchangeSetting s = auto_exchange(UpdateRule::chain, scene, nodes, c.mode, c.bundles, chunks, c.time_limit_s,
+                                        coordinator_transfer);
       s.why = fmt::format("the scene fit failed ({}); {}", e.what(), s.why);
       return s;
     }
   }
-  return auto_exchange(c.rule, scene, nodes, c.mode, c.bundles, chunks, c.time_limit_s);
+  return auto_exchange(c.rule, scene, nodes, c.mode, c.bundles, chunks, c.time_limit_s, coordinator_transfer);
 }
 
 }  // namespace sirad::cluster

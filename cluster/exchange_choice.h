@@ -20,7 +20,9 @@ model::Scene quick_scene_fit(const PatchMesh& mesh, BundleEngine& engine, uint64
 // without one, this machine's OpenCL device, else the plain C++ reference engine) when the
 // model needs it (the average rule; a fit that fails falls back to the chain rule's choice and
 // says so).
+// `coordinator_transfer`: coordinator_seconds of the coordinator's own link (0: not a
+// bottleneck; see auto_exchange).
 ExchangeSetting auto_setting(const RunSettings& s, const PatchMesh& mesh, const std::vector<NodeCost>& nodes,
-                             uint32_t chunks, BundleEngine* engine = nullptr);
+                             uint32_t chunks, BundleEngine* engine = nullptr, double coordinator_transfer = 0);
 
 }  // namespace sirad::cluster

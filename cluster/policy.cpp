@@ -37,13 +37,14 @@ std::vector<double> error_weights(const PatchMesh& mesh) {
 }
 
 ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, const std::vector<NodeCost>& nodes, Mode mode,
-                              uint64_t bundles, uint32_t chunks, double time_limit_s) {
+                              uint64_t bundles, uint32_t chunks, double time_limit_s, double coordinator_transfer) {
   const uint32_t P = std::max<uint32_t>(1, static_cast<uint32_t>(nodes.size()));
   std::vector<double> t;
-  double t_transfer = 0;
+  double t_transfer = 0, rate = 0;  // rate: the nodes' bundles per second together
   for (const NodeCost& n : nodes) {
     t.push_back(std::max(n.t_iteration, 1e-9));
     t_transfer = std::max(t_transfer, n.t_transfer);
+    rate += 1 / std::max(n.t_iteration, 1e-9);
   }
   std::sort(t.begin(), t.end());
   const double t_iteration = t.empty() ? 1e-3 : t[t.size() / 2];
@@ -56,15 +57,23 @@ ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, const 
     const double share = mode == Mode::async ? 1.0 : 10.0;
     double need = 1;
     for (const NodeCost& n : nodes) need = std::max(need, std::ceil(share * n.t_transfer / std::max(n.t_iteration, 1e-9)));
+    // The coordinator's link carries every node's report: one state per I bundles of each node.
+    need = std::max(need, std::ceil(share * coordinator_transfer * rate));
     uint64_t i = std::clamp<uint64_t>(static_cast<uint64_t>(std::min(need, 1e15)), 1, std::max<uint64_t>(1, per_node / 8));
     i = std::min<uint64_t>(i, kExchangeAuto - 1);
     return {static_cast<uint32_t>(i), 1.0,
             fmt::format("chain rule: exchanges do not change the chains, only cost; S = 1 and I = {}, the shortest period at "
-                        "which every node's link {} (P {}, median T_i {:.4g} s, slowest transfer {:.4g} s)",
+                        "which every node's link {} (P {}, median T_i {:.4g} s, slowest transfer {:.4g} s{})",
                         i, mode == Mode::async ? "keeps up with its grants" : "takes under a tenth of a grant", P, t_iteration,
-                        t_transfer)};
+                        t_transfer,
+                        coordinator_transfer > 0 ? fmt::format(", the coordinator's link {:.4g} s a state", coordinator_transfer)
+                                                 : "")};
   }
-  model::Costs costs{t_iteration, mode == Mode::async ? 0.0 : t_transfer / P};
+  // T_e, charged P S T_e per exchange (eq. 1): the nodes' links carry their states side by side
+  // (S times the slowest transfer, hidden behind a queued grant in async mode), the
+  // coordinator's link one after another (P S of its transfers, which no grant hides).
+  const double t_nodes = mode == Mode::async ? 0.0 : t_transfer / P;
+  model::Costs costs{t_iteration, std::max(t_nodes, coordinator_transfer)};
   const double time = time_limit_s > 0 ? time_limit_s : static_cast<double>(per_node) * costs.t_iteration;
   model::ExchangeChoice c = model::choose_exchange(time, P, costs, scene, per_node, min_fraction);
   uint64_t i = std::clamp<uint64_t>(c.period, 1, kExchangeAuto - 1);
@@ -80,6 +89,12 @@ double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link) {
   if (link == nullptr) return 2 * bits / 1e9 + 2 * 1e-4;
   auto rate = [](double mbit) { return mbit > 0 ? mbit * 1e6 : 1e9; };
   return bits / rate(link->up_mbit) + bits / rate(link->down_mbit) + 2 * (link->latency_ms + link->jitter_ms) * 1e-3;
+}
+
+double coordinator_seconds(std::size_t patches, const emulation::LinkSpec& link) {
+  const double bits = 24.0 * 8.0 * static_cast<double>(patches);
+  auto seconds = [&](double mbit) { return mbit > 0 ? bits / (mbit * 1e6) : 0.0; };
+  return std::max(seconds(link.up_mbit), seconds(link.down_mbit)) + (link.latency_ms + link.jitter_ms) * 1e-3;
 }
 
 const char* NodeState::state() const {

@@ -73,22 +73,28 @@ struct NodeCost {
 // --exchange-every auto for `nodes` sharing `bundles` (or, with a time limit, that
 // time: then exchanging costs bundles not done).
 // Average rule: the paper's model (core/model.h choose_exchange) picks I and S, with T_i the
-// nodes' median bundle time and T_e the slowest transfer (0 in async mode, where a queued
-// grant hides it; with S it is charged P S T_e per exchange, eq. 1).
+// nodes' median bundle time and T_e such that an exchange costs P S T_e (eq. 1) =
+// max(S e, P S c): the nodes' links carry their states side by side (e: the slowest transfer;
+// 0 in async mode, where a queued grant hides it), the coordinator's link (c: its time per
+// node's state, coordinator_seconds; 0 for a link that is no bottleneck) one after another.
 // Chain rule: an exchange never changes a node's chain, so the paper's gain from combining does
 // not exist; reports only feed the coordinator's estimate, its error estimate and the stopping
 // rules, and cost transfers. Then S = 1 (a stale chunk makes the error estimate pessimistic and
 // the run stop late: measured in bench/paper/REPORT.md) and I is the shortest period at which
 // every node's link keeps up: max_p e_p / t_p in async mode (a queued grant runs while the
-// report travels), max_p 10 e_p / t_p in sync (the barrier waits for it: under a tenth), at
-// most bundles / (8 P). Short grants end a run promptly at its target. Fractions stay at or
+// report travels), max_p 10 e_p / t_p in sync (the barrier waits for it: under a tenth), and
+// the coordinator's too: c sum_p 1 / t_p (10 times that in sync), at most bundles / (8 P). Short grants end a run promptly at its target. Fractions stay at or
 // above 1 / chunks.
 ExchangeSetting auto_exchange(UpdateRule rule, const model::Scene& scene, const std::vector<NodeCost>& nodes, Mode mode,
-                              uint64_t bundles, uint32_t chunks, double time_limit_s = 0);
+                              uint64_t bundles, uint32_t chunks, double time_limit_s = 0, double coordinator_transfer = 0);
 
 // Seconds for one node's link to carry the whole state (24 bytes per patch) up and the others'
 // back down, with the latency both ways; an unshaped LAN (1 Gbit/s, 0.1 ms) without a profile.
 double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link);
+// Seconds of the coordinator's own link per node's state in an exchange: one state in while
+// another goes out (the link is full duplex, so the P states in and the P answers out overlap),
+// the slower direction's transfer and one latency.
+double coordinator_seconds(std::size_t patches, const emulation::LinkSpec& link);
 
 // Grants must be whole multiples of: the interleave G under stratified directions (a node's
 // chain runs same-sequence bundles >= G steps apart even across grants, core/bundle.cpp), and

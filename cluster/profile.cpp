@@ -88,11 +88,24 @@ Profile parse_profile(const std::string& text, const std::string& origin) {
     if (!root.IsMap()) fail("{}: a profile is a map with 'defaults' and 'nodes' (see deploy/profiles/)", origin);
     for (const auto& kv : root) {
       std::string key = kv.first.as<std::string>();
-      if (key != "profile" && key != "defaults" && key != "nodes")
-        fail("{}: unknown key '{}' (known: profile, defaults, nodes)", where(origin, kv.first), key);
+      if (key != "profile" && key != "defaults" && key != "nodes" && key != "coordinator")
+        fail("{}: unknown key '{}' (known: profile, defaults, nodes, coordinator)", where(origin, kv.first), key);
     }
     if (root["profile"]) p.name = root["profile"].as<std::string>();
     if (root["defaults"]) apply(origin, "defaults", root["defaults"], p.defaults, {});
+    if (const YAML::Node c = root["coordinator"]) {
+      if (c.IsMap())
+        for (const auto& kv : c) {
+          std::string key = kv.first.as<std::string>();
+          if (key == "speed" || key == "disconnect_at_s" || key == "reconnect_after_s")
+            fail("{}: coordinator.{}: not a setting of the coordinator's link (known: latency_ms, jitter_ms, bandwidth_mbit, "
+                 "up_mbit, down_mbit, loss)",
+                 where(origin, kv.first), key);
+        }
+      LinkSpec spec;
+      apply(origin, "coordinator", c, spec, {});
+      p.coordinator = spec;
+    }
     if (const YAML::Node nodes = root["nodes"]) {
       if (!nodes.IsSequence()) fail("{}: nodes: expected a list of entries", where(origin, nodes));
       if (nodes.size() > kMaxProfileEntries)

@@ -36,6 +36,10 @@ struct Profile {
     LinkSpec spec;                  // the defaults with this entry's keys over them
   };
   std::vector<Entry> nodes;
+  // The coordinator's own link (key `coordinator`), shared by every node's messages: up_mbit
+  // into the coordinator, down_mbit out of it (latency, jitter and loss as for a node). Only
+  // the virtual-time cluster (`sirad emulate`) models it; real runs refuse a profile with it.
+  std::optional<LinkSpec> coordinator;
 
   // The first entry, in file order, whose name or index matches; else the defaults.
   LinkSpec for_node(uint32_t index, const std::string& name) const;

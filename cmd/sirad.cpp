@@ -18,6 +18,8 @@
 
 #include "cluster/emulate.h"
 #include "cluster/live_view.h"
+#include "cluster/policy.h"
+#include "cluster/profile.h"
 #include "cluster/single_node.h"
 #include "cluster/status.h"
 #include "cmd/embedded.h"
@@ -385,6 +387,9 @@ struct ModelArgs {
   std::string from_run;             // a --status-json file: P, I, S, T, T_i and T_e from a real run
   bool time_given = false;
   double time_to = 0;               // > 0: also the time the model needs to reach this error
+  std::string profile;              // T_e from this profile's links for a state of state_patches
+  std::optional<int64_t> state_patches;
+  CLI::Option* t_exchange_flag = nullptr;
 };
 
 CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
@@ -395,7 +400,9 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
   cmd->add_option("--contraction", m.scene_params.contraction, "a in [0, 1)")->check(CLI::Range(0.0, 0.999999))->capture_default_str();
   cmd->add_option("--sigma", m.scene_params.sigma_ratio, "sigma_1 / C")->check(cli::positive())->capture_default_str();
   cmd->add_option("--t-iteration", m.costs.t_iteration, "T_i, seconds per iteration")->check(cli::positive())->capture_default_str();
-  cmd->add_option("--t-exchange", m.costs.t_exchange, "T_e, seconds per exchange with one processor")->check(cli::non_negative())->capture_default_str();
+  m.t_exchange_flag = cmd->add_option("--t-exchange", m.costs.t_exchange, "T_e, seconds per exchange with one processor")
+                          ->check(cli::non_negative())
+                          ->capture_default_str();
   cmd->add_option("--time", m.time, "T, seconds")->check(cli::positive())->capture_default_str();
   cmd->add_option("--sweep", m.sweep, "none, processors (P = 1..max), period (I = 1..max) or fraction (S = k / max)")
       ->check(CLI::IsMember({"none", "processors", "period", "fraction"}))->capture_default_str();
@@ -408,6 +415,11 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
       ->check(CLI::Range(1e-9, 1e9));
   cmd->add_option("--from-run", m.from_run,
                   "A run's --status-json file: its P, I, S, time, T_i (busy / bundles) and T_e (idle / exchanges) are the setup");
+  cmd->add_option("--profile", m.profile,
+                  "T_e from this emulation profile's links (the nodes' and the coordinator's) for a sync exchange of "
+                  "--state-patches patches (or the --scene's)");
+  cmd->add_option("--state-patches", m.state_patches, "With --profile: the patches of the state exchanged")
+      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
   return cmd;
 }
 
@@ -444,7 +456,34 @@ void apply_run(ModelArgs& m) {
               measured ? "idle / (exchanges x P x S)" : "no exchange waits in the run: --t-exchange");
 }
 
+// T_e of a sync exchange on the profile's links, as --exchange-every auto charges it
+// (cluster/policy.h auto_exchange): P S T_e = max(S e, P S c), e the slowest of the P nodes'
+// links (state up and back down), c the coordinator's link per node's state. A star and a ring
+// both pass every state through the coordinator (PROTOCOL.md section 3.3): the same cost.
+void apply_profile(ModelArgs& m, std::size_t patches) {
+  emulation::Profile profile = emulation::load_profile(m.profile);
+  double e = 0;
+  for (uint32_t n = 0; n < m.setup.processors; ++n) {
+    emulation::LinkSpec spec = profile.for_node(n, fmt::format("node-{}", n));
+    e = std::max(e, cluster::exchange_seconds(patches, &spec));
+  }
+  const double c = profile.coordinator ? cluster::coordinator_seconds(patches, *profile.coordinator) : 0.0;
+  m.costs.t_exchange = std::max(e / m.setup.processors, c);
+  std::printf("# T_e from %s for %zu patches: the nodes' links %.6f s each (side by side), the coordinator's %s; "
+              "T_e = %.6f s\n",
+              m.profile.c_str(), patches, e, profile.coordinator ? fmt::format("{:.6f} s per node (in turn)", c).c_str() : "not modelled",
+              m.costs.t_exchange);
+}
+
 int model_table(ModelArgs m) {
+  if (!m.profile.empty()) {
+    if (!m.from_run.empty()) fail("--profile: --from-run measured T_e already; give one of them");
+    if (m.t_exchange_flag->count() > 0) fail("--profile: it sets T_e; --t-exchange would be ignored");
+    if (!m.state_patches && m.scene.empty()) fail("--profile needs the state's size: --state-patches N or --scene");
+    if (m.sweep == "processors") fail("--profile: T_e depends on P, so it cannot sweep the processors");
+  } else if (m.state_patches) {
+    fail("--state-patches: only with --profile");
+  }
   if (!m.from_run.empty()) apply_run(m);
   if (!m.scene.empty()) {
     PatchMesh mesh = mesh_scene(load_scene(m.scene), mesh_options_from(m.patches, std::nullopt));
@@ -457,7 +496,9 @@ int model_table(ModelArgs m) {
                 "T_i = %.6f s\n",
                 m.scene.c_str(), mesh.size(), static_cast<unsigned long long>(fit.bundles), engine->description().c_str(),
                 fit.contraction, fit.contraction_se, fit.sigma_ratio, fit.t_iteration);
+    if (!m.profile.empty() && !m.state_patches) apply_profile(m, mesh.size());
   }
+  if (!m.profile.empty() && m.state_patches) apply_profile(m, static_cast<std::size_t>(*m.state_patches));
   model::check(m.setup);
   model::check(m.costs);
   model::check(m.scene_params);

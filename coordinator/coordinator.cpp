@@ -576,7 +576,15 @@ class Coordinator {
 
 }  // namespace
 
+void check_real_run(const RunConfig& config) {
+  if (config.profile && config.profile->coordinator)
+    fail("profile{}: 'coordinator' (the coordinator's own link) is modelled only by sirad emulate; a real coordinator's link "
+         "is the machine's (shape it with tc)",
+         config.profile->name.empty() ? "" : " " + config.profile->name);
+}
+
 RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh) {
+  check_real_run(config);
   return Coordinator(router, config, mesh).run();
 }
 

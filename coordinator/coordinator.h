@@ -20,5 +20,8 @@ namespace sirad::cluster {
 // in the estimate. Throws sirad::Error on the timeout, and when `interrupt` is set (after the
 // checkpoint, if any, is written).
 RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh);
+// Throws sirad::Error for settings only the virtual-time cluster models (a profile's
+// coordinator link); coordinate() checks it first.
+void check_real_run(const RunConfig& config);
 
 }  // namespace sirad::cluster

@@ -103,6 +103,7 @@ int main(int argc, char** argv) {
     rc.heartbeat_ms = static_cast<uint32_t>(heartbeat_ms);
     rc.liveness = static_cast<uint32_t>(liveness);
     if (!profile.empty()) rc.profile = emulation::load_profile(profile);
+    cluster::check_real_run(rc);
     rc.emulate_bandwidth = !network_bandwidth;
     rc.checkpoint = checkpoint;
     rc.checkpoint_every_s = checkpoint_every;

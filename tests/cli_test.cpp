@@ -629,5 +629,32 @@ TEST_F(ModelCli, TakesTheSetupAndCostsOfARun) {
   expect_error(sirad("model --from-run missing.json"), "missing.json");
 }
 
+// `sirad model --profile`: T_e from the links. By hand, 1,000 patches (24,000 bytes, 192,000
+// bits) at P = 4: a node's link 100 Mbit/s both ways and 1 ms: e = 2 x 1.92 ms + 2 ms = 5.84 ms;
+// the coordinator's 1000 Mbit/s in, 500 out, 0.5 ms: c = 0.384 ms + 0.5 ms = 0.884 ms per node,
+// so T_e = max(e / P, c) = max(1.46, 0.884) ms = 1.46 ms; without the coordinator, the same e / P.
+// And the flags it conflicts with are refused, never ignored.
+TEST_F(ModelCli, ChargesTheLinksOfAProfile) {
+  write("p.yaml", "defaults: {bandwidth_mbit: 100, latency_ms: 1}\ncoordinator: {up_mbit: 1000, down_mbit: 500, latency_ms: 0.5}\n");
+  Outcome hub = sirad("model --processors 4 --profile p.yaml --state-patches 1000");
+  ASSERT_EQ(hub.status, 0) << hub.err;
+  EXPECT_NE(hub.out.find("the nodes' links 0.005840 s each (side by side), the coordinator's 0.000884 s per node (in turn); "
+                         "T_e = 0.001460 s"),
+            std::string::npos)
+      << hub.out;
+  Outcome many = sirad("model --processors 64 --profile p.yaml --state-patches 1000");
+  ASSERT_EQ(many.status, 0) << many.err;
+  EXPECT_NE(many.out.find("T_e = 0.000884 s"), std::string::npos) << many.out;  // 5.84 / 64 < 0.884
+  write("q.yaml", "defaults: {bandwidth_mbit: 100, latency_ms: 1}\n");
+  Outcome nodes_only = sirad("model --processors 4 --profile q.yaml --state-patches 1000");
+  ASSERT_EQ(nodes_only.status, 0) << nodes_only.err;
+  EXPECT_NE(nodes_only.out.find("not modelled; T_e = 0.001460 s"), std::string::npos) << nodes_only.out;
+  expect_error(sirad("model --profile p.yaml"), "--state-patches");
+  expect_error(sirad("model --profile p.yaml --state-patches 10 --t-exchange 1"), "--t-exchange");
+  expect_error(sirad("model --profile p.yaml --state-patches 10 --sweep processors"), "cannot sweep");
+  expect_error(sirad("model --state-patches 10"), "only with --profile");
+  expect_error(sirad("model --profile missing.yaml --state-patches 10"), "missing.yaml");
+}
+
 }  // namespace
 }  // namespace sirad

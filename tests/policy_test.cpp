@@ -158,6 +158,23 @@ TEST(Policy, ChainRuleAutoLetsEveryLinkKeepUp) {
   EXPECT_EQ(capped.exchange_every, 20u);  // 320 / (8 x 2)
 }
 
+// The coordinator's link carries every node's report: with c = 0.05 s per state and two nodes
+// of 100 bundles/s each, I >= c x 200 = 10 in async (100 in sync), over the nodes' own 1
+// (their links: 0.005 s / 0.01 s). Under the average rule it is charged P S c per exchange, so
+// a slow coordinator link makes the model exchange less often.
+TEST(Policy, AutoChargesTheCoordinatorsLinkForEveryNode) {
+  const std::vector<NodeCost> nodes{{0.01, 0.005}, {0.01, 0.005}};
+  EXPECT_EQ(auto_exchange(UpdateRule::chain, {}, nodes, Mode::async, 100000, 16).exchange_every, 1u);
+  EXPECT_EQ(auto_exchange(UpdateRule::chain, {}, nodes, Mode::async, 100000, 16, 0, 0.05).exchange_every, 10u);
+  EXPECT_EQ(auto_exchange(UpdateRule::chain, {}, nodes, Mode::sync, 100000, 16, 0, 0.05).exchange_every, 100u);
+  const model::Scene scene{0.5, 1.0};
+  ExchangeSetting free_hub = auto_exchange(UpdateRule::average, scene, nodes, Mode::sync, 2000, 16);
+  ExchangeSetting slow_hub = auto_exchange(UpdateRule::average, scene, nodes, Mode::sync, 2000, 16, 0, 0.05);
+  EXPECT_GT(slow_hub.exchange_every / slow_hub.fraction, free_hub.exchange_every / free_hub.fraction)
+      << free_hub.why << " / " << slow_hub.why;
+  EXPECT_NE(slow_hub.why.find("T_e 0.05 s"), std::string::npos) << slow_hub.why;
+}
+
 // Node entries are capped: past kMaxNodeEntries a new node takes the index of the oldest
 // departed entry that holds nothing (here: entries that joined and died, and one quarantined),
 // never one whose data are in the estimate or whose bundles are in the ledger; when every entry

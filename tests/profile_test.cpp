@@ -60,7 +60,12 @@ TEST(Profile, BadInputIsOneLineNamingFileLineAndKey) {
   EXPECT_EQ(error_of("nodes:\n  - index: 1.5\n"), "p.yaml:2: nodes[0].index: expected a whole number");
   EXPECT_EQ(error_of("nodes:\n  - index: -1\n"), "p.yaml:2: nodes[0].index: -1 is not in [0, 1048576]");
   EXPECT_EQ(error_of("nodes: 3\n"), "p.yaml:1: nodes: expected a list of entries");
-  EXPECT_EQ(error_of("nodez: []\n"), "p.yaml:1: unknown key 'nodez' (known: profile, defaults, nodes)");
+  EXPECT_EQ(error_of("nodez: []\n"), "p.yaml:1: unknown key 'nodez' (known: profile, defaults, nodes, coordinator)");
+  EXPECT_EQ(error_of("coordinator:\n  speed: 2\n"),
+            "p.yaml:2: coordinator.speed: not a setting of the coordinator's link (known: latency_ms, jitter_ms, bandwidth_mbit, "
+            "up_mbit, down_mbit, loss)");
+  EXPECT_EQ(error_of("coordinator:\n  bandwidth_mbit: 0\n"), "p.yaml:2: coordinator.bandwidth_mbit: 0 is not in [0.001, 1000000]");
+  EXPECT_EQ(error_of("coordinator: 5\n"), "p.yaml:1: coordinator: expected a map of settings");
   EXPECT_EQ(error_of("- 1\n- 2\n"), "p.yaml: a profile is a map with 'defaults' and 'nodes' (see deploy/profiles/)");
   EXPECT_EQ(error_of("defaults:\n  reconnect_after_s: 2\n"), "p.yaml:2: defaults: reconnect_after_s without disconnect_at_s");
   EXPECT_NE(error_of("defaults: [1, 2\n").find("p.yaml:"), std::string::npos);
@@ -71,6 +76,17 @@ TEST(Profile, BadInputIsOneLineNamingFileLineAndKey) {
   } catch (const Error& e) {
     EXPECT_EQ(std::string(e.what()).rfind("/nonexistent/x.yaml: cannot read the profile", 0), 0u);
   }
+}
+
+// The coordinator's own link: up into it, down out of it; absent, none.
+TEST(Profile, TheCoordinatorsLinkIsItsOwnEntry) {
+  EXPECT_FALSE(parse_profile("defaults: {bandwidth_mbit: 100}\n", "p.yaml").coordinator);
+  Profile p = parse_profile("coordinator: {up_mbit: 1000, down_mbit: 500, latency_ms: 0.1}\n", "p.yaml");
+  ASSERT_TRUE(p.coordinator);
+  EXPECT_EQ(p.coordinator->up_mbit, 1000);
+  EXPECT_EQ(p.coordinator->down_mbit, 500);
+  EXPECT_EQ(p.coordinator->latency_ms, 0.1);
+  EXPECT_EQ(p.defaults, LinkSpec{});  // the nodes' links are not touched
 }
 
 // Every profile we ship parses; the three the issue names are there.
