@@ -8,6 +8,7 @@
 #include "core/error.h"
 #include "core/error_estimate.h"
 #include "core/scene_io.h"
+#include "core/version.h"
 
 namespace sirad::cluster {
 
@@ -148,7 +149,7 @@ Policy make_policy(const RunSettings& s, const PatchMesh& mesh, uint32_t min_nod
 Attributes run_attributes(const RunSettings& s, const RunOutcome& o, const PatchMesh& mesh, const std::string& scene,
                           bool cluster) {
   Attributes a = {
-      {"sirad.version", std::string(SIRAD_VERSION)},
+      {"sirad.version", std::string(kVersion)},
       {"sirad.scene", scene},
       {"sirad.scene_hash", mesh.hash},
       {"sirad.patches", static_cast<int64_t>(mesh.size())},

@@ -35,6 +35,7 @@
 #include "core/scene.h"
 #include "core/scene_check.h"
 #include "core/solver.h"
+#include "core/version.h"
 #include "proto/security.h"
 
 namespace sirad {
@@ -575,7 +576,7 @@ int reference(const ReferenceArgs& r) {
   std::vector<glm::vec3> radiosity(mesh.size());
   for (std::size_t j = 0; j < mesh.size(); ++j) radiosity[j] = glm::vec3(s.radiosity[j]);
   Attributes attrs = {
-      {"sirad.version", std::string(SIRAD_VERSION)},
+      {"sirad.version", std::string(kVersion)},
       {"sirad.scene", r.scene},
       {"sirad.scene_hash", mesh.hash},
       {"sirad.patches", static_cast<int64_t>(mesh.size())},
@@ -626,6 +627,8 @@ int keygen(const std::string& name) {
 int run(int argc, char** argv) {
   CLI::App app{"sirad: diffuse global illumination by stochastic iteration with bundles of parallel lines"};
   app.require_subcommand(1);
+  app.set_help_all_flag("--help-all", "Every subcommand's options too (what the man page shows)");
+  app.set_version_flag("--version", [] { return version_text("sirad"); }, "Version, git commit and OpenCL platforms");
   RenderArgs r;
   auto* render_cmd = app.add_subcommand("render", "Solve a scene on one OpenCL device (or N embedded nodes); write NAME.exr, .png, .ply, .glb");
   add_run_options(render_cmd, r);
@@ -662,9 +665,7 @@ int run(int argc, char** argv) {
 
   try {
     app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForAllHelp& e) {
+  } catch (const CLI::Success& e) {  // --help, --help-all, --version
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::fprintf(stderr, "sirad: error: %s (see sirad --help)\n", e.what());

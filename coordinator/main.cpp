@@ -21,6 +21,7 @@
 #include "core/bundle.h"
 #include "core/error.h"
 #include "core/results.h"
+#include "core/version.h"
 #include "proto/security.h"
 #include "proto/transport.h"
 
@@ -33,6 +34,7 @@ void on_signal(int) { interrupted = true; }
 
 int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
+  app.set_version_flag("--version", [] { return sirad::version_text("sirad-coordinator"); }, "Version, git commit and OpenCL platforms");
   std::string scene_spec, listen = "tcp://*:5555", endpoint_file, status_json, profile, curve_secret, allow_file, ledger,
                           checkpoint, resume;
   cli::RunFlags run;
@@ -70,7 +72,7 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", quiet, "No progress view");
   try {
     app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
+  } catch (const CLI::Success& e) {  // --help, --version
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::fprintf(stderr, "sirad-coordinator: error: %s (see sirad-coordinator --help)\n", e.what());

@@ -4,7 +4,8 @@
 # Idempotent: packages already present are left alone; apt-get runs only when one is missing.
 set -euo pipefail
 
-packages=(
+# What building needs (deploy/Dockerfile's build stage: `install-deps.sh --build`).
+build_packages=(
   # toolchain
   build-essential cmake ninja-build pkg-config git
   # OpenCL: ICD loader, headers, C++ bindings, the PoCL CPU driver, clinfo for diagnostics
@@ -16,12 +17,25 @@ packages=(
   libprotobuf-dev protobuf-compiler
   # ray casting for the independent reference solver (sirad reference)
   libembree-dev
+  # the man pages, made from --help at build time
+  help2man
+)
+# What the tests and benchmarks need besides.
+test_packages=(
   # tests and benchmarks; docker-compose only validates deploy/docker-compose.yml (no engine);
   # iproute2 (ip, tc) runs the namespace cluster; gnuplot-nox draws bench/paper's figures
   libgtest-dev libgmock-dev libbenchmark-dev docker-compose iproute2 gnuplot-nox
   # the hostile-peer tests: a SIRAD/1 client in Python (pyzmq, protobuf from protoc --python_out)
   python3-zmq python3-protobuf
+  # the installed systemd units are checked with systemd-analyze verify
+  systemd
 )
+
+case "${1:-}" in
+  --build) packages=("${build_packages[@]}") ;;
+  "") packages=("${build_packages[@]}" "${test_packages[@]}") ;;
+  *) echo "install-deps: unknown argument '$1' (none: everything; --build: what building needs)" >&2; exit 2 ;;
+esac
 
 missing=()
 for p in "${packages[@]}"; do

@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "core/opencl.h"
+#include "core/version.h"
 #include "node/node.h"
 #include "node/scene_cache.h"
 #include "proto/transport.h"
@@ -21,6 +22,7 @@ void on_signal(int) { stop = true; }
 
 int main(int argc, char** argv) {
   CLI::App app{"sirad-node: runs bundles for a sirad coordinator"};
+  app.set_version_flag("--version", [] { return sirad::version_text("sirad-node"); }, "Version, git commit and OpenCL platforms");
   std::string endpoint, device;
   char host[256] = "node";
   ::gethostname(host, sizeof(host) - 1);
@@ -44,7 +46,7 @@ int main(int argc, char** argv) {
   app.add_flag("--check-config", check_config, "Check the flags, keys and the OpenCL device; connect to nothing");
   try {
     app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
+  } catch (const CLI::Success& e) {  // --help, --version
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::fprintf(stderr, "sirad-node: error: %s (see sirad-node --help)\n", e.what());

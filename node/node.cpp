@@ -22,6 +22,7 @@
 #include "core/mesh.h"
 #include "core/scene_io.h"
 #include "core/solver.h"
+#include "core/version.h"
 #include "node/scene_cache.h"
 #include "proto/transport.h"
 
@@ -134,7 +135,7 @@ class Node {
   void hello() {
     wire::Hello h;
     h.set_node_name(options_.name);
-    h.set_sirad_version(SIRAD_VERSION);
+    h.set_sirad_version(kVersion);
     wire::Device* d = h.mutable_device();
     d->set_platform(device_.platform_name);
     d->set_name(device_.device_name);
