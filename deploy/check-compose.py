@@ -6,7 +6,11 @@ taken from BUILD_DIR, bind-mount targets mapped to their sources on this machine
 volumes to a scratch directory. Services run in the order their depends_on gives; the image's
 `sirad-make-keys` is deploy/make-keys.sh (it makes the keys the others then check).
     deploy/check-compose.py BUILD_DIR deploy/docker-compose.yml [PROJECT_DIR]
-PROJECT_DIR (default: the compose file's folder) anchors its relative paths.
+    deploy/check-compose.py --root ROOTFS deploy/docker-compose.yml [PROJECT_DIR]
+PROJECT_DIR (default: the compose file's folder) anchors its relative paths. With --root
+(as root; deploy/image-check.sh), the commands are the image's own: each runs in a chroot of
+the image's root file system ROOTFS, its mounts bound there at their targets, as the engine
+would mount them.
 """
 import os
 import shlex
@@ -35,11 +39,32 @@ def ordered(services):
     return out
 
 
+def run_in_root(root, mounts, args):
+    """Runs args in a chroot of root with each (target, source) mount bound at its target."""
+    bound = []
+    try:
+        for target, source in mounts:
+            where = os.path.join(root, target.lstrip("/"))
+            os.makedirs(where, exist_ok=True)
+            subprocess.run(["mount", "--bind", source, where], check=True)
+            bound.append(where)
+        return subprocess.run(["chroot", root] + args, capture_output=True, text=True, cwd="/")
+    finally:
+        for where in reversed(bound):
+            subprocess.run(["umount", where], check=False)
+
+
 def main():
-    if len(sys.argv) not in (3, 4):
-        sys.exit("usage: check-compose.py BUILD_DIR COMPOSE_FILE [PROJECT_DIR]")
-    build, compose = os.path.abspath(sys.argv[1]), sys.argv[2]
-    project = sys.argv[3] if len(sys.argv) == 4 else os.path.dirname(os.path.abspath(compose))
+    argv = sys.argv[1:]
+    root = None
+    if argv[:1] == ["--root"] and len(argv) >= 2:
+        root, argv = os.path.abspath(argv[1]), argv[2:]
+        argv = [None] + argv
+    if len(argv) not in (2, 3):
+        sys.exit("usage: check-compose.py (BUILD_DIR | --root ROOTFS) COMPOSE_FILE [PROJECT_DIR]")
+    build = os.path.abspath(argv[0]) if argv[0] else None
+    compose = argv[1]
+    project = argv[2] if len(argv) == 3 else os.path.dirname(os.path.abspath(compose))
     resolved = subprocess.run(["docker-compose", "-f", compose, "--project-directory", project, "config"],
                               check=True, capture_output=True, text=True).stdout
     services = yaml.safe_load(resolved)["services"]
@@ -71,9 +96,12 @@ def main():
                     return source + arg[len(target):]
             return arg
         env = dict(os.environ)
-        if args[0] == "sirad-make-keys":
+        if root:
+            result = run_in_root(root, mounts, args + ([] if args[0] == "sirad-make-keys" else ["--check-config"]))
+        elif args[0] == "sirad-make-keys":
             run = [os.path.join(os.path.dirname(os.path.abspath(__file__)), "make-keys.sh")] + [local(a) for a in args[1:]]
             env["SIRAD"] = os.path.join(build, "sirad")
+            result = subprocess.run(run, capture_output=True, text=True, env=env)
         else:
             binary = os.path.join(build, args[0])
             if not os.access(binary, os.X_OK):
@@ -81,7 +109,7 @@ def main():
                 failed += 1
                 continue
             run = [binary] + [local(a) for a in args[1:]] + ["--check-config"]
-        result = subprocess.run(run, capture_output=True, text=True, env=env)
+            result = subprocess.run(run, capture_output=True, text=True, env=env)
         out = (result.stdout + result.stderr).strip()
         print(f"{name}: {out}")
         if result.returncode != 0:

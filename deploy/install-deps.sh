@@ -29,6 +29,8 @@ test_packages=(
   python3-zmq python3-protobuf
   # the installed systemd units are checked with systemd-analyze verify
   systemd
+  # the image is built with podman on a debian:12 base made by mmdebstrap (deploy/image-check.sh)
+  podman mmdebstrap
 )
 
 case "${1:-}" in
