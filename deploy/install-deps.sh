@@ -31,6 +31,8 @@ test_packages=(
   systemd
   # the image is built with podman on a debian:12 base made by mmdebstrap (deploy/image-check.sh)
   podman mmdebstrap
+  # deploy/slurm/sirad.sbatch runs on a Slurm started by its test (deploy/slurm/check-slurm.sh)
+  slurm-wlm munge
 )
 
 case "${1:-}" in
