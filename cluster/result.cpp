@@ -78,7 +78,10 @@ std::string node_lines(const RunResult& r) {
   for (const auto& n : r.nodes)
     out += fmt::format("node {}: {} bundles, {} exchanges, busy {:.2f} s, idle {:.2f} s{}\n", n.name, n.bundles,
                        n.exchanges, n.busy_s, n.idle_s,
-                       !n.quarantined.empty() ? ", quarantined: " + n.quarantined : n.dead ? ", dead" : "");
+                       !n.quarantined.empty() ? ", quarantined: " + n.quarantined
+                       : n.before_resume      ? ", before the resume"
+                       : n.dead               ? ", dead"
+                                              : "");
   return out;
 }
 
@@ -92,8 +95,17 @@ std::string summary_line(std::size_t patches, uint64_t bundles, int grid, uint32
 }
 
 std::string cluster_summary(const RunResult& r, std::size_t patches, double seconds) {
+  // A resumed run: the counts and rates of this run; what came before said apart.
+  uint32_t nodes = 0, before = 0;
+  for (const NodeReport& n : r.nodes) (n.before_resume ? before : nodes) += 1;
+  const std::string resumed =
+      r.bundles_before > 0 || before > 0
+          ? fmt::format("; before the resume: {} bundles by {} nodes ({} in all)", r.bundles_before, before, r.bundles)
+          : "";
   return node_lines(r) + traffic_line(r) + "\n" +
-         summary_line(patches, r.bundles, r.grid, static_cast<uint32_t>(r.nodes.size()), seconds, r.crossings) + "\n";
+         summary_line(patches, r.bundles - std::min(r.bundles, r.bundles_before), r.grid, nodes, seconds,
+                      r.crossings - std::min(r.crossings, r.crossings_before), resumed) +
+         "\n";
 }
 
 }  // namespace sirad::cluster

@@ -20,6 +20,7 @@ struct NodeReport {
   double busy_s = 0, idle_s = 0;  // as the node last reported them
   bool dead = false;              // declared dead (silent for `liveness` heartbeats)
   std::string quarantined;        // why it was quarantined (empty: it was not)
+  bool before_resume = false;     // a node of the run before it was resumed from a checkpoint
 };
 
 // One range of the ledger's record: node `node` (its index in the run, `name`) ran [first, last).
@@ -37,6 +38,8 @@ struct RunResult {
   uint64_t final_bytes = 0;                                // FINAL bulk (the end states)
   uint32_t exchanges = 0;
   uint64_t crossings = 0;  // line-patch crossings of all counted bundles
+  // A run resumed from a checkpoint: the bundles and crossings done before (counted above too).
+  uint64_t bundles_before = 0, crossings_before = 0;
   double seconds = 0;      // the run's time, from its start to its last FINAL (emulated: virtual)
   int grid = 0;            // the run's grid (as set, or the auto grid of the mesh)
   uint64_t bundles = 0;    // bundles done (the budget unless a time limit or target ended it)

@@ -21,6 +21,7 @@
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/error_estimate.h"
+#include "core/log.h"
 #include "core/scene_io.h"
 #include "proto/transport.h"
 
@@ -67,6 +68,7 @@ struct Peer {
   // the one before it, plus grant_slack): a grant past due declares the node dead.
   std::vector<std::pair<uint64_t, Clock::time_point>> due;
   bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
+  bool from_checkpoint = false;  // a node of the run before this process resumed it
 };
 
 class Coordinator {
@@ -101,7 +103,7 @@ class Coordinator {
         try {
           checkpoint();
         } catch (const Error& e) {  // a full disk must not end the run; the last good file stays
-          std::fprintf(stderr, "sirad-coordinator: checkpoint not written: %s; the run goes on\n", e.what());
+          say(logging::Level::warn, fmt::format("checkpoint not written: {}; the run goes on", e.what()), {{"event", "checkpoint"}});
         }
       }
       if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
@@ -115,8 +117,9 @@ class Coordinator {
       keep_alive(now);
       if ((config_.close && config_.close->load() && policy_.close("interrupted")) ||
           policy_.check_close(seconds(now - start_))) {
-        std::fprintf(stderr, "sirad-coordinator: %s reached after %llu bundles: finishing the outstanding grants\n",
-                     policy_.ended_by().c_str(), static_cast<unsigned long long>(policy_.ledger().done_count()));
+        say(logging::Level::info,
+            fmt::format("{} reached after {} bundles: finishing the outstanding grants", policy_.ended_by(), policy_.ledger().done_count()),
+            {{"event", "closing"}, {"ended_by", policy_.ended_by()}, {"bundles", policy_.ledger().done_count()}});
         schedule();
       }
       std::string key;
@@ -147,8 +150,9 @@ class Coordinator {
     }
     for (const auto& [id, held] : log_limit_.held()) {
       auto it = peers_.find(id);
-      std::fprintf(stderr, "sirad-coordinator: %s: %llu more lines like its last held back\n",
-                   it != peers_.end() ? it->second.name.c_str() : "unknown peer", static_cast<unsigned long long>(held));
+      const std::string name = it != peers_.end() ? it->second.name : "unknown peer";
+      say(logging::Level::warn, fmt::format("{}: {} more lines like its last held back", name, held),
+          {{"event", "held back"}, {"peer", name}, {"lines", held}});
     }
     // FINAL is in from every live node; let the last shaped messages (STOPs) go out.
     for (auto& [id, p] : peers_) p.down.flush(router_, std::numeric_limits<double>::infinity());
@@ -156,13 +160,15 @@ class Coordinator {
     RunResult result = policy_result(policy_, static_cast<int>(run_.grid()));
     for (const Peer* p : all_peers()) {
       const NodeState& n = policy_.node(p->index);
-      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why});
+      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why, p->from_checkpoint});
       for (const Range& r : policy_.ledger().done_by(p->index)) result.ledger.push_back({p->index, p->name, r});
     }
     result.exchange_bytes_in = record_.bytes_in;
     result.exchange_bytes_out = record_.bytes_out;
     result.final_bytes = record_.final_bytes;
     result.crossings = record_.crossings;
+    result.bundles_before = resumed_bundles_;
+    result.crossings_before = resumed_crossings_;
     result.seconds = seconds(Clock::now() - start_);
     return result;
   }
@@ -184,7 +190,8 @@ class Coordinator {
       costs.push_back({t, exchange_seconds(mesh_.size(), spec ? &*spec : nullptr)});
     }
     ExchangeSetting s = auto_setting(config_, mesh_, costs, policy_.aggregate().chunks());
-    std::fprintf(stderr, "sirad-coordinator: --exchange-every auto: %s\n", s.why.c_str());
+    say(logging::Level::info, fmt::format("--exchange-every auto: {}", s.why),
+        {{"event", "exchange"}, {"exchange_every", s.exchange_every}, {"fraction", s.fraction}});
     return s;
   }
 
@@ -216,6 +223,10 @@ class Coordinator {
       n.rate = up > 0 ? static_cast<double>(ns.bundles) / up : 0.0;
       n.busy_s = p->busy_s;
       n.idle_s = p->idle_s;
+      if (p->from_checkpoint) {  // not dead: it ran in the run before this process resumed it
+        n.state = "before resume";
+        n.rate = 0;
+      }
     }
     return s;
   }
@@ -275,8 +286,15 @@ class Coordinator {
     uint64_t held = 0;
     if (!log_limit_.allow(id, clock(Clock::now()), &held)) return;
     auto it = peers_.find(id);
-    std::fprintf(stderr, "sirad-coordinator: %s: %s%s\n", it != peers_.end() ? it->second.name.c_str() : "unknown peer",
-                 what.c_str(), held ? fmt::format(" ({} more lines like it held back)", held).c_str() : "");
+    const std::string name = it != peers_.end() ? it->second.name : "unknown peer";
+    say(logging::Level::warn, fmt::format("{}: {}{}", name, what, held ? fmt::format(" ({} more lines like it held back)", held) : ""),
+        {{"event", "peer"}, {"peer", name}});
+  }
+
+  // A line of the operator's log (core/log.h), with the run's id among its fields.
+  void say(logging::Level level, const std::string& message, nlohmann::json fields) const {
+    fields["run"] = fmt::format("{:016x}", run_.run_id());
+    logging::write(level, "sirad-coordinator", message, fields);
   }
 
   // To a peer, through its link (shaped when the profile says so).
@@ -357,6 +375,10 @@ class Coordinator {
     // What a peer names itself reaches logs, the summary and the status: printable ASCII only.
     p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : peer_text(h.node_name(), 64);
     if (h.has_device()) p.device = peer_text(h.device().name(), 128);
+    say(logging::Level::info,
+        fmt::format("{} joined as node {} from {} ({})", p.name, p.index, address.empty() ? "inproc" : address,
+                    p.device.empty() ? "no device named" : p.device),
+        {{"event", "joined"}, {"peer", p.name}, {"index", p.index}, {"address", address}, {"device", p.device}});
     wire::Welcome w;
     w.set_node_index(p.index);
     w.set_heartbeat_ms(config_.heartbeat_ms);
@@ -401,6 +423,8 @@ class Coordinator {
     policy_.ready(p.index);
     p.ready_at = Clock::now();
     p.ms_per_bundle = r.ms_per_bundle();
+    say(logging::Level::info, fmt::format("{} ready: {:.2f} ms per bundle", p.name, p.ms_per_bundle),
+        {{"event", "ready"}, {"peer", p.name}, {"ms_per_bundle", p.ms_per_bundle}});
     schedule();
   }
 
@@ -542,6 +566,8 @@ class Coordinator {
   void resume(const wire::Checkpoint& c) {
     record_ = resume_from(c, run_, policy_);
     const CoordinatorRecord& r = record_;
+    resumed_bundles_ = policy_.ledger().done_count();
+    resumed_crossings_ = r.crossings;
     for (std::size_t i = 0; i < r.nodes.size(); ++i) {
       Peer p;
       p.index = static_cast<uint32_t>(i);
@@ -550,11 +576,13 @@ class Coordinator {
       p.key = r.nodes[i].key;
       p.busy_s = r.nodes[i].busy_s;
       p.idle_s = r.nodes[i].idle_s;
+      p.from_checkpoint = true;
       departed_.push_back(std::move(p));
     }
-    std::fprintf(stderr, "sirad-coordinator: resumed after %.1f s: %llu of %llu bundles done by %d nodes; the rest to run\n",
-                 record_.elapsed_s, static_cast<unsigned long long>(policy_.ledger().done_count()),
-                 static_cast<unsigned long long>(config_.bundles), c.nodes_size());
+    say(logging::Level::info,
+        fmt::format("resumed after {:.1f} s: {} of {} bundles done by {} nodes; the rest to run", record_.elapsed_s,
+                    policy_.ledger().done_count(), config_.bundles, c.nodes_size()),
+        {{"event", "resumed"}, {"bundles_done", policy_.ledger().done_count()}, {"nodes_before", c.nodes_size()}});
   }
 
   zmq::socket_t& router_;
@@ -569,6 +597,7 @@ class Coordinator {
   // The run's counters and quarantined keys (what a checkpoint keeps besides the policy and the
   // peers); elapsed_s: the run's time before a resume.
   CoordinatorRecord record_;
+  uint64_t resumed_bundles_ = 0, resumed_crossings_ = 0;  // done before this process resumed the run
   RateLimit log_limit_{5, 10.0};
   RateLimit join_limit_{kJoinBurst, kJoinWindowS};
   Clock::time_point start_ = Clock::now();

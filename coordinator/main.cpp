@@ -14,6 +14,7 @@
 
 #include "core/scene_check.h"
 #include "cluster/checkpoint.h"
+#include "cmd/log_flags.h"
 #include "cmd/run_flags.h"
 #include "coordinator/coordinator.h"
 #include "cluster/live_view.h"
@@ -70,6 +71,8 @@ int main(int argc, char** argv) {
                  "Continue the run of this checkpoint (its settings; the same scene), checkpointing to it unless --checkpoint");
   app.add_flag("--check-config", check_config, "Check the flags, scene, profile and output place; run nothing");
   app.add_flag("-q,--quiet", quiet, "No progress view");
+  cli::LogFlags log_flags;
+  log_flags.add(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {  // --help, --version
@@ -79,6 +82,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
+    log_flags.apply();
     const std::set<std::string> given = cli::given_flags(&app);
     std::string out = output.out.empty() ? std::filesystem::path(scene_spec).stem().string() : output.out;
     check_output_name(out, "--out");
@@ -148,10 +152,12 @@ int main(int argc, char** argv) {
       fail("--listen {}: {}", listen, e.what());
     }
     std::string bound = router.get(zmq::sockopt::last_endpoint);
-    std::fprintf(stderr, "sirad-coordinator: %s: %zu patches, %lld bundles; listening on %s%s\n", scene_spec.c_str(),
-                 mesh.size(), static_cast<long long>(rc.bundles), bound.c_str(),
-                 keys ? fmt::format(" (CURVE, {} node keys allowed)", allow.size()).c_str() : "");
-    if (insecure) std::fprintf(stderr, "%s\n", proto::insecure_warning("sirad-coordinator", bound).c_str());
+    logging::write(logging::Level::info, "sirad-coordinator",
+                   fmt::format("{}: {} patches, {} bundles; listening on {}{}", scene_spec, mesh.size(), rc.bundles, bound,
+                               keys ? fmt::format(" (CURVE, {} node keys allowed)", allow.size()) : ""),
+                   {{"event", "listening"}, {"scene", scene_spec}, {"patches", mesh.size()}, {"bundles", rc.bundles},
+                    {"endpoint", bound}, {"version", kVersion}});
+    if (insecure) logging::write(logging::Level::warn, "sirad-coordinator", proto::insecure_warning(bound), {{"event", "insecure"}});
     if (!endpoint_file.empty()) {
       AtomicFile f(endpoint_file);
       f.write(bound.data(), bound.size());

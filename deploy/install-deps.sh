@@ -13,7 +13,7 @@ build_packages=(
   # ZeroMQ, maths, images, random numbers, hashing
   libzmq3-dev cppzmq-dev libglm-dev libopenexr-dev openexr libpng-dev librandom123-dev libxxhash-dev
   # scene import, command line, logging, configuration, wire schema
-  libtinygltf-dev libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
+  libtinygltf-dev libcli11-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev
   libprotobuf-dev protobuf-compiler
   # ray casting for the independent reference solver (sirad reference)
   libembree-dev

@@ -8,7 +8,9 @@
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 
+#include "cmd/log_flags.h"
 #include "core/error.h"
+#include "core/log.h"
 #include "core/opencl.h"
 #include "core/version.h"
 #include "node/node.h"
@@ -44,6 +46,8 @@ int main(int argc, char** argv) {
   server_opt->needs(secret_opt);
   app.add_flag("--insecure", insecure, "Over TCP without CURVE: no authentication, no encryption (says so on start)");
   app.add_flag("--check-config", check_config, "Check the flags, keys and the OpenCL device; connect to nothing");
+  sirad::cli::LogFlags log_flags;
+  log_flags.add(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {  // --help, --version
@@ -53,6 +57,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
+    log_flags.apply();
     sirad::proto::check_endpoint("--connect", endpoint, false);
     sirad::proto::check_security(endpoint, !curve_secret.empty(), insecure, "--curve-secret and --server-key");
     if (!curve_secret.empty()) {
@@ -75,13 +80,16 @@ int main(int argc, char** argv) {
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  if (insecure) std::fprintf(stderr, "%s\n", sirad::proto::insecure_warning("sirad-node", endpoint).c_str());
+  if (insecure)
+    sirad::logging::write(sirad::logging::Level::warn, "sirad-node", sirad::proto::insecure_warning(endpoint), {{"event", "insecure"}});
   options.name = name;
   options.device = device;
   options.stop = &stop;
   try {
     zmq::context_t context;
     sirad::node::serve(context, endpoint, options);
+    if (stop) sirad::logging::write(sirad::logging::Level::info, "sirad-node " + name, "stopped by a signal; leaving",
+                                    {{"event", "left"}, {"why", "signal"}, {"node", name}});
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "sirad-node: error: out of memory\n");
     return 1;

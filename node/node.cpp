@@ -19,6 +19,7 @@
 #include "cluster/profile.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
+#include "core/log.h"
 #include "core/mesh.h"
 #include "core/scene_io.h"
 #include "core/solver.h"
@@ -35,6 +36,9 @@ using proto::Message;
 
 using Clock = std::chrono::steady_clock;
 constexpr auto kFreshSocketAfter = std::chrono::seconds(16);
+// Silence from the coordinator this long since the node connected (or last heard it) is logged
+// once: a node whose key the coordinator refuses hears nothing at all.
+constexpr auto kSilenceWarning = std::chrono::seconds(10);
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -55,6 +59,7 @@ struct RunState {
   std::unique_ptr<BundleEngine> engine;
   std::unique_ptr<ShotEngine> shots;  // the first shot's, when the run has one
   std::unique_ptr<cluster::Worker> worker;
+  uint64_t bundles = 0;  // run by this node in this run
 };
 
 class Node {
@@ -62,6 +67,11 @@ class Node {
   Node(zmq::context_t& context, const std::string& endpoint, const NodeOptions& options)
       : context_(context), endpoint_(endpoint), options_(options), cache_(options.scene_cache) {
     device_ = describe_device(select_device(options.device));
+    info(fmt::format("connecting to {}{}; device {} ({}, {} compute units)", endpoint_,
+                     options_.server_key.empty() ? "" : " (CURVE)", device_.device_name, device_.platform_name,
+                     device_.compute_units),
+         {{"event", "start"}, {"endpoint", endpoint_}, {"device", device_.device_name}, {"platform", device_.platform_name},
+          {"compute_units", device_.compute_units}, {"version", kVersion}});
     connect();
   }
 
@@ -98,8 +108,11 @@ class Node {
       if (state_ && granted_) idle_s_ += seconds(Clock::now() - waiting);  // blocked with nothing to run
       if (!in) {
         coordinator_liveness();
+        silence_warning();
         continue;
       }
+      if (warned_silence_) info("the coordinator answers", {{"event", "heard"}});
+      warned_silence_ = false;
       last_heard_ = Clock::now();
       hello_every_ = std::chrono::milliseconds(options_.reconnect_ms);
       Message m;
@@ -109,16 +122,44 @@ class Node {
                                                  in->frames_seen, in->bytes_seen));
         m = proto::decode(in->frames);
       } catch (const proto::ProtocolError& e) {
-        std::fprintf(stderr, "sirad-node %s: refused a message: %s\n", options_.name.c_str(), e.what());
+        warn(fmt::format("refused a message: {}", e.what()), {{"event", "refused"}});
         continue;
       }
-      if (m.command == Command::bye) return;
+      if (m.command == Command::bye) {
+        info("the coordinator said BYE; leaving", {{"event", "left"}, {"why", "bye"}});
+        return;
+      }
       handle(m);
     }
   }
 
  private:
   bool stopping() const { return options_.stop && options_.stop->load(); }
+
+  // The operator's log (core/log.h): "sirad-node NAME: ...", or a JSON line with the fields.
+  void log(logging::Level level, const std::string& message, nlohmann::json fields) const {
+    fields["node"] = options_.name;
+    if (const RunState* r = state_ ? state_.get() : pending_.get()) fields["run"] = fmt::format("{:016x}", r->run.run_id());
+    logging::write(level, "sirad-node " + options_.name, message, fields);
+  }
+  void info(const std::string& message, nlohmann::json fields) const { log(logging::Level::info, message, std::move(fields)); }
+  void warn(const std::string& message, nlohmann::json fields) const { log(logging::Level::warn, message, std::move(fields)); }
+  void debug(const std::string& message, nlohmann::json fields) const {
+    if (logging::enabled(logging::Level::debug)) log(logging::Level::debug, message, std::move(fields));
+  }
+
+  // No answer at all for a while: said once, with what is most likely wrong.
+  void silence_warning() {
+    if (warned_silence_ || Clock::now() - last_heard_ < kSilenceWarning) return;
+    warned_silence_ = true;
+    const double s = seconds(Clock::now() - last_heard_);
+    warn(options_.server_key.empty()
+             ? fmt::format("no answer from the coordinator at {} in {:.0f} s: is it running, and reachable from here?", endpoint_, s)
+             : fmt::format("no answer from the coordinator at {} in {:.0f} s: is this node's key in its allow list, and "
+                           "--server-key its public key?",
+                           endpoint_, s),
+         {{"event", "silence"}, {"endpoint", endpoint_}, {"seconds", s}});
+  }
 
   void connect() {
     std::random_device rd;
@@ -179,8 +220,8 @@ class Node {
   // run. The node comes back as a new peer after reconnect_after_s, or leaves for good.
   bool reconnect() {
     double after = emulation_.reconnect_after_s();
-    std::fprintf(stderr, "sirad-node %s: disconnected by the emulation profile%s\n", options_.name.c_str(),
-                 after >= 0 ? fmt::format("; back in {} s", after).c_str() : " for good");
+    warn(fmt::format("disconnected by the emulation profile{}", after >= 0 ? fmt::format("; back in {} s", after) : " for good"),
+         {{"event", "left"}, {"why", "emulated disconnect"}});
     disconnected_runs_.insert((state_ ? state_ : pending_)->run.run_id());
     socket_.reset();
     state_.reset();
@@ -201,8 +242,8 @@ class Node {
   // forgets the run and says HELLO until a coordinator answers.
   void coordinator_liveness() {
     if ((!state_ && !pending_) || Clock::now() - last_heard_ <= heartbeat_ * liveness_) return;
-    std::fprintf(stderr, "sirad-node %s: coordinator silent for %.1f s; leaving the run\n", options_.name.c_str(),
-                 seconds(Clock::now() - last_heard_));
+    warn(fmt::format("coordinator silent for {:.1f} s; leaving the run", seconds(Clock::now() - last_heard_)),
+         {{"event", "left"}, {"why", "coordinator silent"}});
     leave_run();
   }
 
@@ -223,12 +264,18 @@ class Node {
       case Command::heartbeat: break;
       case Command::error: {
         const wire::Error& e = std::get<wire::Error>(m.header);
-        std::fprintf(stderr, "sirad-node %s: coordinator: %s\n", options_.name.c_str(), cluster::peer_text(e.reason(), 300).c_str());
-        // It does not know this node in its run (declared dead, or the coordinator restarted):
-        // leave the run and join again.
-        if (e.rejoin() && (state_ || pending_)) {
-          leave_run();
-          hello();
+        const std::string reason = cluster::peer_text(e.reason(), 300);
+        // It does not know this node in its run (declared dead, or the coordinator restarted or
+        // resumed from a checkpoint): leave the run and join again. The protocol's way, not a fault.
+        if (e.rejoin()) {
+          info("the coordinator does not know this node (it restarted, resumed or declared it dead); joining again",
+               {{"event", "rejoin"}, {"reason", reason}});
+          if (state_ || pending_) {
+            leave_run();
+            hello();
+          }
+        } else {
+          warn(fmt::format("coordinator: {}", reason), {{"event", "error"}, {"reason", reason}});
         }
         break;
       }
@@ -271,6 +318,11 @@ class Node {
       emulation_ = no_emulation();
     }
     if (disconnected_runs_.count(w.run().run_id())) emulation_.set_disconnect_at_s(-1);  // once per run
+    const wire::Run& r = w.run();
+    info(fmt::format("joined run {:016x} as node {}: {} patches, {} bundles, grid {}{}", r.run_id(), w.node_index(), r.patches(),
+                     r.bundles(), r.grid(), emulation_.slowdown() > 1 ? fmt::format(", emulated {:.3g}x slower", emulation_.slowdown()) : ""),
+         {{"event", "joined"}, {"index", w.node_index()}, {"patches", r.patches()}, {"bundles", r.bundles()}, {"grid", r.grid()},
+          {"slowdown", emulation_.slowdown()}});
     up_ = proto::ShapedLink(emulation::LinkModel(emulation_.up_mbit(), emulation_.latency_ms(), emulation_.jitter_ms(),
                                                  emulation_.loss(), emulation_.seed()));
     // A scene this node said it holds is not sent: set up from the cache. Should its file have
@@ -279,11 +331,11 @@ class Node {
     const std::string& source = w.run().scene_source();
     if (source.empty() || !said_held_.count(source)) return;
     if (std::optional<std::string> bytes = cache_.get(source)) {
-      std::fprintf(stderr, "sirad-node %s: scene %s from the cache\n", options_.name.c_str(), source.c_str());
+      info(fmt::format("scene {} from the cache", source), {{"event", "scene"}, {"scene", source}, {"cached", true}});
       set_up(*bytes, "scene " + source + " from the cache");
       return;
     }
-    std::fprintf(stderr, "sirad-node %s: scene %s is no longer in the cache; joining again\n", options_.name.c_str(), source.c_str());
+    warn(fmt::format("scene {} is no longer in the cache; joining again", source), {{"event", "rejoin"}, {"scene", source}});
     leave_run();
     connect();
     hello();
@@ -306,8 +358,8 @@ class Node {
     if (set_up(received, "scene from coordinator")) {
       std::string why;
       cache_.put(received, &why);
-      if (!why.empty()) std::fprintf(stderr, "sirad-node %s: scene not kept in %s: %s\n", options_.name.c_str(),
-                                     options_.scene_cache.c_str(), cluster::peer_text(why, 300).c_str());
+      if (!why.empty())
+        warn(fmt::format("scene not kept in {}: {}", options_.scene_cache, cluster::peer_text(why, 300)), {{"event", "cache"}});
     }
   }
 
@@ -339,6 +391,10 @@ class Node {
       ready.set_ms_per_bundle(ms * emulation_.slowdown());
       send({Command::ready, ready, {}});
       last_heard_ = ready_at_ = Clock::now();  // setup blocked the loop; count from now
+      info(fmt::format("ready: {} patches ({}), burn-in {} bundles, {:.2f} ms per bundle on {}", state_->mesh.size(), label,
+                       state_->worker->solver().burn_in(), ms * emulation_.slowdown(), device_.device_name),
+           {{"event", "ready"}, {"patches", state_->mesh.size()}, {"burn_in", state_->worker->solver().burn_in()},
+            {"ms_per_bundle", ms * emulation_.slowdown()}, {"device", device_.device_name}});
       return true;
     } catch (const Error& e) {
       error(e.what());
@@ -359,7 +415,13 @@ class Node {
     cluster::Worker& worker = *state_->worker;
     const uint64_t crossings = worker.solver().crossings();
     std::vector<cluster::Range> ranges;
-    for (const auto& r : g.ranges()) ranges.push_back({r.first(), r.last()});
+    uint64_t count = 0;
+    for (const auto& r : g.ranges()) {
+      ranges.push_back({r.first(), r.last()});
+      count += r.last() > r.first() ? r.last() - r.first() : 0;
+    }
+    debug(fmt::format("grant {}: {} bundles from {}", g.grant_id(), count, g.ranges_size() > 0 ? g.ranges(0).first() : 0),
+          {{"event", "grant"}, {"grant", g.grant_id()}, {"bundles", count}});
     // Between bundles: the heartbeat and the emulated disconnect (tick; false: disconnected, the
     // loop reconnects), the emulated slowdown, and a stop.
     auto t0 = Clock::now();
@@ -374,6 +436,7 @@ class Node {
       return !stopping();
     });
     if (!whole) return;
+    state_->bundles += count;
     for (const auto& r : g.ranges()) *report.add_done() = r;
     report.set_crossings(worker.solver().crossings() - crossings);
     busy_s_ += seconds(Clock::now() - start);
@@ -425,6 +488,8 @@ class Node {
     Message m{Command::final_state, {}, chunk_frames(state_->worker->all_states(), final_state)};
     m.header = final_state;
     send(m);
+    info(fmt::format("run done: {} bundles here, busy {:.2f} s, idle {:.2f} s; final state sent", state_->bundles, busy_s_, idle_s_),
+         {{"event", "done"}, {"bundles", state_->bundles}, {"busy_s", busy_s_}, {"idle_s", idle_s_}});
     state_.reset();
     // The FINAL leaves through the emulated link; the next run brings its own.
     while (!up_.empty() && !stopping()) {
@@ -452,6 +517,7 @@ class Node {
   uint32_t liveness_ = 3;
   double busy_s_ = 0, idle_s_ = 0;
   bool granted_ = false;  // this run has given a grant (idle: blocked waiting for a message after it)
+  bool warned_silence_ = false;  // the silence since last_heard_ was logged
   // The run's emulation (cluster/profile.h): slowdown, uplink, disconnect.
   wire::Emulation emulation_ = no_emulation();
   std::set<uint64_t> disconnected_runs_;

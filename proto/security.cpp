@@ -145,10 +145,10 @@ void check_security(const std::string& endpoint, bool has_keys, bool insecure, c
          endpoint, key_flags);
 }
 
-std::string insecure_warning(const std::string& program, const std::string& endpoint) {
-  return fmt::format("{}: WARNING: --insecure: {} runs without authentication or encryption; anyone who can reach it "
+std::string insecure_warning(const std::string& endpoint) {
+  return fmt::format("WARNING: --insecure: {} runs without authentication or encryption; anyone who can reach it "
                      "can join the run and inject radiosity",
-                     program, endpoint);
+                     endpoint);
 }
 
 ZapHandler::ZapHandler(zmq::context_t& context, AllowList allow)

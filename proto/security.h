@@ -56,8 +56,8 @@ void make_curve_client(zmq::socket_t& socket, const KeyPair& keys, const std::st
 // refused too. Throws sirad::Error naming `program`'s flags.
 void check_security(const std::string& endpoint, bool has_keys, bool insecure, const std::string& key_flags);
 
-// The one line a program prints on start without CURVE over TCP.
-std::string insecure_warning(const std::string& program, const std::string& endpoint);
+// The one line a program logs on start without CURVE over TCP (after its name).
+std::string insecure_warning(const std::string& endpoint);
 
 class ZapHandler {
  public:

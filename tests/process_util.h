@@ -90,4 +90,25 @@ inline std::string slurp(const fs::path& p) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+// Waits until `event` holds, polling every 25 ms for at most `seconds` (a bound against a hung
+// child, not a timing assumption: every event waited for must happen). Returns whether it did.
+template <typename F>
+bool wait_until(F event, double seconds = kHangS) {
+  for (int i = 0; i < seconds * 40; ++i) {
+    if (event()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  return event();
+}
+
+// `sirad keygen NAME` in `dir` (the binary `sirad`); returns the allow-list line it prints, or
+// "" when it printed none.
+inline std::string keygen(const std::string& sirad, const fs::path& dir, const std::string& name) {
+  Child k({sirad, "keygen", (dir / name).string()}, dir / (name + ".keygen.log"));
+  if (k.wait(kHangS) != 0) return "";
+  std::string log = slurp(dir / (name + ".keygen.log"));
+  auto at = log.find("allow-list line: ");
+  return at == std::string::npos ? "" : log.substr(at + 17, log.find('\n', at) - at - 17);
+}
+
 }  // namespace sirad::test

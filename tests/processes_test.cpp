@@ -91,12 +91,9 @@ int run_processes(const fs::path& dir, int nodes, std::vector<std::string> coord
 
 // `sirad keygen NAME` in `dir`; returns the allow-list line it prints.
 std::string keygen(const fs::path& dir, const std::string& name) {
-  Child k({SIRAD_BINARY, "keygen", (dir / name).string()}, dir / (name + ".keygen.log"));
-  EXPECT_EQ(k.wait(sirad::test::kHangS), 0);
-  std::string log = slurp(dir / (name + ".keygen.log"));
-  auto at = log.find("allow-list line: ");
-  EXPECT_NE(at, std::string::npos) << log;
-  return at == std::string::npos ? "" : log.substr(at + 17, log.find('\n', at) - at - 17);
+  std::string line = sirad::test::keygen(SIRAD_BINARY, dir, name);
+  EXPECT_FALSE(line.empty()) << slurp(dir / (name + ".keygen.log"));
+  return line;
 }
 
 // Coordinator plus 3 node processes over loopback TCP with CURVE (keys from `sirad keygen`, the
@@ -303,16 +300,7 @@ std::vector<sirad::cluster::Status::Node> status_nodes(const fs::path& status) {
   }
 }
 
-// Waits until `event` holds, polling every 25 ms for at most `seconds` (a bound against a hung
-// run, not a timing assumption: every event waited for here must happen). Returns whether it did.
-template <typename F>
-bool wait_until(F event, double seconds) {
-  for (int i = 0; i < seconds * 40; ++i) {
-    if (event()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(25));
-  }
-  return event();
-}
+using sirad::test::wait_until;
 
 // A coordinator and 3 node processes (p0, p1, p2) over loopback TCP; node p1 gets SIGKILL in
 // the middle of the run. No step races the clock: the run is held open until each event has
@@ -572,7 +560,20 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
   std::string log = slurp(dir / "coordinator2.log");
   std::printf("coordinator killed at %llu, terminated at %llu of %llu bundles\n", static_cast<unsigned long long>(at_kill),
               static_cast<unsigned long long>(at_term), static_cast<unsigned long long>(K));
-  EXPECT_NE(log.find(fmt::format("bundles {},", K)), std::string::npos) << log;
+  // The summary counts this run's nodes and rates; the run before the resumes is said apart
+  // (its 6 node entries: the 3 processes in each of the two earlier coordinators).
+  const auto resumed_at = log.find("bundles done by 6 nodes");
+  ASSERT_NE(resumed_at, std::string::npos) << log;
+  const auto of = log.rfind(" of ", resumed_at);
+  const uint64_t before = std::stoull(log.substr(log.rfind(": ", of) + 2));
+  EXPECT_NE(log.find(fmt::format("bundles {},", K - before)), std::string::npos) << log;
+  EXPECT_NE(log.find(", nodes 3,"), std::string::npos) << log;
+  EXPECT_NE(log.find(fmt::format("by 6 nodes ({} in all)", K)), std::string::npos) << log;
+  // The nodes rejoined each new coordinator the protocol's way: no error from it in their logs.
+  for (int i = 0; i < 3; ++i) {
+    std::string nlog = slurp(dir / fmt::format("node{}.log", i));
+    EXPECT_EQ(nlog.find(": coordinator: "), std::string::npos) << nlog;
+  }
   std::vector<LedgerRow> ledger = read_ledger(dir / "ledger.csv");
   expect_every_index_once(ledger, K);
   std::map<std::string, std::set<uint32_t>> entries;  // each process's node indices
