@@ -14,6 +14,8 @@
 
 #include "core/scene_check.h"
 #include "cluster/checkpoint.h"
+#include "cmd/farm.h"
+#include "cmd/farm_http.h"
 #include "cmd/log_flags.h"
 #include "cmd/run_flags.h"
 #include "coordinator/coordinator.h"
@@ -30,8 +32,90 @@ using namespace sirad;
 
 namespace {
 std::atomic<bool> interrupted{false};
-void on_signal(int) { interrupted = true; }
+std::atomic<bool> job_interrupted{false};  // --serve: the running job's interrupt (also set by a cancel)
+void on_signal(int) {
+  interrupted = true;
+  job_interrupted = true;
+}
+
+// The ROUTER socket of a run or a farm: the ZAP handler first (libzmq admits everyone without
+// one), frames bounded for `max_patches`, CURVE when `keys`, bound to `listen`; the bound
+// endpoint logged and written to `endpoint_file`.
+struct Listener {
+  std::optional<proto::ZapHandler> zap;
+  zmq::socket_t router;
+  std::string bound;
+  Listener(zmq::context_t& context, const std::string& listen, const std::optional<proto::KeyPair>& keys,
+           const proto::AllowList& allow, std::size_t max_patches, bool insecure, const std::string& endpoint_file,
+           const std::string& what) {
+    if (keys) zap.emplace(context, allow);
+    router = zmq::socket_t(context, zmq::socket_type::router);
+    router.set(zmq::sockopt::linger, 0);
+    proto::harden(router, proto::max_frame_bytes(max_patches));
+    if (keys) proto::make_curve_server(router, *keys);
+    try {
+      router.bind(listen);
+    } catch (const zmq::error_t& e) {
+      fail("--listen {}: {}", listen, e.what());
+    }
+    bound = router.get(zmq::sockopt::last_endpoint);
+    logging::write(logging::Level::info, "sirad-coordinator",
+                   fmt::format("{}; listening on {}{}", what, bound, keys ? fmt::format(" (CURVE, {} node keys allowed)", allow.size()) : ""),
+                   {{"event", "listening"}, {"endpoint", bound}, {"version", kVersion}});
+    if (insecure) logging::write(logging::Level::warn, "sirad-coordinator", proto::insecure_warning(bound), {{"event", "insecure"}});
+    if (!endpoint_file.empty()) write_file_atomic(endpoint_file, bound);
+  }
+};
 }  // namespace
+
+// `--serve DIR`: the farm (cmd/farm.h) on one socket, its HTTP API beside it, until SIGTERM.
+int serve_farm(const std::string& dir, const std::string& http, const std::string& token_file, const std::string& listen,
+               const std::string& endpoint_file, const std::string& curve_secret, const std::string& allow_file, bool insecure,
+               bool check_config, uint32_t heartbeat_ms, uint32_t liveness, double checkpoint_every) {
+  proto::check_endpoint("--listen", listen, true);
+  proto::check_security(listen, !curve_secret.empty(), insecure, "--curve-secret and --allow");
+  const auto colon = http.rfind(':');
+  int port = -1;
+  if (colon != std::string::npos && colon > 0 && colon + 1 < http.size() && colon + 6 >= http.size() &&
+      std::all_of(http.begin() + static_cast<long>(colon) + 1, http.end(), ::isdigit))
+    port = std::stoi(http.substr(colon + 1));
+  if (port < 0 || port > 65535) fail("--http {}: expected HOST:PORT (e.g. 127.0.0.1:8080)", http);
+  const std::string host = http.substr(0, colon);
+  std::optional<proto::KeyPair> keys;
+  proto::AllowList allow;
+  if (!curve_secret.empty()) {
+    keys = proto::load_secret_key(curve_secret);
+    allow = proto::load_allow_list(allow_file);
+    if (allow.empty()) fail("{}: the allow list admits no node", allow_file);
+  }
+  cluster::JobStore store(dir);
+  const std::string token = cli::farm_token(token_file.empty() ? (std::filesystem::path(dir) / "token").string() : token_file);
+  if (check_config) {
+    std::printf("sirad-coordinator: config ok: farm %s, %zu jobs, %s\n", dir.c_str(), store.list().size(), http.c_str());
+    return 0;
+  }
+  zmq::context_t context;
+  Listener listener(context, listen, keys, allow, cli::kFarmMaxPatches, insecure, endpoint_file, fmt::format("farm {}", dir));
+  cli::FarmView view;
+  cli::FarmHttp server(store, view, token, &job_interrupted);
+  const int bound = server.start(host, port);
+  const std::string url = fmt::format("http://{}:{}", host, bound);
+  write_file_atomic((std::filesystem::path(dir) / "http").string(), url);
+  logging::write(logging::Level::info, "sirad-coordinator", fmt::format("farm {}: web page and API on {}", dir, url),
+                 {{"event", "http"}, {"url", url}});
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  cli::FarmOptions options;
+  options.process.heartbeat_ms = heartbeat_ms;
+  options.process.liveness = liveness;
+  options.process.checkpoint_every_s = checkpoint_every;
+  options.stop = &interrupted;
+  options.interrupt = &job_interrupted;
+  cli::serve_farm(listener.router, store, options, view);
+  server.stop();
+  logging::write(logging::Level::info, "sirad-coordinator", "farm stopped", {{"event", "stopped"}});
+  return 0;
+}
 
 int main(int argc, char** argv) {
   CLI::App app{"sirad-coordinator: orchestrates sirad nodes solving one scene"};
@@ -44,6 +128,14 @@ int main(int argc, char** argv) {
   int min_nodes = 1, heartbeat_ms = 1000, liveness = 3;
   bool check_config = false, quiet = false, network_bandwidth = false, insecure = false;
   cli::add_scene_argument(&app, scene_spec);
+  app.get_option("scene")->required(false);  // --serve takes none; else checked below
+  std::string serve, http = "127.0.0.1:8080", token_file;
+  app.add_option("--serve", serve,
+                 "Serve a farm: the job queue in this folder (made if need be), one job after another, until SIGTERM "
+                 "(submit with sirad submit; jobs, progress and outputs over --http)");
+  app.add_option("--http", http, "With --serve: the web page and JSON API's HOST:PORT (port 0: any free one)")->capture_default_str();
+  app.add_option("--token-file", token_file,
+                 "With --serve: the token submit and cancel need (mode 0600; default: DIR/token, made if missing)");
   app.add_option("--listen", listen, "ZeroMQ endpoint to bind")->capture_default_str();
   const std::vector<std::string> run_flags = cli::add_run_flags(&app, run);
   cli::add_output_flags(&app, output);
@@ -84,6 +176,21 @@ int main(int argc, char** argv) {
   try {
     log_flags.apply();
     const std::set<std::string> given = cli::given_flags(&app);
+    if (!serve.empty()) {
+      // A farm's runs take their flags from their jobs: these would have no effect.
+      std::vector<std::string> per_job = run_flags;
+      for (const char* f : {"--out", "--width", "--height", "--exposure", "--flat", "--skip-degenerate", "--two-sided", "--camera",
+                            "--resume", "--checkpoint", "--status-json", "--ledger", "--min-nodes", "--timeout", "--profile",
+                            "--bandwidth-by-network"})
+        per_job.push_back(f);
+      for (const std::string& f : per_job)
+        if (given.count(f)) fail("{} with --serve: each job gives its own (sirad submit SCENE {} ...)", f, f);
+      if (!scene_spec.empty()) fail("--serve takes no scene: submit jobs (sirad submit {})", scene_spec);
+      return serve_farm(serve, http, token_file, listen, endpoint_file, curve_secret, allow_file, insecure, check_config,
+                        static_cast<uint32_t>(heartbeat_ms), static_cast<uint32_t>(liveness), checkpoint_every);
+    }
+    if (given.count("--http") || given.count("--token-file")) fail("--http and --token-file: only with --serve");
+    if (scene_spec.empty()) fail("a scene is required (or --serve DIR)");
     std::string out = output.out.empty() ? std::filesystem::path(scene_spec).stem().string() : output.out;
     check_output_name(out, "--out");
     if (!ledger.empty()) check_file_name(ledger, "--ledger");
@@ -140,29 +247,9 @@ int main(int argc, char** argv) {
     rc.status = std::ref(reporter);
 
     zmq::context_t context;
-    std::optional<proto::ZapHandler> zap;  // before the bind: libzmq admits everyone without one
-    if (keys) zap.emplace(context, allow);
-    zmq::socket_t router(context, zmq::socket_type::router);
-    router.set(zmq::sockopt::linger, 0);
-    proto::harden(router, proto::max_frame_bytes(mesh.size()));
-    if (keys) proto::make_curve_server(router, *keys);
-    try {
-      router.bind(listen);
-    } catch (const zmq::error_t& e) {
-      fail("--listen {}: {}", listen, e.what());
-    }
-    std::string bound = router.get(zmq::sockopt::last_endpoint);
-    logging::write(logging::Level::info, "sirad-coordinator",
-                   fmt::format("{}: {} patches, {} bundles; listening on {}{}", scene_spec, mesh.size(), rc.bundles, bound,
-                               keys ? fmt::format(" (CURVE, {} node keys allowed)", allow.size()) : ""),
-                   {{"event", "listening"}, {"scene", scene_spec}, {"patches", mesh.size()}, {"bundles", rc.bundles},
-                    {"endpoint", bound}, {"version", kVersion}});
-    if (insecure) logging::write(logging::Level::warn, "sirad-coordinator", proto::insecure_warning(bound), {{"event", "insecure"}});
-    if (!endpoint_file.empty()) {
-      AtomicFile f(endpoint_file);
-      f.write(bound.data(), bound.size());
-      f.commit();
-    }
+    Listener listener(context, listen, keys, allow, mesh.size(), insecure, endpoint_file,
+                      fmt::format("{}: {} patches, {} bundles", scene_spec, mesh.size(), rc.bundles));
+    zmq::socket_t& router = listener.router;
     std::signal(SIGINT, on_signal);
     std::signal(SIGTERM, on_signal);
     rc.interrupt = &interrupted;

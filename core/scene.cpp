@@ -506,6 +506,10 @@ void add_back_faces(Scene& scene) {
   scene.triangles = std::move(out);
 }
 
+bool is_builtin_scene(const std::string& name) {
+  return name == "cornell" || name == "furnace" || name == "bright-room" || name == "three-lights";
+}
+
 Scene load_scene(const std::string& spec, const ImportOptions& options) {
   if (spec == "cornell") return with_options(builtin_cornell(), options);
   if (spec == "furnace") return with_options(builtin_furnace(), options);

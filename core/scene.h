@@ -78,6 +78,8 @@ void add_back_faces(Scene& scene);
 
 // The built-in scenes. `furnace`: a closed cube (side 1, inward normals), every face E = 1,
 // rho = 0.5, so B = 2 exactly everywhere.
+// True for the name of a built-in scene (load_scene's names that are no file).
+bool is_builtin_scene(const std::string& name);
 Scene builtin_cornell();
 Scene builtin_furnace();
 // `bright-room`: a closed room with rho 0.85-0.9 and one ceiling light (scenes/bright_room.obj).

@@ -14,6 +14,8 @@ build_packages=(
   libzmq3-dev cppzmq-dev libglm-dev libopenexr-dev openexr libpng-dev librandom123-dev libxxhash-dev
   # scene import, command line, logging, configuration, wire schema
   libtinygltf-dev libcli11-dev libfmt-dev libyaml-cpp-dev nlohmann-json3-dev
+  # the farm's HTTP API and web page
+  libcpp-httplib-dev
   libprotobuf-dev protobuf-compiler
   # ray casting for the independent reference solver (sirad reference)
   libembree-dev

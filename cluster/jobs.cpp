@@ -1,0 +1,222 @@
+// sirad: the farm's job store (see jobs.h).
+#include "cluster/jobs.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+
+namespace sirad::cluster {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::vector<std::string> kStates = {"queued", "running", "done", "failed", "cancelled"};
+
+template <typename T>
+T field(const nlohmann::json& j, const char* key, const std::string& origin) {
+  if (!j.contains(key)) fail("{}: no '{}'", origin, key);
+  try {
+    return j.at(key).get<T>();
+  } catch (const nlohmann::json::exception&) {
+    fail("{}: '{}' is not of the right kind", origin, key);
+  }
+}
+
+double time_field(const nlohmann::json& j, const char* key, const std::string& origin) {
+  double t = field<double>(j, key, origin);
+  if (!std::isfinite(t) || t < 0 || t > 1e11) fail("{}: '{}' is not a time", origin, key);
+  return t;
+}
+
+}  // namespace
+
+void check_job_name(const std::string& name) {
+  if (name.empty() || name.size() > kMaxJobNameBytes || name[0] == '.' ||
+      !std::all_of(name.begin(), name.end(), [](char c) {
+        return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
+      }))
+    fail("job name '{}': 1 to {} of A-Z a-z 0-9 . _ -, not starting with a dot", name.substr(0, 80), kMaxJobNameBytes);
+}
+
+std::string job_json(const Job& j) {
+  nlohmann::json o = {{"id", j.id},           {"name", j.name},         {"scene", j.scene},         {"args", j.args},
+                      {"priority", j.priority}, {"state", j.state},     {"submitted", j.submitted}, {"started", j.started},
+                      {"finished", j.finished}, {"error", j.error},     {"runs", j.runs}};
+  return o.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
+}
+
+Job job_from_json(const std::string& text, const std::string& origin) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    fail("{}: not JSON: {}", origin, e.what());
+  }
+  if (!j.is_object()) fail("{}: not a JSON object", origin);
+  Job job;
+  job.id = field<uint64_t>(j, "id", origin);
+  if (job.id == 0 || job.id > kMaxJobs * 100) fail("{}: 'id' {} is out of range", origin, job.id);
+  job.name = field<std::string>(j, "name", origin);
+  check_job_name(job.name);
+  job.scene = field<std::string>(j, "scene", origin);
+  if (job.scene.size() > kMaxJobArgBytes) fail("{}: 'scene' is too long", origin);
+  job.args = field<std::vector<std::string>>(j, "args", origin);
+  if (job.args.size() > kMaxJobArgs) fail("{}: {} args (at most {})", origin, job.args.size(), kMaxJobArgs);
+  for (const std::string& a : job.args)
+    if (a.size() > kMaxJobArgBytes) fail("{}: an arg of {} bytes (at most {})", origin, a.size(), kMaxJobArgBytes);
+  job.priority = field<int>(j, "priority", origin);
+  if (std::abs(job.priority) > kMaxPriority) fail("{}: 'priority' {} is out of range", origin, job.priority);
+  job.state = field<std::string>(j, "state", origin);
+  if (std::find(kStates.begin(), kStates.end(), job.state) == kStates.end()) fail("{}: 'state' '{}' is unknown", origin, job.state.substr(0, 40));
+  job.submitted = time_field(j, "submitted", origin);
+  job.started = time_field(j, "started", origin);
+  job.finished = time_field(j, "finished", origin);
+  job.error = field<std::string>(j, "error", origin);
+  if (job.error.size() > kMaxJobFileBytes / 4) job.error.resize(kMaxJobFileBytes / 4);
+  job.runs = field<uint32_t>(j, "runs", origin);
+  return job;
+}
+
+JobStore::JobStore(std::string dir) : dir_(std::move(dir)) {
+  std::error_code ec;
+  fs::create_directories(fs::path(dir_) / "jobs", ec);
+  if (ec) fail("{}: cannot make the farm's folder: {}", dir_, ec.message());
+  std::vector<uint64_t> ids;
+  for (const auto& e : fs::directory_iterator(fs::path(dir_) / "jobs", ec)) {
+    const std::string name = e.path().filename().string();
+    if (!e.is_directory() || name.empty() || name.size() > 12 || !std::all_of(name.begin(), name.end(), ::isdigit)) continue;
+    ids.push_back(std::stoull(name));
+    if (ids.size() > kMaxJobs) fail("{}: more than {} jobs", dir_, kMaxJobs);
+  }
+  if (ec) fail("{}: cannot read the farm's jobs: {}", dir_, ec.message());
+  std::sort(ids.begin(), ids.end());
+  for (uint64_t id : ids) {
+    next_id_ = std::max(next_id_, id + 1);
+    const std::string path = (fs::path(folder(id)) / "job.json").string();
+    Job job;
+    try {
+      job = job_from_json(read_file_whole(path, "job", kMaxJobFileBytes), path);
+      if (job.id != id) fail("{}: 'id' {} is not its folder's", path, job.id);
+      if (job.state == "running") {  // stopped mid-run: queued again, it resumes from its checkpoint
+        job.state = "queued";
+        write(job);
+      }
+    } catch (const Error& e) {  // shown as failed; the damaged file stays as it is
+      job = Job{};
+      job.id = id;
+      job.name = fmt::format("job-{}", id);
+      job.state = "failed";
+      job.error = e.what();
+    }
+    jobs_.push_back(std::move(job));
+  }
+}
+
+std::string JobStore::folder(uint64_t id) const { return (fs::path(dir_) / "jobs" / std::to_string(id)).string(); }
+
+void JobStore::write(const Job& job) const {
+  write_file_atomic((fs::path(folder(job.id)) / "job.json").string(), job_json(job));
+}
+
+Job* JobStore::find(uint64_t id) {
+  auto it = std::find_if(jobs_.begin(), jobs_.end(), [&](const Job& j) { return j.id == id; });
+  return it == jobs_.end() ? nullptr : &*it;
+}
+
+Job JobStore::submit(const std::string& name, const std::string& scene, const std::string& scene_bytes,
+                     std::vector<std::string> args, int priority, double now) {
+  check_job_name(name);
+  if (scene.empty() == scene_bytes.empty()) fail("a job needs a built-in scene's name or a scene's bytes, not both");
+  if (scene.size() > kMaxJobArgBytes) fail("scene name of {} bytes", scene.size());
+  if (args.size() > kMaxJobArgs) fail("{} args (at most {})", args.size(), kMaxJobArgs);
+  for (const std::string& a : args)
+    if (a.size() > kMaxJobArgBytes) fail("an arg of {} bytes (at most {})", a.size(), kMaxJobArgBytes);
+  if (std::abs(priority) > kMaxPriority) fail("priority {} is out of range (+-{})", priority, kMaxPriority);
+  std::lock_guard lock(mutex_);
+  if (jobs_.size() >= kMaxJobs) fail("the farm holds {} jobs already (at most {})", jobs_.size(), kMaxJobs);
+  Job job;
+  job.id = next_id_++;
+  job.name = name;
+  job.scene = scene;
+  job.args = std::move(args);
+  job.priority = priority;
+  job.submitted = now;
+  std::error_code ec;
+  fs::create_directories(folder(job.id), ec);
+  if (ec) fail("{}: cannot make the job's folder: {}", folder(job.id), ec.message());
+  if (!scene_bytes.empty()) write_file_atomic((fs::path(folder(job.id)) / "scene.bin").string(), scene_bytes);
+  write(job);  // last: a folder without job.json is no job
+  jobs_.push_back(job);
+  return job;
+}
+
+std::vector<Job> JobStore::list() const {
+  std::lock_guard lock(mutex_);
+  return jobs_;
+}
+
+std::optional<Job> JobStore::get(uint64_t id) const {
+  std::lock_guard lock(mutex_);
+  for (const Job& j : jobs_)
+    if (j.id == id) return j;
+  return std::nullopt;
+}
+
+std::optional<Job> JobStore::next() const {
+  std::lock_guard lock(mutex_);
+  const Job* best = nullptr;
+  for (const Job& j : jobs_)
+    if (j.state == "queued" && (!best || j.priority > best->priority)) best = &j;  // ids ascend: the oldest of a priority wins
+  return best ? std::optional<Job>(*best) : std::nullopt;
+}
+
+void JobStore::started(uint64_t id, double now) {
+  std::lock_guard lock(mutex_);
+  Job* j = find(id);
+  if (!j) fail("no job {}", id);
+  j->state = "running";
+  if (j->started == 0) j->started = now;
+  ++j->runs;
+  write(*j);
+}
+
+void JobStore::finished(uint64_t id, const std::string& state, const std::string& error, double now) {
+  std::lock_guard lock(mutex_);
+  Job* j = find(id);
+  if (!j) fail("no job {}", id);
+  j->state = state;
+  j->error = error;
+  j->finished = now;
+  std::erase(cancel_requested_, id);
+  write(*j);
+}
+
+bool JobStore::cancel(uint64_t id, double now) {
+  std::lock_guard lock(mutex_);
+  Job* j = find(id);
+  if (!j) return false;
+  if (j->state == "queued") {
+    j->state = "cancelled";
+    j->error = "cancelled before it ran";
+    j->finished = now;
+    write(*j);
+    return true;
+  }
+  if (j->state != "running") return false;
+  if (std::find(cancel_requested_.begin(), cancel_requested_.end(), id) == cancel_requested_.end()) cancel_requested_.push_back(id);
+  return true;
+}
+
+bool JobStore::cancel_requested(uint64_t id) const {
+  std::lock_guard lock(mutex_);
+  return std::find(cancel_requested_.begin(), cancel_requested_.end(), id) != cancel_requested_.end();
+}
+
+}  // namespace sirad::cluster

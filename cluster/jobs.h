@@ -1,0 +1,82 @@
+// sirad: the farm's job store (`sirad-coordinator --serve DIR`, proto/PROTOCOL.md section 10):
+// the queue of runs a farm coordinator serves one after another, kept on disk so that it
+// survives the coordinator's restart. Each job is a folder DIR/jobs/ID holding job.json (its
+// record, rewritten atomically on every change), its scene (scene.bin: encoded as nodes receive
+// it, core/scene_io.h) unless it names a built-in scene, its checkpoint while it runs, its
+// status and its outputs. Plain files and a mutex: no sockets, no clocks (times are passed in).
+// Every file read is hostile: a damaged job.json makes its job failed with the reason, never
+// a crash or a job run twice.
+#pragma once
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace sirad::cluster {
+
+struct Job {
+  uint64_t id = 0;                 // 1, 2, ... in submission order
+  std::string name;                // the outputs' base name (NAME.exr, ...)
+  std::string scene;               // a built-in scene's name, or "" for the job's scene.bin
+  std::vector<std::string> args;   // run and output flags, as sirad-coordinator takes them
+  int priority = 0;                // higher runs first; equal: in submission order
+  std::string state = "queued";    // queued | running | done | failed | cancelled
+  double submitted = 0, started = 0, finished = 0;  // Unix seconds (0: not yet)
+  std::string error;               // failed: why; cancelled: by whom
+  uint32_t runs = 0;               // times it was started (a restart resumes it: 2 or more)
+};
+
+// The bounds a job must keep (what a submission or a job file may claim).
+inline constexpr std::size_t kMaxJobs = 100000;
+inline constexpr std::size_t kMaxJobArgs = 64, kMaxJobArgBytes = 4096, kMaxJobNameBytes = 64;
+inline constexpr std::size_t kMaxJobFileBytes = 1 << 20;
+inline constexpr int kMaxPriority = 1000000;
+
+// The job's record as JSON (job.json) and back; from_json throws sirad::Error naming `origin`
+// and the field for anything out of bounds.
+std::string job_json(const Job& job);
+Job job_from_json(const std::string& text, const std::string& origin);
+
+// Throws sirad::Error for a name that is not 1..64 of [A-Za-z0-9._-] (it names files), not
+// starting with a dot.
+void check_job_name(const std::string& name);
+
+class JobStore {
+ public:
+  // Opens (making it) DIR and DIR/jobs and reads every job there. A job left `running` (the
+  // coordinator stopped or died) is queued again: it resumes from its checkpoint.
+  explicit JobStore(std::string dir);
+
+  // A new queued job (its folder, scene.bin when `scene_bytes` is given, job.json). Throws
+  // sirad::Error for a bad name, too many args or jobs.
+  Job submit(const std::string& name, const std::string& scene, const std::string& scene_bytes, std::vector<std::string> args,
+             int priority, double now);
+  std::vector<Job> list() const;
+  std::optional<Job> get(uint64_t id) const;
+  // The next job to run: queued, highest priority, oldest.
+  std::optional<Job> next() const;
+
+  // State changes, each written to job.json before it returns.
+  void started(uint64_t id, double now);
+  void finished(uint64_t id, const std::string& state, const std::string& error, double now);
+  // A queued job is cancelled at once; a running one is marked (cancel_requested) for the
+  // farm to stop. False: no such job, or it has ended.
+  bool cancel(uint64_t id, double now);
+  bool cancel_requested(uint64_t id) const;
+
+  const std::string& dir() const { return dir_; }
+  std::string folder(uint64_t id) const;
+
+ private:
+  void write(const Job& job) const;  // job.json, atomically; caller holds mutex_
+  Job* find(uint64_t id);
+
+  std::string dir_;
+  mutable std::mutex mutex_;
+  std::vector<Job> jobs_;  // by id
+  std::vector<uint64_t> cancel_requested_;
+  uint64_t next_id_ = 1;
+};
+
+}  // namespace sirad::cluster

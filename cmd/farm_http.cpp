@@ -1,0 +1,210 @@
+// sirad: the farm's HTTP API and web page (see farm_http.h).
+#include "cmd/farm_http.h"
+
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <chrono>
+#include <filesystem>
+#include <random>
+
+#include <fmt/format.h>
+#include <httplib.h>
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/log.h"
+#include "core/scene.h"
+#include "core/scene_io.h"
+
+namespace sirad::cli {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+// The largest request body: a scene as nodes receive it is at most this (decode_scene's bound).
+constexpr std::size_t kMaxBody = std::size_t{1} << 31;
+
+double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
+
+// The files a job's folder may hand out, by name (no path from a request reaches the disk).
+std::vector<std::string> job_files(const cluster::Job& j, const std::string& folder) {
+  std::vector<std::string> out;
+  for (const std::string& f : {j.name + ".exr", j.name + ".png", j.name + ".ply", j.name + ".glb", std::string("status.json"),
+                               std::string("summary.txt")})
+    if (fs::is_regular_file(fs::path(folder) / f)) out.push_back(f);
+  return out;
+}
+
+json job_object(const cluster::Job& j) {
+  return {{"id", j.id},           {"name", j.name},         {"scene", j.scene.empty() ? "(uploaded)" : j.scene},
+          {"args", j.args},       {"priority", j.priority}, {"state", j.state},
+          {"submitted", j.submitted}, {"started", j.started}, {"finished", j.finished},
+          {"error", j.error},     {"runs", j.runs}};
+}
+
+void reply(httplib::Response& res, int status, const json& body) {
+  res.status = status;
+  res.set_content(body.dump(-1, ' ', false, json::error_handler_t::replace), "application/json");
+}
+
+void refuse(httplib::Response& res, int status, const std::string& why) { reply(res, status, {{"error", why}}); }
+
+// Compares in time independent of where the strings differ.
+bool same(const std::string& a, const std::string& b) {
+  unsigned diff = a.size() != b.size();
+  for (std::size_t i = 0; i < std::max(a.size(), b.size()); ++i)
+    diff |= static_cast<unsigned char>(i < a.size() ? a[i] : 0) ^ static_cast<unsigned char>(i < b.size() ? b[i] : 0);
+  return diff == 0;
+}
+
+}  // namespace
+
+std::string farm_token(const std::string& path) {
+  if (!fs::exists(path)) {
+    std::random_device rd;
+    std::string token;
+    for (int i = 0; i < 8; ++i) token += fmt::format("{:08x}", rd());
+    AtomicFile f(path);
+    if (::fchmod(fileno(f.stream()), 0600) != 0) f.fail_errno(errno);
+    f.write(token.data(), token.size());
+    f.commit();
+    return token;
+  }
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) fail("{}: the farm token is not a file", path);
+  if (st.st_mode & 077) fail("{}: the farm token may be read by others (mode {:o}): chmod 600 it", path, st.st_mode & 0777);
+  std::string token = read_file_whole(path, "farm token", 4096);
+  while (!token.empty() && (token.back() == '\n' || token.back() == '\r' || token.back() == ' ')) token.pop_back();
+  if (token.size() < 16 || token.size() > 256 ||
+      !std::all_of(token.begin(), token.end(), [](char c) { return c > ' ' && c < 127; }))
+    fail("{}: a farm token is 16 to 256 printable characters", path);
+  return token;
+}
+
+FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, std::atomic<bool>* interrupt)
+    : store_(store), view_(view), token_(std::move(token)), interrupt_(interrupt), server_(std::make_unique<httplib::Server>()) {
+  httplib::Server& s = *server_;
+  s.set_payload_max_length(kMaxBody);
+  auto authorised = [this](const httplib::Request& req, httplib::Response& res) {
+    const std::string h = req.get_header_value("Authorization");
+    if (h.rfind("Bearer ", 0) == 0 && same(h.substr(7), token_)) return true;
+    refuse(res, 401, "this needs the farm's token (Authorization: Bearer TOKEN)");
+    return false;
+  };
+  auto job_of = [this](const httplib::Request& req, httplib::Response& res) -> std::optional<cluster::Job> {
+    const std::string id = req.matches[1];
+    std::optional<cluster::Job> j;
+    if (id.size() <= 12) j = store_.get(std::stoull(id));
+    if (!j) refuse(res, 404, fmt::format("no job {}", id.substr(0, 20)));
+    return j;
+  };
+  s.Get("/api/jobs", [this](const httplib::Request&, httplib::Response& res) {
+    json jobs = json::array();
+    const uint64_t running = view_.job();
+    const std::optional<cluster::Status> st = view_.status();
+    for (const cluster::Job& j : store_.list()) {
+      json o = job_object(j);
+      if (j.id == running && st) {
+        o["bundles_done"] = st->bundles_done;
+        o["bundles"] = st->bundles;
+        o["error_estimate"] = st->error_estimate;
+      }
+      o["files"] = job_files(j, store_.folder(j.id));
+      jobs.push_back(std::move(o));
+    }
+    reply(res, 200, {{"jobs", jobs}, {"running", running}});
+  });
+  s.Get(R"(/api/jobs/(\d+))", [this, job_of](const httplib::Request& req, httplib::Response& res) {
+    std::optional<cluster::Job> j = job_of(req, res);
+    if (!j) return;
+    json o = job_object(*j);
+    o["files"] = job_files(*j, store_.folder(j->id));
+    if (view_.job() == j->id) {
+      if (std::optional<cluster::Status> st = view_.status()) o["status"] = json::parse(cluster::to_json(*st));
+      json h = json::array();
+      for (const FarmView::Point& p : view_.history()) h.push_back({p.elapsed_s, p.error_estimate, p.bundles_done});
+      o["history"] = h;
+    } else if (fs::is_regular_file(fs::path(store_.folder(j->id)) / "status.json")) {
+      try {
+        o["status"] = json::parse(read_file_whole((fs::path(store_.folder(j->id)) / "status.json").string(), "status", 1 << 24));
+      } catch (const std::exception&) {  // being rewritten, or damaged: the job without it
+      }
+    }
+    reply(res, 200, o);
+  });
+  s.Get(R"(/api/jobs/(\d+)/files/([A-Za-z0-9._-]+))", [this, job_of](const httplib::Request& req, httplib::Response& res) {
+    std::optional<cluster::Job> j = job_of(req, res);
+    if (!j) return;
+    const std::string name = req.matches[2];
+    const std::vector<std::string> files = job_files(*j, store_.folder(j->id));
+    if (std::find(files.begin(), files.end(), name) == files.end()) return refuse(res, 404, "no such file of this job");
+    const std::string ext = fs::path(name).extension().string();
+    const char* type = ext == ".png" ? "image/png" : ext == ".json" ? "application/json" : ext == ".txt" ? "text/plain" : "application/octet-stream";
+    res.set_content(read_file_whole((fs::path(store_.folder(j->id)) / name).string(), "output", kMaxBody), type);
+  });
+  s.Post("/api/jobs", [this, authorised](const httplib::Request& req, httplib::Response& res) {
+    if (!authorised(req, res)) return;
+    try {
+      if (!req.has_file("job")) fail("the request needs a 'job' part (JSON: name, scene, args, priority)");
+      json spec;
+      try {
+        spec = json::parse(req.get_file_value("job").content);
+      } catch (const json::exception& e) {
+        fail("job: not JSON: {}", e.what());
+      }
+      if (!spec.is_object()) fail("job: not a JSON object");
+      const std::string name = spec.value("name", "");
+      const std::string scene = spec.value("scene", "");
+      const int priority = spec.value("priority", 0);
+      std::vector<std::string> args = spec.value("args", std::vector<std::string>{});
+      std::string bytes;
+      if (req.has_file("scene_data")) {
+        bytes = req.get_file_value("scene_data").content;
+        decode_scene(bytes, "the uploaded scene");  // whole and sound, or refused now
+        if (!scene.empty()) fail("job: 'scene' and an uploaded scene: give one");
+      } else if (!is_builtin_scene(scene)) {
+        fail("job: scene '{}' is not a built-in one (cornell, furnace, bright-room, three-lights); upload a file's scene",
+             scene.substr(0, 80));
+      }
+      plan_job(args);  // the flags are checked now, not when the job comes to run
+      cluster::Job job = store_.submit(name, scene, bytes, std::move(args), priority, unix_now());
+      logging::write(logging::Level::info, "sirad-coordinator", fmt::format("job {} ({}) submitted", job.id, job.name),
+                     {{"event", "job submitted"}, {"job", job.id}, {"address", req.remote_addr}});
+      reply(res, 201, job_object(job));
+    } catch (const json::exception& e) {
+      refuse(res, 400, fmt::format("job: {}", e.what()));
+    } catch (const Error& e) {
+      refuse(res, 400, e.what());
+    }
+  });
+  s.Post(R"(/api/jobs/(\d+)/cancel)", [this, authorised, job_of](const httplib::Request& req, httplib::Response& res) {
+    if (!authorised(req, res)) return;
+    std::optional<cluster::Job> j = job_of(req, res);
+    if (!j) return;
+    if (!store_.cancel(j->id, unix_now())) return refuse(res, 409, fmt::format("job {} has ended ({})", j->id, j->state));
+    if (store_.cancel_requested(j->id) && interrupt_) interrupt_->store(true);
+    logging::write(logging::Level::info, "sirad-coordinator", fmt::format("job {} cancelled", j->id),
+                   {{"event", "job cancel"}, {"job", j->id}, {"address", req.remote_addr}});
+    reply(res, 200, job_object(*store_.get(j->id)));
+  });
+}
+
+FarmHttp::~FarmHttp() { stop(); }
+
+int FarmHttp::start(const std::string& host, int port) {
+  const int bound = port == 0 ? server_->bind_to_any_port(host) : (server_->bind_to_port(host, port) ? port : -1);
+  if (bound <= 0) fail("--http {}:{}: cannot listen there", host, port);
+  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  return bound;
+}
+
+void FarmHttp::stop() {
+  if (server_) server_->stop();
+  if (thread_.joinable()) thread_.join();
+}
+
+}  // namespace sirad::cli

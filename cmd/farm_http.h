@@ -1,0 +1,44 @@
+// sirad: the farm's HTTP API and web page (cpp-httplib), served by `sirad-coordinator --serve`
+// beside its ZeroMQ endpoint (proto/PROTOCOL.md section 10). Reading (jobs, their progress and
+// nodes, outputs) is open to whoever reaches the address (localhost unless asked); submitting
+// and cancelling need the farm's token ("Authorization: Bearer TOKEN").
+#pragma once
+#include <atomic>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "cluster/jobs.h"
+#include "cmd/farm.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace sirad::cli {
+
+// The farm's token: read from `path` (it must be a file only its owner may read, 16 to 256
+// printable bytes), or, when `path` does not exist, made there (32 random bytes in hex, mode
+// 0600). Throws sirad::Error naming the file.
+std::string farm_token(const std::string& path);
+
+class FarmHttp {
+ public:
+  // `interrupt`: set to stop the running job when it is cancelled.
+  FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, std::atomic<bool>* interrupt);
+  ~FarmHttp();
+  // Binds HOST:PORT (port 0: any free one) and serves on a thread of its own; returns the port.
+  // Throws sirad::Error when it cannot bind.
+  int start(const std::string& host, int port);
+  void stop();
+
+ private:
+  cluster::JobStore& store_;
+  FarmView& view_;
+  std::string token_;
+  std::atomic<bool>* interrupt_;
+  std::unique_ptr<httplib::Server> server_;
+  std::thread thread_;
+};
+
+}  // namespace sirad::cli
