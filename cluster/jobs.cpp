@@ -64,7 +64,11 @@ Job job_from_json(const std::string& text, const std::string& origin) {
   job.id = field<uint64_t>(j, "id", origin);
   if (job.id == 0 || job.id > kMaxJobs * 100) fail("{}: 'id' {} is out of range", origin, job.id);
   job.name = field<std::string>(j, "name", origin);
-  check_job_name(job.name);
+  try {
+    check_job_name(job.name);
+  } catch (const Error& e) {
+    fail("{}: {}", origin, e.what());
+  }
   job.scene = field<std::string>(j, "scene", origin);
   if (job.scene.size() > kMaxJobArgBytes) fail("{}: 'scene' is too long", origin);
   job.args = field<std::vector<std::string>>(j, "args", origin);

@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <map>
 #include <thread>
 
 #include <fmt/format.h>
@@ -35,12 +36,23 @@ void say(logging::Level level, const std::string& message, nlohmann::json fields
 // The largest scene file a job's folder may hold (decode_scene's own bound is the same).
 constexpr std::size_t kMaxSceneBytes = std::size_t{1} << 31;
 
+using Clock = std::chrono::steady_clock;
+
+// The nodes heard between jobs (routing id -> when), so a job starts only with a node there.
+using IdleNodes = std::map<std::string, Clock::time_point>;
+
 // Between jobs: HELLO gets a WELCOME without a run (the node waits for the next), anything
-// else from a node of an ended job an ERROR asking it to say HELLO; for `ms` at most.
-void idle(zmq::socket_t& router, int ms) {
+// else from a node of an ended job an ERROR asking it to say HELLO; for `ms` at most. A node
+// heard is noted in `idle_nodes` (at most kMaxIdleNodes: the oldest is forgotten).
+constexpr std::size_t kMaxIdleNodes = 4096;
+void idle(zmq::socket_t& router, int ms, IdleNodes& idle_nodes) {
   auto in = proto::receive(router, ms, 1, 0, 0);
   if (!in || in->frames.size() < 2 || in->over) return;
   const std::string id = in->frames.front();
+  if (idle_nodes.size() >= kMaxIdleNodes && !idle_nodes.count(id))
+    idle_nodes.erase(std::min_element(idle_nodes.begin(), idle_nodes.end(),
+                                      [](const auto& a, const auto& b) { return a.second < b.second; }));
+  idle_nodes[id] = Clock::now();
   proto::Message m;
   try {
     m = proto::decode({in->frames.begin() + 1, in->frames.end()});
@@ -100,6 +112,7 @@ std::string run_job(zmq::socket_t& router, const cluster::Job& job, const std::s
   ro.shading = plan.output.flat ? Shading::flat : Shading::gouraud;
   write_results((dir / job.name).string(), mesh, result.radiosity, ro,
                 cluster::run_attributes(rc, cluster::outcome_of(result), mesh, job.scene.empty() ? job.name : job.scene, true));
+  write_file_atomic((dir / "ledger.csv").string(), cluster::ledger_csv(result));
   fs::remove(checkpoint);
   return cluster::cluster_summary(result, mesh.size(), seconds);
 }
@@ -112,9 +125,14 @@ JobPlan plan_job(const std::vector<std::string>& args) {
   JobPlan plan;
   add_run_flags(&app, run);
   add_output_flags(&app, plan.output);
-  std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 parses a vector back to front
+  std::vector<const char*> argv{"job"};
+  for (const std::string& a : args) argv.push_back(a.c_str());
   try {
-    app.parse(reversed);
+    app.parse(static_cast<int>(argv.size()), argv.data());
+  } catch (const CLI::ExtrasError&) {
+    std::string extra;  // CLI11's message lists them backwards
+    for (const std::string& a : app.remaining()) extra += (extra.empty() ? "" : " ") + a;
+    fail("job flags: not run or output flags: {}", extra);
   } catch (const CLI::ParseError& e) {
     fail("job flags: {}", e.what());
   }
@@ -165,12 +183,24 @@ std::vector<FarmView::Point> FarmView::history() const {
 
 void serve_farm(zmq::socket_t& router, cluster::JobStore& store, const FarmOptions& options, FarmView& view) {
   auto stopping = [&] { return options.stop && options.stop->load(); };
+  // A node heard within its liveness is there to take a job.
+  const auto alive = std::chrono::milliseconds(static_cast<int64_t>(options.process.heartbeat_ms) * options.process.liveness);
+  IdleNodes idle_nodes;
   while (!stopping()) {
+    std::erase_if(idle_nodes, [&](const auto& n) { return Clock::now() - n.second > alive; });
     std::optional<cluster::Job> job = store.next();
-    if (!job) {
-      idle(router, 200);
+    if (!job || idle_nodes.empty()) {  // nothing to run, or no node to run it: wait
+      idle(router, 200, idle_nodes);
       continue;
     }
+    // The idle nodes say HELLO now (asked by an ERROR), so the job's run has them at once.
+    for (const auto& [id, heard] : idle_nodes) {
+      wire::Error e;
+      e.set_reason("a job starts; say HELLO to join it");
+      e.set_rejoin(true);
+      proto::send(router, {proto::Command::error, e, {}}, &id);
+    }
+    idle_nodes.clear();
     store.started(job->id, unix_now());
     view.started(job->id);
     say(logging::Level::info, fmt::format("job {} ({}) started", job->id, job->name),

@@ -1,10 +1,11 @@
 // sirad: the farm coordinator (`sirad-coordinator --serve DIR`; proto/PROTOCOL.md section 10):
 // a coordinator that stays up and serves the jobs of its store (cluster/jobs.h) one after
 // another on one ROUTER socket, so nodes stay joined between jobs. The highest-priority queued
-// job runs next (in submission order within a priority); each job's scene, checkpoint, status
-// and outputs are in its own folder; a job cancelled while it runs stops at its next
+// job runs next (in submission order within a priority); each job's scene, checkpoint, status,
+// outputs, summary and ledger (who ran which bundles) are in its own folder; a job cancelled while it runs stops at its next
 // checkpoint; a coordinator stopped or killed mid-job resumes that job from its checkpoint when
-// it starts again. Between jobs it answers HELLO with a WELCOME without a run.
+// it starts again. Between jobs it answers HELLO with a WELCOME without a run; the next job
+// starts once a node is there (heard within its liveness), its idle nodes asked to join it.
 #pragma once
 #include <atomic>
 #include <cstdint>

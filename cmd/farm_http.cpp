@@ -34,7 +34,7 @@ double unix_now() { return std::chrono::duration<double>(std::chrono::system_clo
 std::vector<std::string> job_files(const cluster::Job& j, const std::string& folder) {
   std::vector<std::string> out;
   for (const std::string& f : {j.name + ".exr", j.name + ".png", j.name + ".ply", j.name + ".glb", std::string("status.json"),
-                               std::string("summary.txt")})
+                               std::string("summary.txt"), std::string("ledger.csv")})
     if (fs::is_regular_file(fs::path(folder) / f)) out.push_back(f);
   return out;
 }
@@ -143,7 +143,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, 
     const std::vector<std::string> files = job_files(*j, store_.folder(j->id));
     if (std::find(files.begin(), files.end(), name) == files.end()) return refuse(res, 404, "no such file of this job");
     const std::string ext = fs::path(name).extension().string();
-    const char* type = ext == ".png" ? "image/png" : ext == ".json" ? "application/json" : ext == ".txt" ? "text/plain" : "application/octet-stream";
+    const char* type = ext == ".png" ? "image/png" : ext == ".json" ? "application/json" : ext == ".txt" ? "text/plain" : ext == ".csv" ? "text/csv" : "application/octet-stream";
     res.set_content(read_file_whole((fs::path(store_.folder(j->id)) / name).string(), "output", kMaxBody), type);
   });
   s.Post("/api/jobs", [this, authorised](const httplib::Request& req, httplib::Response& res) {

@@ -23,6 +23,7 @@
 #include "cluster/single_node.h"
 #include "cluster/status.h"
 #include "cmd/embedded.h"
+#include "cmd/farm_client.h"
 #include "cmd/run_flags.h"
 #include "core/atomic_file.h"
 #include "core/bundle_cl.h"
@@ -663,6 +664,28 @@ int run(int argc, char** argv) {
   profile_cmd->add_option("--nodes", profile_nodes, "Nodes to list")->check(CLI::Range(1, 4096))->capture_default_str();
   profile_cmd->add_option("--name-prefix", profile_prefix, "Node names are PREFIX0, PREFIX1, ...")->capture_default_str();
 
+  // The farm's client (cmd/farm_client.h).
+  cli::FarmAddress farm;
+  auto add_farm = [&](CLI::App* cmd, bool token) {
+    cmd->add_option("--farm", farm.farm, "The farm: http://HOST:PORT, or its folder on this machine")->required();
+    if (token)
+      cmd->add_option("--token-file", farm.token_file, "The farm's token (default: SIRAD_FARM_TOKEN, or the farm folder's)");
+  };
+  std::string submit_scene, submit_name;
+  int submit_priority = 0;
+  auto* submit_cmd = app.add_subcommand("submit", "Queue a job on a farm (sirad-coordinator --serve): SCENE and its run and output flags");
+  cli::add_scene_argument(submit_cmd, submit_scene);
+  add_farm(submit_cmd, true);
+  submit_cmd->add_option("--priority", submit_priority, "Higher runs first (default 0)")->check(CLI::Range(-1000000, 1000000));
+  submit_cmd->add_option("--name", submit_name, "The job's name, and its outputs' (default: the scene's)");
+  submit_cmd->allow_extras();  // the job's own flags, checked against the run and output flags
+  auto* jobs_cmd = app.add_subcommand("jobs", "List a farm's jobs and their progress");
+  add_farm(jobs_cmd, false);
+  uint64_t cancel_id = 0;
+  auto* cancel_cmd = app.add_subcommand("cancel", "Cancel a farm's job (a running one stops at its checkpoint)");
+  cancel_cmd->add_option("id", cancel_id, "The job's id (sirad jobs)")->required();
+  add_farm(cancel_cmd, true);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::Success& e) {  // --help, --help-all, --version
@@ -687,6 +710,9 @@ int run(int argc, char** argv) {
   }
   if (profile_cmd->parsed()) return profile_table(profile_path, profile_nodes, profile_prefix);
   if (keygen_cmd->parsed()) return keygen(keygen_name);
+  if (submit_cmd->parsed()) return cli::submit_job(farm, submit_scene, submit_cmd->remaining(), submit_name, submit_priority);
+  if (jobs_cmd->parsed()) return cli::list_jobs(farm);
+  if (cancel_cmd->parsed()) return cli::cancel_job(farm, cancel_id);
   return devices();
 }
 

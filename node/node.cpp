@@ -268,12 +268,9 @@ class Node {
         // It does not know this node in its run (declared dead, or the coordinator restarted or
         // resumed from a checkpoint): leave the run and join again. The protocol's way, not a fault.
         if (e.rejoin()) {
-          info("the coordinator does not know this node (it restarted, resumed or declared it dead); joining again",
-               {{"event", "rejoin"}, {"reason", reason}});
-          if (state_ || pending_) {
-            leave_run();
-            hello();
-          }
+          info(fmt::format("the coordinator asks for a HELLO ({}): joining", reason), {{"event", "rejoin"}, {"reason", reason}});
+          if (state_ || pending_) leave_run();
+          hello();  // also between runs: a farm asks its idle nodes so when a job starts
         } else {
           warn(fmt::format("coordinator: {}", reason), {{"event", "error"}, {"reason", reason}});
         }

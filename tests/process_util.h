@@ -8,6 +8,7 @@
 #include <fcntl.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -49,6 +50,7 @@ class Child {
   }
   // Exit status, or -1 if it has not exited within `seconds`.
   int wait(double seconds) {
+    if (pid_ <= 0) return 127;  // never started (posix_spawn failed): nothing to wait for
     auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
     while (std::chrono::steady_clock::now() < until) {
       int status = 0;
@@ -83,6 +85,20 @@ inline bool wait_for_file(const fs::path& path, Child& writer, double seconds = 
     if (writer.wait(0.02) >= 0 || std::chrono::steady_clock::now() > until) return fs::exists(path);
   }
   return true;
+}
+
+// The path of `program` on the PATH (posix_spawn does not search it), or "" when it is not there.
+inline std::string on_path(const std::string& program) {
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "/usr/bin:/bin";
+  for (std::size_t at = 0; at <= dirs.size();) {
+    std::size_t end = dirs.find(':', at);
+    if (end == std::string::npos) end = dirs.size();
+    fs::path candidate = fs::path(dirs.substr(at, end - at)) / program;
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    at = end + 1;
+  }
+  return "";
 }
 
 inline std::string slurp(const fs::path& p) {

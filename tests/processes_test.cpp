@@ -34,6 +34,7 @@
 #include "core/scene.h"
 #include "core/solver.h"
 #include "cluster/status.h"
+#include <nlohmann/json.hpp>
 
 #include "tests/process_util.h"
 
@@ -584,6 +585,182 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
   for (const auto& v : radiosity) sum += v.x;
   EXPECT_NEAR(sum / static_cast<double>(radiosity.size()), 2.0, 0.0097 * std::sqrt(1024.0 / K) * 4);
   for (auto& n : nodes) n->terminate();
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+
+// --- the farm (sirad-coordinator --serve; cmd/farm.h) ------------------------------------
+
+// A farm process over loopback TCP: its folder, ZeroMQ endpoint, HTTP URL and token.
+struct FarmProcess {
+  std::unique_ptr<Child> process;
+  fs::path folder;
+  std::string endpoint, url, token;
+};
+
+// Starts a farm in dir/farm listening on `listen`, and waits until its endpoint and HTTP
+// address files are written (both removed first: a restarted farm writes them again).
+FarmProcess start_farm(const fs::path& dir, const std::string& listen, int incarnation) {
+  FarmProcess f;
+  f.folder = dir / "farm";
+  fs::remove(dir / "endpoint");
+  fs::remove(f.folder / "http");
+  f.process = std::make_unique<Child>(
+      std::vector<std::string>{SIRAD_COORDINATOR_BINARY, "--serve", f.folder.string(), "--listen", listen, "--insecure",
+                               "--endpoint-file", (dir / "endpoint").string(), "--http", "127.0.0.1:0", "--heartbeat-ms", "200",
+                               "--liveness", "100", "--checkpoint-every", "0.2"},
+      dir / fmt::format("farm{}.log", incarnation));
+  EXPECT_TRUE(wait_until([&] { return fs::exists(dir / "endpoint") && fs::exists(f.folder / "http"); })) << slurp(dir / "farm0.log");
+  f.endpoint = slurp(dir / "endpoint");
+  f.url = slurp(f.folder / "http");
+  f.token = slurp(f.folder / "token");
+  return f;
+}
+
+// A job's record (job.json) as JSON; null while it cannot be read.
+nlohmann::json job_record(const FarmProcess& f, int id) {
+  try {
+    return nlohmann::json::parse(slurp(f.folder / "jobs" / std::to_string(id) / "job.json"));
+  } catch (const std::exception&) {
+    return nullptr;
+  }
+}
+
+std::string job_state(const FarmProcess& f, int id) {
+  nlohmann::json j = job_record(f, id);
+  return j.is_object() ? j.value("state", "") : "";
+}
+
+// curl (a client this project did not write) with `args`; its output and the HTTP status.
+std::pair<std::string, int> curl(const fs::path& dir, std::vector<std::string> args) {
+  static int n = 0;
+  fs::path out = dir / fmt::format("curl{}.out", n++);
+  const std::string program = sirad::test::on_path("curl");
+  EXPECT_FALSE(program.empty()) << "curl is not installed (deploy/install-deps.sh installs it)";
+  args.insert(args.begin(), {program, "-s", "-S", "-o", out.string(), "-w", "%{http_code}"});
+  Child c(args, out.string() + ".status");
+  EXPECT_EQ(c.wait(sirad::test::kHangS), 0) << slurp(out.string() + ".status");
+  return {slurp(out), std::atoi(slurp(out.string() + ".status").c_str())};
+}
+
+double furnace_mean(const fs::path& ply) {
+  std::vector<glm::vec3> radiosity = ply_radiosity(ply);
+  double sum = 0.0;
+  for (const auto& v : radiosity) sum += v.x;
+  return sum / static_cast<double>(radiosity.size());
+}
+
+// A farm with a queue of three jobs (submitted by `sirad submit` and by curl, before any node
+// is there, so the order is the queue's alone) and two node processes over TCP: the highest
+// priority runs first (a long furnace, cancelled through the API once it has run bundles: it
+// ends cancelled, its checkpoint gone), then the next (priority 1), then the last (priority 0);
+// each of the two that finish ran every bundle index once (its ledger), and the furnace's mean
+// is 2 within 4 standard deviations of a 512-bundle plain chain average (0.0097 sqrt(1024 / 512)
+// 4 = 0.055, the bound of Processes.CoordinatorAndThreeNodesOverTcp). Submitting without the
+// token is refused (401); the API lists the jobs and hands out their images.
+TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
+  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_farm_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
+  auto submit = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), {SIRAD_BINARY, "submit"});
+    Child c(args, dir / "submit.log");
+    EXPECT_EQ(c.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
+  };
+  const std::vector<std::string> plain = {"--control-variate", "off", "--directions", "random", "--shots-per-bundle", "0",
+                                          "--width", "8", "--height", "8"};
+  std::vector<std::string> low = {"furnace", "--farm", farm.folder.string(), "--name", "low", "--patches", "200", "--bundles", "512",
+                                  "--exchange-every", "16"};
+  low.insert(low.end(), plain.begin(), plain.end());
+  submit(low);  // job 1
+  const std::string big = R"({"name": "big", "scene": "furnace", "priority": 5, "args": ["--patches", "200", "--bundles", "100000000", "--exchange-every", "16"]})";
+  EXPECT_EQ(curl(dir, {"-F", "job=" + big, farm.url + "/api/jobs"}).second, 401);
+  auto [made, code] = curl(dir, {"-H", "Authorization: Bearer " + farm.token, "-F", "job=" + big, farm.url + "/api/jobs"});
+  ASSERT_EQ(code, 201) << made;  // job 2
+  submit({"cornell", "--farm", farm.url, "--token-file", (farm.folder / "token").string(), "--name", "mid", "--priority", "1",
+          "--patches", "300", "--bundles", "128", "--width", "8", "--height", "8"});  // job 3
+  std::vector<std::unique_ptr<Child>> nodes;
+  for (int i = 0; i < 2; ++i)
+    nodes.push_back(std::make_unique<Child>(
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", fmt::format("f{}", i)},
+        dir / fmt::format("node{}.log", i)));
+  ASSERT_TRUE(wait_until([&] { return bundles_done(farm.folder / "jobs" / "2" / "status.json") > 0; }))
+      << "the highest priority never ran\n" << slurp(dir / "farm0.log");
+  EXPECT_EQ(job_state(farm, 1), "queued");
+  EXPECT_EQ(job_state(farm, 3), "queued");
+  auto [cancelled, cancel_code] = curl(dir, {"-d", "", "-H", "Authorization: Bearer " + farm.token, farm.url + "/api/jobs/2/cancel"});
+  ASSERT_EQ(cancel_code, 200) << cancelled;
+  ASSERT_TRUE(wait_until([&] { return job_state(farm, 1) == "done" && job_state(farm, 3) == "done"; })) << slurp(dir / "farm0.log");
+  EXPECT_EQ(job_state(farm, 2), "cancelled");
+  EXPECT_FALSE(fs::exists(farm.folder / "jobs" / "2" / "checkpoint"));
+  const nlohmann::json j1 = job_record(farm, 1), j2 = job_record(farm, 2), j3 = job_record(farm, 3);
+  EXPECT_LT(j2["started"].get<double>(), j3["started"].get<double>());
+  EXPECT_LE(j2["finished"].get<double>(), j3["started"].get<double>());
+  EXPECT_LT(j3["started"].get<double>(), j1["started"].get<double>());
+  expect_every_index_once(read_ledger(farm.folder / "jobs" / "1" / "ledger.csv"), 512);
+  expect_every_index_once(read_ledger(farm.folder / "jobs" / "3" / "ledger.csv"), 128);
+  EXPECT_NEAR(furnace_mean(farm.folder / "jobs" / "1" / "low.ply"), 2.0, 0.055);
+  auto [list, list_code] = curl(dir, {farm.url + "/api/jobs"});
+  EXPECT_EQ(list_code, 200);
+  nlohmann::json jobs = nlohmann::json::parse(list)["jobs"];
+  ASSERT_EQ(jobs.size(), 3u) << list;
+  EXPECT_EQ(jobs[1]["state"], "cancelled");
+  auto [png, png_code] = curl(dir, {farm.url + "/api/jobs/3/files/mid.png"});
+  EXPECT_EQ(png_code, 200);
+  EXPECT_EQ(png.substr(0, 4), "\x89PNG");
+  EXPECT_EQ(curl(dir, {farm.url + "/api/jobs/3/files/job.json"}).second, 404);  // only outputs are handed out
+  for (auto& n : nodes) n->terminate();
+  farm.process->terminate();
+  EXPECT_EQ(farm.process->wait(sirad::test::kHangS), 0) << slurp(dir / "farm0.log");
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+// A farm killed -9 in the middle of a job, with another queued, and started again on the same
+// folder and endpoint while its two nodes keep running: the job resumes from its checkpoint
+// (its record says it ran twice), both jobs end done, each ran every bundle index once (their
+// ledgers, across both farm processes), and the long furnace is unbiased within 4 sd of its
+// K-bundle chain average (0.0097 sqrt(1024 / K) 4; plain transport, random directions). The
+// nodes are stopped (SIGSTOP) before the kill, so the job cannot end first, and the kill waits
+// for a checkpoint written after that.
+TEST(Farm, AKilledFarmResumesItsQueueAndRunsEveryJobOnce) {
+  const uint64_t K = 8192;
+  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_farm_kill_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
+  for (const auto& [name, bundles] : std::vector<std::pair<std::string, uint64_t>>{{"long", K}, {"short", 256}}) {
+    Child c({SIRAD_BINARY, "submit", "furnace", "--farm", farm.folder.string(), "--name", name, "--patches", "300", "--bundles",
+             std::to_string(bundles), "--exchange-every", "16", "--mode", "sync", "--control-variate", "off", "--directions",
+             "random", "--shots-per-bundle", "0", "--width", "8", "--height", "8"},
+            dir / "submit.log");
+    ASSERT_EQ(c.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
+  }
+  std::vector<std::unique_ptr<Child>> nodes;
+  for (int i = 0; i < 2; ++i)
+    nodes.push_back(std::make_unique<Child>(
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", fmt::format("k{}", i)},
+        dir / fmt::format("node{}.log", i)));
+  const fs::path job1 = farm.folder / "jobs" / "1";
+  ASSERT_TRUE(wait_until([&] { return bundles_done(job1 / "status.json") >= K / 4 && fs::exists(job1 / "checkpoint"); }))
+      << slurp(dir / "farm0.log");
+  for (auto& n : nodes) n->pause();
+  auto before = fs::last_write_time(job1 / "checkpoint");
+  ASSERT_TRUE(wait_until([&] { return fs::last_write_time(job1 / "checkpoint") != before; }));
+  farm.process->kill9();
+  ASSERT_EQ(farm.process->wait(sirad::test::kHangS), 128 + SIGKILL);
+  EXPECT_EQ(job_state(farm, 1), "running");
+  FarmProcess again = start_farm(dir, farm.endpoint, 1);
+  for (auto& n : nodes) n->resume();
+  ASSERT_TRUE(wait_until([&] { return job_state(again, 1) == "done" && job_state(again, 2) == "done"; })) << slurp(dir / "farm1.log");
+  EXPECT_EQ(job_record(again, 1)["runs"], 2);
+  EXPECT_EQ(job_record(again, 2)["runs"], 1);
+  expect_every_index_once(read_ledger(job1 / "ledger.csv"), K);
+  expect_every_index_once(read_ledger(farm.folder / "jobs" / "2" / "ledger.csv"), 256);
+  EXPECT_NEAR(furnace_mean(job1 / "long.ply"), 2.0, 0.0097 * std::sqrt(1024.0 / K) * 4);
+  for (auto& n : nodes) n->terminate();
+  again.process->terminate();
+  EXPECT_EQ(again.process->wait(sirad::test::kHangS), 0) << slurp(dir / "farm1.log");
   if (!HasFailure()) fs::remove_all(dir);
 }
 

@@ -1,0 +1,110 @@
+// sirad tests: the farm's job store (cluster/jobs.h): order by priority then submission, state
+// changes that survive a reload, a job left running queued again, hostile job files.
+#include <filesystem>
+#include <fstream>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include "cluster/jobs.h"
+#include "core/error.h"
+
+namespace sirad::cluster {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TempDir {
+  fs::path path = fs::temp_directory_path() / fmt::format("sirad_jobs_{}_{}", ::getpid(), counter++);
+  TempDir() { fs::remove_all(path); }
+  ~TempDir() { fs::remove_all(path); }
+  static inline int counter = 0;
+};
+
+TEST(JobStore, RunsTheHighestPriorityFirstThenTheOldest) {
+  TempDir d;
+  JobStore store(d.path.string());
+  EXPECT_FALSE(store.next());
+  const Job a = store.submit("a", "cornell", "", {"--bundles", "10"}, 0, 100);
+  const Job b = store.submit("b", "cornell", "", {}, 5, 101);
+  const Job c = store.submit("c", "furnace", "", {}, 5, 102);
+  EXPECT_EQ(a.id, 1u);
+  EXPECT_EQ(store.next()->id, b.id);  // priority 5, submitted before c
+  store.started(b.id, 110);
+  EXPECT_EQ(store.next()->id, c.id);
+  store.finished(b.id, "done", "", 120);
+  store.started(c.id, 121);
+  store.finished(c.id, "failed", "no nodes", 130);
+  EXPECT_EQ(store.next()->id, a.id);
+  EXPECT_TRUE(store.cancel(a.id, 131));  // queued: cancelled at once
+  EXPECT_EQ(store.get(a.id)->state, "cancelled");
+  EXPECT_FALSE(store.next());
+  EXPECT_FALSE(store.cancel(a.id, 132));  // ended
+  EXPECT_FALSE(store.cancel(99, 132));    // no such job
+}
+
+// Every change is on disk: a new store of the same folder sees the same jobs, a job that was
+// running is queued again (its process stopped mid-run; it resumes from its checkpoint), and
+// new ids continue after the highest.
+TEST(JobStore, SurvivesARestartAndQueuesTheJobThatWasRunning) {
+  TempDir d;
+  {
+    JobStore store(d.path.string());
+    store.submit("done-one", "cornell", "", {}, 0, 1);
+    store.submit("uploaded", "", std::string("SCENEBYTES"), {"--patches", "300"}, 2, 2);
+    store.started(1, 3);
+    store.finished(1, "done", "", 4);
+    store.started(2, 5);
+  }
+  JobStore again(d.path.string());
+  ASSERT_EQ(again.list().size(), 2u);
+  EXPECT_EQ(again.get(1)->state, "done");
+  EXPECT_EQ(again.get(1)->finished, 4);
+  const Job j = *again.get(2);
+  EXPECT_EQ(j.state, "queued");
+  EXPECT_EQ(j.runs, 1u);
+  EXPECT_EQ(j.args, (std::vector<std::string>{"--patches", "300"}));
+  EXPECT_TRUE(fs::exists(d.path / "jobs" / "2" / "scene.bin"));
+  EXPECT_EQ(again.next()->id, 2u);
+  EXPECT_EQ(again.submit("third", "cornell", "", {}, 0, 6).id, 3u);
+  // Cancelling a running job is only marked: the farm stops it and records the end.
+  again.started(2, 7);
+  EXPECT_TRUE(again.cancel(2, 8));
+  EXPECT_TRUE(again.cancel_requested(2));
+  EXPECT_EQ(again.get(2)->state, "running");
+  again.finished(2, "cancelled", "cancelled while it ran", 9);
+  EXPECT_FALSE(again.cancel_requested(2));
+}
+
+// A job file that is not what the store writes (damaged, hand-edited, hostile) makes its job
+// failed with the reason, and is left as it is; the other jobs load. Bad submissions are one
+// clear error each.
+TEST(JobStore, HostileJobFilesAndSubmissionsAreRefused) {
+  TempDir d;
+  {
+    JobStore store(d.path.string());
+    for (int i = 0; i < 5; ++i) store.submit(fmt::format("j{}", i), "cornell", "", {}, 0, i);
+  }
+  const std::vector<std::string> bad = {"{not json", "[1, 2]", R"({"id": 2})",
+                                        R"({"id": 3, "name": "../../etc", "scene": "", "args": [], "priority": 0, "state": "queued", "submitted": 0, "started": 0, "finished": 0, "error": "", "runs": 0})",
+                                        R"({"id": 4, "name": "x", "scene": "", "args": [], "priority": 0, "state": "exploded", "submitted": 0, "started": 0, "finished": 0, "error": "", "runs": 0})"};
+  for (std::size_t i = 0; i < bad.size(); ++i) std::ofstream(d.path / "jobs" / std::to_string(i + 1) / "job.json") << bad[i];
+  JobStore store(d.path.string());
+  ASSERT_EQ(store.list().size(), 5u);
+  for (uint64_t id = 1; id <= 5; ++id) {
+    EXPECT_EQ(store.get(id)->state, "failed") << id;
+    EXPECT_NE(store.get(id)->error.find("job.json"), std::string::npos) << store.get(id)->error;
+  }
+  EXPECT_EQ(std::ifstream(d.path / "jobs" / "1" / "job.json").get(), '{');  // left as it was
+  EXPECT_FALSE(store.next());
+  EXPECT_THROW(store.submit("../x", "cornell", "", {}, 0, 1), Error);
+  EXPECT_THROW(store.submit(".hidden", "cornell", "", {}, 0, 1), Error);
+  EXPECT_THROW(store.submit("ok", "", "", {}, 0, 1), Error);             // no scene
+  EXPECT_THROW(store.submit("ok", "cornell", "x", {}, 0, 1), Error);     // both
+  EXPECT_THROW(store.submit("ok", "cornell", "", std::vector<std::string>(kMaxJobArgs + 1, "-q"), 0, 1), Error);
+  EXPECT_THROW(store.submit("ok", "cornell", "", {}, kMaxPriority + 1, 1), Error);
+}
+
+}  // namespace
+}  // namespace sirad::cluster
