@@ -15,6 +15,7 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/resources.h"
 #include "core/scene.h"
 #include "core/scene_io.h"
 
@@ -102,6 +103,11 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, 
     if (!j) refuse(res, 404, fmt::format("no job {}", id.substr(0, 20)));
     return j;
   };
+  s.Get("/", [](const httplib::Request&, httplib::Response& res) {
+    res.set_header("Content-Security-Policy",
+                   "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; img-src 'self'; connect-src 'self'");
+    res.set_content(std::string(resource("cmd/farm_page.html")), "text/html; charset=utf-8");
+  });
   s.Get("/api/jobs", [this](const httplib::Request&, httplib::Response& res) {
     json jobs = json::array();
     const uint64_t running = view_.job();

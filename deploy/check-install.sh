@@ -36,7 +36,7 @@ for f in lan-1g.yaml hetero-16.yaml; do [[ -s $prefix/share/sirad/profiles/$f ]]
 [[ -s $tmp/c.exr && -s $tmp/c.png ]] || fail "the installed sirad render wrote no image"
 
 units=$prefix/lib/systemd/system
-for u in sirad-node.service sirad-coordinator@.service; do
+for u in sirad-node.service sirad-coordinator@.service sirad-farm.service; do
   [[ -s $units/$u ]] || fail "unit $u not installed"
   grep -q "^ExecStart=$prefix/bin/sirad-" "$units/$u" || fail "$u does not name the installed program: $(grep ExecStart "$units/$u")"
 done
@@ -44,6 +44,7 @@ if command -v systemd-analyze >/dev/null; then
   # A template is verified as an instance of it; the units' man pages are the installed ones.
   cp "$units/sirad-coordinator@.service" "$tmp/sirad-coordinator@cornell.service"
   MANPATH=$prefix/share/man systemd-analyze verify "$units/sirad-node.service" "$tmp/sirad-coordinator@cornell.service" \
+    "$units/sirad-farm.service" \
     || fail "systemd-analyze verify refused the units"
 else
   echo "check-install: systemd-analyze not installed: the units were not verified" >&2

@@ -27,8 +27,9 @@ test_packages=(
   # tests and benchmarks; docker-compose only validates deploy/docker-compose.yml (no engine);
   # iproute2 (ip, tc) runs the namespace cluster; gnuplot-nox draws bench/paper's figures
   libgtest-dev libgmock-dev libbenchmark-dev docker-compose iproute2 gnuplot-nox
-  # the farm's API is tested with curl, a client this project did not write
-  curl
+  # the farm's API is tested with curl, a client this project did not write, and its web page
+  # in headless Chromium
+  curl chromium
   # the hostile-peer tests: a SIRAD/1 client in Python (pyzmq, protobuf from protoc --python_out)
   python3-zmq python3-protobuf
   # the installed systemd units are checked with systemd-analyze verify

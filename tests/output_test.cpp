@@ -35,6 +35,7 @@
 #include "core/error.h"
 #include "core/results.h"
 #include "core/output.h"
+#include "tests/png_util.h"
 
 namespace sirad {
 namespace {
@@ -629,24 +630,11 @@ TEST_F(OutputExr, RejectsBadImagesAndAttributes) {
 
 // ---- PNG ----
 
-// Reads an 8-bit RGB PNG with libpng's simplified API.
+// Reads an 8-bit RGB PNG (it must be one: what write_png writes).
 std::vector<unsigned char> read_png(const std::string& path, int& width, int& height) {
-  png_image image;
-  std::memset(&image, 0, sizeof image);
-  image.version = PNG_IMAGE_VERSION;
-  if (!png_image_begin_read_from_file(&image, path.c_str())) {
-    ADD_FAILURE() << "libpng: " << image.message;
-    return {};
-  }
-  EXPECT_EQ(image.format, static_cast<png_uint_32>(PNG_FORMAT_RGB));
-  image.format = PNG_FORMAT_RGB;
-  width = static_cast<int>(image.width);
-  height = static_cast<int>(image.height);
-  std::vector<unsigned char> bytes(PNG_IMAGE_SIZE(image));
-  if (!png_image_finish_read(&image, nullptr, bytes.data(), 0, nullptr)) {
-    ADD_FAILURE() << "libpng: " << image.message;
-    return {};
-  }
+  png_uint_32 format = 0;
+  std::vector<unsigned char> bytes = sirad::test::read_png(path, width, height, &format);
+  EXPECT_EQ(format, static_cast<png_uint_32>(PNG_FORMAT_RGB));
   return bytes;
 }
 
