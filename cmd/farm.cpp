@@ -218,12 +218,18 @@ void serve_farm(zmq::socket_t& router, cluster::JobStore& store, const FarmOptio
         say(logging::Level::info, fmt::format("job {} checkpointed; it resumes when the farm starts again", job->id),
             {{"event", "job stopped"}, {"job", job->id}});
         return;  // stays "running" on disk: queued again at the next start, from its checkpoint
+      } else if (options.interrupt && options.interrupt->exchange(false)) {
+        // Interrupted for a cancel of the job before it, which had ended meanwhile: this one
+        // goes back to the queue and resumes from the checkpoint it just wrote.
+        store.requeue(job->id);
+        view.ended();
+        continue;
       } else {
         state = "failed", error = e.what();
       }
     }
+    store.finished(job->id, state, error, unix_now());  // first: a cancel of it now finds it ended
     if (options.interrupt) options.interrupt->store(false);
-    store.finished(job->id, state, error, unix_now());
     view.ended();
     say(state == "failed" ? logging::Level::warn : logging::Level::info,
         fmt::format("job {} ({}) {}{}", job->id, job->name, state, error.empty() ? "" : ": " + error),

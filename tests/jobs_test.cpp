@@ -33,6 +33,12 @@ TEST(JobStore, RunsTheHighestPriorityFirstThenTheOldest) {
   EXPECT_EQ(store.next()->id, b.id);  // priority 5, submitted before c
   store.started(b.id, 110);
   EXPECT_EQ(store.next()->id, c.id);
+  store.requeue(b.id);  // interrupted, not by its own cancel: back in the queue, first again
+  EXPECT_EQ(store.get(b.id)->state, "queued");
+  EXPECT_EQ(store.next()->id, b.id);
+  store.started(b.id, 111);
+  EXPECT_EQ(store.get(b.id)->runs, 2u);
+  EXPECT_EQ(store.get(b.id)->started, 110);  // the first start is kept
   store.finished(b.id, "done", "", 120);
   store.started(c.id, 121);
   store.finished(c.id, "failed", "no nodes", 130);
