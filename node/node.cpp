@@ -113,6 +113,7 @@ class Node {
       }
       if (warned_silence_) info("the coordinator answers", {{"event", "heard"}});
       warned_silence_ = false;
+      heard_once_ = true;
       last_heard_ = Clock::now();
       hello_every_ = std::chrono::milliseconds(options_.reconnect_ms);
       Message m;
@@ -153,7 +154,10 @@ class Node {
     if (warned_silence_ || Clock::now() - last_heard_ < kSilenceWarning) return;
     warned_silence_ = true;
     const double s = seconds(Clock::now() - last_heard_);
-    warn(options_.server_key.empty()
+    warn(heard_once_ ? fmt::format("no answer from the coordinator at {} for {:.0f} s (it answered before): stopped, or "
+                                   "unreachable now? saying HELLO until it answers",
+                                   endpoint_, s)
+         : options_.server_key.empty()
              ? fmt::format("no answer from the coordinator at {} in {:.0f} s: is it running, and reachable from here?", endpoint_, s)
              : fmt::format("no answer from the coordinator at {} in {:.0f} s: is this node's key in its allow list, and "
                            "--server-key its public key?",
@@ -515,6 +519,7 @@ class Node {
   double busy_s_ = 0, idle_s_ = 0;
   bool granted_ = false;  // this run has given a grant (idle: blocked waiting for a message after it)
   bool warned_silence_ = false;  // the silence since last_heard_ was logged
+  bool heard_once_ = false;      // a coordinator has answered since this node started
   // The run's emulation (cluster/profile.h): slowdown, uplink, disconnect.
   wire::Emulation emulation_ = no_emulation();
   std::set<uint64_t> disconnected_runs_;
