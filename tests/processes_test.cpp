@@ -719,46 +719,68 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
 
 // A farm killed -9 in the middle of a job, with another queued, and started again on the same
 // folder and endpoint while its two nodes keep running: the job resumes from its checkpoint
-// (its record says it ran twice), both jobs end done, each ran every bundle index once (their
+// (its record says it ran twice), every job ends done, each ran every bundle index once (their
 // ledgers, across both farm processes), and the long furnace is unbiased within 4 sd of its
-// K-bundle chain average (0.0097 sqrt(1024 / K) 4; plain transport, random directions). The
-// nodes are stopped (SIGSTOP) before the kill, so the job cannot end first, and the kill waits
-// for a checkpoint written after that.
+// K-bundle chain average (0.0097 sqrt(1024 / K) 4; plain transport, random directions).
+// No step races the clock: the nodes are stopped (SIGSTOP) once the long job has run bundles,
+// and the kill waits for a checkpoint written after that; should the job have ended before the
+// nodes stopped (a fast machine), a job 8 times longer is queued first and the same is done
+// with it, until one is caught mid-run.
 TEST(Farm, AKilledFarmResumesItsQueueAndRunsEveryJobOnce) {
-  const uint64_t K = 8192;
   fs::path dir = fs::temp_directory_path() / fmt::format("sirad_farm_kill_{}", ::getpid());
   fs::remove_all(dir);
   fs::create_directories(dir);
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
-  for (const auto& [name, bundles] : std::vector<std::pair<std::string, uint64_t>>{{"long", K}, {"short", 256}}) {
-    Child c({SIRAD_BINARY, "submit", "furnace", "--farm", farm.folder.string(), "--name", name, "--patches", "300", "--bundles",
-             std::to_string(bundles), "--exchange-every", "16", "--mode", "sync", "--control-variate", "off", "--directions",
-             "random", "--shots-per-bundle", "0", "--width", "8", "--height", "8"},
+  std::map<int, uint64_t> bundles_of;  // every job submitted: its bundles
+  auto submit = [&](const std::string& name, uint64_t bundles, int priority) {
+    Child c({SIRAD_BINARY, "submit", "furnace", "--farm", farm.folder.string(), "--name", name, "--priority",
+             std::to_string(priority), "--patches", "300", "--bundles", std::to_string(bundles), "--exchange-every", "16",
+             "--mode", "sync", "--control-variate", "off", "--directions", "random", "--shots-per-bundle", "0", "--width", "8",
+             "--height", "8"},
             dir / "submit.log");
-    ASSERT_EQ(c.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
-  }
+    EXPECT_EQ(c.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
+    bundles_of[static_cast<int>(bundles_of.size()) + 1] = bundles;
+  };
+  uint64_t K = 8192;
+  submit("long", K, 1);  // job 1
+  submit("short", 256, 0);  // job 2
+  int caught = 1;  // the long job the kill is to catch mid-run
   std::vector<std::unique_ptr<Child>> nodes;
   for (int i = 0; i < 2; ++i)
     nodes.push_back(std::make_unique<Child>(
         std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", fmt::format("k{}", i)},
         dir / fmt::format("node{}.log", i)));
-  const fs::path job1 = farm.folder / "jobs" / "1";
-  ASSERT_TRUE(wait_until([&] { return bundles_done(job1 / "status.json") >= K / 4 && fs::exists(job1 / "checkpoint"); }))
-      << slurp(dir / "farm0.log");
-  for (auto& n : nodes) n->pause();
-  auto before = fs::last_write_time(job1 / "checkpoint");
-  ASSERT_TRUE(wait_until([&] { return fs::last_write_time(job1 / "checkpoint") != before; }));
+  auto job_dir = [&](int id) { return farm.folder / "jobs" / std::to_string(id); };
+  for (int attempt = 0;; ++attempt) {
+    ASSERT_LT(attempt, 6) << "no long job was caught running";
+    ASSERT_TRUE(wait_until([&] {
+      return job_state(farm, caught) == "done" || bundles_done(job_dir(caught) / "status.json") > 0;
+    })) << slurp(dir / "farm0.log");
+    for (auto& n : nodes) n->pause();
+    if (job_state(farm, caught) != "done") break;
+    for (auto& n : nodes) n->resume();  // it ended first: a longer one, run next
+    K *= 8;
+    submit(fmt::format("long{}", attempt + 1), K, 10 + attempt);
+    caught = static_cast<int>(bundles_of.size());
+  }
+  // Stopped mid-run: a checkpoint written after that is what the next farm finds.
+  ASSERT_TRUE(wait_until([&] { return fs::exists(job_dir(caught) / "checkpoint"); }));
+  auto before = fs::last_write_time(job_dir(caught) / "checkpoint");
+  ASSERT_TRUE(wait_until([&] { return fs::last_write_time(job_dir(caught) / "checkpoint") != before; }));
   farm.process->kill9();
   ASSERT_EQ(farm.process->wait(sirad::test::kHangS), 128 + SIGKILL);
-  EXPECT_EQ(job_state(farm, 1), "running");
+  EXPECT_EQ(job_state(farm, caught), "running");
   FarmProcess again = start_farm(dir, farm.endpoint, 1);
   for (auto& n : nodes) n->resume();
-  ASSERT_TRUE(wait_until([&] { return job_state(again, 1) == "done" && job_state(again, 2) == "done"; })) << slurp(dir / "farm1.log");
-  EXPECT_EQ(job_record(again, 1)["runs"], 2);
-  EXPECT_EQ(job_record(again, 2)["runs"], 1);
-  expect_every_index_once(read_ledger(job1 / "ledger.csv"), K);
-  expect_every_index_once(read_ledger(farm.folder / "jobs" / "2" / "ledger.csv"), 256);
-  EXPECT_NEAR(furnace_mean(job1 / "long.ply"), 2.0, 0.0097 * std::sqrt(1024.0 / K) * 4);
+  ASSERT_TRUE(wait_until([&] {
+    for (const auto& [id, bundles] : bundles_of)
+      if (job_state(again, id) != "done") return false;
+    return true;
+  })) << slurp(dir / "farm1.log");
+  EXPECT_EQ(job_record(again, caught)["runs"], 2);
+  for (const auto& [id, bundles] : bundles_of) expect_every_index_once(read_ledger(job_dir(id) / "ledger.csv"), bundles);
+  const std::string name = job_record(again, caught)["name"];
+  EXPECT_NEAR(furnace_mean(job_dir(caught) / (name + ".ply")), 2.0, 0.0097 * std::sqrt(1024.0 / bundles_of[caught]) * 4);
   for (auto& n : nodes) n->terminate();
   again.process->terminate();
   EXPECT_EQ(again.process->wait(sirad::test::kHangS), 0) << slurp(dir / "farm1.log");
