@@ -6,6 +6,8 @@
 #include <cerrno>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <memory>
 #include <random>
 
 #include <fmt/format.h>
@@ -90,12 +92,15 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, 
     : store_(store), view_(view), token_(std::move(token)), interrupt_(interrupt), server_(std::make_unique<httplib::Server>()) {
   httplib::Server& s = *server_;
   s.set_payload_max_length(kMaxBody);
-  auto authorised = [this](const httplib::Request& req, httplib::Response& res) {
+  // Everything but reading needs the token, checked before the request's body is read (a body
+  // may be 2 GiB: only the token's holder makes the farm hold one).
+  s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    if (req.method == "GET" || req.method == "HEAD") return httplib::Server::HandlerResponse::Unhandled;
     const std::string h = req.get_header_value("Authorization");
-    if (h.rfind("Bearer ", 0) == 0 && same(h.substr(7), token_)) return true;
+    if (h.rfind("Bearer ", 0) == 0 && same(h.substr(7), token_)) return httplib::Server::HandlerResponse::Unhandled;
     refuse(res, 401, "this needs the farm's token (Authorization: Bearer TOKEN)");
-    return false;
-  };
+    return httplib::Server::HandlerResponse::Handled;
+  });
   auto job_of = [this](const httplib::Request& req, httplib::Response& res) -> std::optional<cluster::Job> {
     const std::string id = req.matches[1];
     std::optional<cluster::Job> j;
@@ -150,10 +155,21 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, 
     if (std::find(files.begin(), files.end(), name) == files.end()) return refuse(res, 404, "no such file of this job");
     const std::string ext = fs::path(name).extension().string();
     const char* type = ext == ".png" ? "image/png" : ext == ".json" ? "application/json" : ext == ".txt" ? "text/plain" : ext == ".csv" ? "text/csv" : "application/octet-stream";
-    res.set_content(read_file_whole((fs::path(store_.folder(j->id)) / name).string(), "output", kMaxBody), type);
+    // Streamed from the file in pieces of 1 MiB: a download holds no more than that in memory.
+    const fs::path path = fs::path(store_.folder(j->id)) / name;
+    auto file = std::make_shared<std::ifstream>(path, std::ios::binary);
+    std::error_code ec;
+    const auto size = fs::file_size(path, ec);
+    if (!*file || ec) return refuse(res, 404, "no such file of this job");
+    res.set_content_provider(static_cast<std::size_t>(size), type, [file](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+      std::vector<char> piece(std::min<std::size_t>(length, std::size_t{1} << 20));
+      file->seekg(static_cast<std::streamoff>(offset));
+      file->read(piece.data(), static_cast<std::streamsize>(piece.size()));
+      if (file->gcount() <= 0) return false;
+      return sink.write(piece.data(), static_cast<std::size_t>(file->gcount()));
+    });
   });
-  s.Post("/api/jobs", [this, authorised](const httplib::Request& req, httplib::Response& res) {
-    if (!authorised(req, res)) return;
+  s.Post("/api/jobs", [this](const httplib::Request& req, httplib::Response& res) {
     try {
       if (!req.has_file("job")) fail("the request needs a 'job' part (JSON: name, scene, args, priority)");
       json spec;
@@ -187,8 +203,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, 
       refuse(res, 400, e.what());
     }
   });
-  s.Post(R"(/api/jobs/(\d+)/cancel)", [this, authorised, job_of](const httplib::Request& req, httplib::Response& res) {
-    if (!authorised(req, res)) return;
+  s.Post(R"(/api/jobs/(\d+)/cancel)", [this, job_of](const httplib::Request& req, httplib::Response& res) {
     std::optional<cluster::Job> j = job_of(req, res);
     if (!j) return;
     if (!store_.cancel(j->id, unix_now())) return refuse(res, 409, fmt::format("job {} has ended ({})", j->id, j->state));

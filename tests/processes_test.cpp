@@ -690,6 +690,8 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
       << "the highest priority never ran\n" << slurp(dir / "farm0.log");
   EXPECT_EQ(job_state(farm, 1), "queued");
   EXPECT_EQ(job_state(farm, 3), "queued");
+  EXPECT_EQ(curl(dir, {"-d", "", farm.url + "/api/jobs/2/cancel"}).second, 401);  // no token: nothing changes
+  EXPECT_EQ(curl(dir, {"-d", "", "-H", "Authorization: Bearer wrong-token-of-any-length", farm.url + "/api/jobs/2/cancel"}).second, 401);
   auto [cancelled, cancel_code] = curl(dir, {"-d", "", "-H", "Authorization: Bearer " + farm.token, farm.url + "/api/jobs/2/cancel"});
   ASSERT_EQ(cancel_code, 200) << cancelled;
   ASSERT_TRUE(wait_until([&] { return job_state(farm, 1) == "done" && job_state(farm, 3) == "done"; })) << slurp(dir / "farm0.log");
