@@ -27,8 +27,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
-
 void say(logging::Level level, const std::string& message, nlohmann::json fields) {
   logging::write(level, "sirad-coordinator", message, fields);
 }
@@ -105,12 +103,7 @@ std::string run_job(zmq::socket_t& router, const cluster::Job& job, const std::s
   cluster::RunResult result = cluster::coordinate(router, rc, mesh);
   reporter.finish();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  ResultOptions ro;
-  ro.width = plan.output.width;
-  ro.height = plan.output.height;
-  ro.exposure = plan.output.exposure;
-  ro.shading = plan.output.flat ? Shading::flat : Shading::gouraud;
-  write_results((dir / job.name).string(), mesh, result.radiosity, ro,
+  write_results((dir / job.name).string(), mesh, result.radiosity, result_options(plan.output),
                 cluster::run_attributes(rc, cluster::outcome_of(result), mesh, job.scene.empty() ? job.name : job.scene, true));
   write_file_atomic((dir / "ledger.csv").string(), cluster::ledger_csv(result));
   fs::remove(checkpoint);
@@ -118,6 +111,8 @@ std::string run_job(zmq::socket_t& router, const cluster::Job& job, const std::s
 }
 
 }  // namespace
+
+double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 JobPlan plan_job(const std::vector<std::string>& args) {
   CLI::App app{"job"};

@@ -32,6 +32,9 @@ struct JobPlan {
 // Throws sirad::Error (CLI11's message, or the check's) for flags a job cannot take.
 JobPlan plan_job(const std::vector<std::string>& args);
 
+// Seconds since the Unix epoch: the times of a job's record (cluster/jobs.h takes them passed in).
+double unix_now();
+
 // The running job's latest status and its error over time, for the web page and the API.
 class FarmView {
  public:

@@ -4,7 +4,6 @@
 #include <sys/stat.h>
 
 #include <cerrno>
-#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -30,8 +29,6 @@ namespace {
 
 // The largest request body: a scene as nodes receive it is at most this (decode_scene's bound).
 constexpr std::size_t kMaxBody = std::size_t{1} << 31;
-
-double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 // The files a job's folder may hand out, by name (no path from a request reaches the disk).
 std::vector<std::string> job_files(const cluster::Job& j, const std::string& folder) {

@@ -91,18 +91,23 @@ const std::vector<std::string>& cluster_flag_names() {
   return names;
 }
 
-void add_output_flags(CLI::App* cmd, OutputFlags& o) {
-  cmd->add_option("--out", o.out, "Output name: writes NAME.exr, NAME.png, NAME.ply, NAME.glb (default: scene name)");
-  cmd->add_option("--width", o.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
-  cmd->add_option("--height", o.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
-  cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
-  cmd->add_flag("--flat", o.flat, "Flat-shaded image (one value per patch) instead of Gouraud");
-  cmd->add_flag("--skip-degenerate", o.skip_degenerate, "Drop zero-area triangles instead of failing");
-  cmd->add_flag("--two-sided", o.two_sided,
-                "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL sirad_two_sided 1)");
-  cmd->add_option("--camera", o.camera,
-                  "The view of the images: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the scene's, else one chosen to "
-                  "see the most)");
+std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
+  const std::vector<CLI::Option*> options = {
+      cmd->add_option("--out", o.out, "Output name: writes NAME.exr, NAME.png, NAME.ply, NAME.glb (default: scene name)"),
+      cmd->add_option("--width", o.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str(),
+      cmd->add_option("--height", o.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str(),
+      cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0)),
+      cmd->add_flag("--flat", o.flat, "Flat-shaded image (one value per patch) instead of Gouraud"),
+      cmd->add_flag("--skip-degenerate", o.skip_degenerate, "Drop zero-area triangles instead of failing"),
+      cmd->add_flag("--two-sided", o.two_sided,
+                    "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL "
+                    "sirad_two_sided 1)"),
+      cmd->add_option("--camera", o.camera,
+                      "The view of the images: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the scene's, else one "
+                      "chosen to see the most)")};
+  std::vector<std::string> names;
+  for (const CLI::Option* opt : options) names.push_back("--" + opt->get_lnames().front());
+  return names;
 }
 
 std::set<std::string> given_flags(const CLI::App* cmd) {
@@ -162,6 +167,15 @@ std::optional<Camera> camera_flag(const std::string& camera) {
   } catch (const Error& e) {
     fail("--camera '{}': {}", camera, e.what());
   }
+}
+
+ResultOptions result_options(const OutputFlags& flags) {
+  ResultOptions ro;
+  ro.width = flags.width;
+  ro.height = flags.height;
+  ro.exposure = flags.exposure;
+  ro.shading = flags.flat ? Shading::flat : Shading::gouraud;
+  return ro;
 }
 
 }  // namespace sirad::cli

@@ -13,6 +13,7 @@
 
 #include "cluster/settings.h"
 #include "core/mesh.h"
+#include "core/results.h"
 #include "core/scene.h"
 
 namespace sirad::cli {
@@ -65,8 +66,8 @@ CLI::Validator non_negative();
 // The flags of the run flags that only a cluster uses (refused on one node).
 const std::vector<std::string>& cluster_flag_names();
 // Import and output: --out, --width, --height, --exposure, --flat, --skip-degenerate,
-// --two-sided, --camera.
-void add_output_flags(CLI::App* cmd, OutputFlags& flags);
+// --two-sided, --camera; returns their long names.
+std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& flags);
 
 // The long names of the options given on `cmd`'s command line.
 std::set<std::string> given_flags(const CLI::App* cmd);
@@ -80,5 +81,8 @@ cluster::RunSettings settings_from(const RunFlags& flags, const std::set<std::st
 
 // --camera's view, or none when it is empty; throws sirad::Error naming the flag.
 std::optional<Camera> camera_flag(const std::string& camera);
+
+// The images the output flags ask for: size, exposure, flat or Gouraud shading.
+ResultOptions result_options(const OutputFlags& flags);
 
 }  // namespace sirad::cli

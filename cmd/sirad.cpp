@@ -118,12 +118,7 @@ class Progress {
 void write_outputs(const cli::OutputFlags& o, const std::string& out, const PatchMesh& mesh,
                    const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from) {
   attrs.emplace_back("sirad.camera_from", camera_from);
-  ResultOptions ro;
-  ro.width = o.width;
-  ro.height = o.height;
-  ro.exposure = o.exposure;
-  ro.shading = o.flat ? Shading::flat : Shading::gouraud;
-  ResultFiles files = write_results(out, mesh, radiosity, ro, attrs);
+  ResultFiles files = write_results(out, mesh, radiosity, cli::result_options(o), attrs);
   std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), camera_from.c_str());
   std::fputs(wrote_lines(files).c_str(), stdout);
 }

@@ -41,6 +41,24 @@ void on_signal(int) {
 // The ROUTER socket of a run or a farm: the ZAP handler first (libzmq admits everyone without
 // one), frames bounded for `max_patches`, CURVE when `keys`, bound to `listen`; the bound
 // endpoint logged and written to `endpoint_file`.
+// --curve-secret and --allow (checked against --listen and --insecure first): the key pair and
+// the admitted node keys, or none over inproc or with --insecure.
+struct ServerKeys {
+  std::optional<proto::KeyPair> keys;
+  proto::AllowList allow;
+};
+ServerKeys server_keys(const std::string& listen, const std::string& curve_secret, const std::string& allow_file, bool insecure) {
+  proto::check_endpoint("--listen", listen, true);
+  proto::check_security(listen, !curve_secret.empty(), insecure, "--curve-secret and --allow");
+  ServerKeys k;
+  if (!curve_secret.empty()) {
+    k.keys = proto::load_secret_key(curve_secret);
+    k.allow = proto::load_allow_list(allow_file);
+    if (k.allow.empty()) fail("{}: the allow list admits no node", allow_file);
+  }
+  return k;
+}
+
 struct Listener {
   std::optional<proto::ZapHandler> zap;
   zmq::socket_t router;
@@ -72,8 +90,7 @@ struct Listener {
 int serve_farm(const std::string& dir, const std::string& http, const std::string& token_file, const std::string& listen,
                const std::string& endpoint_file, const std::string& curve_secret, const std::string& allow_file, bool insecure,
                bool check_config, uint32_t heartbeat_ms, uint32_t liveness, double checkpoint_every) {
-  proto::check_endpoint("--listen", listen, true);
-  proto::check_security(listen, !curve_secret.empty(), insecure, "--curve-secret and --allow");
+  const auto [keys, allow] = server_keys(listen, curve_secret, allow_file, insecure);
   const auto colon = http.rfind(':');
   int port = -1;
   if (colon != std::string::npos && colon > 0 && colon + 1 < http.size() && colon + 6 >= http.size() &&
@@ -81,13 +98,6 @@ int serve_farm(const std::string& dir, const std::string& http, const std::strin
     port = std::stoi(http.substr(colon + 1));
   if (port < 0 || port > 65535) fail("--http {}: expected HOST:PORT (e.g. 127.0.0.1:8080)", http);
   const std::string host = http.substr(0, colon);
-  std::optional<proto::KeyPair> keys;
-  proto::AllowList allow;
-  if (!curve_secret.empty()) {
-    keys = proto::load_secret_key(curve_secret);
-    allow = proto::load_allow_list(allow_file);
-    if (allow.empty()) fail("{}: the allow list admits no node", allow_file);
-  }
   cluster::JobStore store(dir);
   const std::string token = cli::farm_token(token_file.empty() ? (std::filesystem::path(dir) / "token").string() : token_file);
   if (check_config) {
@@ -138,7 +148,7 @@ int main(int argc, char** argv) {
                  "With --serve: the token submit and cancel need (mode 0600; default: DIR/token, made if missing)");
   app.add_option("--listen", listen, "ZeroMQ endpoint to bind")->capture_default_str();
   const std::vector<std::string> run_flags = cli::add_run_flags(&app, run);
-  cli::add_output_flags(&app, output);
+  const std::vector<std::string> output_flags = cli::add_output_flags(&app, output);
   app.add_option("--min-nodes", min_nodes, "Nodes ready before the first grant")->check(CLI::Range(1, 4096))->capture_default_str();
   app.add_option("--endpoint-file", endpoint_file, "Write the bound endpoint here (for scripts: tcp://*:0 picks a port)");
   app.add_option("--status-json", status_json, "Rewrite this file with the run's status every second");
@@ -179,8 +189,8 @@ int main(int argc, char** argv) {
     if (!serve.empty()) {
       // A farm's runs take their flags from their jobs: these would have no effect.
       std::vector<std::string> per_job = run_flags;
-      for (const char* f : {"--out", "--width", "--height", "--exposure", "--flat", "--skip-degenerate", "--two-sided", "--camera",
-                            "--resume", "--checkpoint", "--status-json", "--ledger", "--min-nodes", "--timeout", "--profile",
+      per_job.insert(per_job.end(), output_flags.begin(), output_flags.end());
+      for (const char* f : {"--resume", "--checkpoint", "--status-json", "--ledger", "--min-nodes", "--timeout", "--profile",
                             "--bandwidth-by-network"})
         per_job.push_back(f);
       for (const std::string& f : per_job)
@@ -226,15 +236,7 @@ int main(int argc, char** argv) {
       fail("{}: the checkpoint is of scene {}; {} meshes to {} (the same file, --patches and --two-sided?)", resume,
            resumed->run().scene_hash(), scene_spec, mesh.hash);
     for (const std::string& w : check.warnings) std::fprintf(stderr, "sirad-coordinator: warning: %s\n", w.c_str());
-    proto::check_endpoint("--listen", listen, true);
-    proto::check_security(listen, !curve_secret.empty(), insecure, "--curve-secret and --allow");
-    std::optional<proto::KeyPair> keys;
-    proto::AllowList allow;
-    if (!curve_secret.empty()) {
-      keys = proto::load_secret_key(curve_secret);
-      allow = proto::load_allow_list(allow_file);
-      if (allow.empty()) fail("{}: the allow list admits no node", allow_file);
-    }
+    const auto [keys, allow] = server_keys(listen, curve_secret, allow_file, insecure);
     if (check_config) {
       std::printf("sirad-coordinator: config ok: %s, %zu patches, %lld bundles, exchange every %s, S %g, %s, %s%s%s\n",
                   scene_spec.c_str(), mesh.size(), static_cast<long long>(rc.bundles), cluster::exchange_every_name(rc.exchange_every).c_str(),
@@ -257,13 +259,8 @@ int main(int argc, char** argv) {
     cluster::RunResult result = cluster::coordinate(router, rc, mesh);
     reporter.finish();
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    ResultOptions ro;
-    ro.width = output.width;
-    ro.height = output.height;
-    ro.exposure = output.exposure;
-    ro.shading = output.flat ? Shading::flat : Shading::gouraud;
     ResultFiles files = write_results(
-        out, mesh, result.radiosity, ro,
+        out, mesh, result.radiosity, cli::result_options(output),
         cluster::run_attributes(rc, cluster::outcome_of(result), mesh, scene_spec, true));
     std::fputs(wrote_lines(files).c_str(), stdout);
     if (!ledger.empty()) {
