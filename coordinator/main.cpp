@@ -94,7 +94,7 @@ int serve_farm(const std::string& dir, const std::string& http, const std::strin
   const auto colon = http.rfind(':');
   int port = -1;
   if (colon != std::string::npos && colon > 0 && colon + 1 < http.size() && colon + 6 >= http.size() &&
-      std::all_of(http.begin() + static_cast<long>(colon) + 1, http.end(), ::isdigit))
+      std::all_of(http.begin() + static_cast<long>(colon) + 1, http.end(), [](char c) { return c >= '0' && c <= '9'; }))
     port = std::stoi(http.substr(colon + 1));
   if (port < 0 || port > 65535) fail("--http {}: expected HOST:PORT (e.g. 127.0.0.1:8080)", http);
   const std::string host = http.substr(0, colon);
