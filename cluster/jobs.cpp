@@ -95,7 +95,8 @@ JobStore::JobStore(std::string dir) : dir_(std::move(dir)) {
   std::vector<uint64_t> ids;
   for (const auto& e : fs::directory_iterator(fs::path(dir_) / "jobs", ec)) {
     const std::string name = e.path().filename().string();
-    if (!e.is_directory() || name.empty() || name.size() > 12 || !std::all_of(name.begin(), name.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    const bool digits = std::all_of(name.begin(), name.end(), [](char c) { return c >= '0' && c <= '9'; });
+    if (!e.is_directory() || name.empty() || name.size() > 12 || !digits) continue;
     ids.push_back(std::stoull(name));
     if (ids.size() > kMaxJobs) fail("{}: more than {} jobs", dir_, kMaxJobs);
   }
