@@ -203,14 +203,6 @@ void JobStore::finished(uint64_t id, const std::string& state, const std::string
   write(*j);
 }
 
-void JobStore::requeue(uint64_t id) {
-  std::lock_guard lock(mutex_);
-  Job* j = find(id);
-  if (!j) fail("no job {}", id);
-  j->state = "queued";
-  write(*j);
-}
-
 bool JobStore::cancel(uint64_t id, double now) {
   std::lock_guard lock(mutex_);
   Job* j = find(id);

@@ -60,8 +60,6 @@ class JobStore {
   // State changes, each written to job.json before it returns.
   void started(uint64_t id, double now);
   void finished(uint64_t id, const std::string& state, const std::string& error, double now);
-  // A running job back in the queue (it resumes from its checkpoint when it runs again).
-  void requeue(uint64_t id);
   // A queued job is cancelled at once; a running one is marked (cancel_requested) for the
   // farm to stop. False: no such job, or it has ended.
   bool cancel(uint64_t id, double now);

@@ -144,6 +144,11 @@ struct ProcessSettings {
   double status_every_s = 1.0;  // how often RunHooks::status is called
 };
 
+// Who a peer is to a coordinator: its CURVE public key ("" without CURVE) and IP address ("" off tcp://).
+struct PeerIdentity {
+  std::string key, address;
+};
+
 // The hooks a driver gives a run: signals it watches and callbacks it is given.
 struct RunHooks {
   const std::atomic<bool>* abort = nullptr;      // set: the run fails at once (a local node died)
@@ -156,6 +161,14 @@ struct RunHooks {
   const wire::Checkpoint* resume = nullptr;
   std::function<void(uint64_t done, uint64_t total)> progress;  // called as bundles complete
   std::function<void(const Status&)> status;  // called every status_every_s, and at the end
+  // The estimate so far (count-weighted over the states the nodes have sent: zeros where none
+  // came yet), every preview_every_s once there is one (a farm's preview image of a running job).
+  std::function<void(const std::vector<glm::vec3>& radiosity)> preview;
+  double preview_every_s = 2.0;
+  // A broker's run (the farm's jobs, on a socket of their own behind its endpoint): the CURVE
+  // key and IP address behind a routing id, which the broker saw on its socket (the messages
+  // that reach this run's socket carry neither).
+  std::function<PeerIdentity(const std::string& id)> peer_identity;
 };
 
 // A run as a cluster driver is given it.

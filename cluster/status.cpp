@@ -2,78 +2,82 @@
 #include "cluster/status.h"
 
 #include <cmath>
+#include <optional>
 
 #include <fmt/format.h>
-#include <yaml-cpp/yaml.h>
-
-#include "core/error.h"
+#include <nlohmann/json.hpp>
 
 #include "core/atomic_file.h"
+#include "core/error.h"
 
 namespace sirad::cluster {
 
-namespace {
-
-std::string json_string(const std::string& s) {
-  std::string out = "\"";
-  for (unsigned char c : s) {
-    if (c == '"' || c == '\\') out += '\\', out += static_cast<char>(c);
-    else if (c < 0x20) out += fmt::format("\\u{:04x}", c);
-    else out += static_cast<char>(c);
-  }
-  return out + "\"";
-}
-
-}  // namespace
+using Json = nlohmann::ordered_json;
 
 std::string to_json(const Status& s) {
-  std::string nodes;
-  for (const auto& n : s.nodes)
-    nodes += fmt::format("{}{{\"name\": {}, \"device\": {}, \"state\": {}, \"bundles\": {}, \"exchanges\": {}, "
-                         "\"last_seen_s\": {:.3f}, \"bundles_per_s\": {:.3f}, \"busy_s\": {:.3f}, \"idle_s\": {:.3f}, \"suspicion\": {:.3f}{}}}",
-                         nodes.empty() ? "" : ", ", json_string(n.name), json_string(n.device), json_string(n.state),
-                         n.bundles, n.exchanges, n.last_seen_s, n.rate, n.busy_s, n.idle_s, n.suspicion,
-                         n.why.empty() ? "" : ", \"why\": " + json_string(n.why));
-  double rate = s.elapsed_s > 0 ? static_cast<double>(s.bundles_done) / s.elapsed_s : 0.0;
-  std::string error = s.error_estimate < 0 ? "null" : fmt::format("{:.6g}", s.error_estimate);
-  return fmt::format("{{\"bundles_done\": {}, \"bundles\": {}, \"patches\": {}, \"elapsed_s\": {:.3f}, \"bundles_per_s\": {:.3f}, "
-                     "\"patch_bundles_per_s\": {:.4g}, \"error_estimate\": {}, \"exchanges\": {}, \"bytes_in\": {}, \"bytes_out\": {}, "
-                     "\"scenes_sent\": {}, \"scenes_from_cache\": {}, "
-                     "\"exchange_every\": {}, \"exchange_fraction\": {}, \"mode\": {}, \"topology\": {}, "
-                     "\"target_error\": {}, \"ended_by\": {}, \"nodes\": [{}]}}\n",
-                     s.bundles_done, s.bundles, s.patches, s.elapsed_s, rate, rate * static_cast<double>(s.patches), error,
-                     s.exchanges, s.bytes_in, s.bytes_out, s.scenes_sent, s.scenes_from_cache,
-                     s.exchange_every, s.exchange_fraction, json_string(s.mode), json_string(s.topology),
-                     s.target_error > 0 ? fmt::format("{:.6g}", s.target_error) : "null",
-                     s.ended_by.empty() ? "null" : json_string(s.ended_by), nodes);
+  Json nodes = Json::array();
+  for (const auto& n : s.nodes) {
+    Json o = {{"name", n.name},         {"device", n.device},       {"state", n.state},         {"bundles", n.bundles},
+              {"exchanges", n.exchanges}, {"last_seen_s", n.last_seen_s}, {"bundles_per_s", n.rate}, {"busy_s", n.busy_s},
+              {"idle_s", n.idle_s},     {"bytes_in", n.bytes_in},   {"bytes_out", n.bytes_out}, {"suspicion", n.suspicion}};
+    if (!n.why.empty()) o["why"] = n.why;
+    nodes.push_back(std::move(o));
+  }
+  const double rate = s.elapsed_s > 0 ? static_cast<double>(s.bundles_done) / s.elapsed_s : 0.0;
+  auto or_null = [](bool given, const auto& v) { return given ? Json(v) : Json(nullptr); };
+  const Json j = {{"bundles_done", s.bundles_done},
+                  {"bundles", s.bundles},
+                  {"patches", s.patches},
+                  {"elapsed_s", s.elapsed_s},
+                  {"bundles_per_s", rate},
+                  {"patch_bundles_per_s", rate * static_cast<double>(s.patches)},
+                  {"error_estimate", or_null(s.error_estimate >= 0, s.error_estimate)},
+                  {"exchanges", s.exchanges},
+                  {"bytes_in", s.bytes_in},
+                  {"bytes_out", s.bytes_out},
+                  {"scenes_sent", s.scenes_sent},
+                  {"scenes_from_cache", s.scenes_from_cache},
+                  {"exchange_every", s.exchange_every},
+                  {"exchange_fraction", s.exchange_fraction},
+                  {"mode", s.mode},
+                  {"topology", s.topology},
+                  {"target_error", or_null(s.target_error > 0, s.target_error)},
+                  {"ended_by", or_null(!s.ended_by.empty(), s.ended_by)},
+                  {"nodes", std::move(nodes)}};
+  return j.dump(-1, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
 namespace {
 
-// Field `key` of `node` as T, or one clear error naming the file and where.
+// Field `key` of `node` as T, or one clear error naming the file and where. Optional fields
+// (of a status file of an earlier version) are `fallback` where missing.
 template <class T>
-T field(const YAML::Node& node, const char* key, const std::string& path, const std::string& where) {
-  const YAML::Node v = node[key];
-  if (!v || !v.IsScalar()) fail("{}: {}'{}' is missing", path, where, key);
+T field(const Json& node, const char* key, const std::string& path, const std::string& where, std::optional<T> fallback = {}) {
+  auto it = node.find(key);
+  if (it == node.end() || it->is_null()) {
+    if (fallback) return *fallback;
+    fail("{}: {}'{}' is missing", path, where, key);
+  }
   try {
-    return v.as<T>();
-  } catch (const YAML::Exception&) {
-    fail("{}: {}'{}' is not a valid value ('{}')", path, where, key, v.Scalar());
+    return it->template get<T>();
+  } catch (const Json::exception&) {
+    fail("{}: {}'{}' is not a valid value ({})", path, where, key, it->dump().substr(0, 40));
   }
 }
+
+// The largest status file read back: a run of 4096 nodes is about 1.2 MB.
+constexpr std::size_t kMaxStatusBytes = std::size_t{1} << 26;
 
 }  // namespace
 
 Status read_status(const std::string& path) {
-  YAML::Node root;
+  Json root;
   try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::BadFile&) {
-    fail("{}: cannot read the status file", path);
-  } catch (const YAML::Exception& e) {
-    fail("{}: not a status file (line {}: {})", path, e.mark.line + 1, e.msg);
+    root = Json::parse(read_file_whole(path, "status file", kMaxStatusBytes));
+  } catch (const Json::parse_error& e) {
+    fail("{}: not a status file ({})", path, e.what());
   }
-  if (!root.IsMap()) fail("{}: not a status file (expected a JSON object)", path);
+  if (!root.is_object()) fail("{}: not a status file (expected a JSON object)", path);
   Status s;
   s.bundles_done = field<uint64_t>(root, "bundles_done", path, "");
   s.bundles = field<uint64_t>(root, "bundles", path, "");
@@ -84,24 +88,32 @@ Status read_status(const std::string& path) {
   s.mode = field<std::string>(root, "mode", path, "");
   s.topology = field<std::string>(root, "topology", path, "");
   // Fields a status file of an earlier version does not have: 0 where missing.
-  if (root["patches"]) s.patches = field<uint64_t>(root, "patches", path, "");
-  if (root["scenes_sent"]) s.scenes_sent = field<uint32_t>(root, "scenes_sent", path, "");
-  if (root["scenes_from_cache"]) s.scenes_from_cache = field<uint32_t>(root, "scenes_from_cache", path, "");
-  if (root["ended_by"] && !root["ended_by"].IsNull()) s.ended_by = field<std::string>(root, "ended_by", path, "");
-  const YAML::Node nodes = root["nodes"];
-  if (!nodes || !nodes.IsSequence()) fail("{}: 'nodes' is missing or not a list", path);
-  for (std::size_t i = 0; i < nodes.size(); ++i) {
+  s.patches = field<uint64_t>(root, "patches", path, "", 0);
+  s.scenes_sent = field<uint32_t>(root, "scenes_sent", path, "", 0);
+  s.scenes_from_cache = field<uint32_t>(root, "scenes_from_cache", path, "", 0);
+  s.ended_by = field<std::string>(root, "ended_by", path, "", "");
+  s.error_estimate = field<double>(root, "error_estimate", path, "", -1.0);
+  s.bytes_in = field<uint64_t>(root, "bytes_in", path, "", 0);
+  s.bytes_out = field<uint64_t>(root, "bytes_out", path, "", 0);
+  auto nodes = root.find("nodes");
+  if (nodes == root.end() || !nodes->is_array()) fail("{}: 'nodes' is missing or not a list", path);
+  for (std::size_t i = 0; i < nodes->size(); ++i) {
     const std::string where = fmt::format("node {}: ", i);
-    if (!nodes[i].IsMap()) fail("{}: node {} is not an object", path, i);
+    const Json& node = (*nodes)[i];
+    if (!node.is_object()) fail("{}: node {} is not an object", path, i);
     Status::Node n;
-    n.name = field<std::string>(nodes[i], "name", path, where);
-    n.state = field<std::string>(nodes[i], "state", path, where);
-    n.bundles = field<uint64_t>(nodes[i], "bundles", path, where);
-    n.exchanges = field<uint32_t>(nodes[i], "exchanges", path, where);
-    n.busy_s = field<double>(nodes[i], "busy_s", path, where);
-    n.idle_s = field<double>(nodes[i], "idle_s", path, where);
-    if (nodes[i]["why"]) n.why = field<std::string>(nodes[i], "why", path, where);
-    if (nodes[i]["suspicion"]) n.suspicion = field<double>(nodes[i], "suspicion", path, where);
+    n.name = field<std::string>(node, "name", path, where);
+    n.state = field<std::string>(node, "state", path, where);
+    n.bundles = field<uint64_t>(node, "bundles", path, where);
+    n.exchanges = field<uint32_t>(node, "exchanges", path, where);
+    n.busy_s = field<double>(node, "busy_s", path, where);
+    n.idle_s = field<double>(node, "idle_s", path, where);
+    n.device = field<std::string>(node, "device", path, where, "");
+    n.why = field<std::string>(node, "why", path, where, "");
+    n.suspicion = field<double>(node, "suspicion", path, where, 0.0);
+    n.rate = field<double>(node, "bundles_per_s", path, where, 0.0);
+    n.bytes_in = field<uint64_t>(node, "bytes_in", path, where, 0);
+    n.bytes_out = field<uint64_t>(node, "bytes_out", path, where, 0);
     if (!std::isfinite(n.busy_s) || n.busy_s < 0 || !std::isfinite(n.idle_s) || n.idle_s < 0)
       fail("{}: {}busy_s and idle_s must be finite and non-negative", path, where);
     s.nodes.push_back(n);

@@ -38,6 +38,7 @@ struct Status {
     double rate = 0;           // bundles per second since it was ready
     double busy_s = 0;         // its own time running bundles (as last reported)
     double idle_s = 0;         // its own time waiting for a grant while the run had work
+    uint64_t bytes_in = 0, bytes_out = 0;  // its states taken in (REPORT, FINAL) and updates sent to it
     std::string why;           // quarantined: what it sent (empty otherwise)
     // The largest plausibility score of the states taken from it (cluster/plausibility.h):
     // how near it came to a quarantine for implausible data, which is above 1.
@@ -51,7 +52,8 @@ struct Status {
 // as '?', so no peer can forge a line or move the cursor.
 std::string peer_text(std::string_view s, std::size_t max);
 
-// The status as one line of JSON (names escaped), ending in a newline.
+// The status as one line of JSON (nlohmann::json: names escaped, a peer's bytes outside UTF-8
+// replaced), ending in a newline.
 std::string to_json(const Status& status);
 // Reads a --status-json file back (the run settings and every node's counters); throws
 // sirad::Error naming the file and the field for anything missing or malformed.

@@ -1,7 +1,9 @@
 // sirad: the farm coordinator (see farm.h).
 #include "cmd/farm.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <thread>
@@ -10,13 +12,16 @@
 
 #include "cluster/checkpoint.h"
 #include "cluster/live_view.h"
+#include "cluster/rate_limit.h"
 #include "cluster/result.h"
 #include "coordinator/coordinator.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/output.h"
 #include "core/results.h"
 #include "core/scene.h"
+#include "core/scene_check.h"
 #include "core/scene_io.h"
 #include "proto/codec.h"
 #include "proto/transport.h"
@@ -33,50 +38,66 @@ void say(logging::Level level, const std::string& message, nlohmann::json fields
 
 // The largest scene file a job's folder may hold (decode_scene's own bound is the same).
 constexpr std::size_t kMaxSceneBytes = std::size_t{1} << 31;
+// The widest preview image of a running job (its height follows the job's aspect).
+constexpr int kPreviewWidth = 480;
 
 using Clock = std::chrono::steady_clock;
 
-// The nodes heard between jobs (routing id -> when), so a job starts only with a node there.
-using IdleNodes = std::map<std::string, Clock::time_point>;
-
-// Between jobs: HELLO gets a WELCOME without a run (the node waits for the next), anything
-// else from a node of an ended job an ERROR asking it to say HELLO; for `ms` at most. A node
-// heard is noted in `idle_nodes` (at most kMaxIdleNodes: the oldest is forgotten).
-constexpr std::size_t kMaxIdleNodes = 4096;
-void idle(zmq::socket_t& router, int ms, IdleNodes& idle_nodes) {
-  auto in = proto::receive(router, ms, 1, 0, 0);
-  if (!in || in->frames.size() < 2 || in->over) return;
-  const std::string id = in->frames.front();
-  if (idle_nodes.size() >= kMaxIdleNodes && !idle_nodes.count(id))
-    idle_nodes.erase(std::min_element(idle_nodes.begin(), idle_nodes.end(),
-                                      [](const auto& a, const auto& b) { return a.second < b.second; }));
-  idle_nodes[id] = Clock::now();
-  proto::Message m;
-  try {
-    m = proto::decode({in->frames.begin() + 1, in->frames.end()});
-  } catch (const proto::ProtocolError&) {
-    return;
+// Who is behind each node's routing id on the jobs' sockets (the key and address the farm's
+// socket saw), for the jobs' runs (RunHooks::peer_identity): shared by the broker and the jobs' threads.
+class PeerTable {
+ public:
+  void set(const std::string& local, cluster::PeerIdentity who) {
+    std::lock_guard lock(mutex_);
+    peers_[local] = std::move(who);
   }
-  if (m.command == proto::Command::hello) {
-    wire::Welcome w;
-    proto::send(router, {proto::Command::welcome, w, {}}, &id);
-  } else if (m.command != proto::Command::heartbeat && m.command != proto::Command::error) {
-    wire::Error e;
-    e.set_reason(fmt::format("{} between jobs; say HELLO", proto::command_name(m.command)));
-    e.set_rejoin(true);
-    proto::send(router, {proto::Command::error, e, {}}, &id);
+  cluster::PeerIdentity get(const std::string& local) const {
+    std::lock_guard lock(mutex_);
+    auto it = peers_.find(local);
+    return it == peers_.end() ? cluster::PeerIdentity{} : it->second;
   }
-}
+  void erase(const std::string& local) {
+    std::lock_guard lock(mutex_);
+    peers_.erase(local);
+  }
 
-// One run of `job`: from its checkpoint if it has one, else from its flags; its outputs in its
-// folder. Returns the summary; throws sirad::Error when the run fails or is interrupted.
-std::string run_job(zmq::socket_t& router, const cluster::Job& job, const std::string& folder, const FarmOptions& options,
-                    FarmView& view) {
+ private:
+  mutable std::mutex mutex_;
+  std::map<std::string, cluster::PeerIdentity> peers_;
+};
+
+// A job running on its thread. The broker reads `finished` and then `error`.
+struct RunningJob {
+  cluster::Job job;
+  JobPlan plan;
+  std::string endpoint;  // its run's inproc ROUTER socket
+  std::atomic<bool> interrupt{false};  // set: checkpoint and stop (a cancel, or the farm stopping)
+  std::atomic<bool> finished{false};
+  std::string error;  // why it did not end done ("" when it did); written before `finished`
+  std::thread thread;
+};
+
+// A node as the farm's socket sees it.
+struct FarmNode {
+  std::string local;      // its routing id on the jobs' sockets
+  uint64_t job = 0;       // the job it is in (0: free)
+  bool asked = false;     // free, asked to say HELLO for a job that started: not yet free for another
+  std::unique_ptr<zmq::socket_t> dealer;  // to that job's socket, under `local`
+  Clock::time_point heard;
+};
+
+// One run of `job` on `router`: from its checkpoint if it has one, else from its flags; its
+// outputs in its folder, with a preview image as it runs. Returns the summary; throws
+// sirad::Error when the run fails or is interrupted.
+std::string run_job(zmq::socket_t& router, RunningJob& running, const std::string& folder, const FarmOptions& options,
+                    FarmView& view, const PeerTable& peers) {
+  const cluster::Job& job = running.job;
+  const JobPlan& plan = running.plan;
   const fs::path dir(folder);
   const std::string checkpoint = (dir / "checkpoint").string();
-  JobPlan plan = plan_job(job.args);
   cluster::RunConfig rc;
   static_cast<cluster::ProcessSettings&>(rc) = options.process;
+  rc.min_nodes = plan.min_nodes;
   rc.checkpoint = checkpoint;
   std::optional<wire::Checkpoint> resumed;
   if (fs::exists(checkpoint)) {
@@ -92,23 +113,303 @@ std::string run_job(zmq::socket_t& router, const cluster::Job& job, const std::s
                  : load_scene(job.scene, import);
   PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
   if (mesh.size() > kFarmMaxPatches) fail("{} patches: a farm takes jobs of at most {}", mesh.size(), kFarmMaxPatches);
-  rc.interrupt = options.interrupt;
+  check_scene(rc.scene, mesh, camera_flag(plan.output.camera), "--camera");  // the view the images show
+  rc.interrupt = &running.interrupt;
+  rc.peer_identity = [&peers](const std::string& id) { return peers.get(id); };
   cluster::StatusReporter reporter(true, (dir / "status.json").string());
   rc.status = [&](const cluster::Status& s) {
     reporter(s);
-    view.update(s);
+    view.update(job.id, s);
   };
   rc.status_every_s = 0.25;
+  const ResultOptions shown = result_options(plan.output);
+  const int preview_w = std::min(kPreviewWidth, shown.width);
+  const int preview_h = std::max(1, static_cast<int>(std::lround(double(shown.height) * preview_w / shown.width)));
+  const fs::path preview = dir / "preview.png";
+  rc.preview = [&](const std::vector<glm::vec3>& radiosity) {
+    try {
+      const fs::path part = dir / "preview.png.part";
+      write_png(part.string(), render_view(mesh, radiosity, *mesh.camera, preview_w, preview_h, shown.shading), shown.exposure);
+      fs::rename(part, preview);
+    } catch (const std::exception& e) {  // a preview that cannot be written must not end the run
+      say(logging::Level::warn, fmt::format("job {}: preview not written: {}", job.id, e.what()), {{"event", "preview"}});
+    }
+  };
   auto start = std::chrono::steady_clock::now();
   cluster::RunResult result = cluster::coordinate(router, rc, mesh);
   reporter.finish();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  write_results((dir / job.name).string(), mesh, result.radiosity, result_options(plan.output),
+  write_results((dir / job.name).string(), mesh, result.radiosity, shown,
                 cluster::run_attributes(rc, cluster::outcome_of(result), mesh, job.scene.empty() ? job.name : job.scene, true));
   write_file_atomic((dir / "ledger.csv").string(), cluster::ledger_csv(result));
   fs::remove(checkpoint);
+  fs::remove(preview);
   return cluster::cluster_summary(result, mesh.size(), seconds);
 }
+
+// Sends `frames` on `socket` after `envelope` (a ROUTER's routing id), without waiting: false
+// when it could not go (the peer is gone, or its queue is full).
+bool forward(zmq::socket_t& socket, const std::string* envelope, const std::vector<std::string>& frames) {
+  try {
+    if (envelope && !socket.send(zmq::buffer(*envelope), zmq::send_flags::sndmore | zmq::send_flags::dontwait)) return false;
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      const auto more = i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::none;
+      if (!socket.send(zmq::buffer(frames[i]), more | zmq::send_flags::dontwait)) return false;
+    }
+    return true;
+  } catch (const zmq::error_t&) {  // ROUTER_MANDATORY: no such peer
+    return false;
+  }
+}
+
+// The broker: the farm's socket, its nodes, its running jobs.
+class Farm {
+ public:
+  Farm(zmq::context_t& context, zmq::socket_t& router, cluster::JobStore& store, const FarmOptions& options, FarmView& view)
+      : context_(context), router_(router), store_(store), options_(options), view_(view),
+        alive_(std::chrono::milliseconds(static_cast<int64_t>(options.process.heartbeat_ms) * options.process.liveness)) {
+    router_.set(zmq::sockopt::router_handover, 1);  // a reconnecting node keeps its routing id
+  }
+
+  void serve() {
+    for (;;) {
+      const bool stopping = options_.stop && options_.stop->load();
+      for (auto& [id, r] : jobs_)
+        if (stopping || store_.cancel_requested(id)) r->interrupt = true;
+      reap(stopping);
+      if (stopping && jobs_.empty()) return;
+      forget_silent();
+      if (!stopping) start_next();
+      pump();
+    }
+  }
+
+ private:
+  // Ends the jobs whose threads have finished: their outcome to the store, their nodes free.
+  void reap(bool stopping) {
+    for (auto it = jobs_.begin(); it != jobs_.end();) {
+      RunningJob& r = *it->second;
+      if (!r.finished.load()) {
+        ++it;
+        continue;
+      }
+      r.thread.join();
+      for (auto& [id, n] : nodes_)
+        if (n.job == r.job.id) release(n);
+      view_.ended(r.job.id);
+      const uint64_t id = r.job.id;
+      std::string state = "done", error;
+      if (!r.error.empty()) {
+        if (store_.cancel_requested(id)) {
+          state = "cancelled", error = "cancelled while it ran";
+          fs::remove(fs::path(store_.folder(id)) / "checkpoint");
+          fs::remove(fs::path(store_.folder(id)) / "preview.png");
+        } else if (stopping && r.interrupt.load()) {
+          // Stays "running" on disk: queued again at the next start, from its checkpoint.
+          say(logging::Level::info, fmt::format("job {} checkpointed; it resumes when the farm starts again", id),
+              {{"event", "job stopped"}, {"job", id}});
+          it = jobs_.erase(it);
+          continue;
+        } else {
+          state = "failed", error = r.error;
+        }
+      }
+      store_.finished(id, state, error, unix_now());
+      say(state == "failed" ? logging::Level::warn : logging::Level::info,
+          fmt::format("job {} ({}) {}{}", id, r.job.name, state, error.empty() ? "" : ": " + error),
+          {{"event", "job " + state}, {"job", id}, {"error", error}});
+      it = jobs_.erase(it);
+    }
+  }
+
+  // Nodes silent for their liveness are forgotten (their job's run declares them dead too).
+  void forget_silent() {
+    const auto now = Clock::now();
+    for (auto it = nodes_.begin(); it != nodes_.end();) {
+      if (now - it->second.heard > alive_) {
+        release(it->second);
+        it = nodes_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+
+  void release(FarmNode& n) {
+    n.job = 0;
+    n.dealer.reset();
+    peers_.erase(n.local);
+  }
+
+  std::size_t free_nodes() const {
+    return static_cast<std::size_t>(
+        std::count_if(nodes_.begin(), nodes_.end(), [](const auto& n) { return n.second.job == 0 && !n.second.asked; }));
+  }
+
+  // The next queued job starts when a node is free; the free nodes are asked to say HELLO
+  // (an ERROR `rejoin`), and their HELLOs join the jobs with room. A node asked is not free for
+  // another job until its HELLO finds no room.
+  void start_next() {
+    if (free_nodes() == 0) return;
+    std::optional<cluster::Job> job = store_.next();
+    if (!job) return;
+    auto r = std::make_unique<RunningJob>();
+    r->job = *job;
+    try {
+      r->plan = plan_job(job->args);
+    } catch (const Error& e) {  // checked when submitted: only a job.json edited since gets here
+      store_.started(job->id, unix_now());
+      store_.finished(job->id, "failed", e.what(), unix_now());
+      return;
+    }
+    r->endpoint = fmt::format("inproc://sirad-farm-job-{}", job->id);
+    store_.started(job->id, unix_now());
+    view_.started(job->id);
+    say(logging::Level::info, fmt::format("job {} ({}) started", job->id, job->name),
+        {{"event", "job started"}, {"job", job->id}, {"name", job->name}, {"runs", job->runs + 1}});
+    RunningJob* p = r.get();
+    const std::string folder = store_.folder(job->id);
+    r->thread = std::thread([this, p, folder] {
+      try {
+        zmq::socket_t socket(context_, zmq::socket_type::router);
+        socket.set(zmq::sockopt::linger, 0);
+        socket.bind(p->endpoint);
+        const std::string summary = run_job(socket, *p, folder, options_, view_, peers_);
+        write_file_atomic((fs::path(folder) / "summary.txt").string(), summary);
+      } catch (const std::exception& e) {
+        p->error = e.what();
+        if (p->error.empty()) p->error = "failed";
+      }
+      p->finished.store(true);
+    });
+    jobs_.emplace(job->id, std::move(r));
+    for (auto& [id, n] : nodes_) {
+      if (n.job != 0) continue;
+      n.asked = true;
+      wire::Error e;
+      e.set_reason("a job starts; say HELLO to join it");
+      e.set_rejoin(true);
+      proto::send(router_, {proto::Command::error, e, {}}, &id);
+    }
+  }
+
+  // The running job a HELLO joins: of the highest priority (the oldest first) that has room.
+  RunningJob* job_with_room() {
+    RunningJob* best = nullptr;
+    for (auto& [id, r] : jobs_) {
+      if (r->finished.load() || r->interrupt.load()) continue;
+      const auto in = static_cast<uint32_t>(std::count_if(nodes_.begin(), nodes_.end(), [&](const auto& n) { return n.second.job == id; }));
+      if (r->plan.max_nodes != 0 && in >= r->plan.max_nodes) continue;
+      if (!best || r->job.priority > best->job.priority) best = r.get();  // jobs_ is by id: the oldest first
+    }
+    return best;
+  }
+
+  // Waits up to 100 ms for messages: a node's go to its job (or, for a free node, are answered
+  // here), a job's go to its node.
+  void pump() {
+    std::vector<zmq::pollitem_t> items{{router_.handle(), 0, ZMQ_POLLIN, 0}};
+    std::vector<std::string> owners;
+    for (auto& [id, n] : nodes_)
+      if (n.dealer) {
+        items.push_back({n.dealer->handle(), 0, ZMQ_POLLIN, 0});
+        owners.push_back(id);
+      }
+    try {
+      zmq::poll(items, std::chrono::milliseconds(100));
+    } catch (const zmq::error_t&) {  // a signal: the loop looks at the stop flag
+      return;
+    }
+    for (std::size_t i = 1; i < items.size(); ++i) {
+      if (!(items[i].revents & ZMQ_POLLIN)) continue;
+      auto it = nodes_.find(owners[i - 1]);
+      for (int k = 0; k < 64 && it != nodes_.end() && it->second.dealer; ++k) {  // what its job sent it
+        auto frames = proto::receive(*it->second.dealer, 0);
+        if (!frames) break;
+        forward(router_, &it->first, *frames);
+      }
+    }
+    if (items[0].revents & ZMQ_POLLIN)
+      for (int k = 0; k < 256; ++k)
+        if (!from_node()) break;
+  }
+
+  // One message from a node, if one is there.
+  bool from_node() {
+    std::string key;
+    auto in = proto::receive(router_, 0, 1, kFarmMaxPatches, proto::kMaxChunks, &key);
+    if (!in) return false;
+    if (in->frames.size() < 2 || in->over) return true;  // a job could take none of it
+    const std::string& id = in->frames.front();
+    auto it = nodes_.find(id);
+    if (it == nodes_.end()) {
+      if (nodes_.size() >= kFarmMaxNodes) {
+        // Room for a new node: the free one heard least recently is forgotten; none free: refused.
+        auto oldest = nodes_.end();
+        for (auto n = nodes_.begin(); n != nodes_.end(); ++n)
+          if (n->second.job == 0 && (oldest == nodes_.end() || n->second.heard < oldest->second.heard)) oldest = n;
+        if (oldest == nodes_.end()) return true;
+        nodes_.erase(oldest);
+      }
+      it = nodes_.emplace(id, FarmNode{}).first;
+      it->second.local = fmt::format("farm-node-{}", ++node_count_);
+    }
+    FarmNode& n = it->second;
+    n.heard = Clock::now();
+    const std::vector<std::string> message(in->frames.begin() + 1, in->frames.end());
+    proto::Message m;
+    try {
+      m = proto::decode(message);
+    } catch (const proto::ProtocolError&) {
+      if (n.job != 0) forward(*n.dealer, nullptr, message);  // its job's run refuses it, and counts it
+      return true;
+    }
+    if (n.job == 0 && m.command == proto::Command::hello) {
+      n.asked = false;  // its answer: it joins a job with room, or is free for the next
+      if (RunningJob* r = job_with_room()) {
+        try {
+          auto dealer = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
+          dealer->set(zmq::sockopt::linger, 0);
+          dealer->set(zmq::sockopt::routing_id, n.local);
+          dealer->connect(r->endpoint);
+          n.dealer = std::move(dealer);
+          n.job = r->job.id;
+        } catch (const zmq::error_t& e) {  // out of sockets or file descriptors: it waits, free
+          uint64_t held = 0;
+          if (join_log_.allow("join", std::chrono::duration<double>(Clock::now().time_since_epoch()).count(), &held))
+            say(logging::Level::warn,
+                fmt::format("a node cannot join job {}: {}{}", r->job.id, e.what(), held ? fmt::format(" ({} more held back)", held) : ""),
+                {{"event", "join"}});
+        }
+      }
+    }
+    if (n.job != 0) {
+      peers_.set(n.local, {key, in->address});
+      forward(*n.dealer, nullptr, message);
+    } else if (m.command == proto::Command::hello) {
+      wire::Welcome w;  // no job with room: it waits
+      proto::send(router_, {proto::Command::welcome, w, {}}, &id);
+    } else if (m.command != proto::Command::heartbeat && m.command != proto::Command::error) {
+      wire::Error e;
+      e.set_reason(fmt::format("{} between jobs; say HELLO", proto::command_name(m.command)));
+      e.set_rejoin(true);
+      proto::send(router_, {proto::Command::error, e, {}}, &id);
+    }
+    return true;
+  }
+
+  zmq::context_t& context_;
+  zmq::socket_t& router_;
+  cluster::JobStore& store_;
+  const FarmOptions& options_;
+  FarmView& view_;
+  const Clock::duration alive_;  // a node heard within this is there
+  PeerTable peers_;
+  std::map<uint64_t, std::unique_ptr<RunningJob>> jobs_;  // by id
+  std::map<std::string, FarmNode> nodes_;                 // by the farm socket's routing id
+  uint64_t node_count_ = 0;
+  cluster::RateLimit join_log_{5, 10.0};  // lines about nodes that cannot join: 5 every 10 s
+};
 
 }  // namespace
 
@@ -120,6 +421,10 @@ JobPlan plan_job(const std::vector<std::string>& args) {
   JobPlan plan;
   add_run_flags(&app, run);
   add_output_flags(&app, plan.output);
+  int min_nodes = 1, max_nodes = 0;
+  app.add_option("--min-nodes", min_nodes, "Nodes ready before the job's first grant")->check(CLI::Range(1, 4096));
+  app.add_option("--max-nodes", max_nodes, "The most nodes the job takes; the others run other jobs (0: every node)")
+      ->check(CLI::Range(0, 4096));
   std::vector<const char*> argv{"job"};
   for (const std::string& a : args) argv.push_back(a.c_str());
   try {
@@ -133,6 +438,9 @@ JobPlan plan_job(const std::vector<std::string>& args) {
   }
   if (!plan.output.out.empty()) fail("job flags: --out: a job's outputs are named by the job");
   if (!plan.output.camera.empty()) camera_flag(plan.output.camera);  // checked now, not when the job runs
+  if (max_nodes != 0 && min_nodes > max_nodes) fail("job flags: --min-nodes {} is more than --max-nodes {}", min_nodes, max_nodes);
+  plan.min_nodes = static_cast<uint32_t>(min_nodes);
+  plan.max_nodes = static_cast<uint32_t>(max_nodes);
   plan.settings = settings_from(run, given_flags(&app));
   if (std::string why = cluster::target_error_problem(plan.settings); !why.empty()) fail("job flags: {}", why);
   return plan;
@@ -140,96 +448,48 @@ JobPlan plan_job(const std::vector<std::string>& args) {
 
 void FarmView::started(uint64_t job) {
   std::lock_guard lock(mutex_);
-  job_ = job;
-  status_.reset();
-  history_.clear();
+  jobs_[job] = {};
 }
 
-void FarmView::update(const cluster::Status& s) {
+void FarmView::update(uint64_t job, const cluster::Status& s) {
   std::lock_guard lock(mutex_);
-  status_ = s;
-  if (history_.size() >= kMaxPoints) {  // keep every other point: the whole run at half the detail
+  Running& r = jobs_[job];
+  r.status = s;
+  if (r.history.size() >= kMaxPoints) {  // keep every other point: the whole run at half the detail
     std::vector<Point> kept;
-    for (std::size_t i = 0; i < history_.size(); i += 2) kept.push_back(history_[i]);
-    history_ = std::move(kept);
+    for (std::size_t i = 0; i < r.history.size(); i += 2) kept.push_back(r.history[i]);
+    r.history = std::move(kept);
   }
-  history_.push_back({s.elapsed_s, s.error_estimate, s.bundles_done});
+  r.history.push_back({s.elapsed_s, s.error_estimate, s.bundles_done});
 }
 
-void FarmView::ended() {
+void FarmView::ended(uint64_t job) {
   std::lock_guard lock(mutex_);
-  job_ = 0;
+  jobs_.erase(job);
 }
 
-uint64_t FarmView::job() const {
+std::vector<uint64_t> FarmView::running() const {
   std::lock_guard lock(mutex_);
-  return job_;
+  std::vector<uint64_t> out;
+  for (const auto& [id, r] : jobs_) out.push_back(id);
+  return out;
 }
 
-std::optional<cluster::Status> FarmView::status() const {
+std::optional<cluster::Status> FarmView::status(uint64_t job) const {
   std::lock_guard lock(mutex_);
-  return status_;
+  auto it = jobs_.find(job);
+  return it == jobs_.end() ? std::nullopt : it->second.status;
 }
 
-std::vector<FarmView::Point> FarmView::history() const {
+std::vector<FarmView::Point> FarmView::history(uint64_t job) const {
   std::lock_guard lock(mutex_);
-  return history_;
+  auto it = jobs_.find(job);
+  return it == jobs_.end() ? std::vector<Point>{} : it->second.history;
 }
 
-void serve_farm(zmq::socket_t& router, cluster::JobStore& store, const FarmOptions& options, FarmView& view) {
-  auto stopping = [&] { return options.stop && options.stop->load(); };
-  // A node heard within its liveness is there to take a job.
-  const auto alive = std::chrono::milliseconds(static_cast<int64_t>(options.process.heartbeat_ms) * options.process.liveness);
-  IdleNodes idle_nodes;
-  while (!stopping()) {
-    std::erase_if(idle_nodes, [&](const auto& n) { return Clock::now() - n.second > alive; });
-    std::optional<cluster::Job> job = store.next();
-    if (!job || idle_nodes.empty()) {  // nothing to run, or no node to run it: wait
-      idle(router, 200, idle_nodes);
-      continue;
-    }
-    // The idle nodes say HELLO now (asked by an ERROR), so the job's run has them at once.
-    for (const auto& [id, heard] : idle_nodes) {
-      wire::Error e;
-      e.set_reason("a job starts; say HELLO to join it");
-      e.set_rejoin(true);
-      proto::send(router, {proto::Command::error, e, {}}, &id);
-    }
-    idle_nodes.clear();
-    store.started(job->id, unix_now());
-    view.started(job->id);
-    say(logging::Level::info, fmt::format("job {} ({}) started", job->id, job->name),
-        {{"event", "job started"}, {"job", job->id}, {"name", job->name}, {"runs", job->runs + 1}});
-    std::string state = "done", error;
-    try {
-      std::string summary = run_job(router, *job, store.folder(job->id), options, view);
-      write_file_atomic((fs::path(store.folder(job->id)) / "summary.txt").string(), summary);
-    } catch (const std::exception& e) {
-      if (store.cancel_requested(job->id)) {
-        state = "cancelled", error = "cancelled while it ran";
-        fs::remove(fs::path(store.folder(job->id)) / "checkpoint");
-      } else if (stopping()) {
-        view.ended();
-        say(logging::Level::info, fmt::format("job {} checkpointed; it resumes when the farm starts again", job->id),
-            {{"event", "job stopped"}, {"job", job->id}});
-        return;  // stays "running" on disk: queued again at the next start, from its checkpoint
-      } else if (options.interrupt && options.interrupt->exchange(false)) {
-        // Interrupted for a cancel of the job before it, which had ended meanwhile: this one
-        // goes back to the queue and resumes from the checkpoint it just wrote.
-        store.requeue(job->id);
-        view.ended();
-        continue;
-      } else {
-        state = "failed", error = e.what();
-      }
-    }
-    store.finished(job->id, state, error, unix_now());  // first: a cancel of it now finds it ended
-    if (options.interrupt) options.interrupt->store(false);
-    view.ended();
-    say(state == "failed" ? logging::Level::warn : logging::Level::info,
-        fmt::format("job {} ({}) {}{}", job->id, job->name, state, error.empty() ? "" : ": " + error),
-        {{"event", "job " + state}, {"job", job->id}, {"error", error}});
-  }
+void serve_farm(zmq::context_t& context, zmq::socket_t& router, cluster::JobStore& store, const FarmOptions& options,
+                FarmView& view) {
+  Farm(context, router, store, options, view).serve();
 }
 
 }  // namespace sirad::cli

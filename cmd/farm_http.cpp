@@ -34,7 +34,7 @@ constexpr std::size_t kMaxBody = std::size_t{1} << 31;
 std::vector<std::string> job_files(const cluster::Job& j, const std::string& folder) {
   std::vector<std::string> out;
   for (const std::string& f : {j.name + ".exr", j.name + ".png", j.name + ".ply", j.name + ".glb", std::string("status.json"),
-                               std::string("summary.txt"), std::string("ledger.csv")})
+                               std::string("preview.png"), std::string("summary.txt"), std::string("ledger.csv")})
     if (fs::is_regular_file(fs::path(folder) / f)) out.push_back(f);
   return out;
 }
@@ -85,8 +85,8 @@ std::string farm_token(const std::string& path) {
   return token;
 }
 
-FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, std::atomic<bool>* interrupt)
-    : store_(store), view_(view), token_(std::move(token)), interrupt_(interrupt), server_(std::make_unique<httplib::Server>()) {
+FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
+    : store_(store), view_(view), token_(std::move(token)), server_(std::make_unique<httplib::Server>()) {
   httplib::Server& s = *server_;
   s.set_payload_max_length(kMaxBody);
   // Everything but reading needs the token, checked before the request's body is read (a body
@@ -112,11 +112,10 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, 
   });
   s.Get("/api/jobs", [this](const httplib::Request&, httplib::Response& res) {
     json jobs = json::array();
-    const uint64_t running = view_.job();
-    const std::optional<cluster::Status> st = view_.status();
+    const std::vector<uint64_t> running = view_.running();
     for (const cluster::Job& j : store_.list()) {
       json o = job_object(j);
-      if (j.id == running && st) {
+      if (std::optional<cluster::Status> st = view_.status(j.id)) {
         o["bundles_done"] = st->bundles_done;
         o["bundles"] = st->bundles;
         o["error_estimate"] = st->error_estimate;
@@ -131,10 +130,10 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, 
     if (!j) return;
     json o = job_object(*j);
     o["files"] = job_files(*j, store_.folder(j->id));
-    if (view_.job() == j->id) {
-      if (std::optional<cluster::Status> st = view_.status()) o["status"] = json::parse(cluster::to_json(*st));
+    if (std::optional<cluster::Status> st = view_.status(j->id)) {
+      o["status"] = json::parse(cluster::to_json(*st));
       json h = json::array();
-      for (const FarmView::Point& p : view_.history()) h.push_back({p.elapsed_s, p.error_estimate, p.bundles_done});
+      for (const FarmView::Point& p : view_.history(j->id)) h.push_back({p.elapsed_s, p.error_estimate, p.bundles_done});
       o["history"] = h;
     } else if (fs::is_regular_file(fs::path(store_.folder(j->id)) / "status.json")) {
       try {
@@ -204,7 +203,6 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, 
     std::optional<cluster::Job> j = job_of(req, res);
     if (!j) return;
     if (!store_.cancel(j->id, unix_now())) return refuse(res, 409, fmt::format("job {} has ended ({})", j->id, j->state));
-    if (store_.cancel_requested(j->id) && interrupt_) interrupt_->store(true);
     logging::write(logging::Level::info, "sirad-coordinator", fmt::format("job {} cancelled", j->id),
                    {{"event", "job cancel"}, {"job", j->id}, {"address", req.remote_addr}});
     reply(res, 200, job_object(*store_.get(j->id)));

@@ -3,7 +3,6 @@
 // nodes, outputs) is open to whoever reaches the address (localhost unless asked); submitting
 // and cancelling need the farm's token ("Authorization: Bearer TOKEN").
 #pragma once
-#include <atomic>
 #include <memory>
 #include <string>
 #include <thread>
@@ -24,8 +23,8 @@ std::string farm_token(const std::string& path);
 
 class FarmHttp {
  public:
-  // `interrupt`: set to stop the running job when it is cancelled.
-  FarmHttp(cluster::JobStore& store, FarmView& view, std::string token, std::atomic<bool>* interrupt);
+  // A cancel marks the job in `store`; the farm stops it.
+  FarmHttp(cluster::JobStore& store, FarmView& view, std::string token);
   ~FarmHttp();
   // Binds HOST:PORT (port 0: any free one) and serves on a thread of its own; returns the port.
   // Throws sirad::Error when it cannot bind.
@@ -36,7 +35,6 @@ class FarmHttp {
   cluster::JobStore& store_;
   FarmView& view_;
   std::string token_;
-  std::atomic<bool>* interrupt_;
   std::unique_ptr<httplib::Server> server_;
   std::thread thread_;
 };

@@ -668,7 +668,7 @@ int run(int argc, char** argv) {
   };
   std::string submit_scene, submit_name;
   int submit_priority = 0;
-  auto* submit_cmd = app.add_subcommand("submit", "Queue a job on a farm (sirad-coordinator --serve): SCENE and its run and output flags");
+  auto* submit_cmd = app.add_subcommand("submit", "Queue a job on a farm (sirad-coordinator --serve): SCENE and its run and output flags, and --min-nodes N, --max-nodes N (the most nodes it takes; 0: every node)");
   cli::add_scene_argument(submit_cmd, submit_scene);
   add_farm(submit_cmd, true);
   submit_cmd->add_option("--priority", submit_priority, "Higher runs first (default 0)")->check(CLI::Range(-1000000, 1000000));

@@ -59,6 +59,7 @@ struct Peer {
   uint32_t index = 0;   // in the policy (a node that rejoins gets a new one)
   std::string name, device;
   double busy_s = 0, idle_s = 0;
+  uint64_t bytes_in = 0, bytes_out = 0;  // its states in (REPORT, FINAL bulk) and updates out
   double ms_per_bundle = 0;  // as its READY said (its burn-in, slowdown included)
   uint64_t first_bundles = 0;  // bundles and busy time at its first report
   double first_busy_s = 0;
@@ -89,7 +90,7 @@ class Coordinator {
 
   RunResult run() {
     start_ = Clock::now() - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(record_.elapsed_s));
-    auto last_status = Clock::now(), last_checkpoint = Clock::now();
+    auto last_status = Clock::now(), last_checkpoint = Clock::now(), last_preview = Clock::now();
     while (!policy_.done()) {
       auto now = Clock::now();
       if (config_.interrupt && config_.interrupt->load()) {
@@ -110,6 +111,10 @@ class Coordinator {
         last_status = now;
         config_.status(snapshot());
       }
+      if (config_.preview && seconds(now - last_preview) >= config_.preview_every_s && holds_states()) {
+        last_preview = now;
+        config_.preview(policy_.radiosity());
+      }
       if (config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s)
         fail("run did not finish within {} s ({} of {} bundles done)", config_.timeout_s, policy_.ledger().done_count(),
              config_.bundles);
@@ -125,6 +130,11 @@ class Coordinator {
       std::string key;
       auto in = proto::receive(router_, wait_ms(now), 1, mesh_.size(), run_.chunk_starts_size(), &key);
       if (!in || in->frames.empty()) continue;
+      if (config_.peer_identity) {
+        PeerIdentity who = config_.peer_identity(in->frames.front());
+        key = std::move(who.key);
+        in->address = std::move(who.address);
+      }
       const std::vector<std::string>& frames = in->frames;
       std::string id = frames.front();
       Message m;
@@ -195,6 +205,13 @@ class Coordinator {
     return s;
   }
 
+  // Whether any node's state is in (a preview of nothing is not worth drawing).
+  bool holds_states() const {
+    for (uint32_t c = 0; c < policy_.aggregate().chunks(); ++c)
+      if (policy_.aggregate().count(c) > 0) return true;
+    return false;
+  }
+
   // Every peer of the run in join order: the departed (dead, replaced by a rejoin) and the current.
   std::vector<const Peer*> all_peers() const {
     std::vector<const Peer*> out;
@@ -223,6 +240,8 @@ class Coordinator {
       n.rate = up > 0 ? static_cast<double>(ns.bundles) / up : 0.0;
       n.busy_s = p->busy_s;
       n.idle_s = p->idle_s;
+      n.bytes_in = p->bytes_in;
+      n.bytes_out = p->bytes_out;
       if (p->from_checkpoint) {  // not dead: it ran in the run before this process resumed it
         n.state = "before resume";
         n.rate = 0;
@@ -513,6 +532,7 @@ class Coordinator {
       if (!p.due.empty() && p.due.front().first == r.grant_id()) p.due.erase(p.due.begin());
       if (!refused.empty()) throw Error(refused);
       record_.bytes_in += bytes;
+      p.bytes_in += bytes;
     } catch (const Error&) {
       schedule();  // refused (the caller logs it and answers ERROR); the others go on
       throw;
@@ -536,6 +556,7 @@ class Coordinator {
         u.add_counts(x->parts[i].count);
         frames.push_back(proto::pack(x->parts[i].sum));
         record_.bytes_out += frames.back().size();
+        p.bytes_out += frames.back().size();
       }
       send(p, {Command::update, u, frames});
     }
@@ -545,7 +566,10 @@ class Coordinator {
   void final_state(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk) {
     if (!policy_.node(p.index).stopped) fail("FINAL without STOP");
     try {
-      policy_.final_state(p.index, chunk_states(p, r, bulk, record_.final_bytes));
+      uint64_t bytes = 0;
+      policy_.final_state(p.index, chunk_states(p, r, bulk, bytes));
+      record_.final_bytes += bytes;
+      p.bytes_in += bytes;
     } catch (const Error&) {
       schedule();  // a quarantine gave bundles back
       throw;

@@ -32,10 +32,8 @@ using namespace sirad;
 
 namespace {
 std::atomic<bool> interrupted{false};
-std::atomic<bool> job_interrupted{false};  // --serve: the running job's interrupt (also set by a cancel)
 void on_signal(int) {
   interrupted = true;
-  job_interrupted = true;
 }
 
 // The ROUTER socket of a run or a farm: the ZAP handler first (libzmq admits everyone without
@@ -107,7 +105,7 @@ int serve_farm(const std::string& dir, const std::string& http, const std::strin
   zmq::context_t context;
   Listener listener(context, listen, keys, allow, cli::kFarmMaxPatches, insecure, endpoint_file, fmt::format("farm {}", dir));
   cli::FarmView view;
-  cli::FarmHttp server(store, view, token, &job_interrupted);
+  cli::FarmHttp server(store, view, token);
   const int bound = server.start(host, port);
   const std::string url = fmt::format("http://{}:{}", host, bound);
   write_file_atomic((std::filesystem::path(dir) / "http").string(), url);
@@ -120,8 +118,7 @@ int serve_farm(const std::string& dir, const std::string& http, const std::strin
   options.process.liveness = liveness;
   options.process.checkpoint_every_s = checkpoint_every;
   options.stop = &interrupted;
-  options.interrupt = &job_interrupted;
-  cli::serve_farm(listener.router, store, options, view);
+  cli::serve_farm(context, listener.router, store, options, view);
   server.stop();
   logging::write(logging::Level::info, "sirad-coordinator", "farm stopped", {{"event", "stopped"}});
   return 0;
@@ -141,7 +138,7 @@ int main(int argc, char** argv) {
   app.get_option("scene")->required(false);  // --serve takes none; else checked below
   std::string serve, http = "127.0.0.1:8080", token_file;
   app.add_option("--serve", serve,
-                 "Serve a farm: the job queue in this folder (made if need be), one job after another, until SIGTERM "
+                 "Serve a farm: the job queue in this folder (made if need be), jobs side by side as their --max-nodes allow, until SIGTERM "
                  "(submit with sirad submit; jobs, progress and outputs over --http)");
   app.add_option("--http", http, "With --serve: the web page and JSON API's HOST:PORT (port 0: any free one)")->capture_default_str();
   app.add_option("--token-file", token_file,

@@ -6,8 +6,10 @@
 #   2. sirad render cornell --patches 500 --bundles 50 writes its images;
 #   3. a coordinator and a node of the image, over TCP on loopback with CURVE keys made by the
 #      image's sirad-make-keys, finish a run;
-#   4. deploy/docker-compose.yml's commands pass --check-config as the image's own programs
-#      (deploy/check-compose.py --root).
+#   4. the image's farm (sirad-coordinator --serve) runs a job a node of the image takes,
+#      submitted by the image's sirad submit, and hands out its image over HTTP;
+#   5. deploy/docker-compose.yml's and docker-compose.farm.yml's commands pass --check-config
+#      as the image's own programs (deploy/check-compose.py --root).
 # The debian:12 base is made with mmdebstrap when podman has none. As root; exits 77 (skipped)
 # where podman or mmdebstrap is missing or this is not root.
 #   deploy/image-check.sh [TAG]        (default tag: sirad)
@@ -96,9 +98,39 @@ wait $coordinator || { cat "$work/coordinator.log" "$work/node.log" >&2; fail "t
 kill -TERM $node 2>/dev/null || true
 wait $node 2>/dev/null || true
 [[ -s $root/out/cluster.exr ]] || fail "the image's cluster run wrote no cluster.exr"
-grep -q '"bundles_done": 64' "$root/out/status.json" || fail "the cluster run's status does not count 64 bundles: $(cat "$root/out/status.json")"
+grep -q '"bundles_done":64,' "$root/out/status.json" || fail "the cluster run's status does not count 64 bundles: $(cat "$root/out/status.json")"
 
-# 4. The compose file's commands, as the image's programs.
-/usr/bin/python3 "$repo/deploy/check-compose.py" --root "$root" "$repo/deploy/docker-compose.yml" >"$work/compose.log" 2>&1 \
-  || { cat "$work/compose.log" >&2; fail "the compose commands failed as the image's programs"; }
-echo "image-check: ok: $tag ($commit) renders, runs a coordinator and a node over TCP, and takes the compose commands"
+# 4. The farm (docker-compose.farm.yml's service) with a node: a job submitted by the image's
+# `sirad submit` runs, and its image is handed out by the farm's API.
+chroot "$root" "${image_env[@]}" sirad-coordinator --serve /farm --listen 'tcp://127.0.0.1:0' --endpoint-file /out/farm-endpoint \
+  --http 127.0.0.1:0 --curve-secret /keys/coordinator.key_secret --allow /keys/allow >"$work/farm.log" 2>&1 &
+farm=$!
+for ((i = 0; i < 600; i++)); do
+  [[ ! -s $root/out/farm-endpoint || ! -s $root/farm/http ]] || break
+  kill -0 $farm 2>/dev/null || { cat "$work/farm.log" >&2; fail "the image's farm exited before binding"; }
+  sleep 0.1
+done
+[[ -s $root/farm/http ]] || fail "the image's farm did not bind in 60 s"
+chroot "$root" "${image_env[@]}" sirad-node --connect "$(cat "$root/out/farm-endpoint")" --curve-secret /keys/node.key_secret \
+  --server-key /keys/coordinator.key >"$work/farm-node.log" 2>&1 &
+farm_node=$!
+in_image sirad submit cornell --farm /farm --name imagejob --patches 500 --bundles 64 --width 64 --height 64 >/dev/null \
+  || fail "sirad submit failed in the image"
+for ((i = 0; i < 1500; i++)); do
+  state=$(/usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["state"])' "$root/farm/jobs/1/job.json" 2>/dev/null || true)
+  [[ $state != done && $state != failed ]] || break
+  sleep 0.2
+done
+[[ $state == done ]] || { cat "$work/farm.log" "$work/farm-node.log" >&2; fail "the image's farm job ended '$state' (not done in 300 s)"; }
+curl -sf -o "$work/farm.png" "$(cat "$root/farm/http")/api/jobs/1/files/imagejob.png" || fail "the farm's API did not hand out the job's image"
+[[ $(head -c 4 "$work/farm.png" | od -An -c | tr -d ' ') == 211PNG ]] || fail "the farm's job image is not a PNG"
+kill -TERM $farm_node $farm 2>/dev/null || true
+wait $farm || { cat "$work/farm.log" >&2; fail "the image's farm did not stop cleanly on SIGTERM"; }
+wait $farm_node 2>/dev/null || true
+
+# 5. The compose files' commands, as the image's programs.
+for compose in docker-compose.yml docker-compose.farm.yml; do
+  /usr/bin/python3 "$repo/deploy/check-compose.py" --root "$root" "$repo/deploy/$compose" >"$work/compose.log" 2>&1 \
+    || { cat "$work/compose.log" >&2; fail "$compose: its commands failed as the image's programs"; }
+done
+echo "image-check: ok: $tag ($commit) renders, runs a coordinator and a node over TCP, serves a farm job, and takes the compose commands"

@@ -60,12 +60,12 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   n.last_seen_s = 0.25;
   s.nodes.push_back(n);
   EXPECT_EQ(to_json(s),
-            "{\"bundles_done\": 3, \"bundles\": 10, \"patches\": 1000, \"elapsed_s\": 1.500, \"bundles_per_s\": 2.000, "
-            "\"patch_bundles_per_s\": 2000, \"error_estimate\": null, \"exchanges\": 0, \"bytes_in\": 0, \"bytes_out\": 0, "
-            "\"scenes_sent\": 2, \"scenes_from_cache\": 1, \"exchange_every\": 0, \"exchange_fraction\": 1, "
-            "\"mode\": \"\", \"topology\": \"\", \"target_error\": null, \"ended_by\": null, \"nodes\": [{\"name\": \"a\\\"b\\\\c\\u000ad\", "
-            "\"device\": \"\", \"state\": \"\", \"bundles\": 3, \"exchanges\": 1, \"last_seen_s\": 0.250, "
-            "\"bundles_per_s\": 0.000, \"busy_s\": 0.000, \"idle_s\": 0.000, \"suspicion\": 0.000}]}\n");
+            "{\"bundles_done\":3,\"bundles\":10,\"patches\":1000,\"elapsed_s\":1.5,\"bundles_per_s\":2.0,"
+            "\"patch_bundles_per_s\":2000.0,\"error_estimate\":null,\"exchanges\":0,\"bytes_in\":0,\"bytes_out\":0,"
+            "\"scenes_sent\":2,\"scenes_from_cache\":1,\"exchange_every\":0,\"exchange_fraction\":1.0,"
+            "\"mode\":\"\",\"topology\":\"\",\"target_error\":null,\"ended_by\":null,\"nodes\":[{\"name\":\"a\\\"b\\\\c\\nd\","
+            "\"device\":\"\",\"state\":\"\",\"bundles\":3,\"exchanges\":1,\"last_seen_s\":0.25,"
+            "\"bundles_per_s\":0.0,\"busy_s\":0.0,\"idle_s\":0.0,\"bytes_in\":0,\"bytes_out\":0,\"suspicion\":0.0}]}\n");
   // It reads back (sirad model --from-run), the escaped name included.
   auto path = std::filesystem::temp_directory_path() / ("sirad_status_" + std::to_string(::getpid()) + ".json");
   s.exchange_every = 8;
@@ -78,6 +78,8 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   ASSERT_EQ(back.nodes.size(), 1u);
   EXPECT_EQ(back.nodes[0].name, n.name);
   EXPECT_EQ(back.nodes[0].bundles, 3u);
+  EXPECT_EQ(back.scenes_sent, 2u);
+  EXPECT_EQ(back.error_estimate, -1.0);
   EXPECT_DOUBLE_EQ(back.nodes[0].busy_s, 1.25);
   EXPECT_EQ(back.exchange_every, 8u);
   EXPECT_DOUBLE_EQ(back.exchange_fraction, 0.25);

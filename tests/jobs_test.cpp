@@ -33,21 +33,24 @@ TEST(JobStore, RunsTheHighestPriorityFirstThenTheOldest) {
   EXPECT_EQ(store.next()->id, b.id);  // priority 5, submitted before c
   store.started(b.id, 110);
   EXPECT_EQ(store.next()->id, c.id);
-  store.requeue(b.id);  // interrupted, not by its own cancel: back in the queue, first again
-  EXPECT_EQ(store.get(b.id)->state, "queued");
-  EXPECT_EQ(store.next()->id, b.id);
-  store.started(b.id, 111);
-  EXPECT_EQ(store.get(b.id)->runs, 2u);
-  EXPECT_EQ(store.get(b.id)->started, 110);  // the first start is kept
-  store.finished(b.id, "done", "", 120);
-  store.started(c.id, 121);
-  store.finished(c.id, "failed", "no nodes", 130);
-  EXPECT_EQ(store.next()->id, a.id);
-  EXPECT_TRUE(store.cancel(a.id, 131));  // queued: cancelled at once
-  EXPECT_EQ(store.get(a.id)->state, "cancelled");
-  EXPECT_FALSE(store.next());
-  EXPECT_FALSE(store.cancel(a.id, 132));  // ended
-  EXPECT_FALSE(store.cancel(99, 132));    // no such job
+  {
+    JobStore again(d.path.string());  // the farm restarted with b running: back in the queue, first again
+    EXPECT_EQ(again.get(b.id)->state, "queued");
+    EXPECT_EQ(again.next()->id, b.id);
+  }
+  JobStore s2(d.path.string());  // the restarted farm's store
+  s2.started(b.id, 111);
+  EXPECT_EQ(s2.get(b.id)->runs, 2u);
+  EXPECT_EQ(s2.get(b.id)->started, 110);  // the first start is kept
+  s2.finished(b.id, "done", "", 120);
+  s2.started(c.id, 121);
+  s2.finished(c.id, "failed", "no nodes", 130);
+  EXPECT_EQ(s2.next()->id, a.id);
+  EXPECT_TRUE(s2.cancel(a.id, 131));  // queued: cancelled at once
+  EXPECT_EQ(s2.get(a.id)->state, "cancelled");
+  EXPECT_FALSE(s2.next());
+  EXPECT_FALSE(s2.cancel(a.id, 132));  // ended
+  EXPECT_FALSE(s2.cancel(99, 132));    // no such job
 }
 
 // Every change is on disk: a new store of the same folder sees the same jobs, a job that was

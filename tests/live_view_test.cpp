@@ -84,7 +84,7 @@ TEST(LiveViewLines, QuarantinedNodesAreFlagged) {
   EXPECT_EQ(lines[2].rfind("! gpu-box-2", 0), 0u) << lines[2];
   EXPECT_NE(lines[2].find("QUARANTINED"), std::string::npos) << lines[2];
   EXPECT_EQ(plain_line(s), "sirad: 412/1000 bundles, 87.3 bundles/s, error 2.31%, 3 nodes (1 dead, 1 quarantined)");
-  EXPECT_NE(to_json(s).find("\"why\": \"chunk 0 value 3 is nan\""), std::string::npos);
+  EXPECT_NE(to_json(s).find("\"why\":\"chunk 0 value 3 is nan\""), std::string::npos);
 }
 
 TEST(LiveViewLines, EtaFromTheRunRate) {

@@ -279,11 +279,13 @@ void expect_every_index_once(const std::vector<LedgerRow>& rows, uint64_t bundle
   for (uint64_t k = 0; k < bundles; ++k) ASSERT_EQ(seen[k], 1) << "bundle index " << k;
 }
 
-// "bundles_done": N from a status JSON (0 while there is none).
+// "bundles_done" of a status JSON (0 while there is none).
 uint64_t bundles_done(const fs::path& status) {
-  std::string s = slurp(status);
-  auto at = s.find("\"bundles_done\": ");
-  return at == std::string::npos ? 0 : std::stoull(s.substr(at + 16));
+  try {
+    return sirad::cluster::read_status(status.string()).bundles_done;
+  } catch (const std::exception&) {
+    return 0;
+  }
 }
 
 struct KillRun {
@@ -713,6 +715,81 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
   EXPECT_EQ(png_code, 200);
   EXPECT_EQ(png.substr(0, 4), "\x89PNG");
   EXPECT_EQ(curl(dir, {farm.url + "/api/jobs/3/files/job.json"}).second, 404);  // only outputs are handed out
+  for (auto& n : nodes) n->terminate();
+  farm.process->terminate();
+  EXPECT_EQ(farm.process->wait(sirad::test::kHangS), 0) << slurp(dir / "farm0.log");
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+// Two jobs that cannot use every node share a farm of two node processes over TCP: a long
+// Cornell box (priority 1, --max-nodes 1) and a short furnace (priority 0, --max-nodes 1). Run
+// one after another, the short job would wait for the long one, which has 10^8 bundles: it
+// ends done while the long job runs, each job's nodes are one node process and not the other's
+// (their status and ledger), and the short one ran every bundle index once. While the long job
+// runs, the farm writes its preview image from the states its node has sent (its status counts
+// that node's traffic): a PNG showing the Cornell box's red wall, handed out by the API; a
+// cancel then stops the long job and takes its preview away. A job whose --min-nodes exceeds its
+// --max-nodes is refused when submitted, with one line.
+TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
+  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_farm_share_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
+  auto submit = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), {SIRAD_BINARY, "submit"});
+    Child c(args, dir / "submit.log");
+    return c.wait(sirad::test::kHangS);
+  };
+  ASSERT_EQ(submit({"cornell", "--farm", farm.folder.string(), "--name", "long", "--priority", "1", "--max-nodes", "1", "--patches",
+                    "500", "--bundles", "100000000", "--exchange-every", "8", "--width", "64", "--height", "64"}),
+            0) << slurp(dir / "submit.log");
+  ASSERT_EQ(submit({"furnace", "--farm", farm.folder.string(), "--name", "short", "--max-nodes", "1", "--patches", "200", "--bundles",
+                    "256", "--exchange-every", "16", "--width", "8", "--height", "8"}),
+            0) << slurp(dir / "submit.log");
+  EXPECT_EQ(submit({"furnace", "--farm", farm.folder.string(), "--min-nodes", "3", "--max-nodes", "2"}), 1);
+  EXPECT_NE(slurp(dir / "submit.log").find("--min-nodes 3 is more than --max-nodes 2"), std::string::npos) << slurp(dir / "submit.log");
+  std::vector<std::unique_ptr<Child>> nodes;
+  for (int i = 0; i < 2; ++i)
+    nodes.push_back(std::make_unique<Child>(
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", fmt::format("s{}", i)},
+        dir / fmt::format("node{}.log", i)));
+  const fs::path long_dir = farm.folder / "jobs" / "1", short_dir = farm.folder / "jobs" / "2";
+  ASSERT_TRUE(wait_until([&] { return job_state(farm, 2) == "done"; })) << "the short job waited\n" << slurp(dir / "farm0.log");
+  EXPECT_EQ(job_state(farm, 1), "running");
+  const std::vector<LedgerRow> short_ledger = read_ledger(short_dir / "ledger.csv");
+  expect_every_index_once(short_ledger, 256);
+  std::set<std::string> short_names;
+  for (const LedgerRow& row : short_ledger) short_names.insert(row.name);
+  ASSERT_EQ(short_names.size(), 1u);
+  // The long job's node has sent states: its preview is there, and its traffic is counted.
+  ASSERT_TRUE(wait_until([&] { return fs::exists(long_dir / "preview.png") && !status_nodes(long_dir / "status.json").empty(); }))
+      << slurp(dir / "farm0.log");
+  const std::vector<sirad::cluster::Status::Node> long_nodes = status_nodes(long_dir / "status.json");
+  ASSERT_EQ(long_nodes.size(), 1u);
+  EXPECT_EQ(short_names.count(long_nodes[0].name), 0u) << long_nodes[0].name << " ran both jobs";
+  ASSERT_TRUE(wait_until([&] {
+    auto n = status_nodes(long_dir / "status.json");
+    return !n.empty() && n[0].bytes_in > 0 && n[0].bytes_out > 0;
+  })) << slurp(long_dir / "status.json");
+  auto [png, png_code] = curl(dir, {farm.url + "/api/jobs/1/files/preview.png"});
+  ASSERT_EQ(png_code, 200);
+  {
+    std::ofstream(dir / "preview.png", std::ios::binary) << png;
+    int width = 0, height = 0;
+    std::vector<unsigned char> rgb = sirad::test::read_png((dir / "preview.png").string(), width, height);
+    EXPECT_EQ(width, 64);
+    std::size_t red_wall = 0;
+    for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) red_wall += rgb[i] > 100 && rgb[i + 1] < 60 && rgb[i + 2] < 60;
+    EXPECT_GT(red_wall, 64u * 64 / 20) << "no red wall in the preview";
+  }
+  auto [list, list_code] = curl(dir, {farm.url + "/api/jobs"});
+  ASSERT_EQ(list_code, 200);
+  EXPECT_EQ(nlohmann::json::parse(list)["running"], nlohmann::json::array({1})) << list;
+  auto [cancelled, cancel_code] = curl(dir, {"-d", "", "-H", "Authorization: Bearer " + farm.token, farm.url + "/api/jobs/1/cancel"});
+  ASSERT_EQ(cancel_code, 200) << cancelled;
+  ASSERT_TRUE(wait_until([&] { return job_state(farm, 1) == "cancelled"; })) << slurp(dir / "farm0.log");
+  EXPECT_FALSE(fs::exists(long_dir / "preview.png"));
+  EXPECT_FALSE(fs::exists(long_dir / "checkpoint"));
   for (auto& n : nodes) n->terminate();
   farm.process->terminate();
   EXPECT_EQ(farm.process->wait(sirad::test::kHangS), 0) << slurp(dir / "farm0.log");

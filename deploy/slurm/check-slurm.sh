@@ -109,4 +109,31 @@ if sbatch --wait -n 2 "$here/sirad.sbatch" cornell --listen 'tcp://*:1' >"$tmp/r
 fi
 refused=$(sed -n 's/^Submitted batch job \([0-9]*\).*/\1/p' "$tmp/refused.out")
 grep -q -- "--listen is set by this script" "sirad-$refused.log" || fail "the refusal is not in the job's log: $(cat "sirad-$refused.log")"
-echo "check-slurm: ok: job $job ran a coordinator and 2 nodes under Slurm ($(sinfo -V))"
+# The farm as a Slurm job: its queue in a folder the submitter shares, a job submitted to it
+# with the installed `sirad submit` runs on its 2 nodes, and scancel stops it cleanly.
+SIRAD_BIN=$tmp/prefix/bin SIRAD_HTTP=127.0.0.1:0 POCL_CACHE_DIR=${POCL_CACHE_DIR:-$tmp/pocl} \
+  sbatch -n 3 "$here/sirad.sbatch" --serve "$tmp/farm" >"$tmp/farm.out" 2>&1 || fail "sbatch --serve failed: $(cat "$tmp/farm.out")"
+farm_job=$(sed -n 's/^Submitted batch job \([0-9]*\).*/\1/p' "$tmp/farm.out")
+[[ -n $farm_job ]] || fail "no job id: $(cat "$tmp/farm.out")"
+for ((i = 0; i < 3000; i++)); do [[ ! -s $tmp/farm/http ]] || break; sleep 0.1; done
+[[ -s $tmp/farm/http ]] || fail "the farm job did not serve in 300 s: $(cat "sirad-$farm_job.log" 2>&1)"
+"$tmp/prefix/bin/sirad" submit cornell --farm "$tmp/farm" --name slurmjob --patches 500 --bundles 64 --width 32 --height 32 \
+  >/dev/null || fail "sirad submit to the Slurm farm failed"
+for ((i = 0; i < 3000; i++)); do
+  state=$(/usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["state"])' "$tmp/farm/jobs/1/job.json" 2>/dev/null || true)
+  [[ $state != done && $state != failed ]] || break
+  sleep 0.1
+done
+[[ $state == done ]] || fail "the farm's job ended '$state' (not done in 300 s): $(cat "sirad-$farm_job.log")"
+[[ -s $tmp/farm/jobs/1/slurmjob.png ]] || fail "the farm's job wrote no image"
+/usr/bin/python3 - "$tmp/farm/jobs/1/status.json" <<'PY' || fail "the farm job's status is wrong: $(cat "$tmp/farm/jobs/1/status.json")"
+import json, sys
+s = json.load(open(sys.argv[1]))
+assert s["bundles_done"] == 64, s["bundles_done"]
+assert len([n for n in s["nodes"] if n["bundles"] > 0]) >= 1, s["nodes"]
+PY
+scancel "$farm_job"
+for ((i = 0; i < 600; i++)); do [[ -n $(squeue -h -j "$farm_job" 2>/dev/null) ]] || break; sleep 0.1; done
+[[ -z $(squeue -h -j "$farm_job" 2>/dev/null) ]] || fail "the farm job did not end in 60 s after scancel"
+[[ ! -e .sirad-$farm_job ]] || fail "the farm job's keys were left in .sirad-$farm_job"
+echo "check-slurm: ok: job $job ran a coordinator and 2 nodes, job $farm_job served a farm, under Slurm ($(sinfo -V))"
