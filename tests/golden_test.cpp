@@ -230,6 +230,41 @@ TEST_F(Golden, CoordinatorWithTwoNodeProcesses) {
   check("tcp2");
 }
 
+// A farm job is an ordinary run: the run above, submitted to a farm (sirad-coordinator --serve)
+// with the same flags and taken by two node processes, writes the same outputs bit for bit as
+// the lone coordinator did (its recorded digests; the ledger less its names).
+TEST_F(Golden, AFarmJobIsTheSameRunAsALoneCoordinators) {
+  const fs::path farm = dir_ / "farm";
+  Child server({SIRAD_COORDINATOR_BINARY, "--serve", farm.string(), "--listen", "tcp://127.0.0.1:*", "--insecure", "--endpoint-file",
+                out("farm.endpoint"), "--http", "127.0.0.1:0"},
+               dir_ / "farm.log");
+  ASSERT_TRUE(sirad::test::wait_for_file(dir_ / "farm.endpoint", server)) << slurp(dir_ / "farm.log");
+  Child submit({SIRAD_BINARY, "submit", "cornell", "--farm", farm.string(), "--name", "tcp2", "--min-nodes", "2", "--mode", "sync",
+                "--balance", "off", "--bundles", "96", "--seed", "12", "--exchange-every", "8", "--patches", "300", "--width", "24",
+                "--height", "24"},
+               dir_ / "submit.log");
+  ASSERT_EQ(submit.wait(sirad::test::kHangS), 0) << slurp(dir_ / "submit.log");
+  std::vector<std::unique_ptr<Child>> nodes;
+  for (int i = 0; i < 2; ++i)
+    nodes.push_back(std::make_unique<Child>(
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", slurp(dir_ / "farm.endpoint"), "--insecure", "--name",
+                                 fmt::format("farm-{}", i)},
+        dir_ / fmt::format("farm.node{}.log", i)));
+  const fs::path job = farm / "jobs" / "1";
+  ASSERT_TRUE(sirad::test::wait_until([&] { return fs::exists(job / "summary.txt"); })) << slurp(dir_ / "farm.log");
+  std::map<std::string, std::string> recorded;
+  {
+    std::istringstream in(slurp(kDigests));
+    std::string file, digest;
+    while (in >> file >> digest) recorded[file] = digest;
+  }
+  for (const char* f : {"tcp2.exr", "tcp2.png", "tcp2.ply", "tcp2.glb"}) EXPECT_EQ(digest_of(job / f), recorded.at(f)) << f;
+  EXPECT_EQ(hex(ledger_content(job / "ledger.csv")), recorded.at("tcp2-ledger.csv"));
+  for (auto& n : nodes) n->terminate();
+  server.terminate();
+  EXPECT_EQ(server.wait(sirad::test::kHangS), 0) << slurp(dir_ / "farm.log");
+}
+
 // tests/data/golden/resume.ckpt: a run of 4096 bundles of the Cornell box (300 patches, seed
 // 13, exchange every 8) checkpointed after 588 of them by one node, resumed here by another.
 TEST_F(Golden, ResumedCheckpoint) {

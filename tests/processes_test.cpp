@@ -870,7 +870,9 @@ TEST(Farm, AKilledFarmResumesItsQueueAndRunsEveryJobOnce) {
 // headless Chromium. Its DOM after the page's script ran lists the job (done), its node and
 // its image's link; its screenshot shows the done badge (#2e7d32) and the job's image (the
 // Cornell box's red wall: pixels of high red and low green and blue, which nothing else on the
-// page has). Skipped, saying why, where Chromium is not installed (CI installs it).
+// page has). Then, with a long job running, the page opens on it: its preview image (once the
+// farm has written one) and its node's traffic. Skipped, saying why, where Chromium is not
+// installed (CI installs it).
 TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   const std::string chromium = sirad::test::on_path("chromium");
   if (chromium.empty()) GTEST_SKIP() << "chromium is not installed (deploy/install-deps.sh installs it)";
@@ -911,6 +913,23 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   }
   EXPECT_GT(badge, 50u) << "no done badge in the screenshot";
   EXPECT_GT(red_wall, 500u) << "no image of the Cornell box in the screenshot";
+  // A running job is the one the page opens on: its preview image and its node's traffic.
+  Child running({SIRAD_BINARY, "submit", "cornell", "--farm", farm.folder.string(), "--name", "running", "--patches", "500",
+                 "--bundles", "100000000", "--exchange-every", "8", "--width", "64", "--height", "64"},
+                dir / "submit.log");
+  ASSERT_EQ(running.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
+  ASSERT_TRUE(wait_until([&] {
+    if (!fs::exists(farm.folder / "jobs" / "2" / "preview.png")) return false;
+    auto n = status_nodes(farm.folder / "jobs" / "2" / "status.json");
+    return !n.empty() && n[0].bytes_in > 0;
+  })) << slurp(dir / "farm0.log");
+  Child dom2(dump, dir / "dom2.html");
+  ASSERT_EQ(dom2.wait(sirad::test::kHangS), 0) << slurp(dir / "dom2.html");
+  const std::string html2 = slurp(dir / "dom2.html");
+  EXPECT_NE(html2.find("job 2: running (running)"), std::string::npos) << html2;
+  EXPECT_NE(html2.find("preview at "), std::string::npos) << html2;
+  EXPECT_NE(html2.find("/api/jobs/2/files/preview.png?at="), std::string::npos) << html2;
+  EXPECT_NE(html2.find("iB</td>"), std::string::npos) << "no node traffic (KiB or more)\n" << html2;
   node.terminate();
   farm.process->terminate();
   EXPECT_EQ(farm.process->wait(sirad::test::kHangS), 0);
