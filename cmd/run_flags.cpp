@@ -98,6 +98,10 @@ std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
       cmd->add_option("--height", o.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str(),
       cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0)),
       cmd->add_flag("--flat", o.flat, "Flat-shaded image (one value per patch) instead of Gouraud"),
+      cmd->add_option("--final-gather", o.final_gather,
+                      "Image the view by a final gather with this many samples per pixel (direct light traced, indirect "
+                      "from the solution; EXR passes direct, indirect) instead of drawing the patches (0: draw them)")
+          ->check(CLI::Range(0, 65536)),
       cmd->add_flag("--skip-degenerate", o.skip_degenerate, "Drop zero-area triangles instead of failing"),
       cmd->add_flag("--two-sided", o.two_sided,
                     "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL "
@@ -106,6 +110,7 @@ std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
                       "The view of the images: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the scene's, else one "
                       "chosen to see the most)")};
   std::vector<std::string> names;
+  options[5]->excludes(options[4]);  // --final-gather traces the view: --flat would have no effect
   for (const CLI::Option* opt : options) names.push_back("--" + opt->get_lnames().front());
   return names;
 }
@@ -175,6 +180,7 @@ ResultOptions result_options(const OutputFlags& flags) {
   ro.height = flags.height;
   ro.exposure = flags.exposure;
   ro.shading = flags.flat ? Shading::flat : Shading::gouraud;
+  ro.gather_spp = flags.final_gather;
   return ro;
 }
 

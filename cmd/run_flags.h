@@ -49,6 +49,7 @@ struct OutputFlags {
   int width = 512, height = 512;
   float exposure = 0.0f;
   bool flat = false;
+  int final_gather = 0;  // samples per pixel of a final gather image (0: the patches drawn)
   bool skip_degenerate = false;
   bool two_sided = false;
   std::string camera;  // --camera "eye X Y Z look X Y Z up X Y Z fov DEG"
@@ -65,8 +66,8 @@ CLI::Validator positive();
 CLI::Validator non_negative();
 // The flags of the run flags that only a cluster uses (refused on one node).
 const std::vector<std::string>& cluster_flag_names();
-// Import and output: --out, --width, --height, --exposure, --flat, --skip-degenerate,
-// --two-sided, --camera; returns their long names.
+// Import and output: --out, --width, --height, --exposure, --flat, --final-gather,
+// --skip-degenerate, --two-sided, --camera; returns their long names.
 std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& flags);
 
 // The long names of the options given on `cmd`'s command line.

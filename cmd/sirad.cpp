@@ -28,13 +28,16 @@
 #include "core/atomic_file.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
+#include "core/gather.h"
 #include "core/mesh.h"
+#include "core/output.h"
 #include "core/model.h"
 #include "core/model_fit.h"
 #include "core/reference.h"
 #include "core/results.h"
 #include "core/scene.h"
 #include "core/scene_check.h"
+#include "core/solution.h"
 #include "core/solver.h"
 #include "core/version.h"
 #include "proto/security.h"
@@ -592,6 +595,94 @@ int reference(const ReferenceArgs& r) {
   return 0;
 }
 
+// sirad image SOLUTION: a final gather (core/gather.h) of a solution read back from its PLY.
+struct ImageArgs {
+  std::string solution, camera, cameras, out;
+  GatherOptions gather;
+  float exposure = 0.0f;
+  bool quiet = false;
+};
+
+CLI::App* add_image_command(CLI::App& app, ImageArgs& a) {
+  auto* cmd = app.add_subcommand("image", "Image a solved scene (the PLY sirad wrote) by a final gather: direct light traced, "
+                                          "indirect from the solution; write NAME.exr (passes direct, indirect) and NAME.png");
+  cmd->add_option("solution", a.solution, "The solution: a PLY written by sirad render, reference or a coordinator")->required();
+  auto* camera = cmd->add_option("--camera", a.camera,
+                                 "The view: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the solution's camera)");
+  cmd->add_option("--cameras", a.cameras,
+                  "A walkthrough: one view per line (as --camera; blank lines and # comments skipped), written NAME-0001 ...")
+      ->excludes(camera);
+  cmd->add_option("--width", a.gather.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd->add_option("--height", a.gather.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd->add_option("--spp", a.gather.spp, "Samples per pixel (each: a primary ray, an emitter sample, a gather ray)")
+      ->check(CLI::Range(1, 65536))->capture_default_str();
+  cmd->add_option("--seed", a.gather.seed, "Seed")->capture_default_str();
+  cmd->add_option("--threads", a.gather.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
+  cmd->add_option("--exposure", a.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
+  cmd->add_option("--out", a.out, "Output name: NAME.exr and NAME.png (default: the solution's name with -image)");
+  cmd->add_flag("-q,--quiet", a.quiet, "No progress output");
+  return cmd;
+}
+
+// The views of a --cameras file: one per line, each named by its line in errors.
+std::vector<Camera> read_cameras(const std::string& path) {
+  const std::string text = read_file_whole(path, "cameras file", std::size_t{1} << 24);
+  std::vector<Camera> out;
+  std::size_t at = 0;
+  for (int line = 1; at <= text.size(); ++line) {
+    std::size_t end = text.find('\n', at);
+    if (end == std::string::npos) end = text.size();
+    std::string l = text.substr(at, end - at);
+    at = end + 1;
+    const std::size_t first = l.find_first_not_of(" \t\r");
+    if (first == std::string::npos || l[first] == '#') continue;
+    if (out.size() >= 100000) fail("{}: more than 100000 views", path);
+    try {
+      out.push_back(parse_camera(l));
+    } catch (const Error& e) {
+      fail("{}: line {}: {}", path, line, e.what());
+    }
+  }
+  if (out.empty()) fail("{}: no view in it", path);
+  return out;
+}
+
+int image(ImageArgs& a) {
+  namespace fs = std::filesystem;
+  const std::string name = a.out.empty() ? fs::path(a.solution).stem().string() + "-image" : a.out;
+  check_output_name(name, "--out");
+  Solution s = read_solution(a.solution);
+  std::vector<Camera> views;
+  if (!a.cameras.empty()) views = read_cameras(a.cameras);
+  else if (!a.camera.empty()) views = {cli::camera_flag(a.camera).value()};
+  else if (s.mesh.camera) views = {*s.mesh.camera};
+  else fail("{}: the solution names no camera: give --camera", a.solution);
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    const std::string out = views.size() == 1 ? name : fmt::format("{}-{:04}", name, v + 1);
+    for (const char* ext : {".exr", ".png"})
+      if (std::error_code ec; fs::exists(out + ext, ec) && fs::equivalent(out + ext, a.solution, ec))
+        fail("{}: the output {}{} would overwrite the solution; choose another name with --out", a.solution, out, ext);
+    const auto start = std::chrono::steady_clock::now();
+    GatherPasses p = FinalGather(s.mesh, s.radiosity, views[v], a.gather).render();
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const Attributes attrs = {{"sirad.version", std::string(kVersion)},
+                              {"sirad.solution", a.solution},
+                              {"sirad.patches", static_cast<int64_t>(s.mesh.size())},
+                              {"sirad.image", std::string("final gather")},
+                              {"sirad.spp", static_cast<int64_t>(a.gather.spp)},
+                              {"sirad.seed", std::to_string(a.gather.seed)},
+                              {"sirad.camera", camera_spec(views[v])},
+                              {"sirad.seconds", seconds}};
+    write_exr_layers(out + ".exr", {{"", &p.combined}, {"direct", &p.direct}, {"indirect", &p.indirect}}, attrs);
+    write_png(out + ".png", p.combined, a.exposure);
+    std::printf("wrote %s\nwrote %s\n", fs::absolute(out + ".exr").c_str(), fs::absolute(out + ".png").c_str());
+    if (!a.quiet)
+      std::printf("%dx%d, %d spp, %zu patches, %.2f s, %.3g rays/s\n", a.gather.width, a.gather.height, a.gather.spp, s.mesh.size(),
+                  seconds, static_cast<double>(p.rays) / std::max(seconds, 1e-9));
+  }
+  return 0;
+}
+
 int devices() {
   for (const auto& d : list_devices())
     std::printf("%d:%d  %s / %s  (%s, %u compute units)\n", d.platform, d.device, d.platform_name.c_str(),
@@ -648,6 +739,8 @@ int run(int argc, char** argv) {
   auto* reference_cmd = add_reference_command(app, ref_args);
   ModelArgs model_args;
   auto* model_cmd = add_model_command(app, model_args);
+  ImageArgs image_args;
+  auto* image_cmd = add_image_command(app, image_args);
   app.add_subcommand("devices", "List the OpenCL devices");
   std::string profile_path, profile_prefix = "local-";
   int profile_nodes = 4;
@@ -699,6 +792,7 @@ int run(int argc, char** argv) {
     return emulate(e);
   }
   if (reference_cmd->parsed()) return reference(ref_args);
+  if (image_cmd->parsed()) return image(image_args);
   if (model_cmd->parsed()) {
     model_args.time_given = model_cmd->count("--time") > 0;
     return model_table(model_args);

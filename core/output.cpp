@@ -216,23 +216,40 @@ void put_le(std::vector<unsigned char>& out, const glm::vec3& v) {
 }  // namespace
 
 void write_exr(const std::string& path, const Image& image, const Attributes& attributes) {
-  // Step 1: validate and build the header: float R, G, B, lossless ZIP, top row first.
-  check_image(path, image);
-  Imf::Header header(image.width, image.height);
+  write_exr_layers(path, {{"", &image}}, attributes);
+}
+
+void write_exr_layers(const std::string& path, const std::vector<std::pair<std::string, const Image*>>& layers,
+                      const Attributes& attributes) {
+  // Step 1: validate and build the header: float R, G, B per layer ("" unprefixed, else
+  // LAYER.R ...), lossless ZIP, top row first.
+  if (layers.empty()) fail("cannot write {}: no image", path);
+  const Image& first = *layers.front().second;
+  for (const auto& [name, image] : layers) {
+    check_image(path, *image);
+    if (image->width != first.width || image->height != first.height)
+      fail("cannot write {}: layer '{}' is {}x{}, not {}x{}", path, name, image->width, image->height, first.width, first.height);
+  }
+  Imf::Header header(first.width, first.height);
   header.compression() = Imf::ZIP_COMPRESSION;
   header.lineOrder() = Imf::INCREASING_Y;
-  for (const char* channel : {"R", "G", "B"})
-    header.channels().insert(channel, Imf::Channel(Imf::FLOAT));
+  std::vector<std::string> names;
+  for (const auto& [name, image] : layers)
+    for (const char* channel : {"R", "G", "B"}) {
+      names.push_back(name.empty() ? channel : name + "." + channel);
+      header.channels().insert(names.back(), Imf::Channel(Imf::FLOAT));
+    }
   add_exr_attributes(path, attributes, header);
 
   // Step 2: the pixels, straight from the packed RGB floats.
-  auto* base = const_cast<char*>(reinterpret_cast<const char*>(image.pixels.data()));
-  const std::size_t x_stride = sizeof(glm::vec3);
-  const std::size_t y_stride = x_stride * static_cast<std::size_t>(image.width);
   Imf::FrameBuffer frame;
-  frame.insert("R", Imf::Slice(Imf::FLOAT, base, x_stride, y_stride));
-  frame.insert("G", Imf::Slice(Imf::FLOAT, base + sizeof(float), x_stride, y_stride));
-  frame.insert("B", Imf::Slice(Imf::FLOAT, base + 2 * sizeof(float), x_stride, y_stride));
+  std::size_t n = 0;
+  for (const auto& [name, image] : layers) {
+    auto* base = const_cast<char*>(reinterpret_cast<const char*>(image->pixels.data()));
+    const std::size_t x_stride = sizeof(glm::vec3);
+    const std::size_t y_stride = x_stride * static_cast<std::size_t>(image->width);
+    for (int c = 0; c < 3; ++c) frame.insert(names[n++], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), x_stride, y_stride));
+  }
 
   // Step 3: write the temporary (OutputFile completes it in its destructor), then rename.
   AtomicFile file(path);
@@ -240,7 +257,7 @@ void write_exr(const std::string& path, const Image& image, const Attributes& at
   try {
     Imf::OutputFile out(stream, header);
     out.setFrameBuffer(frame);
-    out.writePixels(image.height);
+    out.writePixels(first.height);
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {
@@ -342,11 +359,15 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
     fail("cannot write {}: {} vertices do not fit PLY int indices", path, vertex.size());
   const double scale = std::exp2(static_cast<double>(exposure));
 
-  // Step 3: the header.
+  // Step 3: the header; the comments give what an image of the solution needs besides the
+  // faces (sirad image reads them back: core/scene_ply.h).
+  std::string view_comments = fmt::format("comment sirad background {} {} {}\n", mesh.background.x, mesh.background.y, mesh.background.z);
+  if (mesh.camera) view_comments += "comment sirad camera " + camera_spec(*mesh.camera) + "\n";
   std::string header = fmt::format(
       "ply\n"
       "format binary_little_endian 1.0\n"
       "comment sirad scene hash {}\n"
+      "{}"
       "element vertex {}\n"
       "property float x\n"
       "property float y\n"
@@ -356,7 +377,7 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
       "property uchar blue\n"
       "element face {}\n"
       "property list uchar int vertex_indices\n",
-      mesh.hash, vertex.size(), mesh.size());
+      mesh.hash, view_comments, vertex.size(), mesh.size());
   for (const char* quantity : {"radiosity", "reflectance", "emission"})
     for (const char* channel : {"r", "g", "b"})
       header += fmt::format("property float {}_{}\n", quantity, channel);

@@ -53,6 +53,10 @@ Image render_view_antialiased(const PatchMesh& mesh, const std::vector<glm::vec3
                               int width, int height, Shading shading, int samples_per_side);
 
 void write_exr(const std::string& path, const Image& image, const Attributes& attributes);
+// Several images of one size in one EXR, as compositors read passes: the layer named "" as R,
+// G, B, each other as NAME.R, NAME.G, NAME.B.
+void write_exr_layers(const std::string& path, const std::vector<std::pair<std::string, const Image*>>& layers,
+                      const Attributes& attributes);
 // Tone map: pixel * 2^exposure, clamped to [0, 1], sRGB-encoded, 8 bits.
 void write_png(const std::string& path, const Image& image, float exposure = 0.0f);
 // The PLY of DESIGN.md section 4: one face per patch in patch order with its radiosity,

@@ -128,16 +128,18 @@ class RayScene {
   int64_t nearest(const glm::dvec3& org, const glm::dvec3& dir) const { return first_hit(org, dir).first; }
   // The patch a ray from org along dir sees (t > 0): the front face it meets first, or -1 when
   // it meets a back face first or leaves the scene (it then brings the background).
-  int64_t seen(const glm::dvec3& org, const glm::dvec3& dir) const {
+  int64_t seen(const glm::dvec3& org, const glm::dvec3& dir) const { return seen_at(org, dir).first; }
+  // seen(), with the distance (in units of |dir|) to the place it meets first (infinity: none).
+  std::pair<int64_t, double> seen_at(const glm::dvec3& org, const glm::dvec3& dir) const {
     auto [first, t] = first_hit(org, dir);
-    if (first < 0) return -1;
+    if (first < 0) return {-1, t};
     // Every face within the tie of the nearest hit is at that place; the latest facing the ray
     // is seen.
     Hits near = hits_on(org, dir, std::max(0.0, t - tie_), t + tie_);
     int64_t best = -1;
     for (uint32_t k = 0; k < near.n; ++k)
       if (glm::dot(glm::dvec3(mesh_.normal[near.prim[k]]), dir) < 0.0) best = std::max<int64_t>(best, near.prim[k]);
-    return best;
+    return {best, t};
   }
   // Whether the point x of patch i lies under a later patch at the same place facing the same
   // way (it then sees that patch's back, and no light reaches it).

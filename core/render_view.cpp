@@ -13,6 +13,7 @@
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
+#include "core/camera.h"
 #include "core/error.h"
 
 namespace sirad {
@@ -172,25 +173,13 @@ std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
 
 Image render_view(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity,
                   const Camera& camera, int width, int height, Shading shading) {
-  // Step 1: validate and set up the camera frame (right = forward x up: right-handed world).
-  if (width <= 0 || height <= 0) fail("cannot render view: image size {}x{}", width, height);
+  // Step 1: validate and set up the camera frame (core/camera.h: the convention of every image).
   if (radiosity.size() != mesh.size())
     fail("cannot render view: {} radiosity values for {} patches", radiosity.size(), mesh.size());
   if (mesh.normal.size() != mesh.size())
     fail("cannot render view: {} normals for {} patches", mesh.normal.size(), mesh.size());
-  const glm::dvec3 eye(camera.eye);
-  const glm::dvec3 forward_raw = glm::dvec3(camera.look_at) - eye;
-  const glm::dvec3 right_raw = glm::cross(forward_raw, glm::dvec3(camera.up));
-  if (!(glm::length(forward_raw) > 0.0) || !(glm::length(right_raw) > 0.0) ||
-      !std::isfinite(glm::length(right_raw)))
-    fail("cannot render view: camera eye, look_at and up do not define a view direction");
-  if (!(camera.vfov_deg > 0.0f && camera.vfov_deg < 180.0f))
-    fail("cannot render view: camera field of view {} is not in (0, 180) degrees", camera.vfov_deg);
-  const glm::dvec3 forward = glm::normalize(forward_raw);
-  const glm::dvec3 right = glm::normalize(right_raw);
-  const glm::dvec3 up = glm::cross(right, forward);
-  const double tan_half = std::tan(camera.vfov_deg * std::numbers::pi / 360.0);
-  const double aspect = static_cast<double>(width) / height;
+  const CameraFrame frame = camera_frame(camera, width, height);
+  const glm::dvec3 eye = frame.eye, forward = frame.forward, right = frame.right, up = frame.up;
 
   // Step 2: every vertex in camera space once; the near plane relative to the scene's depth.
   std::vector<glm::dvec3> cam(mesh.vertices.size());
@@ -202,10 +191,8 @@ Image render_view(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity
   }
   const double z_near = 1e-5 * z_max;
   const auto project = [&](const ClipVertex& c) {
-    const double inv_z = 1.0 / c.p.z;
-    const glm::dvec2 ndc{c.p.x * inv_z / (tan_half * aspect), c.p.y * inv_z / tan_half};
-    return ScreenVertex{
-        {(ndc.x + 1.0) * 0.5 * width, (1.0 - ndc.y) * 0.5 * height}, inv_z, c.value * inv_z};
+    const auto [sx, sy] = frame.raster(c.p.x, c.p.y, c.p.z);
+    return ScreenVertex{{sx, sy}, 1.0 / c.p.z, c.value / c.p.z};
   };
 
   std::vector<std::array<glm::vec3, 3>> corners;

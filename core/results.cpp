@@ -1,5 +1,7 @@
 // sirad: the EXR, PNG and PLY of a solution, written together.
 #include "core/results.h"
+
+#include "core/gather.h"
 #include "core/gltf_out.h"
 #include "core/scene.h"
 
@@ -53,12 +55,21 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
     if (!std::isfinite(radiosity[j].x) || !std::isfinite(radiosity[j].y) || !std::isfinite(radiosity[j].z))
       fail("{}: the result is not finite at patch {} ({}, {}, {}); nothing written", name, j, radiosity[j].x, radiosity[j].y,
            radiosity[j].z);
-  int s = options.samples_per_side;
-  if (s == 0) s = std::clamp(4096 / std::max(options.width, options.height), 1, 4);
-  Image image = render_view_antialiased(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading, s);
-  ResultFiles files{name + ".exr", name + ".png", name + ".ply", name + ".glb"};
   Attributes with_camera = attributes;
   with_camera.emplace_back("sirad.camera", camera_spec(*mesh.camera));
+  GatherPasses passes;
+  if (options.gather_spp > 0) {
+    GatherOptions go{.width = options.width, .height = options.height, .spp = options.gather_spp, .seed = options.gather_seed};
+    passes = FinalGather(mesh, radiosity, *mesh.camera, go).render();
+    with_camera.emplace_back("sirad.image", std::string("final gather"));
+    with_camera.emplace_back("sirad.spp", static_cast<int64_t>(options.gather_spp));
+  } else {
+    int s = options.samples_per_side;
+    if (s == 0) s = std::clamp(4096 / std::max(options.width, options.height), 1, 4);
+    passes.combined = render_view_antialiased(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading, s);
+  }
+  const Image& image = passes.combined;
+  ResultFiles files{name + ".exr", name + ".png", name + ".ply", name + ".glb"};
   // All four or none: each is written to a temporary beside it, and they replace the outputs
   // only once every one is written (a full disk, a directory in an output's place: no mixed set
   // of new and old files is left).
@@ -76,7 +87,10 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
       std::error_code ec;
       if (fs::is_directory(f, ec)) fail("{}: is a directory; nothing written", f);
     }
-    write_exr(temps[0], image, with_camera);
+    if (options.gather_spp > 0)
+      write_exr_layers(temps[0], {{"", &passes.combined}, {"direct", &passes.direct}, {"indirect", &passes.indirect}}, with_camera);
+    else
+      write_exr(temps[0], image, with_camera);
     write_png(temps[1], image, options.exposure);
     write_ply(temps[2], mesh, radiosity, options.exposure);
     write_glb(temps[3], mesh, radiosity, options.exposure, static_cast<double>(options.width) / options.height);

@@ -16,6 +16,7 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -127,7 +128,7 @@ class Body {
 
 }  // namespace
 
-Scene import_ply(const std::string& path, const ImportOptions& options) {
+Scene import_ply(const std::string& path, const ImportOptions& options, std::vector<glm::vec3>* radiosity) {
   const std::string data = import::read_file(path, path);
   const std::size_t file_size = data.size();
 
@@ -141,6 +142,8 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
   std::string line;
   int format = -1, line_no = 0;
   std::vector<Element> elements;
+  std::optional<Camera> camera;
+  glm::vec3 background(0.0f);
   while (std::getline(header, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -148,7 +151,28 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
     std::string key;
     words >> key;
     auto bad = [&](const std::string& why) { fail("{}: header line {}: {}", path, line_no, why); };
-    if (key.empty() || key == "ply" || key == "comment" || key == "obj_info") continue;
+    if (key == "comment") {
+      std::string word;
+      words >> word;
+      if (word != "sirad") continue;
+      words >> word;
+      std::string rest;
+      std::getline(words, rest);
+      try {
+        if (word == "camera") camera = parse_camera(rest);
+        if (word == "background") {
+          std::istringstream rgb(rest);
+          glm::vec3 bg;
+          if (!(rgb >> bg.x >> bg.y >> bg.z) || !(bg.x >= 0 && bg.y >= 0 && bg.z >= 0 && bg.x < 3e38f && bg.y < 3e38f && bg.z < 3e38f))
+            fail("three finite non-negative numbers expected");
+          background = bg;
+        }
+      } catch (const Error& e) {
+        bad(fmt::format("sirad {}: {}", clean(word), e.what()));
+      }
+      continue;
+    }
+    if (key.empty() || key == "ply" || key == "obj_info") continue;
     if (key == "format") {
       std::string f, version;
       words >> f >> version;
@@ -189,7 +213,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
   bool vertex_has_colour = false;
   struct Face {
     std::vector<uint32_t> v;
-    glm::vec3 reflectance{-1.0f}, emission{0.0f};
+    glm::vec3 reflectance{-1.0f}, emission{0.0f}, radiosity{0.0f};
   };
   std::vector<Face> faces;
   std::size_t triangles = 0;
@@ -200,6 +224,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
     const int idx = std::max(e.find("vertex_indices"), e.find("vertex_index"));
     int refl[3] = {e.find("reflectance_r"), e.find("reflectance_g"), e.find("reflectance_b")};
     int emis[3] = {e.find("emission_r"), e.find("emission_g"), e.find("emission_b")};
+    int rad[3] = {e.find("radiosity_r"), e.find("radiosity_g"), e.find("radiosity_b")};
     if (is_vertex) {
       if (x < 0 || y < 0 || z < 0) fail("{}: the vertex element has no x, y and z", path);
       if (e.count > kMaxVertices) fail("{}: more than {} vertices", path, kMaxVertices);
@@ -207,9 +232,11 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
     }
     if (is_face) {
       if (idx < 0 || !e.properties[static_cast<std::size_t>(idx)].list) fail("{}: the face element has no vertex_indices list", path);
+      if (radiosity && (rad[0] < 0 || rad[1] < 0 || rad[2] < 0))
+        fail("{}: not a solution: its faces have no radiosity_r/g/b (a PLY that sirad wrote has them)", path);
     }
     for (std::size_t i = 0; i < e.count; ++i) {
-      glm::dvec3 p(0.0), colour(-1.0), rho(-1.0), em(0.0);
+      glm::dvec3 p(0.0), colour(-1.0), rho(-1.0), em(0.0), solved(0.0);
       bool has_rho = refl[0] >= 0 && refl[1] >= 0 && refl[2] >= 0, has_em = emis[0] >= 0 && emis[1] >= 0 && emis[2] >= 0;
       Face f;
       for (std::size_t k = 0; k < e.properties.size(); ++k) {
@@ -240,6 +267,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
         for (int c3 = 0; c3 < 3; ++c3) {
           if (ki == refl[c3]) rho[c3] = v;
           if (ki == emis[c3]) em[c3] = v;
+          if (ki == rad[c3]) solved[c3] = v;
         }
       }
       if (is_vertex) {
@@ -256,6 +284,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
         else if (r >= 0 && g >= 0 && b >= 0) f.reflectance = glm::vec3(colour);
         else if (vertex_has_colour) f.reflectance = vertex_colour[f.v[0]];
         if (has_em) f.emission = glm::vec3(em);
+        f.radiosity = glm::vec3(solved);
         faces.push_back(std::move(f));
       }
     }
@@ -265,6 +294,8 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
   Scene scene;
   scene.name = path;
   scene.objects = {std::filesystem::path(path).stem().string()};
+  scene.camera = camera;
+  scene.background = background;
   std::map<std::tuple<float, float, float, float, float, float>, uint32_t> material_of;
   std::size_t skipped = 0;
   for (std::size_t i = 0; i < faces.size(); ++i) {
@@ -278,6 +309,10 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
     auto key = std::make_tuple(rho.x, rho.y, rho.z, f.emission.x, f.emission.y, f.emission.z);
     auto [it, added] = material_of.try_emplace(key, static_cast<uint32_t>(scene.materials.size()));
     if (added) scene.materials.push_back({fmt::format("ply material {}", scene.materials.size()), rho, f.emission});
+    if (radiosity)
+      for (int c = 0; c < 3; ++c)
+        if (!std::isfinite(f.radiosity[c]) || f.radiosity[c] < 0.0f || f.radiosity[c] > 3e38f)
+          fail("{}: face {}: radiosity {} is negative or not finite", path, i, f.radiosity[c]);
     for (std::size_t k = 1; k + 1 < f.v.size(); ++k) {
       Triangle t;
       t.p = {positions[f.v[0]], positions[f.v[k]], positions[f.v[k + 1]]};
@@ -288,6 +323,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options) {
         continue;
       }
       scene.triangles.push_back(t);
+      if (radiosity) radiosity->push_back(f.radiosity);
     }
   }
   if (scene.triangles.empty()) fail("{}: scene has no triangles ({} skipped as degenerate)", path, skipped);

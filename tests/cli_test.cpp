@@ -662,3 +662,61 @@ TEST_F(ModelCli, ChargesTheLinksOfAProfile) {
 
 }  // namespace
 }  // namespace sirad
+
+namespace {
+
+// An EXR's channels by name (every pixel of each).
+std::map<std::string, std::vector<float>> exr_channels(const fs::path& path) {
+  Imf::InputFile in(path.c_str());
+  const Imath::Box2i dw = in.header().dataWindow();
+  const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+  std::map<std::string, std::vector<float>> out;
+  Imf::FrameBuffer fb;
+  for (auto c = in.header().channels().begin(); c != in.header().channels().end(); ++c) {
+    auto& v = out[c.name()];
+    v.resize(static_cast<std::size_t>(w) * h);
+    fb.insert(c.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(v.data()), sizeof(float), sizeof(float) * w));
+  }
+  in.setFrameBuffer(fb);
+  in.readPixels(dw.min.y, dw.max.y);
+  return out;
+}
+
+}  // namespace
+
+// A solution is enough to image later: `sirad render --final-gather` and `sirad image` of the
+// PLY that render wrote give the same passes bit for bit (the PLY keeps the faces, their
+// radiosity, the camera and the background); combined = direct + indirect; a walkthrough file
+// images each of its views; a PLY that is a scene, not a solution, and a bad view are refused
+// with one line naming them.
+TEST_F(Cli, ImageOfAStoredSolutionIsTheRendersFinalGather) {
+  Outcome r = sirad("render cornell --patches 400 --bundles 64 --width 24 --height 20 --final-gather 4 -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  Outcome i = sirad("image cornell.ply --width 24 --height 20 --spp 4 --out again");
+  ASSERT_EQ(i.status, 0) << i.err;
+  const auto rendered = exr_channels(dir_ / "cornell.exr"), imaged = exr_channels(dir_ / "again.exr");
+  for (const char* c : {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B"}) {
+    ASSERT_TRUE(rendered.count(c)) << c;
+    EXPECT_EQ(rendered.at(c), imaged.at(c)) << c;
+  }
+  const std::vector<float>& red = imaged.at("R");
+  for (std::size_t k = 0; k < red.size(); ++k) EXPECT_NEAR(red[k], imaged.at("direct.R")[k] + imaged.at("indirect.R")[k], 1e-5f);
+  EXPECT_GT(*std::max_element(imaged.at("indirect.R").begin(), imaged.at("indirect.R").end()), 0.0f);
+  EXPECT_TRUE(fs::exists(dir_ / "again.png"));
+  write("walk.txt", "# two views\neye 278 273 -800 look 278 273 0 up 0 1 0 fov 39.3\n\neye 100 273 -600 look 278 273 0 up 0 1 0 fov 50\n");
+  Outcome w = sirad("image cornell.ply --cameras walk.txt --width 8 --height 8 --spp 1 --out walk -q");
+  ASSERT_EQ(w.status, 0) << w.err;
+  for (const char* f : {"walk-0001.exr", "walk-0002.exr", "walk-0001.png", "walk-0002.png"}) EXPECT_TRUE(fs::exists(dir_ / f)) << f;
+  write("walk.txt", "# a view with no direction\neye 0 0 0 look 0 0 0 up 0 1 0 fov 40\n");
+  Outcome bad = sirad("image cornell.ply --cameras walk.txt --out bad");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_EQ(bad.err.rfind("sirad: error: walk.txt: line 2:", 0), 0u) << bad.err;
+  EXPECT_FALSE(fs::exists(dir_ / "bad.exr"));
+  for (const auto& e : fs::directory_iterator(dir_)) fs::remove(e.path());
+  write("a-scene", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                     "element face 1\nproperty list uchar int vertex_indices\nproperty float emission_r\nproperty float emission_g\n"
+                     "property float emission_b\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2 1 1 1\n");
+  expect_error(sirad("image a-scene"), "not a solution");  // (a PLY scene; named so no .ply is taken for an output)
+  expect_error(sirad("image nothing.ply"), "nothing.ply");
+  expect_error(sirad("render cornell --final-gather 4 --flat"), "--flat");
+}

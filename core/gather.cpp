@@ -1,0 +1,202 @@
+// sirad: the final gather (see gather.h).
+#include "core/gather.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <numbers>
+#include <thread>
+
+#include "core/camera.h"
+#include "core/error.h"
+#include "core/rays.h"
+
+namespace sirad {
+
+namespace {
+
+// Purposes of the random streams (Rng's last key): one stream per pixel and purpose.
+constexpr uint64_t kJitter = 1, kLight = 2, kGather = 3;
+
+}  // namespace
+
+struct FinalGather::Impl {
+  const PatchMesh& mesh;
+  GatherOptions options;
+  CameraFrame frame;
+  std::vector<std::array<glm::vec3, 3>> corners;  // interpolated radiosity at each patch corner
+  double offset;                                  // ray_offset: how far a ray leaves its surface
+  RayScene rays;
+  // The emitters: patch, and the running sum of their areas (area-proportional sampling).
+  std::vector<uint32_t> emitter;
+  std::vector<double> emitter_cdf;
+  double emitter_area = 0.0;
+
+  Impl(const PatchMesh& m, const std::vector<glm::vec3>& radiosity, const Camera& camera, const GatherOptions& o)
+      : mesh(m),
+        options(o),
+        frame(camera_frame(camera, o.width, o.height, "final gather")),
+        corners(corner_radiosity(m, radiosity)),
+        offset(ray_offset(m)),
+        rays(m, offset) {
+    for (std::size_t j = 0; j < mesh.size(); ++j)
+      if (mesh.emits(j)) {
+        emitter.push_back(static_cast<uint32_t>(j));
+        emitter_area += mesh.area[j];
+        emitter_cdf.push_back(emitter_area);
+      }
+  }
+
+  // The solution at point x of patch j: its corner radiosities, interpolated by x's barycentric
+  // coordinates (clamped to the triangle).
+  glm::dvec3 radiosity_at(uint32_t j, const glm::dvec3& x) const {
+    const auto& p = mesh.patches[j];
+    const glm::dvec3 a(mesh.vertices[p[0]]), b(mesh.vertices[p[1]]), c(mesh.vertices[p[2]]);
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    const double nn = glm::dot(n, n);
+    double wb = nn > 0.0 ? glm::dot(glm::cross(x - a, c - a), n) / nn : 1.0 / 3.0;
+    double wc = nn > 0.0 ? glm::dot(glm::cross(b - a, x - a), n) / nn : 1.0 / 3.0;
+    wb = std::clamp(wb, 0.0, 1.0);
+    wc = std::clamp(wc, 0.0, 1.0 - wb);
+    const double wa = 1.0 - wb - wc;
+    return wa * glm::dvec3(corners[j][0]) + wb * glm::dvec3(corners[j][1]) + wc * glm::dvec3(corners[j][2]);
+  }
+
+  // The emitter sample's pdf per solid angle seen from a point at distance^2 `r2` whose
+  // direction meets the emitter's front at cosine `cos_light`.
+  double light_pdf(double r2, double cos_light) const { return r2 / (cos_light * emitter_area); }
+
+  // One sample of pixel (px, py): adds what it sees to `direct` and `indirect`.
+  void sample(int px, int py, double u, double v, Rng& light_rng, Rng& gather_rng, glm::dvec3& direct, glm::dvec3& indirect,
+              uint64_t& cast) const {
+    const glm::dvec3 dir = frame.direction(px + u, py + v);
+    const auto [hit, t] = rays.seen_at(frame.eye, dir);
+    ++cast;
+    if (hit < 0) {
+      direct += glm::dvec3(mesh.background);
+      return;
+    }
+    const uint32_t j = static_cast<uint32_t>(hit);
+    const glm::dvec3 x = frame.eye + dir * t;
+    const glm::dvec3 n(mesh.normal[j]);
+    const glm::dvec3 rho(mesh.reflectance(j));
+    direct += glm::dvec3(mesh.emission(j));
+    if (rho == glm::dvec3(0.0)) return;
+    const glm::dvec3 origin = x + n * offset;
+
+    // The direct light: a point on an emitter, chosen by area, and its shadow ray.
+    if (!emitter.empty()) {
+      const double pick = light_rng.uniform() * emitter_area;
+      const std::size_t k = std::min<std::size_t>(
+          static_cast<std::size_t>(std::upper_bound(emitter_cdf.begin(), emitter_cdf.end(), pick) - emitter_cdf.begin()),
+          emitter.size() - 1);
+      const uint32_t e = emitter[k];
+      const auto& p = mesh.patches[e];
+      const glm::dvec3 y = on_triangle(glm::dvec3(mesh.vertices[p[0]]), glm::dvec3(mesh.vertices[p[1]]),
+                                       glm::dvec3(mesh.vertices[p[2]]), light_rng.uniform(), light_rng.uniform());
+      const glm::dvec3 ne(mesh.normal[e]);
+      const glm::dvec3 d = y - x;
+      const double r2 = glm::dot(d, d);
+      if (r2 > 0.0) {
+        const glm::dvec3 w = d / std::sqrt(r2);
+        const double cos_x = glm::dot(n, w), cos_y = -glm::dot(ne, w);
+        if (cos_x > 0.0 && cos_y > 0.0) {
+          ++cast;
+          if (!rays.blocked(origin, y + ne * offset)) {
+            const double p_light = light_pdf(r2, cos_y), p_gather = cos_x / std::numbers::pi;
+            // rho / pi * E cos_x d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
+            direct += rho * glm::dvec3(mesh.emission(e)) * (cos_x / std::numbers::pi / (p_light + p_gather));
+          }
+        }
+      }
+    }
+
+    // The gather ray, cosine-distributed: the reflected light where it lands, and, if that is
+    // an emitter, its light weighted against the emitter sample.
+    const glm::dvec3 g = cosine_direction(n, gather_rng.uniform(), gather_rng.uniform());
+    const auto [seen, s] = rays.seen_at(origin, g);
+    ++cast;
+    if (seen < 0) {
+      indirect += rho * glm::dvec3(mesh.background);
+      return;
+    }
+    const uint32_t k = static_cast<uint32_t>(seen);
+    const glm::dvec3 y = origin + g * s;
+    const glm::dvec3 e(mesh.emission(k));
+    indirect += rho * (radiosity_at(k, y) - e);
+    if (mesh.emits(k)) {
+      const double cos_x = glm::dot(n, g), cos_y = -glm::dot(glm::dvec3(mesh.normal[k]), g);
+      if (cos_x > 0.0 && cos_y > 0.0) {
+        const double p_gather = cos_x / std::numbers::pi, p_light = light_pdf(s * s, cos_y);
+        direct += rho * e * (p_gather / (p_light + p_gather));
+      }
+    }
+  }
+
+  // Pixel (px, py) into `out`; returns the rays it cast.
+  uint64_t pixel(int px, int py, GatherPasses& out) const {
+    const uint64_t index = static_cast<uint64_t>(py) * static_cast<uint64_t>(options.width) + static_cast<uint64_t>(px);
+    Rng jitter(options.seed, index, 0, kJitter), light(options.seed, index, 0, kLight), gather(options.seed, index, 0, kGather);
+    std::vector<std::array<double, 2>> positions;
+    stratified_square(options.spp, jitter, positions);
+    glm::dvec3 direct(0.0), indirect(0.0);
+    uint64_t cast = 0;
+    for (const auto& [u, v] : positions) sample(px, py, u, v, light, gather, direct, indirect, cast);
+    const double w = 1.0 / options.spp;
+    out.direct.at(px, py) = glm::vec3(direct * w);
+    out.indirect.at(px, py) = glm::vec3(indirect * w);
+    out.combined.at(px, py) = glm::vec3((direct + indirect) * w);
+    return cast;
+  }
+};
+
+FinalGather::FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const Camera& camera,
+                         const GatherOptions& options) {
+  if (options.spp < 1 || options.spp > 65536) fail("final gather: {} samples per pixel (1..65536)", options.spp);
+  if (options.width > 16384 || options.height > 16384) fail("final gather: image {}x{} (at most 16384 a side)", options.width, options.height);
+  if (options.threads < 0) fail("final gather: {} threads", options.threads);
+  if (radiosity.size() != mesh.size()) fail("final gather: {} radiosity values for {} patches", radiosity.size(), mesh.size());
+  impl_ = std::make_unique<Impl>(mesh, radiosity, camera, options);
+}
+
+FinalGather::~FinalGather() = default;
+
+const GatherOptions& FinalGather::options() const { return impl_->options; }
+
+GatherPasses FinalGather::blank() const {
+  GatherPasses p;
+  for (Image* image : {&p.direct, &p.indirect, &p.combined}) {
+    image->width = impl_->options.width;
+    image->height = impl_->options.height;
+    image->pixels.assign(static_cast<std::size_t>(image->width) * image->height, glm::vec3(0.0f));
+  }
+  return p;
+}
+
+void FinalGather::render_tile(int x0, int y0, int x1, int y1, GatherPasses& out) const {
+  const GatherOptions& o = impl_->options;
+  if (x0 < 0 || y0 < 0 || x1 > o.width || y1 > o.height || x0 > x1 || y0 > y1)
+    fail("final gather: tile [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
+  if (out.combined.width != o.width || out.combined.height != o.height) fail("final gather: the passes are not of the image's size");
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) out.rays += impl_->pixel(x, y, out);
+}
+
+GatherPasses FinalGather::render() const {
+  const GatherOptions& o = impl_->options;
+  GatherPasses out = blank();
+  const unsigned threads = o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::thread::hardware_concurrency());
+  std::atomic<int> next_row{0};
+  std::vector<uint64_t> cast(threads, 0);
+  std::vector<std::thread> pool;
+  for (unsigned t = 0; t < threads; ++t)
+    pool.emplace_back([&, t] {  // whole rows each: no pixel is written by two threads
+      for (int y; (y = next_row.fetch_add(1)) < o.height;)
+        for (int x = 0; x < o.width; ++x) cast[t] += impl_->pixel(x, y, out);
+    });
+  for (auto& th : pool) th.join();
+  for (uint64_t c : cast) out.rays += c;
+  return out;
+}
+
+}  // namespace sirad

@@ -1,0 +1,72 @@
+// sirad: the final gather, an image of a solved scene as good as a path tracer's. The radiosity
+// solution is view-independent; per pixel this traces what the mesh cannot show:
+//   - primary visibility per sample, at jittered positions inside the pixel (core/camera.h);
+//   - the direct light, by sampling the emitters (area-proportional) with shadow rays, combined
+//     by multiple importance sampling (balance heuristic) with the cosine-distributed gather
+//     ray that hits an emitter;
+//   - the indirect light, from one cosine-distributed gather ray per sample that looks up the
+//     solved radiosity where it lands, interpolated over the surface (the corner radiosities of
+//     core/output.h, barycentric), less the patch's emission: the reflected part Y = B - E only,
+//     so the light of the emitters is counted once, by the direct estimate.
+// In radiance units, as the solver (DESIGN.md section 1). What a ray sees follows the solver's
+// rule (core/rays.h RayScene::seen): the front face it meets first, the background when it
+// meets a back face first or leaves the scene; coincident faces as in the bundles.
+//
+// A pixel's value depends only on the seed and the pixel's position: any split of the image
+// into tiles, on any number of threads or nodes, gives the same image bit for bit.
+#pragma once
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "core/mesh.h"
+#include "core/output.h"
+#include "core/scene.h"
+
+namespace sirad {
+
+struct GatherOptions {
+  int width = 512, height = 512;
+  // Samples per pixel: each a jittered primary ray, one emitter sample with its shadow ray and
+  // one gather ray. 1..65536.
+  int spp = 64;
+  uint64_t seed = 1;
+  int threads = 0;  // 0: every core
+};
+
+// The passes compositors expect, in linear radiance: `direct` is what the camera sees emitted
+// (an emitter's E, the background) plus the light reflected straight from the emitters;
+// `indirect` the light reflected from everything else (and from the background); `combined`
+// their sum.
+struct GatherPasses {
+  Image direct, indirect, combined;
+  uint64_t rays = 0;  // rays cast (primary, shadow, gather)
+};
+
+class FinalGather {
+ public:
+  // `radiosity`: the solution, one value per patch of `mesh`. Throws sirad::Error for a
+  // solution or options that do not fit (a size mismatch, spp or image size out of range, a
+  // camera that defines no view).
+  FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const Camera& camera, const GatherOptions& options);
+  ~FinalGather();
+  FinalGather(const FinalGather&) = delete;
+  FinalGather& operator=(const FinalGather&) = delete;
+
+  // Empty passes of the image's size, for render_tile to fill.
+  GatherPasses blank() const;
+  // The pixels [x0, x1) x [y0, y1) into `out` (from blank(); other pixels untouched), on this thread.
+  void render_tile(int x0, int y0, int x1, int y1, GatherPasses& out) const;
+  // The whole image, in rows spread over options.threads threads.
+  GatherPasses render() const;
+
+  const GatherOptions& options() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sirad

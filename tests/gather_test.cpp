@@ -1,0 +1,202 @@
+// sirad tests: the final gather (core/gather.h) and the camera convention (core/camera.h):
+// exact framing, a furnace, a square light over a floor against its closed form, and tiles.
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <glm/geometric.hpp>
+
+#include "core/camera.h"
+#include "core/error.h"
+#include "core/gather.h"
+#include "core/mesh.h"
+#include "core/output.h"
+#include "core/scene.h"
+
+namespace sirad {
+namespace {
+
+// A scene of quads, each two triangles (a b c) and (a c d), counter-clockwise seen from the front.
+struct QuadScene {
+  Scene scene = [] {
+    Scene s;
+    s.name = "quads";
+    s.objects = {"quads"};
+    return s;
+  }();
+  uint32_t material(glm::vec3 rho, glm::vec3 emission) {
+    scene.materials.push_back({"m" + std::to_string(scene.materials.size()), rho, emission});
+    return static_cast<uint32_t>(scene.materials.size() - 1);
+  }
+  void quad(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d, uint32_t m) {
+    scene.triangles.push_back({{a, b, c}, m});
+    scene.triangles.push_back({{a, c, d}, m});
+  }
+};
+
+// The camera convention (core/camera.h): 16 x 16 pixels, a 90 degree field of view, the eye at
+// the origin looking along +z with up +y, so right = forward x up = -x. A square emitter 1 unit in
+// front of the eye spans world x in [-0.25, 0.5] (camera x in [-0.5, 0.25]) and y in [-0.25, 0.5].
+// On the image plane at distance 1 a pixel is 2 / 16 = 0.125 wide, so the square's edges fall
+// exactly on raster x = (x_cam + 1) / 2 * 16 = 4 and 10 and y = (1 - y) / 2 * 16 = 4 and 10: pixels 4..9
+// both ways see the emitter in every sample (value E = 1, exactly), every other pixel sees the
+// background (0) in every sample. A framing off by a fraction of a pixel (pixel corners taken for
+// centres, say) leaves the edge pixels partly covered, between 0 and 1. The rasteriser (4 x 4
+// samples per pixel) and the final gather (16 jittered samples) both follow it.
+TEST(Camera, EdgesOnPixelBoundariesCoverWholePixels) {
+  QuadScene q;
+  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(1.0f));
+  q.quad({0.5f, -0.25f, 1}, {-0.25f, -0.25f, 1}, {-0.25f, 0.5f, 1}, {0.5f, 0.5f, 1}, light);  // faces -z: the eye
+  PatchMesh mesh = mesh_scene(q.scene, MeshOptions{});
+  const Camera camera{{0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 90.0f};
+  const std::vector<glm::vec3> radiosity(mesh.size(), glm::vec3(1.0f));
+  GatherOptions o{.width = 16, .height = 16, .spp = 16, .threads = 1};
+  const Image gathered = FinalGather(mesh, radiosity, camera, o).render().combined;
+  const Image drawn = render_view_antialiased(mesh, radiosity, camera, 16, 16, Shading::flat, 4);
+  for (int y = 0; y < 16; ++y)
+    for (int x = 0; x < 16; ++x) {
+      const float want = x >= 4 && x < 10 && y >= 4 && y < 10 ? 1.0f : 0.0f;
+      EXPECT_EQ(gathered.at(x, y).x, want) << "final gather, pixel " << x << ", " << y;
+      EXPECT_EQ(drawn.at(x, y).x, want) << "rasteriser, pixel " << x << ", " << y;
+    }
+  // The raster position of a camera-space point and the direction through a raster point invert.
+  const CameraFrame f = camera_frame(camera, 16, 16);
+  const auto [rx, ry] = f.raster(-0.5, 0.5, 1.0);
+  EXPECT_DOUBLE_EQ(rx, 4.0);
+  EXPECT_DOUBLE_EQ(ry, 4.0);
+  const glm::dvec3 d = f.direction(10.0, 10.0);
+  EXPECT_NEAR(d.x / d.z, -0.25, 1e-12);  // world x: right is -x
+  EXPECT_NEAR(d.y / d.z, -0.25, 1e-12);
+}
+
+// The furnace (a closed cube, every face E = 1, rho = 0.5: B = 2 everywhere, exactly) gathered
+// from the exact solution, seen from inside. Each sample's value is E = 1 seen, plus the indirect
+// rho (B - E) = 0.5 (the interpolated solution is 2 everywhere: no variance), plus the direct
+// estimate D, whose mean is rho E = 0.5. With the balance heuristic each of D's two terms is at
+// most rho E (its MIS weight over its own pdf is at most 1 / that pdf), so D lies in [0, 2 rho E]
+// = [0, 1] and its variance is at most 1/4 (Popoviciu): a pixel of N samples has sd at most
+// 0.5 / sqrt(N). With N = 16 and 32 x 32 independent pixels: the image mean is 2 within 4 sd =
+// 4 x 0.125 / 32 = 0.0156, and the pixels' RMS deviation from 2 is at most 0.125 (1.2 x that
+// allows for the RMS's own spread over 1,024 pixels, about 2 %).
+TEST(Gather, AFurnaceIsTwoEverywhere) {
+  const Scene furnace = builtin_furnace();
+  PatchMesh mesh = mesh_scene(furnace, MeshOptions{.target_patches = 600});
+  const std::vector<glm::vec3> exact(mesh.size(), glm::vec3(2.0f));
+  const Camera camera{{0.5f, 0.5f, 0.1f}, {0.6f, 0.45f, 1.0f}, {0, 1, 0}, 100.0f};  // sees walls, floor and ceiling
+  GatherOptions o{.width = 32, .height = 32, .spp = 16, .seed = 3};
+  GatherPasses p = FinalGather(mesh, exact, camera, o).render();
+  double sum = 0.0, sq = 0.0;
+  for (const glm::vec3& v : p.combined.pixels) {
+    EXPECT_EQ(v.x, v.y);  // grey: every channel the same estimate
+    sum += v.x;
+    sq += (v.x - 2.0) * (v.x - 2.0);
+  }
+  const double n = static_cast<double>(p.combined.pixels.size());
+  EXPECT_NEAR(sum / n, 2.0, 0.0156);
+  EXPECT_LE(std::sqrt(sq / n), 0.125 * 1.2);
+  for (const glm::vec3& v : p.indirect.pixels) EXPECT_NEAR(v.x, 0.5f, 1e-5f);  // rho (B - E), no noise
+  EXPECT_GT(p.rays, static_cast<uint64_t>(n) * 16 * 2);
+}
+
+// Reflected radiance at (px, py, 0) on a floor of reflectance rho under a square emitter of
+// radiance E, side [x0, x1] x [y0, y1] at height c facing down: rho E F, F the form factor from
+// the point to the rectangle (the corner formula, odd in each offset, by superposition).
+double floor_radiance(double px, double py, double x0, double x1, double y0, double y1, double c, double rho, double E) {
+  auto f = [c](double u, double v) {
+    const double su = std::sqrt(c * c + u * u), sv = std::sqrt(c * c + v * v);
+    return (u / su * std::atan(v / su) + v / sv * std::atan(u / sv)) / (2.0 * std::numbers::pi);
+  };
+  const double F = f(x1 - px, y1 - py) - f(x0 - px, y1 - py) - f(x1 - px, y0 - py) + f(x0 - px, y0 - py);
+  return rho * E * F;
+}
+
+// A square light (side 1, E = 1, rho = 0) at height 1 over a floor (rho = 0.5), nothing else: a
+// floor point's radiance is rho E F (closed form above); no indirect light (a gather ray from the
+// floor meets the light's front, whose B - E is 0, or leaves the scene). The camera looks down at
+// the floor beside the light. A pixel's expectation mu is the mean of that radiance over the
+// pixel (8 x 8 points of it, where its rays meet the floor). Per sample the direct estimate D is
+// at most 2 M, M = rho E A / (pi r_min^2) with r_min the pixel's least distance to the light
+// (each MIS term is at most rho E cos cos A / (pi r^2)), so Var D <= E[D^2] <= 2 M mu; a region
+// of pixels of N samples each has variance at most sum(2 M mu / N) / pixels^2. Each 8 x 8 block
+// (per region, not only the whole image) and the whole image must lie within 4 sd of it.
+TEST(Gather, ASquareLightOverAFloorMatchesItsClosedForm) {
+  QuadScene q;
+  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(1.0f));
+  q.quad({-4, -4, 0}, {4, -4, 0}, {4, 4, 0}, {-4, 4, 0}, floor);                        // faces +z
+  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, light);  // faces -z
+  PatchMesh mesh = mesh_scene(q.scene, MeshOptions{});
+  std::vector<glm::vec3> solution(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) solution[j] = mesh.emits(j) ? glm::vec3(1.0f) : glm::vec3(0.01f);
+  const Camera camera{{2.5f, 0, 1.2f}, {2.5f, 0, 0}, {1, 0, 0}, 60.0f};
+  const int W = 32, H = 32, N = 256;
+  GatherOptions o{.width = W, .height = H, .spp = N, .seed = 11};
+  GatherPasses p = FinalGather(mesh, solution, camera, o).render();
+  const CameraFrame f = camera_frame(camera, W, H);
+  std::vector<double> mu(static_cast<std::size_t>(W) * H), var(mu.size());
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      double sum = 0.0, r_min = 1e9;
+      for (int j = 0; j <= 8; ++j)
+        for (int i = 0; i <= 8; ++i) {
+          const glm::dvec3 d = f.direction(x + i / 8.0, y + j / 8.0);
+          ASSERT_LT(d.z, 0.0);
+          const glm::dvec3 hit = f.eye + d * (-f.eye.z / d.z);
+          // The pixel's 8 x 8 cell centres for the mean; its 9 x 9 cell corners (its whole
+          // footprint: the distance to the light is monotone along each side) for r_min.
+          if (i < 8 && j < 8) {
+            const glm::dvec3 c = f.direction(x + (i + 0.5) / 8, y + (j + 0.5) / 8);
+            const glm::dvec3 at = f.eye + c * (-f.eye.z / c.z);
+            sum += floor_radiance(at.x, at.y, -0.5, 0.5, -0.5, 0.5, 1.0, 0.5, 1.0);
+          }
+          const double dx = std::max(0.0, std::abs(hit.x) - 0.5), dy = std::max(0.0, std::abs(hit.y) - 0.5);
+          r_min = std::min(r_min, std::sqrt(dx * dx + dy * dy + 1.0));
+        }
+      const std::size_t k = static_cast<std::size_t>(y) * W + x;
+      mu[k] = sum / 64;
+      var[k] = 2.0 * (0.5 * 1.0 * 1.0 / (std::numbers::pi * r_min * r_min)) * mu[k] / N;
+    }
+  double all_got = 0.0, all_want = 0.0, all_var = 0.0;
+  for (int by = 0; by < H; by += 8)
+    for (int bx = 0; bx < W; bx += 8) {
+      double got = 0.0, want = 0.0, v = 0.0;
+      for (int y = by; y < by + 8; ++y)
+        for (int x = bx; x < bx + 8; ++x) {
+          const std::size_t k = static_cast<std::size_t>(y) * W + x;
+          got += p.combined.at(x, y).x;
+          want += mu[k];
+          v += var[k];
+          EXPECT_EQ(p.indirect.at(x, y).x, 0.0f);
+        }
+      EXPECT_NEAR(got / 64.0, want / 64.0, 4.0 * std::sqrt(v) / 64.0) << "block " << bx << ", " << by;
+      all_got += got, all_want += want, all_var += v;
+    }
+  const double n = static_cast<double>(W) * H;
+  EXPECT_NEAR(all_got / n, all_want / n, 4.0 * std::sqrt(all_var) / n);
+  std::printf("square light: image mean %.6f, closed form %.6f, 4 sd %.6f\n", all_got / n, all_want / n, 4.0 * std::sqrt(all_var) / n);
+}
+
+// Tiles: any split of the image, on any number of threads, is the same image bit for bit.
+TEST(Gather, TilesAndThreadsGiveTheSameImage) {
+  PatchMesh mesh = mesh_scene(builtin_cornell(), MeshOptions{.target_patches = 300});
+  std::vector<glm::vec3> radiosity(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) radiosity[j] = mesh.emission(j) + mesh.reflectance(j) * 3.0f;
+  GatherOptions o{.width = 24, .height = 20, .spp = 4, .seed = 5, .threads = 2};
+  FinalGather whole(mesh, radiosity, *mesh.camera, o);
+  const GatherPasses a = whole.render();
+  o.threads = 1;
+  FinalGather one(mesh, radiosity, *mesh.camera, o);
+  GatherPasses b = one.blank();
+  for (int y = 0; y < 20; y += 7)
+    for (int x = 0; x < 24; x += 5) one.render_tile(x, y, std::min(x + 5, 24), std::min(y + 7, 20), b);
+  EXPECT_EQ(a.combined.pixels, b.combined.pixels);
+  EXPECT_EQ(a.direct.pixels, b.direct.pixels);
+  EXPECT_EQ(a.indirect.pixels, b.indirect.pixels);
+  EXPECT_EQ(a.rays, b.rays);
+  EXPECT_THROW(one.render_tile(0, 0, 25, 1, b), Error);
+  EXPECT_THROW(FinalGather(mesh, radiosity, *mesh.camera, GatherOptions{.spp = 0}), Error);
+}
+
+}  // namespace
+}  // namespace sirad
