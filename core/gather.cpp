@@ -66,9 +66,11 @@ struct FinalGather::Impl {
   // direction meets the emitter's front at cosine `cos_light`.
   double light_pdf(double r2, double cos_light) const { return r2 / (cos_light * emitter_area); }
 
-  // One sample of pixel (px, py): adds what it sees to `direct` and `indirect`.
-  void sample(int px, int py, double u, double v, Rng& light_rng, Rng& gather_rng, glm::dvec3& direct, glm::dvec3& indirect,
-              uint64_t& cast) const {
+  // One sample of pixel (px, py) at raster offset (u, v), with its emitter point from `light`
+  // and its gather direction from `gather` (points of the unit square): adds what it sees to
+  // `direct` and `indirect`.
+  void sample(int px, int py, double u, double v, const std::array<double, 2>& light, const std::array<double, 2>& gather,
+              glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 dir = frame.direction(px + u, py + v);
     const auto [hit, t] = rays.seen_at(frame.eye, dir);
     ++cast;
@@ -84,16 +86,20 @@ struct FinalGather::Impl {
     if (rho == glm::dvec3(0.0)) return;
     const glm::dvec3 origin = x + n * offset;
 
-    // The direct light: a point on an emitter, chosen by area, and its shadow ray.
+    // The direct light: a point on an emitter, chosen by area, and its shadow ray. The first
+    // coordinate picks the emitter and, rescaled within its share, the point's first coordinate
+    // on it: stratified points of the square stay stratified over all the emitters' area.
     if (!emitter.empty()) {
-      const double pick = light_rng.uniform() * emitter_area;
+      const double pick = light[0] * emitter_area;
       const std::size_t k = std::min<std::size_t>(
           static_cast<std::size_t>(std::upper_bound(emitter_cdf.begin(), emitter_cdf.end(), pick) - emitter_cdf.begin()),
           emitter.size() - 1);
       const uint32_t e = emitter[k];
+      const double below = k == 0 ? 0.0 : emitter_cdf[k - 1];
+      const double s = std::clamp((pick - below) / (emitter_cdf[k] - below), 0.0, 1.0);
       const auto& p = mesh.patches[e];
       const glm::dvec3 y = on_triangle(glm::dvec3(mesh.vertices[p[0]]), glm::dvec3(mesh.vertices[p[1]]),
-                                       glm::dvec3(mesh.vertices[p[2]]), light_rng.uniform(), light_rng.uniform());
+                                       glm::dvec3(mesh.vertices[p[2]]), s, light[1]);
       const glm::dvec3 ne(mesh.normal[e]);
       const glm::dvec3 d = y - x;
       const double r2 = glm::dot(d, d);
@@ -113,7 +119,7 @@ struct FinalGather::Impl {
 
     // The gather ray, cosine-distributed: the reflected light where it lands, and, if that is
     // an emitter, its light weighted against the emitter sample.
-    const glm::dvec3 g = cosine_direction(n, gather_rng.uniform(), gather_rng.uniform());
+    const glm::dvec3 g = cosine_direction(n, gather[0], gather[1]);
     const auto [seen, s] = rays.seen_at(origin, g);
     ++cast;
     if (seen < 0) {
@@ -136,12 +142,19 @@ struct FinalGather::Impl {
   // Pixel (px, py) into `out`; returns the rays it cast.
   uint64_t pixel(int px, int py, GatherPasses& out) const {
     const uint64_t index = static_cast<uint64_t>(py) * static_cast<uint64_t>(options.width) + static_cast<uint64_t>(px);
+    // Each of the sample's three 2D choices (the position in the pixel, the emitter point, the
+    // gather direction) stratified over the pixel's samples, the sets paired in random order.
     Rng jitter(options.seed, index, 0, kJitter), light(options.seed, index, 0, kLight), gather(options.seed, index, 0, kGather);
-    std::vector<std::array<double, 2>> positions;
+    std::vector<std::array<double, 2>> positions, lights, gathers;
     stratified_square(options.spp, jitter, positions);
+    stratified_square(options.spp, light, lights);
+    stratified_square(options.spp, gather, gathers);
     glm::dvec3 direct(0.0), indirect(0.0);
     uint64_t cast = 0;
-    for (const auto& [u, v] : positions) sample(px, py, u, v, light, gather, direct, indirect, cast);
+    for (int i = 0; i < options.spp; ++i) {
+      const std::size_t k = static_cast<std::size_t>(i);
+      sample(px, py, positions[k][0], positions[k][1], lights[k], gathers[k], direct, indirect, cast);
+    }
     const double w = 1.0 / options.spp;
     out.direct.at(px, py) = glm::vec3(direct * w);
     out.indirect.at(px, py) = glm::vec3(indirect * w);

@@ -311,8 +311,8 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
     if (added) scene.materials.push_back({fmt::format("ply material {}", scene.materials.size()), rho, f.emission});
     if (radiosity)
       for (int c = 0; c < 3; ++c)
-        if (!std::isfinite(f.radiosity[c]) || f.radiosity[c] < 0.0f || f.radiosity[c] > 3e38f)
-          fail("{}: face {}: radiosity {} is negative or not finite", path, i, f.radiosity[c]);
+        if (!std::isfinite(f.radiosity[c]) || std::abs(f.radiosity[c]) > 3e38f)  // an estimate may dip below 0
+          fail("{}: face {}: radiosity {} is not finite", path, i, f.radiosity[c]);
     for (std::size_t k = 1; k + 1 < f.v.size(); ++k) {
       Triangle t;
       t.p = {positions[f.v[0]], positions[f.v[k]], positions[f.v[k + 1]]};

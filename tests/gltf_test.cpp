@@ -366,11 +366,16 @@ namespace {
 // patch order, each with its patch's reflectance and emission (the per-face properties).
 TEST_F(GltfFiles, SiradsOwnPlyIsASceneAgain) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 300});
+  mesh.background = glm::vec3(0.25f, 0.5f, 1.5f);
   std::vector<glm::vec3> radiosity(mesh.size(), glm::vec3(0.5f));
   const std::string path = (dir_ / "solved.ply").string();
   write_ply(path, mesh, radiosity);
   Scene s = load_scene(path);
   ASSERT_EQ(s.triangles.size(), mesh.size());
+  // The comments keep what an image of it needs: the camera and the background.
+  ASSERT_TRUE(s.camera.has_value());
+  EXPECT_EQ(camera_spec(*s.camera), camera_spec(*mesh.camera));
+  EXPECT_EQ(s.background, mesh.background);
   for (std::size_t j = 0; j < mesh.size(); ++j) {
     for (int k = 0; k < 3; ++k) ASSERT_EQ(s.triangles[j].p[static_cast<std::size_t>(k)], mesh.vertices[mesh.patches[j][static_cast<std::size_t>(k)]]);
     ASSERT_EQ(s.materials[s.triangles[j].material].reflectance, mesh.reflectance(j)) << j;
@@ -430,6 +435,9 @@ TEST_F(GltfFiles, HostilePlyFilesGiveOneLineErrors) {
       {"two vertices", head + "0 0 0\n1 0 0\n0 1 0\n2 0 1 1 1 1\n"},
       {"no xyz", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float q\nend_header\n1\n"},
       {"unknown type", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n1\n"},
+      {"bad camera comment", "ply\nformat ascii 1.0\ncomment sirad camera eye 1 2\nend_header\n"},
+      {"bad background comment", "ply\nformat ascii 1.0\ncomment sirad background 1 nan 2\nend_header\n"},
+      {"negative background", "ply\nformat ascii 1.0\ncomment sirad background 1 -1 2\nend_header\n"},
   };
   for (const auto& [what, text] : cases) {
     SCOPED_TRACE(what);

@@ -698,6 +698,7 @@ TEST_F(OutputPly, HeaderAndBody) {
       "ply\n"
       "format binary_little_endian 1.0\n"
       "comment sirad scene hash 0123456789abcdef0123456789abcdef\n"
+      "comment sirad background 0 0 0\n"
       "element vertex 6\n"
       "property float x\n"
       "property float y\n"

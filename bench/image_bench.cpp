@@ -1,0 +1,200 @@
+// sirad bench: images against a converged path-traced reference (bench/cycles/render_obj.py
+// renders one with Blender's Cycles). Prints CSV, one row per image: the per-pixel relative error
+// of the luminance (Rec. 709 weights) at the median, 90th and 99th percentiles and its RMS, light
+// pixels (reference luminance above --light-above) left out, with the wall time it took on this
+// machine (every core, as Cycles uses them). With a second reference of another seed
+// (--reference2) the reference is their mean, and rel_rms_net is the RMS less the reference's own
+// noise: the variance of (a - b) / 2 per pixel, (a - b)^2 / 4 relative, subtracted from the
+// mean square (a reference of finite samples is never exactly converged).
+//
+//   sirad_bench_image --reference ref.exr --scene cornell --patches 10000 --bundles 1000,4000
+//       --spp 16,64,256 [--candidate cycles-64.exr:12.5 ...]
+//
+// For each patches x bundles it solves the scene with `sirad render` (solve_s: that process's
+// wall time, kernels compiled and cached beforehand by a first run), reads the solution back
+// from its PLY and images it: the patches drawn (method "mesh", as sirad render's image) and a
+// final gather at each --spp (method "gather"; image_s its own time). A candidate is any other
+// EXR of the same view with the seconds it took (Cycles at fewer samples, say): method "file".
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <fmt/format.h>
+
+#include "core/error.h"
+#include "core/gather.h"
+#include "core/output.h"
+#include "core/solution.h"
+
+using namespace sirad;
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::vector<double> luminance(const Image& image) {
+  std::vector<double> y(image.pixels.size());
+  for (std::size_t i = 0; i < y.size(); ++i)
+    y[i] = 0.2126 * image.pixels[i].x + 0.7152 * image.pixels[i].y + 0.0722 * image.pixels[i].z;
+  return y;
+}
+
+Image read_rgb(const std::string& path) {
+  Imf::InputFile in(path.c_str());
+  const Imath::Box2i dw = in.header().dataWindow();
+  Image image;
+  image.width = dw.max.x - dw.min.x + 1;
+  image.height = dw.max.y - dw.min.y + 1;
+  image.pixels.assign(static_cast<std::size_t>(image.width) * image.height, glm::vec3(0.0f));
+  char* base = reinterpret_cast<char*>(image.pixels.data()) - (dw.min.x + static_cast<std::ptrdiff_t>(dw.min.y) * image.width) * sizeof(glm::vec3);
+  Imf::FrameBuffer fb;
+  for (int c = 0; c < 3; ++c)
+    fb.insert(std::string(1, "RGB"[c]), Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(glm::vec3), sizeof(glm::vec3) * image.width));
+  in.setFrameBuffer(fb);
+  in.readPixels(dw.min.y, dw.max.y);
+  return image;
+}
+
+struct Errors {
+  double median = 0, p90 = 0, p99 = 0, rms = 0, rms_net = 0;
+  std::size_t pixels = 0;
+};
+
+// The reference: one image's luminance, or two's mean, and the relative variance of that mean
+// per pixel (0 with one).
+struct Reference {
+  int width = 0, height = 0;
+  std::vector<double> y, rel_var;
+};
+
+Reference make_reference(const Image& a, const Image* b) {
+  Reference r{a.width, a.height, luminance(a), std::vector<double>(a.pixels.size(), 0.0)};
+  if (!b) return r;
+  if (b->width != a.width || b->height != a.height) fail("the two references differ in size");
+  const std::vector<double> yb = luminance(*b);
+  for (std::size_t i = 0; i < r.y.size(); ++i) {
+    const double d = r.y[i] - yb[i];
+    r.y[i] = 0.5 * (r.y[i] + yb[i]);
+    r.rel_var[i] = r.y[i] > 0.0 ? d * d / 4.0 / (r.y[i] * r.y[i]) : 0.0;  // var of the mean: var(a - b) / 4
+  }
+  return r;
+}
+
+Errors compare(const Image& image, const Reference& ref, double light_above) {
+  if (image.width != ref.width || image.height != ref.height)
+    fail("image {}x{} against a reference of {}x{}", image.width, image.height, ref.width, ref.height);
+  const std::vector<double> a = luminance(image);
+  const std::vector<double>& b = ref.y;
+  std::vector<double> rel;
+  double sq = 0.0, noise = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (!(b[i] > 0.0) || b[i] > light_above) continue;
+    rel.push_back(std::abs(a[i] - b[i]) / b[i]);
+    sq += rel.back() * rel.back();
+    noise += ref.rel_var[i];
+  }
+  if (rel.empty()) fail("no pixel to compare");
+  Errors e;
+  e.pixels = rel.size();
+  e.rms = std::sqrt(sq / static_cast<double>(rel.size()));
+  e.rms_net = std::sqrt(std::max(0.0, sq - noise) / static_cast<double>(rel.size()));
+  std::sort(rel.begin(), rel.end());
+  auto at = [&](double q) { return rel[std::min(rel.size() - 1, static_cast<std::size_t>(q * static_cast<double>(rel.size())))]; };
+  e.median = at(0.5), e.p90 = at(0.9), e.p99 = at(0.99);
+  return e;
+}
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::size_t at = 0;
+  while (at <= s.size()) {
+    std::size_t end = s.find(',', at);
+    if (end == std::string::npos) end = s.size();
+    if (end > at) out.push_back(s.substr(at, end - at));
+    at = end + 1;
+  }
+  return out;
+}
+
+void row(const std::string& method, const std::string& patches, const std::string& bundles, int spp, double solve_s,
+         double image_s, const Errors& e) {
+  std::printf("%s,%s,%s,%d,%.3f,%.3f,%.3f,%.5f,%.5f,%.5f,%.5f,%.5f\n", method.c_str(), patches.c_str(), bundles.c_str(), spp,
+              solve_s, image_s, solve_s + image_s, e.median, e.p90, e.p99, e.rms, e.rms_net);
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"sirad_bench_image: images against a converged reference (CSV)"};
+  std::string reference, reference2, scene = "cornell", patches = "10000", bundles = "1000", spp = "16,64", sirad = SIRAD_BINARY, work = "bench-image";
+  std::vector<std::string> candidates;
+  double light_above = 3.0;
+  app.add_option("--reference", reference, "The converged reference (EXR, linear RGB)")->required();
+  app.add_option("--reference2", reference2, "A second reference of another seed: the mean is the reference, its noise is measured");
+  app.add_option("--scene", scene, "The scene (as sirad render takes it)")->capture_default_str();
+  app.add_option("--patches", patches, "Patch counts, comma-separated")->capture_default_str();
+  app.add_option("--bundles", bundles, "Bundle budgets, comma-separated")->capture_default_str();
+  app.add_option("--spp", spp, "Final gather samples per pixel, comma-separated")->capture_default_str();
+  app.add_option("--candidate", candidates, "Another image to score: FILE.exr:SECONDS");
+  app.add_option("--light-above", light_above, "Reference luminance above which a pixel is the light's, left out")->capture_default_str();
+  app.add_option("--sirad", sirad, "The sirad program")->capture_default_str();
+  app.add_option("--work", work, "Folder for the solutions")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  try {
+    const Image ref_image = read_rgb(reference);
+    std::optional<Image> second;
+    if (!reference2.empty()) second = read_rgb(reference2);
+    const Reference ref = make_reference(ref_image, second ? &*second : nullptr);
+    fs::create_directories(work);
+    std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net\n");
+    for (const std::string& c : candidates) {
+      const auto colon = c.rfind(':');
+      if (colon == std::string::npos) fail("--candidate {}: FILE.exr:SECONDS", c);
+      row("file:" + fs::path(c.substr(0, colon)).filename().string(), "", "", 0, 0.0, std::stod(c.substr(colon + 1)),
+          compare(read_rgb(c.substr(0, colon)), ref, light_above));
+    }
+    for (const std::string& p : split(patches))
+      for (const std::string& k : split(bundles)) {
+        const std::string out = (fs::path(work) / fmt::format("{}-{}-{}", scene, p, k)).string();
+        const std::string cmd = fmt::format("'{}' render {} --patches {} --bundles {} --width {} --height {} -q --out '{}' >/dev/null", sirad,
+                                            scene, p, k, ref.width, ref.height, out);
+        const auto t0 = Clock::now();
+        const int rc = std::system(cmd.c_str());
+        const double solve_s = since(t0);
+        if (rc != 0) fail("{}: exit {}", cmd, rc);
+        Solution s = read_solution(out + ".ply");
+        const auto t1 = Clock::now();
+        int side = std::clamp(4096 / std::max(ref.width, ref.height), 1, 4);
+        const Image mesh = render_view_antialiased(s.mesh, s.radiosity, *s.mesh.camera, ref.width, ref.height, Shading::gouraud, side);
+        row("mesh", p, k, side * side, solve_s, since(t1), compare(mesh, ref, light_above));
+        for (const std::string& n : split(spp)) {
+          GatherOptions o{.width = ref.width, .height = ref.height, .spp = std::stoi(n)};
+          const auto t2 = Clock::now();
+          GatherPasses g = FinalGather(s.mesh, s.radiosity, *s.mesh.camera, o).render();
+          const double image_s = since(t2);
+          row("gather", p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above));
+          write_exr(out + fmt::format("-gather{}.exr", n), g.combined, {});
+        }
+      }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sirad_bench_image: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
