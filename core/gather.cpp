@@ -16,7 +16,11 @@ namespace sirad {
 namespace {
 
 // Purposes of the random streams (Rng's last key): one stream per pixel and purpose.
-constexpr uint64_t kJitter = 1, kLight = 2, kGather = 3;
+constexpr uint64_t kJitter = 1, kLight = 2, kGather = 3, kMore = 4;
+
+// A gather ray that lands closer than this many patch sizes (sqrt(2 area)) of the patch it hits
+// traces the light reflected there one bounce further instead of taking the solution.
+constexpr double kNear = 2.0;
 
 }  // namespace
 
@@ -66,24 +70,15 @@ struct FinalGather::Impl {
   // direction meets the emitter's front at cosine `cos_light`.
   double light_pdf(double r2, double cos_light) const { return r2 / (cos_light * emitter_area); }
 
-  // One sample of pixel (px, py) at raster offset (u, v), with its emitter point from `light`
-  // and its gather direction from `gather` (points of the unit square): adds what it sees to
-  // `direct` and `indirect`.
-  void sample(int px, int py, double u, double v, const std::array<double, 2>& light, const std::array<double, 2>& gather,
-              glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
-    const glm::dvec3 dir = frame.direction(px + u, py + v);
-    const auto [hit, t] = rays.seen_at(frame.eye, dir);
-    ++cast;
-    if (hit < 0) {
-      direct += glm::dvec3(mesh.background);
-      return;
-    }
-    const uint32_t j = static_cast<uint32_t>(hit);
-    const glm::dvec3 x = frame.eye + dir * t;
-    const glm::dvec3 n(mesh.normal[j]);
-    const glm::dvec3 rho(mesh.reflectance(j));
-    direct += glm::dvec3(mesh.emission(j));
-    if (rho == glm::dvec3(0.0)) return;
+  // The light reflected at point x of patch j (normal n, reflectance rho) toward the viewer,
+  // into `direct` (from the emitters) and `indirect` (from the rest), before rho: one emitter
+  // point from `light` with its shadow ray and one cosine gather ray from `gather` (points of the
+  // unit square), MIS-combined for the emitters' light. The gather ray takes the solution where
+  // it lands, less its emission; where it lands closer than kNear patch sizes (a corner, a
+  // contact: where the patch-wise solution is least right), the light reflected there is
+  // traced once more instead, from `more`'s points (at `depth` 0 only).
+  void reflected(const glm::dvec3& x, const glm::dvec3& n, const std::array<double, 2>& light, const std::array<double, 2>& gather,
+                 Rng& more, int depth, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 origin = x + n * offset;
 
     // The direct light: a point on an emitter, chosen by area, and its shadow ray. The first
@@ -110,8 +105,8 @@ struct FinalGather::Impl {
           ++cast;
           if (!rays.blocked(origin, y + ne * offset)) {
             const double p_light = light_pdf(r2, cos_y), p_gather = cos_x / std::numbers::pi;
-            // rho / pi * E cos_x d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
-            direct += rho * glm::dvec3(mesh.emission(e)) * (cos_x / std::numbers::pi / (p_light + p_gather));
+            // E cos_x / pi d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
+            direct += glm::dvec3(mesh.emission(e)) * (cos_x / std::numbers::pi / (p_light + p_gather));
           }
         }
       }
@@ -123,20 +118,48 @@ struct FinalGather::Impl {
     const auto [seen, s] = rays.seen_at(origin, g);
     ++cast;
     if (seen < 0) {
-      indirect += rho * glm::dvec3(mesh.background);
+      indirect += glm::dvec3(mesh.background);
       return;
     }
     const uint32_t k = static_cast<uint32_t>(seen);
     const glm::dvec3 y = origin + g * s;
     const glm::dvec3 e(mesh.emission(k));
-    indirect += rho * (radiosity_at(k, y) - e);
+    const glm::dvec3 rho_k(mesh.reflectance(k));
+    if (depth == 0 && s < kNear * std::sqrt(2.0 * mesh.area[k]) && rho_k != glm::dvec3(0.0)) {
+      glm::dvec3 d(0.0), i(0.0);
+      reflected(y, glm::dvec3(mesh.normal[k]), {more.uniform(), more.uniform()}, {more.uniform(), more.uniform()}, more, 1, d, i, cast);
+      indirect += rho_k * (d + i);
+    } else {
+      indirect += radiosity_at(k, y) - e;
+    }
     if (mesh.emits(k)) {
       const double cos_x = glm::dot(n, g), cos_y = -glm::dot(glm::dvec3(mesh.normal[k]), g);
       if (cos_x > 0.0 && cos_y > 0.0) {
         const double p_gather = cos_x / std::numbers::pi, p_light = light_pdf(s * s, cos_y);
-        direct += rho * e * (p_gather / (p_light + p_gather));
+        direct += e * (p_gather / (p_light + p_gather));
       }
     }
+  }
+
+  // One sample of pixel (px, py) at raster offset (u, v): adds what it sees to `direct` and
+  // `indirect`.
+  void sample(int px, int py, double u, double v, const std::array<double, 2>& light, const std::array<double, 2>& gather,
+              Rng& more, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
+    const glm::dvec3 dir = frame.direction(px + u, py + v);
+    const auto [hit, t] = rays.seen_at(frame.eye, dir);
+    ++cast;
+    if (hit < 0) {
+      direct += glm::dvec3(mesh.background);
+      return;
+    }
+    const uint32_t j = static_cast<uint32_t>(hit);
+    const glm::dvec3 rho(mesh.reflectance(j));
+    direct += glm::dvec3(mesh.emission(j));
+    if (rho == glm::dvec3(0.0)) return;
+    glm::dvec3 d(0.0), i(0.0);
+    reflected(frame.eye + dir * t, glm::dvec3(mesh.normal[j]), light, gather, more, 0, d, i, cast);
+    direct += rho * d;
+    indirect += rho * i;
   }
 
   // Pixel (px, py) into `out`; returns the rays it cast.
@@ -144,7 +167,8 @@ struct FinalGather::Impl {
     const uint64_t index = static_cast<uint64_t>(py) * static_cast<uint64_t>(options.width) + static_cast<uint64_t>(px);
     // Each of the sample's three 2D choices (the position in the pixel, the emitter point, the
     // gather direction) stratified over the pixel's samples, the sets paired in random order.
-    Rng jitter(options.seed, index, 0, kJitter), light(options.seed, index, 0, kLight), gather(options.seed, index, 0, kGather);
+    Rng jitter(options.seed, index, 0, kJitter), light(options.seed, index, 0, kLight), gather(options.seed, index, 0, kGather),
+        more(options.seed, index, 0, kMore);
     std::vector<std::array<double, 2>> positions, lights, gathers;
     stratified_square(options.spp, jitter, positions);
     stratified_square(options.spp, light, lights);
@@ -153,7 +177,7 @@ struct FinalGather::Impl {
     uint64_t cast = 0;
     for (int i = 0; i < options.spp; ++i) {
       const std::size_t k = static_cast<std::size_t>(i);
-      sample(px, py, positions[k][0], positions[k][1], lights[k], gathers[k], direct, indirect, cast);
+      sample(px, py, positions[k][0], positions[k][1], lights[k], gathers[k], more, direct, indirect, cast);
     }
     const double w = 1.0 / options.spp;
     out.direct.at(px, py) = glm::vec3(direct * w);

@@ -172,6 +172,13 @@ TEST_F(Golden, SingleNode) {
   check("single");
 }
 
+// The final gather (core/gather.h) of the single-node run above: its EXR passes and PNG.
+TEST_F(Golden, SingleNodeFinalGather) {
+  run(with({SIRAD_BINARY, "render", "cornell", "--bundles", "48", "--seed", "5", "--final-gather", "4", "--out", out("gather")}, kSmall),
+      "gather.log");
+  check("gather");
+}
+
 TEST_F(Golden, SingleNodeAverageRulePlainEstimator) {
   run(with({SIRAD_BINARY, "render", "cornell", "--bundles", "40", "--seed", "6", "--rule", "average", "--control-variate", "off",
             "--shots-per-bundle", "0", "--out", out("plain")},
