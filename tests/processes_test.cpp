@@ -620,6 +620,21 @@ FarmProcess start_farm(const fs::path& dir, const std::string& listen, int incar
   return f;
 }
 
+// A fresh folder for a farm test, under the temporary directory.
+fs::path fresh_dir(const std::string& name) {
+  fs::path dir = fs::temp_directory_path() / fmt::format("{}_{}", name, ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// `sirad submit ARGS`, run to its end: its exit status (what it said in dir/submit.log).
+int sirad_submit(const fs::path& dir, std::vector<std::string> args) {
+  args.insert(args.begin(), {SIRAD_BINARY, "submit"});
+  Child c(args, dir / "submit.log");
+  return c.wait(sirad::test::kHangS);
+}
+
 // A job's record (job.json) as JSON; null while it cannot be read.
 nlohmann::json job_record(const FarmProcess& f, int id) {
   try {
@@ -662,15 +677,9 @@ double furnace_mean(const fs::path& ply) {
 // 4 = 0.055, the bound of Processes.CoordinatorAndThreeNodesOverTcp). Submitting without the
 // token is refused (401); the API lists the jobs and hands out their images.
 TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
-  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_farm_{}", ::getpid());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_dir("sirad_farm");
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
-  auto submit = [&](std::vector<std::string> args) {
-    args.insert(args.begin(), {SIRAD_BINARY, "submit"});
-    Child c(args, dir / "submit.log");
-    EXPECT_EQ(c.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
-  };
+  auto submit = [&](std::vector<std::string> args) { EXPECT_EQ(sirad_submit(dir, std::move(args)), 0) << slurp(dir / "submit.log"); };
   const std::vector<std::string> plain = {"--control-variate", "off", "--directions", "random", "--shots-per-bundle", "0",
                                           "--width", "8", "--height", "8"};
   std::vector<std::string> low = {"furnace", "--farm", farm.folder.string(), "--name", "low", "--patches", "200", "--bundles", "512",
@@ -731,15 +740,9 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
 // cancel then stops the long job and takes its preview away. A job whose --min-nodes exceeds its
 // --max-nodes is refused when submitted, with one line.
 TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
-  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_farm_share_{}", ::getpid());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_dir("sirad_farm_share");
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
-  auto submit = [&](std::vector<std::string> args) {
-    args.insert(args.begin(), {SIRAD_BINARY, "submit"});
-    Child c(args, dir / "submit.log");
-    return c.wait(sirad::test::kHangS);
-  };
+  auto submit = [&](std::vector<std::string> args) { return sirad_submit(dir, std::move(args)); };
   ASSERT_EQ(submit({"cornell", "--farm", farm.folder.string(), "--name", "long", "--priority", "1", "--max-nodes", "1", "--patches",
                     "500", "--bundles", "100000000", "--exchange-every", "8", "--width", "64", "--height", "64"}),
             0) << slurp(dir / "submit.log");
@@ -806,18 +809,16 @@ TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
 // nodes stopped (a fast machine), a job 8 times longer is queued first and the same is done
 // with it, until one is caught mid-run.
 TEST(Farm, AKilledFarmResumesItsQueueAndRunsEveryJobOnce) {
-  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_farm_kill_{}", ::getpid());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_dir("sirad_farm_kill");
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
   std::map<int, uint64_t> bundles_of;  // every job submitted: its bundles
   auto submit = [&](const std::string& name, uint64_t bundles, int priority) {
-    Child c({SIRAD_BINARY, "submit", "furnace", "--farm", farm.folder.string(), "--name", name, "--priority",
-             std::to_string(priority), "--patches", "300", "--bundles", std::to_string(bundles), "--exchange-every", "16",
-             "--mode", "sync", "--control-variate", "off", "--directions", "random", "--shots-per-bundle", "0", "--width", "8",
-             "--height", "8"},
-            dir / "submit.log");
-    EXPECT_EQ(c.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
+    EXPECT_EQ(sirad_submit(dir, {"furnace", "--farm", farm.folder.string(), "--name", name, "--priority", std::to_string(priority),
+                                 "--patches", "300", "--bundles", std::to_string(bundles), "--exchange-every", "16", "--mode", "sync",
+                                 "--control-variate", "off", "--directions", "random", "--shots-per-bundle", "0", "--width", "8",
+                                 "--height", "8"}),
+              0)
+        << slurp(dir / "submit.log");
     bundles_of[static_cast<int>(bundles_of.size()) + 1] = bundles;
   };
   uint64_t K = 8192;
@@ -876,15 +877,13 @@ TEST(Farm, AKilledFarmResumesItsQueueAndRunsEveryJobOnce) {
 TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   const std::string chromium = sirad::test::on_path("chromium");
   if (chromium.empty()) GTEST_SKIP() << "chromium is not installed (deploy/install-deps.sh installs it)";
-  fs::path dir = fs::temp_directory_path() / fmt::format("sirad_farm_page_{}", ::getpid());
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_dir("sirad_farm_page");
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
   Child node({SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", "w0"}, dir / "node.log");
-  Child submit({SIRAD_BINARY, "submit", "cornell", "--farm", farm.folder.string(), "--name", "shown", "--patches", "500", "--bundles",
-                "128", "--width", "256", "--height", "256"},
-               dir / "submit.log");
-  ASSERT_EQ(submit.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
+  ASSERT_EQ(sirad_submit(dir, {"cornell", "--farm", farm.folder.string(), "--name", "shown", "--patches", "500", "--bundles", "128",
+                               "--width", "256", "--height", "256"}),
+            0)
+      << slurp(dir / "submit.log");
   ASSERT_TRUE(wait_until([&] { return job_state(farm, 1) == "done"; })) << slurp(dir / "farm0.log");
   const std::vector<std::string> browser = {chromium, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
                                             "--user-data-dir=" + (dir / "profile").string(), "--virtual-time-budget=8000",
@@ -914,10 +913,10 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   EXPECT_GT(badge, 50u) << "no done badge in the screenshot";
   EXPECT_GT(red_wall, 500u) << "no image of the Cornell box in the screenshot";
   // A running job is the one the page opens on: its preview image and its node's traffic.
-  Child running({SIRAD_BINARY, "submit", "cornell", "--farm", farm.folder.string(), "--name", "running", "--patches", "500",
-                 "--bundles", "100000000", "--exchange-every", "8", "--width", "64", "--height", "64"},
-                dir / "submit.log");
-  ASSERT_EQ(running.wait(sirad::test::kHangS), 0) << slurp(dir / "submit.log");
+  ASSERT_EQ(sirad_submit(dir, {"cornell", "--farm", farm.folder.string(), "--name", "running", "--patches", "500", "--bundles",
+                               "100000000", "--exchange-every", "8", "--width", "64", "--height", "64"}),
+            0)
+      << slurp(dir / "submit.log");
   ASSERT_TRUE(wait_until([&] {
     if (!fs::exists(farm.folder / "jobs" / "2" / "preview.png")) return false;
     auto n = status_nodes(farm.folder / "jobs" / "2" / "status.json");
