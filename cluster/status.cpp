@@ -93,6 +93,7 @@ Status read_status(const std::string& path) {
   s.scenes_from_cache = field<uint32_t>(root, "scenes_from_cache", path, "", 0);
   s.ended_by = field<std::string>(root, "ended_by", path, "", "");
   s.error_estimate = field<double>(root, "error_estimate", path, "", -1.0);
+  s.target_error = field<double>(root, "target_error", path, "", 0.0);
   s.bytes_in = field<uint64_t>(root, "bytes_in", path, "", 0);
   s.bytes_out = field<uint64_t>(root, "bytes_out", path, "", 0);
   auto nodes = root.find("nodes");

@@ -171,6 +171,14 @@ class Farm {
     router_.set(zmq::sockopt::router_handover, 1);  // a reconnecting node keeps its routing id
   }
 
+  // Should serve() end by an exception (a job store that cannot be written), the running jobs
+  // checkpoint and their threads end before the farm goes.
+  ~Farm() {
+    for (auto& [id, r] : jobs_) r->interrupt = true;
+    for (auto& [id, r] : jobs_)
+      if (r->thread.joinable()) r->thread.join();
+  }
+
   void serve() {
     for (;;) {
       const bool stopping = options_.stop && options_.stop->load();
@@ -349,6 +357,7 @@ class Farm {
         for (auto n = nodes_.begin(); n != nodes_.end(); ++n)
           if (n->second.job == 0 && (oldest == nodes_.end() || n->second.heard < oldest->second.heard)) oldest = n;
         if (oldest == nodes_.end()) return true;
+        release(oldest->second);
         nodes_.erase(oldest);
       }
       it = nodes_.emplace(id, FarmNode{}).first;
@@ -357,14 +366,18 @@ class Farm {
     FarmNode& n = it->second;
     n.heard = Clock::now();
     const std::vector<std::string> message(in->frames.begin() + 1, in->frames.end());
+    if (n.job != 0) {  // its job's run reads it (and refuses what is wrong, counting it)
+      peers_.set(n.local, {key, in->address});
+      forward(*n.dealer, nullptr, message);
+      return true;
+    }
     proto::Message m;
     try {
       m = proto::decode(message);
     } catch (const proto::ProtocolError&) {
-      if (n.job != 0) forward(*n.dealer, nullptr, message);  // its job's run refuses it, and counts it
-      return true;
+      return true;  // a free node's garbage: no job to count it
     }
-    if (n.job == 0 && m.command == proto::Command::hello) {
+    if (m.command == proto::Command::hello) {
       n.asked = false;  // its answer: it joins a job with room, or is free for the next
       if (RunningJob* r = job_with_room()) {
         try {
