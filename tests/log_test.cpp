@@ -85,10 +85,18 @@ TEST(OperatorLog, ANodeSaysWhatItDoesInJson) {
     if (!j.contains("event")) continue;
     events.push_back(j["event"]);
     if (j["event"] == "grant") granted += j["bundles"].get<uint64_t>();
-    if (j["event"] == "start") EXPECT_FALSE(j["device"].get<std::string>().empty()) << line;
-    if (j["event"] == "ready") EXPECT_GT(j["ms_per_bundle"].get<double>(), 0) << line;
-    if (j["event"] == "done") EXPECT_EQ(j["bundles"], 64) << line;
-    if (j["event"] == "left") EXPECT_EQ(j["why"], "signal") << line;
+    if (j["event"] == "start") {
+      EXPECT_FALSE(j["device"].get<std::string>().empty()) << line;
+    }
+    if (j["event"] == "ready") {
+      EXPECT_GT(j["ms_per_bundle"].get<double>(), 0) << line;
+    }
+    if (j["event"] == "done") {
+      EXPECT_EQ(j["bundles"], 64) << line;
+    }
+    if (j["event"] == "left") {
+      EXPECT_EQ(j["why"], "signal") << line;
+    }
   }
   EXPECT_EQ(granted, 64u);
   std::vector<std::string> order;
