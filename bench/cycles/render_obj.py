@@ -6,6 +6,9 @@
 # bounces and nothing clamped, no denoising, no adaptive sampling; linear float EXR, and a PNG
 # beside it.
 #   blender -b --factory-startup --python bench/cycles/render_obj.py -- SCENE.obj OUT.exr W H SPP [SEED]
+# (Debian's `blender` 3.4; deploy/install-deps.sh does not install it: apt-get install blender.)
+# The figures of bench/RESULTS.md ("Images against Cycles") used SPP 4096 at 128 x 128 and 2048
+# at 512 x 512, seeds 0 and 2 for the two references, 1 for the candidates.
 # Prints "cycles: W x H, SPP spp, SECONDS s" (the render's own time).
 import math
 import os
