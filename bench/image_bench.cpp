@@ -119,18 +119,6 @@ Errors compare(const Image& image, const Reference& ref, double light_above) {
   return e;
 }
 
-std::vector<std::string> split(const std::string& s) {
-  std::vector<std::string> out;
-  std::size_t at = 0;
-  while (at <= s.size()) {
-    std::size_t end = s.find(',', at);
-    if (end == std::string::npos) end = s.size();
-    if (end > at) out.push_back(s.substr(at, end - at));
-    at = end + 1;
-  }
-  return out;
-}
-
 void row(const std::string& method, const std::string& patches, const std::string& bundles, int spp, double solve_s,
          double image_s, const Errors& e) {
   std::printf("%s,%s,%s,%d,%.3f,%.3f,%.3f,%.5f,%.5f,%.5f,%.5f,%.5f\n", method.c_str(), patches.c_str(), bundles.c_str(), spp,
@@ -142,15 +130,17 @@ void row(const std::string& method, const std::string& patches, const std::strin
 
 int main(int argc, char** argv) {
   CLI::App app{"sirad_bench_image: images against a converged reference (CSV)"};
-  std::string reference, reference2, scene = "cornell", patches = "10000", bundles = "1000", spp = "16,64", sirad = SIRAD_BINARY, work = "bench-image";
+  std::string reference, reference2, scene = "cornell", sirad = SIRAD_BINARY, work = "bench-image";
+  std::vector<std::string> patches{"10000"}, bundles{"1000"};  // as sirad render takes them, and as the CSV shows them
+  std::vector<int> spp{16, 64};
   std::vector<std::string> candidates;
   double light_above = 3.0;
   app.add_option("--reference", reference, "The converged reference (EXR, linear RGB)")->required();
   app.add_option("--reference2", reference2, "A second reference of another seed: the mean is the reference, its noise is measured");
   app.add_option("--scene", scene, "The scene (as sirad render takes it)")->capture_default_str();
-  app.add_option("--patches", patches, "Patch counts, comma-separated")->capture_default_str();
-  app.add_option("--bundles", bundles, "Bundle budgets, comma-separated")->capture_default_str();
-  app.add_option("--spp", spp, "Final gather samples per pixel, comma-separated")->capture_default_str();
+  app.add_option("--patches", patches, "Patch counts, comma-separated")->delimiter(',')->capture_default_str();
+  app.add_option("--bundles", bundles, "Bundle budgets, comma-separated")->delimiter(',')->capture_default_str();
+  app.add_option("--spp", spp, "Final gather samples per pixel, comma-separated")->delimiter(',')->capture_default_str();
   app.add_option("--candidate", candidates, "Another image to score: FILE.exr:SECONDS");
   app.add_option("--light-above", light_above, "Reference luminance above which a pixel is the light's, left out")->capture_default_str();
   app.add_option("--sirad", sirad, "The sirad program")->capture_default_str();
@@ -169,8 +159,8 @@ int main(int argc, char** argv) {
       row("file:" + fs::path(c.substr(0, colon)).filename().string(), "", "", 0, 0.0, std::stod(c.substr(colon + 1)),
           compare(read_rgb(c.substr(0, colon)), ref, light_above));
     }
-    for (const std::string& p : split(patches))
-      for (const std::string& k : split(bundles)) {
+    for (const std::string& p : patches)
+      for (const std::string& k : bundles) {
         const std::string out = (fs::path(work) / fmt::format("{}-{}-{}", scene, p, k)).string();
         const std::string cmd = fmt::format("'{}' render {} --patches {} --bundles {} --width {} --height {} -q --out '{}' >/dev/null", sirad,
                                             scene, p, k, ref.width, ref.height, out);
@@ -183,10 +173,10 @@ int main(int argc, char** argv) {
         int side = std::clamp(4096 / std::max(ref.width, ref.height), 1, 4);
         const Image mesh = render_view_antialiased(s.mesh, s.radiosity, *s.mesh.camera, ref.width, ref.height, Shading::gouraud, side);
         row("mesh", p, k, side * side, solve_s, since(t1), compare(mesh, ref, light_above));
-        for (const std::string& n : split(spp)) {
-          GatherOptions o{.width = ref.width, .height = ref.height, .spp = std::stoi(n)};
+        for (const int n : spp) {
+          GatherOptions o{.width = ref.width, .height = ref.height, .spp = n};
           const auto t2 = Clock::now();
-          GatherPasses g = FinalGather(s.mesh, s.radiosity, *s.mesh.camera, o).render();
+          GatherPasses g = FinalGather(s.mesh, s.radiosity, o).render(*s.mesh.camera);
           const double image_s = since(t2);
           row("gather", p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above));
           write_exr(out + fmt::format("-gather{}.exr", n), g.combined, {});

@@ -652,6 +652,7 @@ int image(ImageArgs& a) {
   const std::string name = a.out.empty() ? fs::path(a.solution).stem().string() + "-image" : a.out;
   check_output_name(name, "--out");
   Solution s = read_solution(a.solution);
+  const FinalGather gather(s.mesh, s.radiosity, a.gather);  // the scene's rays made once, for every view
   std::vector<Camera> views;
   if (!a.cameras.empty()) views = read_cameras(a.cameras);
   else if (!a.camera.empty()) views = {cli::camera_flag(a.camera).value()};
@@ -663,7 +664,7 @@ int image(ImageArgs& a) {
       if (std::error_code ec; fs::exists(out + ext, ec) && fs::equivalent(out + ext, a.solution, ec))
         fail("{}: the output {}{} would overwrite the solution; choose another name with --out", a.solution, out, ext);
     const auto start = std::chrono::steady_clock::now();
-    GatherPasses p = FinalGather(s.mesh, s.radiosity, views[v], a.gather).render();
+    GatherPasses p = gather.render(views[v]);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const Attributes attrs = {{"sirad.version", std::string(kVersion)},
                               {"sirad.solution", a.solution},
@@ -673,7 +674,7 @@ int image(ImageArgs& a) {
                               {"sirad.seed", std::to_string(a.gather.seed)},
                               {"sirad.camera", camera_spec(views[v])},
                               {"sirad.seconds", seconds}};
-    write_exr_layers(out + ".exr", {{"", &p.combined}, {"direct", &p.direct}, {"indirect", &p.indirect}}, attrs);
+    write_exr_layers(out + ".exr", p.layers(), attrs);
     write_png(out + ".png", p.combined, a.exposure);
     std::printf("wrote %s\nwrote %s\n", fs::absolute(out + ".exr").c_str(), fs::absolute(out + ".png").c_str());
     if (!a.quiet)

@@ -27,7 +27,6 @@ constexpr double kNear = 2.0;
 struct FinalGather::Impl {
   const PatchMesh& mesh;
   GatherOptions options;
-  CameraFrame frame;
   std::vector<std::array<glm::vec3, 3>> corners;  // interpolated radiosity at each patch corner
   double offset;                                  // ray_offset: how far a ray leaves its surface
   RayScene rays;
@@ -36,10 +35,9 @@ struct FinalGather::Impl {
   std::vector<double> emitter_cdf;
   double emitter_area = 0.0;
 
-  Impl(const PatchMesh& m, const std::vector<glm::vec3>& radiosity, const Camera& camera, const GatherOptions& o)
+  Impl(const PatchMesh& m, const std::vector<glm::vec3>& radiosity, const GatherOptions& o)
       : mesh(m),
         options(o),
-        frame(camera_frame(camera, o.width, o.height, "final gather")),
         corners(corner_radiosity(m, radiosity)),
         offset(ray_offset(m)),
         rays(m, offset) {
@@ -141,10 +139,10 @@ struct FinalGather::Impl {
     }
   }
 
-  // One sample of pixel (px, py) at raster offset (u, v): adds what it sees to `direct` and
-  // `indirect`.
-  void sample(int px, int py, double u, double v, const std::array<double, 2>& light, const std::array<double, 2>& gather,
-              Rng& more, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
+  // One sample of pixel (px, py) of the view `frame` at raster offset (u, v): adds what it sees
+  // to `direct` and `indirect`.
+  void sample(const CameraFrame& frame, int px, int py, double u, double v, const std::array<double, 2>& light,
+              const std::array<double, 2>& gather, Rng& more, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 dir = frame.direction(px + u, py + v);
     const auto [hit, t] = rays.seen_at(frame.eye, dir);
     ++cast;
@@ -162,14 +160,15 @@ struct FinalGather::Impl {
     indirect += rho * i;
   }
 
-  // Pixel (px, py) into `out`; returns the rays it cast.
-  uint64_t pixel(int px, int py, GatherPasses& out) const {
+  // Pixel (px, py) of the view `frame` into `out`; returns the rays it cast.
+  uint64_t pixel(const CameraFrame& frame, int px, int py, GatherPasses& out) const {
     const uint64_t index = static_cast<uint64_t>(py) * static_cast<uint64_t>(options.width) + static_cast<uint64_t>(px);
     // Each of the sample's three 2D choices (the position in the pixel, the emitter point, the
-    // gather direction) stratified over the pixel's samples, the sets paired in random order.
+    // gather direction) stratified over the pixel's samples, the sets paired in random order
+    // (in buffers of this thread's, kept from pixel to pixel).
     Rng jitter(options.seed, index, 0, kJitter), light(options.seed, index, 0, kLight), gather(options.seed, index, 0, kGather),
         more(options.seed, index, 0, kMore);
-    std::vector<std::array<double, 2>> positions, lights, gathers;
+    thread_local std::vector<std::array<double, 2>> positions, lights, gathers;
     stratified_square(options.spp, jitter, positions);
     stratified_square(options.spp, light, lights);
     stratified_square(options.spp, gather, gathers);
@@ -177,7 +176,7 @@ struct FinalGather::Impl {
     uint64_t cast = 0;
     for (int i = 0; i < options.spp; ++i) {
       const std::size_t k = static_cast<std::size_t>(i);
-      sample(px, py, positions[k][0], positions[k][1], lights[k], gathers[k], more, direct, indirect, cast);
+      sample(frame, px, py, positions[k][0], positions[k][1], lights[k], gathers[k], more, direct, indirect, cast);
     }
     const double w = 1.0 / options.spp;
     out.direct.at(px, py) = glm::vec3(direct * w);
@@ -187,13 +186,13 @@ struct FinalGather::Impl {
   }
 };
 
-FinalGather::FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const Camera& camera,
-                         const GatherOptions& options) {
+FinalGather::FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const GatherOptions& options) {
   if (options.spp < 1 || options.spp > 65536) fail("final gather: {} samples per pixel (1..65536)", options.spp);
-  if (options.width > 16384 || options.height > 16384) fail("final gather: image {}x{} (at most 16384 a side)", options.width, options.height);
+  if (options.width < 1 || options.height < 1 || options.width > 16384 || options.height > 16384)
+    fail("final gather: image {}x{} (1 to 16384 a side)", options.width, options.height);
   if (options.threads < 0) fail("final gather: {} threads", options.threads);
   if (radiosity.size() != mesh.size()) fail("final gather: {} radiosity values for {} patches", radiosity.size(), mesh.size());
-  impl_ = std::make_unique<Impl>(mesh, radiosity, camera, options);
+  impl_ = std::make_unique<Impl>(mesh, radiosity, options);
 }
 
 FinalGather::~FinalGather() = default;
@@ -210,17 +209,19 @@ GatherPasses FinalGather::blank() const {
   return p;
 }
 
-void FinalGather::render_tile(int x0, int y0, int x1, int y1, GatherPasses& out) const {
+void FinalGather::render_tile(const Camera& camera, int x0, int y0, int x1, int y1, GatherPasses& out) const {
   const GatherOptions& o = impl_->options;
   if (x0 < 0 || y0 < 0 || x1 > o.width || y1 > o.height || x0 > x1 || y0 > y1)
     fail("final gather: tile [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
   if (out.combined.width != o.width || out.combined.height != o.height) fail("final gather: the passes are not of the image's size");
+  const CameraFrame frame = camera_frame(camera, o.width, o.height, "final gather");
   for (int y = y0; y < y1; ++y)
-    for (int x = x0; x < x1; ++x) out.rays += impl_->pixel(x, y, out);
+    for (int x = x0; x < x1; ++x) out.rays += impl_->pixel(frame, x, y, out);
 }
 
-GatherPasses FinalGather::render() const {
+GatherPasses FinalGather::render(const Camera& camera) const {
   const GatherOptions& o = impl_->options;
+  const CameraFrame frame = camera_frame(camera, o.width, o.height, "final gather");
   GatherPasses out = blank();
   const unsigned threads = o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::thread::hardware_concurrency());
   std::atomic<int> next_row{0};
@@ -229,7 +230,7 @@ GatherPasses FinalGather::render() const {
   for (unsigned t = 0; t < threads; ++t)
     pool.emplace_back([&, t] {  // whole rows each: no pixel is written by two threads
       for (int y; (y = next_row.fetch_add(1)) < o.height;)
-        for (int x = 0; x < o.width; ++x) cast[t] += impl_->pixel(x, y, out);
+        for (int x = 0; x < o.width; ++x) cast[t] += impl_->pixel(frame, x, y, out);
     });
   for (auto& th : pool) th.join();
   for (uint64_t c : cast) out.rays += c;

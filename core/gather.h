@@ -17,6 +17,8 @@
 #pragma once
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -43,24 +45,30 @@ struct GatherOptions {
 struct GatherPasses {
   Image direct, indirect, combined;
   uint64_t rays = 0;  // rays cast (primary, shadow, gather)
+  // The EXR layers (write_exr_layers): the combined unprefixed, then "direct" and "indirect".
+  std::vector<std::pair<std::string, const Image*>> layers() const {
+    return {{"", &combined}, {"direct", &direct}, {"indirect", &indirect}};
+  }
 };
 
 class FinalGather {
  public:
-  // `radiosity`: the solution, one value per patch of `mesh`. Throws sirad::Error for a
-  // solution or options that do not fit (a size mismatch, spp or image size out of range, a
-  // camera that defines no view).
-  FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const Camera& camera, const GatherOptions& options);
+  // `radiosity`: the solution, one value per patch of `mesh` (which must outlive this). The
+  // scene's rays and the interpolated solution are made here, once for every view rendered.
+  // Throws sirad::Error for a solution or options that do not fit (a size mismatch, spp or
+  // image size out of range).
+  FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const GatherOptions& options);
   ~FinalGather();
   FinalGather(const FinalGather&) = delete;
   FinalGather& operator=(const FinalGather&) = delete;
 
   // Empty passes of the image's size, for render_tile to fill.
   GatherPasses blank() const;
-  // The pixels [x0, x1) x [y0, y1) into `out` (from blank(); other pixels untouched), on this thread.
-  void render_tile(int x0, int y0, int x1, int y1, GatherPasses& out) const;
-  // The whole image, in rows spread over options.threads threads.
-  GatherPasses render() const;
+  // The pixels [x0, x1) x [y0, y1) of the view from `camera` into `out` (from blank(); other
+  // pixels untouched), on this thread. Throws sirad::Error for a camera that defines no view.
+  void render_tile(const Camera& camera, int x0, int y0, int x1, int y1, GatherPasses& out) const;
+  // The whole image of the view from `camera`, in rows spread over options.threads threads.
+  GatherPasses render(const Camera& camera) const;
 
   const GatherOptions& options() const;
 

@@ -59,8 +59,8 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
   with_camera.emplace_back("sirad.camera", camera_spec(*mesh.camera));
   GatherPasses passes;
   if (options.gather_spp > 0) {
-    GatherOptions go{.width = options.width, .height = options.height, .spp = options.gather_spp, .seed = options.gather_seed};
-    passes = FinalGather(mesh, radiosity, *mesh.camera, go).render();
+    GatherOptions go{.width = options.width, .height = options.height, .spp = options.gather_spp};
+    passes = FinalGather(mesh, radiosity, go).render(*mesh.camera);
     with_camera.emplace_back("sirad.image", std::string("final gather"));
     with_camera.emplace_back("sirad.spp", static_cast<int64_t>(options.gather_spp));
   } else {
@@ -88,7 +88,7 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
       if (fs::is_directory(f, ec)) fail("{}: is a directory; nothing written", f);
     }
     if (options.gather_spp > 0)
-      write_exr_layers(temps[0], {{"", &passes.combined}, {"direct", &passes.direct}, {"indirect", &passes.indirect}}, with_camera);
+      write_exr_layers(temps[0], passes.layers(), with_camera);
     else
       write_exr(temps[0], image, with_camera);
     write_png(temps[1], image, options.exposure);

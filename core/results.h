@@ -15,10 +15,9 @@ struct ResultOptions {
   // Samples per pixel side for the images (anti-aliasing); 0: 4 (16 per pixel) up to 1024
   // pixels a side, fewer above (the finer image stays within 4096 a side), 1 above 2048.
   int samples_per_side = 0;
-  // > 0: the images are a final gather (core/gather.h) with this many samples per pixel, the EXR
-  // with its passes; 0: the patches drawn.
+  // > 0: the images are a final gather (core/gather.h, its default seed) with this many samples
+  // per pixel, the EXR with its passes; 0: the patches drawn.
   int gather_spp = 0;
-  uint64_t gather_seed = 1;
 };
 
 struct ResultFiles {

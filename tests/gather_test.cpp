@@ -4,6 +4,7 @@
 #include <numbers>
 #include <vector>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
@@ -26,7 +27,7 @@ struct QuadScene {
     return s;
   }();
   uint32_t material(glm::vec3 rho, glm::vec3 emission) {
-    scene.materials.push_back({"m" + std::to_string(scene.materials.size()), rho, emission});
+    scene.materials.push_back({fmt::format("m{}", scene.materials.size()), rho, emission});
     return static_cast<uint32_t>(scene.materials.size() - 1);
   }
   void quad(glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d, uint32_t m) {
@@ -52,7 +53,7 @@ TEST(Camera, EdgesOnPixelBoundariesCoverWholePixels) {
   const Camera camera{{0, 0, 0}, {0, 0, 1}, {0, 1, 0}, 90.0f};
   const std::vector<glm::vec3> radiosity(mesh.size(), glm::vec3(1.0f));
   GatherOptions o{.width = 16, .height = 16, .spp = 16, .threads = 1};
-  const Image gathered = FinalGather(mesh, radiosity, camera, o).render().combined;
+  const Image gathered = FinalGather(mesh, radiosity, o).render(camera).combined;
   const Image drawn = render_view_antialiased(mesh, radiosity, camera, 16, 16, Shading::flat, 4);
   for (int y = 0; y < 16; ++y)
     for (int x = 0; x < 16; ++x) {
@@ -87,7 +88,7 @@ TEST(Gather, AFurnaceIsTwoEverywhere) {
   const std::vector<glm::vec3> exact(mesh.size(), glm::vec3(2.0f));
   const Camera camera{{0.5f, 0.5f, 0.1f}, {0.6f, 0.45f, 1.0f}, {0, 1, 0}, 100.0f};  // sees walls, floor and ceiling
   GatherOptions o{.width = 32, .height = 32, .spp = 16, .seed = 3};
-  GatherPasses p = FinalGather(mesh, exact, camera, o).render();
+  GatherPasses p = FinalGather(mesh, exact, o).render(camera);
   double sum = 0.0, sq = 0.0, indirect = 0.0;
   for (std::size_t k = 0; k < p.combined.pixels.size(); ++k) {
     const glm::vec3 v = p.combined.pixels[k];
@@ -138,7 +139,7 @@ TEST(Gather, ASquareLightOverAFloorMatchesItsClosedForm) {
   const Camera camera{{2.5f, 0, 1.2f}, {2.5f, 0, 0}, {1, 0, 0}, 60.0f};
   const int W = 32, H = 32, N = 256;
   GatherOptions o{.width = W, .height = H, .spp = N, .seed = 11};
-  GatherPasses p = FinalGather(mesh, solution, camera, o).render();
+  GatherPasses p = FinalGather(mesh, solution, o).render(camera);
   const CameraFrame f = camera_frame(camera, W, H);
   std::vector<double> mu(static_cast<std::size_t>(W) * H), var(mu.size());
   for (int y = 0; y < H; ++y)
@@ -189,19 +190,19 @@ TEST(Gather, TilesAndThreadsGiveTheSameImage) {
   std::vector<glm::vec3> radiosity(mesh.size());
   for (std::size_t j = 0; j < mesh.size(); ++j) radiosity[j] = mesh.emission(j) + mesh.reflectance(j) * 3.0f;
   GatherOptions o{.width = 24, .height = 20, .spp = 4, .seed = 5, .threads = 2};
-  FinalGather whole(mesh, radiosity, *mesh.camera, o);
-  const GatherPasses a = whole.render();
+  FinalGather whole(mesh, radiosity, o);
+  const GatherPasses a = whole.render(*mesh.camera);
   o.threads = 1;
-  FinalGather one(mesh, radiosity, *mesh.camera, o);
+  FinalGather one(mesh, radiosity, o);
   GatherPasses b = one.blank();
   for (int y = 0; y < 20; y += 7)
-    for (int x = 0; x < 24; x += 5) one.render_tile(x, y, std::min(x + 5, 24), std::min(y + 7, 20), b);
+    for (int x = 0; x < 24; x += 5) one.render_tile(*mesh.camera, x, y, std::min(x + 5, 24), std::min(y + 7, 20), b);
   EXPECT_EQ(a.combined.pixels, b.combined.pixels);
   EXPECT_EQ(a.direct.pixels, b.direct.pixels);
   EXPECT_EQ(a.indirect.pixels, b.indirect.pixels);
   EXPECT_EQ(a.rays, b.rays);
-  EXPECT_THROW(one.render_tile(0, 0, 25, 1, b), Error);
-  EXPECT_THROW(FinalGather(mesh, radiosity, *mesh.camera, GatherOptions{.spp = 0}), Error);
+  EXPECT_THROW(one.render_tile(*mesh.camera, 0, 0, 25, 1, b), Error);
+  EXPECT_THROW(FinalGather(mesh, radiosity, GatherOptions{.spp = 0}), Error);
 }
 
 }  // namespace
