@@ -7,6 +7,7 @@
 
 #include <fmt/format.h>
 
+#include "core/camera.h"
 #include "core/rays.h"
 
 namespace sirad {
@@ -124,15 +125,10 @@ Camera choose_camera(const Scene& scene, const PatchMesh& mesh, const RayScene& 
   Camera best = fallback;
   double best_share = -1.0;
   for (const Camera& c : candidates) {
-    const glm::dvec3 eye(c.eye), forward = glm::normalize(glm::dvec3(c.look_at) - eye);
-    const glm::dvec3 right = glm::normalize(glm::cross(forward, glm::dvec3(c.up))), top = glm::cross(right, forward);
-    const double t = std::tan(0.5 * c.vfov_deg * std::numbers::pi / 180.0);
+    const CameraFrame frame = camera_frame(c, kSide, kSide);  // the pixel centres of a kSide x kSide image
     int hits = 0;
     for (int y = 0; y < kSide; ++y)
-      for (int x = 0; x < kSide; ++x) {
-        double u = (2.0 * (x + 0.5) / kSide - 1.0) * t, v = (2.0 * (y + 0.5) / kSide - 1.0) * t;
-        hits += rays.seen(eye, glm::normalize(forward + right * u + top * v)) >= 0;
-      }
+      for (int x = 0; x < kSide; ++x) hits += rays.seen(frame.eye, frame.direction(x + 0.5, y + 0.5)) >= 0;
     double share = static_cast<double>(hits) / (kSide * kSide);
     if (share > best_share + 1e-9) {
       best_share = share;
