@@ -663,27 +663,6 @@ TEST_F(ModelCli, ChargesTheLinksOfAProfile) {
 }  // namespace
 }  // namespace sirad
 
-namespace {
-
-// An EXR's channels by name (every pixel of each).
-std::map<std::string, std::vector<float>> exr_channels(const fs::path& path) {
-  Imf::InputFile in(path.c_str());
-  const Imath::Box2i dw = in.header().dataWindow();
-  const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
-  std::map<std::string, std::vector<float>> out;
-  Imf::FrameBuffer fb;
-  for (auto c = in.header().channels().begin(); c != in.header().channels().end(); ++c) {
-    auto& v = out[c.name()];
-    v.resize(static_cast<std::size_t>(w) * h);
-    fb.insert(c.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(v.data()), sizeof(float), sizeof(float) * w));
-  }
-  in.setFrameBuffer(fb);
-  in.readPixels(dw.min.y, dw.max.y);
-  return out;
-}
-
-}  // namespace
-
 // A solution is enough to image later: `sirad render --final-gather` and `sirad image` of the
 // PLY that render wrote give the same passes bit for bit (the PLY keeps the faces, their
 // radiosity, the camera and the background); combined = direct + indirect; a walkthrough file
@@ -694,7 +673,7 @@ TEST_F(Cli, ImageOfAStoredSolutionIsTheRendersFinalGather) {
   ASSERT_EQ(r.status, 0) << r.err;
   Outcome i = sirad("image cornell.ply --width 24 --height 20 --spp 4 --out again");
   ASSERT_EQ(i.status, 0) << i.err;
-  const auto rendered = exr_channels(dir_ / "cornell.exr"), imaged = exr_channels(dir_ / "again.exr");
+  const auto rendered = sirad::test::exr_channels(dir_ / "cornell.exr"), imaged = sirad::test::exr_channels(dir_ / "again.exr");
   for (const char* c : {"R", "G", "B", "direct.R", "direct.G", "direct.B", "indirect.R", "indirect.G", "indirect.B"}) {
     ASSERT_TRUE(rendered.count(c)) << c;
     EXPECT_EQ(rendered.at(c), imaged.at(c)) << c;

@@ -15,13 +15,10 @@
 
 namespace sirad::test {
 
-// An EXR's pixels (every channel, row by row) and its attributes but the device's description
-// (the machine's), the version, the time and the rates, as one string.
-inline std::string exr_content(const std::filesystem::path& path) {
-  Imf::InputFile in(path.c_str());
+// Every channel of an open EXR by name, its pixels row by row as floats.
+inline std::map<std::string, std::vector<float>> exr_channels(Imf::InputFile& in) {
   const Imath::Box2i dw = in.header().dataWindow();
   const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
-  std::string out = fmt::format("{}x{}\n", w, h);
   std::map<std::string, std::vector<float>> channels;
   Imf::FrameBuffer fb;
   for (auto c = in.header().channels().begin(); c != in.header().channels().end(); ++c) {
@@ -32,6 +29,21 @@ inline std::string exr_content(const std::filesystem::path& path) {
   }
   in.setFrameBuffer(fb);
   in.readPixels(dw.min.y, dw.max.y);
+  return channels;
+}
+
+inline std::map<std::string, std::vector<float>> exr_channels(const std::filesystem::path& path) {
+  Imf::InputFile in(path.c_str());
+  return exr_channels(in);
+}
+
+// An EXR's pixels (every channel, row by row) and its attributes but the device's description
+// (the machine's), the version, the time and the rates, as one string.
+inline std::string exr_content(const std::filesystem::path& path) {
+  Imf::InputFile in(path.c_str());
+  const Imath::Box2i dw = in.header().dataWindow();
+  std::string out = fmt::format("{}x{}\n", dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1);
+  const std::map<std::string, std::vector<float>> channels = exr_channels(in);
   for (const auto& [name, v] : channels) out += name + ":" + std::string(reinterpret_cast<const char*>(v.data()), v.size() * 4);
   for (auto a = in.header().begin(); a != in.header().end(); ++a) {
     const std::string name = a.name();

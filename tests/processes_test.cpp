@@ -279,6 +279,18 @@ void expect_every_index_once(const std::vector<LedgerRow>& rows, uint64_t bundle
   for (uint64_t k = 0; k < bundles; ++k) ASSERT_EQ(seen[k], 1) << "bundle index " << k;
 }
 
+// `count` node processes over TCP without CURVE, named PREFIX0, PREFIX1, ..., each logging to
+// dir/nodeI.log.
+std::vector<std::unique_ptr<Child>> insecure_nodes(const fs::path& dir, const std::string& endpoint, const std::string& prefix,
+                                                   int count) {
+  std::vector<std::unique_ptr<Child>> nodes;
+  for (int i = 0; i < count; ++i)
+    nodes.push_back(std::make_unique<Child>(
+        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", fmt::format("{}{}", prefix, i)},
+        dir / fmt::format("node{}.log", i)));
+  return nodes;
+}
+
 // "bundles_done" of a status JSON (0 while there is none).
 uint64_t bundles_done(const fs::path& status) {
   try {
@@ -524,11 +536,7 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
                            0);
   ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", *first)) << slurp(dir / "coordinator0.log");
   const std::string endpoint = slurp(dir / "endpoint");
-  std::vector<std::unique_ptr<Child>> nodes;
-  for (int i = 0; i < 3; ++i)
-    nodes.push_back(std::make_unique<Child>(
-        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", fmt::format("p{}", i)},
-        dir / fmt::format("node{}.log", i)));
+  std::vector<std::unique_ptr<Child>> nodes = insecure_nodes(dir, endpoint, "p", 3);
   // Stops every node (the sync run cannot move on while they are stopped: --liveness keeps them
   // alive for 20 s) and waits for a checkpoint written after that.
   auto hold = [&] {
@@ -620,6 +628,15 @@ FarmProcess start_farm(const fs::path& dir, const std::string& listen, int incar
   return f;
 }
 
+// The end of a farm test: its nodes, then the farm, stopped by SIGTERM; the farm must exit 0 (it
+// checkpoints its running jobs and leaves). The folder is removed when the test passed.
+void stop_farm(FarmProcess& farm, std::vector<std::unique_ptr<Child>>& nodes, const fs::path& dir, const std::string& log) {
+  for (auto& n : nodes) n->terminate();
+  farm.process->terminate();
+  EXPECT_EQ(farm.process->wait(sirad::test::kHangS), 0) << slurp(dir / log);
+  if (!::testing::Test::HasFailure()) fs::remove_all(dir);
+}
+
 // A fresh folder for a farm test, under the temporary directory.
 fs::path fresh_dir(const std::string& name) {
   fs::path dir = fs::temp_directory_path() / fmt::format("{}_{}", name, ::getpid());
@@ -692,11 +709,7 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
   ASSERT_EQ(code, 201) << made;  // job 2
   submit({"cornell", "--farm", farm.url, "--token-file", (farm.folder / "token").string(), "--name", "mid", "--priority", "1",
           "--patches", "300", "--bundles", "128", "--width", "8", "--height", "8"});  // job 3
-  std::vector<std::unique_ptr<Child>> nodes;
-  for (int i = 0; i < 2; ++i)
-    nodes.push_back(std::make_unique<Child>(
-        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", fmt::format("f{}", i)},
-        dir / fmt::format("node{}.log", i)));
+  std::vector<std::unique_ptr<Child>> nodes = insecure_nodes(dir, farm.endpoint, "f", 2);
   ASSERT_TRUE(wait_until([&] { return bundles_done(farm.folder / "jobs" / "2" / "status.json") > 0; }))
       << "the highest priority never ran\n" << slurp(dir / "farm0.log");
   EXPECT_EQ(job_state(farm, 1), "queued");
@@ -724,10 +737,7 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
   EXPECT_EQ(png_code, 200);
   EXPECT_EQ(png.substr(0, 4), "\x89PNG");
   EXPECT_EQ(curl(dir, {farm.url + "/api/jobs/3/files/job.json"}).second, 404);  // only outputs are handed out
-  for (auto& n : nodes) n->terminate();
-  farm.process->terminate();
-  EXPECT_EQ(farm.process->wait(sirad::test::kHangS), 0) << slurp(dir / "farm0.log");
-  if (!HasFailure()) fs::remove_all(dir);
+  stop_farm(farm, nodes, dir, "farm0.log");
 }
 
 // Two jobs that cannot use every node share a farm of two node processes over TCP: a long
@@ -751,11 +761,7 @@ TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
             0) << slurp(dir / "submit.log");
   EXPECT_EQ(submit({"furnace", "--farm", farm.folder.string(), "--min-nodes", "3", "--max-nodes", "2"}), 1);
   EXPECT_NE(slurp(dir / "submit.log").find("--min-nodes 3 is more than --max-nodes 2"), std::string::npos) << slurp(dir / "submit.log");
-  std::vector<std::unique_ptr<Child>> nodes;
-  for (int i = 0; i < 2; ++i)
-    nodes.push_back(std::make_unique<Child>(
-        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", fmt::format("s{}", i)},
-        dir / fmt::format("node{}.log", i)));
+  std::vector<std::unique_ptr<Child>> nodes = insecure_nodes(dir, farm.endpoint, "s", 2);
   const fs::path long_dir = farm.folder / "jobs" / "1", short_dir = farm.folder / "jobs" / "2";
   ASSERT_TRUE(wait_until([&] { return job_state(farm, 2) == "done"; })) << "the short job waited\n" << slurp(dir / "farm0.log");
   EXPECT_EQ(job_state(farm, 1), "running");
@@ -793,10 +799,7 @@ TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
   ASSERT_TRUE(wait_until([&] { return job_state(farm, 1) == "cancelled"; })) << slurp(dir / "farm0.log");
   EXPECT_FALSE(fs::exists(long_dir / "preview.png"));
   EXPECT_FALSE(fs::exists(long_dir / "checkpoint"));
-  for (auto& n : nodes) n->terminate();
-  farm.process->terminate();
-  EXPECT_EQ(farm.process->wait(sirad::test::kHangS), 0) << slurp(dir / "farm0.log");
-  if (!HasFailure()) fs::remove_all(dir);
+  stop_farm(farm, nodes, dir, "farm0.log");
 }
 
 // A farm killed -9 in the middle of a job, with another queued, and started again on the same
@@ -825,11 +828,7 @@ TEST(Farm, AKilledFarmResumesItsQueueAndRunsEveryJobOnce) {
   submit("long", K, 1);  // job 1
   submit("short", 256, 0);  // job 2
   int caught = 1;  // the long job the kill is to catch mid-run
-  std::vector<std::unique_ptr<Child>> nodes;
-  for (int i = 0; i < 2; ++i)
-    nodes.push_back(std::make_unique<Child>(
-        std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", fmt::format("k{}", i)},
-        dir / fmt::format("node{}.log", i)));
+  std::vector<std::unique_ptr<Child>> nodes = insecure_nodes(dir, farm.endpoint, "k", 2);
   auto job_dir = [&](int id) { return farm.folder / "jobs" / std::to_string(id); };
   for (int attempt = 0;; ++attempt) {
     ASSERT_LT(attempt, 6) << "no long job was caught running";
@@ -861,10 +860,7 @@ TEST(Farm, AKilledFarmResumesItsQueueAndRunsEveryJobOnce) {
   for (const auto& [id, bundles] : bundles_of) expect_every_index_once(read_ledger(job_dir(id) / "ledger.csv"), bundles);
   const std::string name = job_record(again, caught)["name"];
   EXPECT_NEAR(furnace_mean(job_dir(caught) / (name + ".ply")), 2.0, 0.0097 * std::sqrt(1024.0 / bundles_of[caught]) * 4);
-  for (auto& n : nodes) n->terminate();
-  again.process->terminate();
-  EXPECT_EQ(again.process->wait(sirad::test::kHangS), 0) << slurp(dir / "farm1.log");
-  if (!HasFailure()) fs::remove_all(dir);
+  stop_farm(again, nodes, dir, "farm1.log");
 }
 
 // The web page in a real browser: a farm with a finished Cornell job and its node, loaded by
@@ -879,7 +875,7 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   if (chromium.empty()) GTEST_SKIP() << "chromium is not installed (deploy/install-deps.sh installs it)";
   const fs::path dir = fresh_dir("sirad_farm_page");
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
-  Child node({SIRAD_NODE_BINARY, "--connect", farm.endpoint, "--insecure", "--name", "w0"}, dir / "node.log");
+  std::vector<std::unique_ptr<Child>> nodes = insecure_nodes(dir, farm.endpoint, "w", 1);
   ASSERT_EQ(sirad_submit(dir, {"cornell", "--farm", farm.folder.string(), "--name", "shown", "--patches", "500", "--bundles", "128",
                                "--width", "256", "--height", "256"}),
             0)
@@ -929,10 +925,7 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   EXPECT_NE(html2.find("preview at "), std::string::npos) << html2;
   EXPECT_NE(html2.find("/api/jobs/2/files/preview.png?at="), std::string::npos) << html2;
   EXPECT_NE(html2.find("iB</td>"), std::string::npos) << "no node traffic (KiB or more)\n" << html2;
-  node.terminate();
-  farm.process->terminate();
-  EXPECT_EQ(farm.process->wait(sirad::test::kHangS), 0);
-  if (!HasFailure()) fs::remove_all(dir);
+  stop_farm(farm, nodes, dir, "farm0.log");
 }
 
 }  // namespace
