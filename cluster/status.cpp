@@ -132,7 +132,7 @@ std::string peer_text(std::string_view s, std::size_t max) {
 }
 
 void write_status(const std::string& path, const Status& status) {
-  write_file_atomic(path, to_json(status));
+  write_file_atomic(path, to_json(status), Durability::replace_only);
 }
 
 }  // namespace sirad::cluster

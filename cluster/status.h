@@ -39,7 +39,7 @@ struct Status {
     double busy_s = 0;         // its own time running bundles (as last reported)
     double idle_s = 0;         // its own time waiting for a grant while the run had work
     uint64_t bytes_in = 0, bytes_out = 0;  // its states taken in (REPORT, FINAL) and updates sent to it
-    std::string why;           // quarantined: what it sent (empty otherwise)
+    std::string why;           // quarantined: what it sent; dead: why it was declared dead
     // The largest plausibility score of the states taken from it (cluster/plausibility.h):
     // how near it came to a quarantine for implausible data, which is above 1.
     double suspicion = 0;
@@ -58,7 +58,8 @@ std::string to_json(const Status& status);
 // Reads a --status-json file back (the run settings and every node's counters); throws
 // sirad::Error naming the file and the field for anything missing or malformed.
 Status read_status(const std::string& path);
-// Rewrites `path` atomically with to_json(status) (for --status-json).
+// Rewrites `path` atomically with to_json(status) (for --status-json), without an fsync: it is
+// rewritten 4 times a second on the run's loop thread (Durability::replace_only).
 void write_status(const std::string& path, const Status& status);
 
 }  // namespace sirad::cluster

@@ -46,6 +46,10 @@ constexpr double kGrantSlackS = 10;
 constexpr uint32_t kJoinBurst = 256;
 constexpr double kJoinWindowS = 10;
 
+// Messages read one after another before the socket counts as read up to date even though more
+// are waiting (a peer that floods would otherwise keep every silence from being judged).
+constexpr uint32_t kReadUpToDateAfter = 4096;
+
 // Refused because the coordinator does not know the sender in its run (never joined, declared
 // dead, or this coordinator was restarted): the ERROR asks it to say HELLO again.
 struct Rejoin : Error {
@@ -69,6 +73,7 @@ struct Peer {
   // the one before it, plus grant_slack): a grant past due declares the node dead.
   std::vector<std::pair<uint64_t, Clock::time_point>> due;
   bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
+  std::string dead_why;       // why it was declared dead (the status's "why" of a dead node)
   bool from_checkpoint = false;  // a node of the run before this process resumed it
 };
 
@@ -129,6 +134,10 @@ class Coordinator {
       }
       std::string key;
       auto in = proto::receive(router_, wait_ms(now), 1, mesh_.size(), run_.chunk_starts_size(), &key);
+      if (!in || ++read_in_a_row_ >= kReadUpToDateAfter) {
+        read_up_to_ = now;
+        read_in_a_row_ = 0;
+      }
       if (!in || in->frames.empty()) continue;
       if (config_.peer_identity) {
         PeerIdentity who = config_.peer_identity(in->frames.front());
@@ -242,6 +251,7 @@ class Coordinator {
       n.idle_s = p->idle_s;
       n.bytes_in = p->bytes_in;
       n.bytes_out = p->bytes_out;
+      if (ns.dead && !ns.quarantined) n.why = p->dead_why;
       if (p->from_checkpoint) {  // not dead: it ran in the run before this process resumed it
         n.state = "before resume";
         n.rate = 0;
@@ -251,8 +261,12 @@ class Coordinator {
   }
 
   // Heartbeats to every live peer that has heard nothing for an interval; flushes the emulated
-  // links; declares dead the ready peers silent for `liveness` intervals.
+  // links; declares dead the ready peers silent for `liveness` intervals and those past a grant's
+  // due time. Both are judged at read_up_to_, not now: after a stall of this process (a slow
+  // fsync on a loaded machine) the heartbeats that came meanwhile wait in the socket, and a node
+  // is silent only if the socket, read up to date, holds nothing newer from it.
   void keep_alive(Clock::time_point now) {
+    const Clock::time_point judged = read_up_to_;
     auto interval = std::chrono::milliseconds(config_.heartbeat_ms);
     for (auto& [id, p] : peers_) {
       const NodeState& n = policy_.node(p.index);
@@ -261,12 +275,12 @@ class Coordinator {
         declare_dead(p, "a message to it could not be sent");
         continue;
       }
-      if (n.ready && now - p.last_seen > interval * config_.liveness) {
-        declare_dead(p, fmt::format("silent for {:.1f} s", seconds(now - p.last_seen)));
+      if (n.ready && judged - p.last_seen > interval * config_.liveness) {
+        declare_dead(p, fmt::format("silent for {:.1f} s", seconds(judged - p.last_seen)));
         continue;
       }
-      if (!p.due.empty() && now > p.due.front().second) {
-        declare_dead(p, fmt::format("grant {} overdue by {:.1f} s", p.due.front().first, seconds(now - p.due.front().second)));
+      if (!p.due.empty() && judged > p.due.front().second) {
+        declare_dead(p, fmt::format("grant {} overdue by {:.1f} s", p.due.front().first, seconds(judged - p.due.front().second)));
         continue;
       }
       if (now - p.last_sent >= interval) send(p, {Command::heartbeat, {}, {}});
@@ -285,6 +299,7 @@ class Coordinator {
 
   void declare_dead(Peer& p, const std::string& why) {
     uint64_t back = policy_.dead(p.index);
+    p.dead_why = why;
     p.down.clear();
     p.due.clear();
     log(p.id, fmt::format("declared dead ({}); {} granted bundles return to the budget", why, back));
@@ -625,6 +640,10 @@ class Coordinator {
   RateLimit log_limit_{5, 10.0};
   RateLimit join_limit_{kJoinBurst, kJoinWindowS};
   Clock::time_point start_ = Clock::now();
+  // When the socket was last read up to date (a receive found nothing waiting, or
+  // kReadUpToDateAfter messages were read in a row), and how many were read since.
+  Clock::time_point read_up_to_ = Clock::now();
+  uint32_t read_in_a_row_ = 0;
 };
 
 }  // namespace

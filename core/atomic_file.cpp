@@ -22,7 +22,7 @@ namespace {
 std::atomic<unsigned> temp_counter{0};
 }  // namespace
 
-AtomicFile::AtomicFile(std::string path) : path_(std::move(path)) {
+AtomicFile::AtomicFile(std::string path, Durability durability) : path_(std::move(path)), durability_(durability) {
   // Step 1: a temporary name unique to this process and this writer, in the target's directory
   // (so the final rename stays within one file system).
   temp_ = fmt::format("{}.tmp.{}.{}", path_, ::getpid(), temp_counter.fetch_add(1));
@@ -50,7 +50,7 @@ void AtomicFile::write(const void* data, std::size_t size) {
 void AtomicFile::commit() {
   // Step 2: every byte on disk (a failed buffered write shows in ferror), then the rename.
   if (std::ferror(file_)) fail("write error");
-  if (std::fflush(file_) != 0 || ::fsync(::fileno(file_)) != 0) fail_errno(errno);
+  if (std::fflush(file_) != 0 || (durability_ == Durability::synced && ::fsync(::fileno(file_)) != 0)) fail_errno(errno);
   const int closed = std::fclose(file_);
   file_ = nullptr;
   if (closed != 0) fail_errno(errno);
@@ -64,8 +64,8 @@ void AtomicFile::fail(const std::string& reason) const {
 
 void AtomicFile::fail_errno(int error) const { fail(std::strerror(error)); }
 
-void write_file_atomic(const std::string& path, const std::string& text) {
-  AtomicFile f(path);
+void write_file_atomic(const std::string& path, const std::string& text, Durability durability) {
+  AtomicFile f(path, durability);
   f.write(text.data(), text.size());
   f.commit();
 }

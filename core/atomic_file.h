@@ -6,12 +6,18 @@
 
 namespace sirad {
 
+// Whether commit() syncs the bytes to disk before the rename. Readers see the old file or the
+// whole new one either way; `replace_only` skips the fsync for files that are only a view,
+// rewritten many times a second (a run's status): a crash may leave the old one, and on a
+// machine busy writing, an fsync can hold the writer's thread for seconds.
+enum class Durability { synced, replace_only };
+
 // Writes "<path>.tmp.<pid>.<n>" and, on commit(), flushes, syncs and renames it onto `path`, so
 // `path` is either untouched or complete. Destroyed uncommitted (an error on the way), it removes
 // the temporary. Every failure throws sirad::Error "cannot write <path>: <reason>".
 class AtomicFile {
  public:
-  explicit AtomicFile(std::string path);
+  explicit AtomicFile(std::string path, Durability durability = Durability::synced);
   ~AtomicFile();
   AtomicFile(const AtomicFile&) = delete;
   AtomicFile& operator=(const AtomicFile&) = delete;
@@ -27,12 +33,13 @@ class AtomicFile {
 
  private:
   std::string path_, temp_;
+  Durability durability_;
   std::FILE* file_ = nullptr;
   bool committed_ = false;
 };
 
 // Replaces `path` atomically with `text`.
-void write_file_atomic(const std::string& path, const std::string& text);
+void write_file_atomic(const std::string& path, const std::string& text, Durability durability = Durability::synced);
 
 // The whole of the regular file at `path`, at most `max_bytes`, or one error starting with
 // `label`: "no such file", "is a directory, not a file", "not a regular file" (a FIFO or a
