@@ -76,8 +76,8 @@ std::string ledger_csv(const RunResult& r) {
 std::string node_lines(const RunResult& r) {
   std::string out;
   for (const auto& n : r.nodes)
-    out += fmt::format("node {}: {} bundles, {} exchanges, busy {:.2f} s, idle {:.2f} s{}\n", n.name, n.bundles,
-                       n.exchanges, n.busy_s, n.idle_s,
+    out += fmt::format("node {}: {} bundles, {} exchanges, busy {:.2f} s, idle {:.2f} s{}{}\n", n.name, n.bundles,
+                       n.exchanges, n.busy_s, n.idle_s, n.tiles > 0 ? fmt::format(", {} tiles", n.tiles) : "",
                        !n.quarantined.empty() ? ", quarantined: " + n.quarantined
                        : n.before_resume      ? ", before the resume"
                        : n.dead               ? ", dead"
@@ -102,7 +102,10 @@ std::string cluster_summary(const RunResult& r, std::size_t patches, double seco
       r.bundles_before > 0 || before > 0
           ? fmt::format("; before the resume: {} bundles by {} nodes ({} in all)", r.bundles_before, before, r.bundles)
           : "";
-  return node_lines(r) + traffic_line(r) + "\n" +
+  const std::string image = r.image ? fmt::format("image: {} tiles in {:.2f} s{}\n", r.image_tiles, r.image_seconds,
+                                                   r.tiles_here > 0 ? fmt::format(", {} rendered by the coordinator", r.tiles_here) : "")
+                                    : "";
+  return node_lines(r) + traffic_line(r) + "\n" + image +
          summary_line(patches, r.bundles - std::min(r.bundles, r.bundles_before), r.grid, nodes, seconds,
                       r.crossings - std::min(r.crossings, r.crossings_before), resumed) +
          "\n";

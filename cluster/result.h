@@ -2,6 +2,7 @@
 // and the lines its drivers print of it.
 #pragma once
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -10,6 +11,7 @@
 #include "cluster/exchange.h"
 #include "cluster/settings.h"
 #include "cluster/status.h"
+#include "core/gather.h"
 
 namespace sirad::cluster {
 
@@ -21,6 +23,7 @@ struct NodeReport {
   bool dead = false;              // declared dead (silent for `liveness` heartbeats)
   std::string quarantined;        // why it was quarantined (empty: it was not)
   bool before_resume = false;     // a node of the run before it was resumed from a checkpoint
+  uint64_t tiles = 0;             // tiles of the run's image it rendered
 };
 
 // One range of the ledger's record: node `node` (its index in the run, `name`) ran [first, last).
@@ -48,6 +51,11 @@ struct RunResult {
   uint32_t exchange_every = 0;  // the period and fraction the run used (what auto chose)
   double fraction = 1.0;
   std::string exchange_why;     // with auto: how it chose
+  // The final gather's image, when the run rendered one (RunConfig::final_gather), its time
+  // (from the last FINAL), its tiles, and those the coordinator rendered itself (no node left).
+  std::optional<GatherPasses> image;
+  double image_seconds = 0;
+  uint64_t image_tiles = 0, tiles_here = 0;
 };
 
 class Policy;
@@ -70,7 +78,7 @@ std::string traffic_line(const RunResult& result);
 // The ledger as CSV: "node,name,first,last", a row per range (written by --ledger).
 std::string ledger_csv(const RunResult& result);
 
-// One line per node: "node NAME: B bundles, E exchanges, busy Xs, idle Ys[, dead | , quarantined: WHY]".
+// One line per node: "node NAME: B bundles, E exchanges, busy Xs, idle Ys[, T tiles][, dead | , quarantined: WHY]".
 std::string node_lines(const RunResult& result);
 
 // The last line of every run's summary: "patches N, bundles B, grid G[, nodes P], T s, R
@@ -79,7 +87,8 @@ std::string node_lines(const RunResult& result);
 std::string summary_line(std::size_t patches, uint64_t bundles, int grid, uint32_t nodes, double seconds, uint64_t crossings,
                          const std::string& extra = "");
 
-// A cluster run's summary as every driver prints it: node_lines, traffic_line, then
+// A cluster run's summary as every driver prints it: node_lines, traffic_line, the image's
+// line when it rendered one ("image: T tiles in S s[, H rendered by the coordinator]"), then
 // summary_line with the run's nodes and `seconds`.
 std::string cluster_summary(const RunResult& result, std::size_t patches, double seconds);
 

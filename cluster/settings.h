@@ -16,6 +16,7 @@
 #include "cluster/exchange.h"
 #include "cluster/profile.h"
 #include "core/bundle.h"
+#include "core/gather.h"
 #include "core/mesh.h"
 #include "core/output.h"
 #include "core/scene.h"
@@ -142,6 +143,10 @@ struct ProcessSettings {
   std::string checkpoint;
   double checkpoint_every_s = 10;
   double status_every_s = 1.0;  // how often RunHooks::status is called
+  // The run's image by a final gather (core/gather.h) of the mesh's camera: spp > 0 renders it
+  // after the solve, in tiles by the nodes that sent their FINAL (PROTOCOL.md section 3.4),
+  // into RunResult::image; spp 0: none (the driver draws the patches).
+  GatherOptions final_gather{.spp = 0};
 };
 
 // Who a peer is to a coordinator: its CURVE public key ("" without CURVE) and IP address ("" off tcp://).

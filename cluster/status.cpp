@@ -21,11 +21,12 @@ std::string to_json(const Status& s) {
               {"exchanges", n.exchanges}, {"last_seen_s", n.last_seen_s}, {"bundles_per_s", n.rate}, {"busy_s", n.busy_s},
               {"idle_s", n.idle_s},     {"bytes_in", n.bytes_in},   {"bytes_out", n.bytes_out}, {"suspicion", n.suspicion}};
     if (!n.why.empty()) o["why"] = n.why;
+    if (n.tiles > 0) o["tiles"] = n.tiles;
     nodes.push_back(std::move(o));
   }
   const double rate = s.elapsed_s > 0 ? static_cast<double>(s.bundles_done) / s.elapsed_s : 0.0;
   auto or_null = [](bool given, const auto& v) { return given ? Json(v) : Json(nullptr); };
-  const Json j = {{"bundles_done", s.bundles_done},
+  Json j = {{"bundles_done", s.bundles_done},
                   {"bundles", s.bundles},
                   {"patches", s.patches},
                   {"elapsed_s", s.elapsed_s},
@@ -44,6 +45,10 @@ std::string to_json(const Status& s) {
                   {"target_error", or_null(s.target_error > 0, s.target_error)},
                   {"ended_by", or_null(!s.ended_by.empty(), s.ended_by)},
                   {"nodes", std::move(nodes)}};
+  if (s.image_tiles > 0) {
+    j["image_tiles"] = s.image_tiles;
+    j["image_tiles_done"] = s.image_tiles_done;
+  }
   return j.dump(-1, ' ', false, Json::error_handler_t::replace) + "\n";
 }
 
@@ -96,6 +101,9 @@ Status read_status(const std::string& path) {
   s.target_error = field<double>(root, "target_error", path, "", 0.0);
   s.bytes_in = field<uint64_t>(root, "bytes_in", path, "", 0);
   s.bytes_out = field<uint64_t>(root, "bytes_out", path, "", 0);
+  s.image_tiles = field<uint64_t>(root, "image_tiles", path, "", 0);
+  s.image_tiles_done = field<uint64_t>(root, "image_tiles_done", path, "", 0);
+  if (s.image_tiles_done > s.image_tiles) fail("{}: 'image_tiles_done' is more than 'image_tiles'", path);
   auto nodes = root.find("nodes");
   if (nodes == root.end() || !nodes->is_array()) fail("{}: 'nodes' is missing or not a list", path);
   for (std::size_t i = 0; i < nodes->size(); ++i) {
@@ -115,6 +123,7 @@ Status read_status(const std::string& path) {
     n.rate = field<double>(node, "bundles_per_s", path, where, 0.0);
     n.bytes_in = field<uint64_t>(node, "bytes_in", path, where, 0);
     n.bytes_out = field<uint64_t>(node, "bytes_out", path, where, 0);
+    n.tiles = field<uint64_t>(node, "tiles", path, where, 0);
     if (!std::isfinite(n.busy_s) || n.busy_s < 0 || !std::isfinite(n.idle_s) || n.idle_s < 0)
       fail("{}: {}busy_s and idle_s must be finite and non-negative", path, where);
     s.nodes.push_back(n);

@@ -28,6 +28,9 @@ struct Status {
   // How the run ended, in the last status of a run ("" while it runs): "budget", "time limit",
   // "target error (...)", "interrupted", or "bundle cap reached short of the target error".
   std::string ended_by;
+  // The run's image by a final gather, once its tiles are out to the nodes (PROTOCOL.md
+  // section 3.4): its tiles and those placed so far (0 and 0: no image, or not yet).
+  uint64_t image_tiles = 0, image_tiles_done = 0;
   struct Node {
     std::string name;
     std::string device;        // as the node described it in HELLO
@@ -43,6 +46,7 @@ struct Status {
     // The largest plausibility score of the states taken from it (cluster/plausibility.h):
     // how near it came to a quarantine for implausible data, which is above 1.
     double suspicion = 0;
+    uint64_t tiles = 0;        // tiles of the run's image it rendered
   };
   std::vector<Node> nodes;
 };

@@ -123,6 +123,7 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
   };
   rc.status_every_s = 0.25;
   const ResultOptions shown = result_options(plan.output);
+  rc.final_gather = final_gather_of(shown);  // the image's tiles rendered by the job's nodes
   const int preview_w = std::min(kPreviewWidth, shown.width);
   const int preview_h = std::max(1, static_cast<int>(std::lround(double(shown.height) * preview_w / shown.width)));
   const fs::path preview = dir / "preview.png";
@@ -140,7 +141,8 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
   reporter.finish();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   write_results((dir / job.name).string(), mesh, result.radiosity, shown,
-                cluster::run_attributes(rc, cluster::outcome_of(result), mesh, job.scene.empty() ? job.name : job.scene, true));
+                cluster::run_attributes(rc, cluster::outcome_of(result), mesh, job.scene.empty() ? job.name : job.scene, true),
+                result.image ? &*result.image : nullptr);
   write_file_atomic((dir / "ledger.csv").string(), cluster::ledger_csv(result));
   fs::remove(checkpoint);
   fs::remove(preview);

@@ -117,11 +117,13 @@ class Progress {
   std::chrono::steady_clock::time_point last_{};
 };
 
-// The outputs and their paths on stdout.
+// The outputs and their paths on stdout (`gathered`: the final gather's passes a cluster run
+// rendered in tiles, write_results).
 void write_outputs(const cli::OutputFlags& o, const std::string& out, const PatchMesh& mesh,
-                   const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from) {
+                   const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from,
+                   const GatherPasses* gathered = nullptr) {
   attrs.emplace_back("sirad.camera_from", camera_from);
-  ResultFiles files = write_results(out, mesh, radiosity, cli::result_options(o), attrs);
+  ResultFiles files = write_results(out, mesh, radiosity, cli::result_options(o), attrs, gathered);
   std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), camera_from.c_str());
   std::fputs(wrote_lines(files).c_str(), stdout);
 }
@@ -196,6 +198,7 @@ int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, c
   cluster::StatusReporter reporter(a.quiet, a.status_json);
   rc.status_every_s = 0.25;
   rc.status = std::ref(reporter);
+  rc.final_gather = final_gather_of(cli::result_options(a.output));  // the image's tiles rendered by the node threads
   std::string short_of;
   embedded::Options eo{.nodes = a.nodes, .device = a.device};
   eo.on_done = [&](const cluster::RunResult& result) {
@@ -205,7 +208,7 @@ int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, c
     if (!short_of.empty())
       for (auto& [key, value] : attrs)
         if (key == "sirad.ended_by") value = short_of;
-    write_outputs(a.output, out, m.mesh, result.radiosity, attrs, m.camera_from);
+    write_outputs(a.output, out, m.mesh, result.radiosity, attrs, m.camera_from, result.image ? &*result.image : nullptr);
   };
   embedded::Outcome o = embedded::run(rc, m.mesh, eo);
   const cluster::RunResult& result = o.result;

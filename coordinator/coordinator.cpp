@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <random>
 #include <set>
@@ -17,10 +18,12 @@
 #include "cluster/exchange_choice.h"
 #include "cluster/rate_limit.h"
 #include "cluster/status.h"
+#include "cluster/tiles.h"
 #include "core/bundle.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
 #include "core/error_estimate.h"
+#include "core/gather.h"
 #include "core/log.h"
 #include "core/scene_io.h"
 #include "proto/transport.h"
@@ -40,6 +43,9 @@ using Clock = std::chrono::steady_clock;
 constexpr double kFirstGrantS = 30;
 // The least a grant's due time allows beyond its bound (Coordinator::grant_slack).
 constexpr double kGrantSlackS = 10;
+// The image phase's tile side in pixels (PROTOCOL.md section 3.4): 1,024 pixels a tile, so a
+// 512 x 512 image has 256 tiles to spread and a tile's PIXELS is 36 KiB.
+constexpr int kTileSide = 32;
 
 // Joins (HELLOs that make a new node entry) per CURVE key or address in any 10 s: enough for a
 // farm of 256 nodes behind one address (a NAT, one host) to start at once.
@@ -75,6 +81,10 @@ struct Peer {
   bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
   std::string dead_why;       // why it was declared dead (the status's "why" of a dead node)
   bool from_checkpoint = false;  // a node of the run before this process resumed it
+  bool imaging = false;         // renders tiles of the run's image (section 3.4)
+  bool asked_rejoin = false;    // after its FINAL, asked to rejoin: the run had bundles again
+  uint64_t tiles = 0;           // tiles of the image it sent
+  double tile_s = 0;            // its longest time per tile so far
 };
 
 class Coordinator {
@@ -98,12 +108,7 @@ class Coordinator {
     auto last_status = Clock::now(), last_checkpoint = Clock::now(), last_preview = Clock::now();
     while (!policy_.done()) {
       auto now = Clock::now();
-      if (config_.interrupt && config_.interrupt->load()) {
-        if (config_.checkpoint.empty()) fail("interrupted after {} bundles (no --checkpoint)", policy_.ledger().done_count());
-        checkpoint();
-        fail("interrupted after {} bundles; checkpoint in {}: continue with --resume {}", policy_.ledger().done_count(),
-             config_.checkpoint, config_.checkpoint);
-      }
+      ends_now(now);
       if (!config_.checkpoint.empty() && seconds(now - last_checkpoint) >= config_.checkpoint_every_s) {
         last_checkpoint = now;
         try {
@@ -120,10 +125,6 @@ class Coordinator {
         last_preview = now;
         config_.preview(policy_.radiosity());
       }
-      if (config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s)
-        fail("run did not finish within {} s ({} of {} bundles done)", config_.timeout_s, policy_.ledger().done_count(),
-             config_.bundles);
-      if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
       keep_alive(now);
       if ((config_.close && config_.close->load() && policy_.close("interrupted")) ||
           policy_.check_close(seconds(now - start_))) {
@@ -133,17 +134,8 @@ class Coordinator {
         schedule();
       }
       std::string key;
-      auto in = proto::receive(router_, wait_ms(now), 1, mesh_.size(), run_.chunk_starts_size(), &key);
-      if (!in || ++read_in_a_row_ >= kReadUpToDateAfter) {
-        read_up_to_ = now;
-        read_in_a_row_ = 0;
-      }
-      if (!in || in->frames.empty()) continue;
-      if (config_.peer_identity) {
-        PeerIdentity who = config_.peer_identity(in->frames.front());
-        key = std::move(who.key);
-        in->address = std::move(who.address);
-      }
+      auto in = next(now, key);
+      if (!in) continue;
       const std::vector<std::string>& frames = in->frames;
       std::string id = frames.front();
       Message m;
@@ -173,13 +165,16 @@ class Coordinator {
       say(logging::Level::warn, fmt::format("{}: {} more lines like its last held back", name, held),
           {{"event", "held back"}, {"peer", name}, {"lines", held}});
     }
-    // FINAL is in from every live node; let the last shaped messages (STOPs) go out.
+    const double solved_s = seconds(Clock::now() - start_);
+    RunResult result = policy_result(policy_, static_cast<int>(run_.grid()));
+    if (imaging()) image_phase(result);
+    // FINAL is in from every live node (and the image's tiles); let the last shaped messages
+    // (STOPs) go out.
     for (auto& [id, p] : peers_) p.down.flush(router_, std::numeric_limits<double>::infinity());
     if (config_.status) config_.status(snapshot(true));
-    RunResult result = policy_result(policy_, static_cast<int>(run_.grid()));
     for (const Peer* p : all_peers()) {
       const NodeState& n = policy_.node(p->index);
-      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why, p->from_checkpoint});
+      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why, p->from_checkpoint, p->tiles});
       for (const Range& r : policy_.ledger().done_by(p->index)) result.ledger.push_back({p->index, p->name, r});
     }
     result.exchange_bytes_in = record_.bytes_in;
@@ -188,13 +183,225 @@ class Coordinator {
     result.crossings = record_.crossings;
     result.bundles_before = resumed_bundles_;
     result.crossings_before = resumed_crossings_;
-    result.seconds = seconds(Clock::now() - start_);
+    result.seconds = solved_s;
     return result;
   }
 
  private:
   static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
   double clock(Clock::time_point t) const { return seconds(t - start_); }
+
+  // What ends the run from outside, checked each turn of a loop: an interrupt (a checkpoint,
+  // then the run fails), the timeout, a local node's failure.
+  void ends_now(Clock::time_point now) {
+    if (config_.interrupt && config_.interrupt->load()) {
+      if (config_.checkpoint.empty()) fail("interrupted after {} bundles (no --checkpoint)", policy_.ledger().done_count());
+      checkpoint();
+      fail("interrupted after {} bundles; checkpoint in {}: continue with --resume {}", policy_.ledger().done_count(),
+           config_.checkpoint, config_.checkpoint);
+    }
+    if (config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s)
+      fail("run did not finish within {} s ({} of {} bundles done{})", config_.timeout_s, policy_.ledger().done_count(),
+           config_.bundles, policy_.done() ? ", the image not" : "");
+    if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
+  }
+
+  // The next message (its routing id first), within the bound of its command; nothing after
+  // wait_ms. Keeps read_up_to_ (keep_alive's judge) and, behind a broker, puts the sender's
+  // CURVE key in `key` and its address in the message.
+  std::optional<proto::Received> next(Clock::time_point now, std::string& key) {
+    auto in = proto::receive(router_, wait_ms(now), 1, mesh_.size(), run_.chunk_starts_size(), &key);
+    if (!in || ++read_in_a_row_ >= kReadUpToDateAfter) {
+      read_up_to_ = now;
+      read_in_a_row_ = 0;
+    }
+    if (!in || in->frames.empty()) return std::nullopt;
+    if (config_.peer_identity) {
+      PeerIdentity who = config_.peer_identity(in->frames.front());
+      key = std::move(who.key);
+      in->address = std::move(who.address);
+    }
+    return in;
+  }
+
+  bool imaging() const { return config_.final_gather.spp > 0 && mesh_.camera.has_value(); }
+
+  // The image phase (PROTOCOL.md section 3.4): the final gather of the solution, in tiles
+  // (cluster/tiles.h) granted to the nodes that sent their FINAL, two grants each at a time; a
+  // node that falls silent, misses a deadline or sends what does not fit is dropped and its
+  // tiles are granted again. With no node left, the coordinator renders the rest itself.
+  void image_phase(RunResult& result) {
+    const auto began = Clock::now();
+    const GatherOptions& o = config_.final_gather;
+    TilePlan plan(o.width, o.height, kTileSide);
+    image_tiles_ = plan.grid().count();
+    wire::Image h;
+    h.set_run_id(run_.run_id());
+    h.set_camera(camera_spec(*mesh_.camera));
+    h.set_width(static_cast<uint32_t>(o.width));
+    h.set_height(static_cast<uint32_t>(o.height));
+    h.set_spp(static_cast<uint32_t>(o.spp));
+    h.set_seed(o.seed);
+    h.set_tile(static_cast<uint32_t>(kTileSide));
+    std::vector<double> solution;
+    solution.reserve(3 * mesh_.size());
+    for (const glm::vec3& b : result.radiosity) solution.insert(solution.end(), {b.x, b.y, b.z});
+    const std::vector<std::string> bulk{proto::pack(solution)};
+    for (auto& [id, p] : peers_) {
+      const NodeState& n = policy_.node(p.index);
+      if (n.dead || n.quarantined || !n.final_in) continue;
+      p.imaging = true;
+      p.due.clear();
+      send(p, {Command::image, h, bulk});
+    }
+    say(logging::Level::info, fmt::format("image: {}x{}, {} spp, {} tiles of {} px for {} nodes", o.width, o.height, o.spp,
+                                          plan.grid().count(), kTileSide, imaging_peers()),
+        {{"event", "image"}, {"tiles", plan.grid().count()}, {"nodes", imaging_peers()}});
+    std::unique_ptr<FinalGather> here;  // made only when no node is left
+    auto last_status = Clock::now();
+    while (!plan.finished()) {
+      auto now = Clock::now();
+      image_done_ = plan.done_count();
+      ends_now(now);
+      if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
+        last_status = now;
+        config_.status(snapshot());
+      }
+      image_keep_alive(now, plan);
+      for (auto& [id, p] : peers_)
+        if (p.imaging)
+          for (const TileGrant& g : plan.top_up(p.index)) grant_tiles(p, g, plan);
+      if (imaging_peers() == 0) {
+        if (!here) {
+          say(logging::Level::warn, fmt::format("image: no node left; the coordinator renders the {} tiles left",
+                                                plan.grid().count() - plan.done_count()),
+              {{"event", "image"}, {"here", true}});
+          here = std::make_unique<FinalGather>(mesh_, result.radiosity, o);
+        }
+        if (std::optional<uint64_t> t = plan.take_here()) {
+          const TileRect r = plan.grid().rect(*t);
+          plan.place_here(*t, here->render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
+          ++result.tiles_here;
+        }
+        continue;
+      }
+      std::string key;
+      auto in = next(now, key);
+      if (!in) continue;
+      const std::string id = in->frames.front();
+      Message m;
+      try {
+        if (in->over)
+          throw proto::ProtocolError(fmt::format("refused a message of {} frames, {} bytes: over the bound of its command",
+                                                 in->frames_seen, in->bytes_seen));
+        m = proto::decode({in->frames.begin() + 1, in->frames.end()});
+      } catch (const proto::ProtocolError& e) {
+        log(id, e.what());
+        continue;
+      }
+      auto it = peers_.find(id);
+      // The image is the run's last part: nobody joins now, and nodes done with the run (a
+      // HELLO) or dropped from the image have nothing to say to it.
+      if (it == peers_.end() || !it->second.imaging || it->second.key != key) {
+        if (m.command != Command::hello && m.command != Command::heartbeat)
+          log(id, fmt::format("{} during the image, from no node rendering it: ignored", proto::command_name(m.command)));
+        continue;
+      }
+      Peer& p = it->second;
+      p.last_seen = Clock::now();
+      try {
+        switch (m.command) {
+          case Command::pixels: pixels(p, std::get<wire::Pixels>(m.header), m.bulk, plan); break;
+          case Command::heartbeat: break;
+          case Command::error: fail("node: {}", peer_text(std::get<wire::Error>(m.header).reason(), 300));
+          default: fail("unexpected {} during the image", proto::command_name(m.command));
+        }
+      } catch (const Error& e) {
+        drop_from_image(p, plan, e.what());
+      }
+    }
+    for (auto& [id, p] : peers_)
+      if (p.imaging) end_image(p);
+    image_done_ = plan.done_count();
+    result.image = std::move(plan.passes());
+    result.image_tiles = plan.grid().count();
+    result.image_seconds = seconds(Clock::now() - began);
+    say(logging::Level::info, fmt::format("image done: {} tiles in {:.2f} s", result.image_tiles, result.image_seconds),
+        {{"event", "image done"}, {"tiles", result.image_tiles}, {"seconds", result.image_seconds}, {"here", result.tiles_here}});
+  }
+
+  std::size_t imaging_peers() const {
+    return static_cast<std::size_t>(std::count_if(peers_.begin(), peers_.end(), [](const auto& e) { return e.second.imaging; }));
+  }
+
+  // A TILES grant to `p`, due (as a bundle grant is) after its bound: 8 times the node's
+  // measured time per tile, or before its first PIXELS the set-up's kFirstGrantS and 20 us a
+  // sample; plus grant_slack().
+  void grant_tiles(Peer& p, const TileGrant& g, const TilePlan& plan) {
+    wire::Grant w;
+    w.set_run_id(run_.run_id());
+    w.set_grant_id(g.id);
+    uint64_t pixels = 0;
+    for (const Range& r : g.tiles) {
+      auto* wr = w.add_ranges();
+      wr->set_first(r.first);
+      wr->set_last(r.last);
+      for (uint64_t t = r.first; t < r.last; ++t) pixels += plan.grid().rect(t).pixels();
+    }
+    const auto now = Clock::now();
+    const auto from = p.due.empty() ? now : std::max(now, p.due.back().second - grant_slack());  // queued behind
+    const double bound = p.tiles > 0 ? 8.0 * p.tile_s : kFirstGrantS + 20e-6 * static_cast<double>(pixels) * config_.final_gather.spp;
+    p.due.emplace_back(g.id, from + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bound)) + grant_slack());
+    send(p, {Command::tiles, w, {}});
+  }
+
+  void pixels(Peer& p, const wire::Pixels& px, const std::vector<std::string>& bulk, TilePlan& plan) {
+    if (px.run_id() != run_.run_id()) fail("PIXELS for run {:x}, not this run", px.run_id());
+    std::vector<Range> done;
+    for (const auto& r : px.done()) done.push_back({r.first(), r.last()});
+    plan.accept(p.index, px.grant_id(), done, bulk);
+    std::erase_if(p.due, [&](const auto& d) { return d.first == px.grant_id(); });
+    for (const std::string& f : bulk) p.bytes_in += f.size();
+    // Its time per tile (its own word, within [0, kMaxSeconds]), for the next deadlines.
+    if (px.busy_s() >= 0 && px.busy_s() <= kMaxSeconds) {
+      const uint64_t tiles = plan.tiles_done_by(p.index);
+      p.tile_s = std::max(p.tile_s, px.busy_s() / static_cast<double>(std::max<uint64_t>(1, tiles - p.tiles)));
+    }
+    p.tiles = plan.tiles_done_by(p.index);
+  }
+
+  // The image phase's liveness: as keep_alive's, for the nodes rendering tiles.
+  void image_keep_alive(Clock::time_point now, TilePlan& plan) {
+    const auto interval = std::chrono::milliseconds(config_.heartbeat_ms);
+    for (auto& [id, p] : peers_) {
+      if (!p.imaging) continue;
+      if (p.unreachable || p.down.failed() > 0) drop_from_image(p, plan, "a message to it could not be sent");
+      else if (read_up_to_ - p.last_seen > interval * config_.liveness)
+        drop_from_image(p, plan, fmt::format("silent for {:.1f} s", seconds(read_up_to_ - p.last_seen)));
+      else if (!p.due.empty() && read_up_to_ > p.due.front().second)
+        drop_from_image(p, plan, fmt::format("tiles of grant {} overdue", p.due.front().first));
+      else {
+        if (now - p.last_sent >= interval) send(p, {Command::heartbeat, {}, {}});
+        p.down.flush(router_, clock(now));
+      }
+    }
+  }
+
+  // `p` renders no more of the image: its outstanding tiles go back (those it sent stay).
+  void drop_from_image(Peer& p, TilePlan& plan, const std::string& why) {
+    plan.abandon(p.index);
+    p.due.clear();
+    log(p.id, fmt::format("dropped from the image ({}); its outstanding tiles are granted again", why));
+    end_image(p);
+  }
+
+  // The image's STOP (without image_follows): the node forgets the run.
+  void end_image(Peer& p) {
+    p.imaging = false;
+    wire::Stop s;
+    s.set_run_id(run_.run_id());
+    send(p, {Command::stop, s, {}});
+  }
 
   // --exchange-every auto: each ready node's bundle time from its READY (its burn-in, slowdown
   // included) and its link's transfer time, the scene from a quick fit on this machine (its
@@ -235,6 +442,8 @@ class Coordinator {
     auto now = Clock::now();
     Status s = policy_status(policy_, config_, last);
     s.elapsed_s = seconds(now - start_);
+    s.image_tiles = image_tiles_;
+    s.image_tiles_done = image_done_;
     s.bytes_in = record_.bytes_in;
     s.bytes_out = record_.bytes_out;
     s.scenes_sent = scenes_sent_;
@@ -251,6 +460,7 @@ class Coordinator {
       n.idle_s = p->idle_s;
       n.bytes_in = p->bytes_in;
       n.bytes_out = p->bytes_out;
+      n.tiles = p->tiles;
       if (ns.dead && !ns.quarantined) n.why = p->dead_why;
       if (p->from_checkpoint) {  // not dead: it ran in the run before this process resumed it
         n.state = "before resume";
@@ -270,7 +480,24 @@ class Coordinator {
     auto interval = std::chrono::milliseconds(config_.heartbeat_ms);
     for (auto& [id, p] : peers_) {
       const NodeState& n = policy_.node(p.index);
-      if (n.dead || n.final_in) continue;
+      if (n.dead) continue;
+      if (n.final_in) {  // done with the run; waiting for the image, it hears from us meanwhile
+        if (imaging()) {
+          // Bundles to run again (a node quarantined at its FINAL gave them back): a node that
+          // waits for the image says no HELLO by itself, so it is asked to, and rejoins.
+          if (!policy_.closing() && policy_.ledger().available() > 0 && !p.asked_rejoin) {
+            p.asked_rejoin = true;
+            wire::Error e;
+            e.set_reason("bundles to run again; say HELLO");
+            e.set_rejoin(true);
+            send(p, {Command::error, e, {}});
+          } else if (now - p.last_sent >= interval) {
+            send(p, {Command::heartbeat, {}, {}});
+          }
+        }
+        p.down.flush(router_, clock(now));
+        continue;
+      }
       if (p.unreachable || p.down.failed() > 0) {
         declare_dead(p, "a message to it could not be sent");
         continue;
@@ -489,6 +716,7 @@ class Coordinator {
     for (uint32_t n : orders.stops) {
       wire::Stop s;
       s.set_run_id(run_.run_id());
+      s.set_image_follows(imaging());
       send(peer(n), {Command::stop, s, {}});
     }
   }
@@ -644,6 +872,7 @@ class Coordinator {
   // kReadUpToDateAfter messages were read in a row), and how many were read since.
   Clock::time_point read_up_to_ = Clock::now();
   uint32_t read_in_a_row_ = 0;
+  uint64_t image_tiles_ = 0, image_done_ = 0;  // the image's tiles, and those placed (the status)
 };
 
 }  // namespace

@@ -243,6 +243,8 @@ int main(int argc, char** argv) {
     }
     cluster::StatusReporter reporter(quiet, status_json);
     rc.status_every_s = 0.25;
+    const ResultOptions shown = cli::result_options(output);
+    rc.final_gather = final_gather_of(shown);  // the image's tiles rendered by the nodes
     rc.status = std::ref(reporter);
 
     zmq::context_t context;
@@ -257,8 +259,8 @@ int main(int argc, char** argv) {
     reporter.finish();
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     ResultFiles files = write_results(
-        out, mesh, result.radiosity, cli::result_options(output),
-        cluster::run_attributes(rc, cluster::outcome_of(result), mesh, scene_spec, true));
+        out, mesh, result.radiosity, shown, cluster::run_attributes(rc, cluster::outcome_of(result), mesh, scene_spec, true),
+        result.image ? &*result.image : nullptr);
     std::fputs(wrote_lines(files).c_str(), stdout);
     if (!ledger.empty()) {
       write_file_atomic(ledger, cluster::ledger_csv(result));

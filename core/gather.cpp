@@ -160,8 +160,8 @@ struct FinalGather::Impl {
     indirect += rho * i;
   }
 
-  // Pixel (px, py) of the view `frame` into `out`; returns the rays it cast.
-  uint64_t pixel(const CameraFrame& frame, int px, int py, GatherPasses& out) const {
+  // Pixel (px, py) of the view `frame` into `out` at (ox, oy); returns the rays it cast.
+  uint64_t pixel(const CameraFrame& frame, int px, int py, int ox, int oy, GatherPasses& out) const {
     const uint64_t index = static_cast<uint64_t>(py) * static_cast<uint64_t>(options.width) + static_cast<uint64_t>(px);
     // Each of the sample's three 2D choices (the position in the pixel, the emitter point, the
     // gather direction) stratified over the pixel's samples, the sets paired in random order
@@ -179,9 +179,9 @@ struct FinalGather::Impl {
       sample(frame, px, py, positions[k][0], positions[k][1], lights[k], gathers[k], more, direct, indirect, cast);
     }
     const double w = 1.0 / options.spp;
-    out.direct.at(px, py) = glm::vec3(direct * w);
-    out.indirect.at(px, py) = glm::vec3(indirect * w);
-    out.combined.at(px, py) = glm::vec3((direct + indirect) * w);
+    out.direct.at(ox, oy) = glm::vec3(direct * w);
+    out.indirect.at(ox, oy) = glm::vec3(indirect * w);
+    out.combined.at(ox, oy) = glm::vec3((direct + indirect) * w);
     return cast;
   }
 };
@@ -199,42 +199,35 @@ FinalGather::~FinalGather() = default;
 
 const GatherOptions& FinalGather::options() const { return impl_->options; }
 
-GatherPasses FinalGather::blank() const {
-  GatherPasses p;
-  for (Image* image : {&p.direct, &p.indirect, &p.combined}) {
-    image->width = impl_->options.width;
-    image->height = impl_->options.height;
-    image->pixels.assign(static_cast<std::size_t>(image->width) * image->height, glm::vec3(0.0f));
-  }
-  return p;
-}
-
-void FinalGather::render_tile(const Camera& camera, int x0, int y0, int x1, int y1, GatherPasses& out) const {
+GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, int y1) const {
   const GatherOptions& o = impl_->options;
   if (x0 < 0 || y0 < 0 || x1 > o.width || y1 > o.height || x0 > x1 || y0 > y1)
-    fail("final gather: tile [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
-  if (out.combined.width != o.width || out.combined.height != o.height) fail("final gather: the passes are not of the image's size");
+    fail("final gather: region [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
   const CameraFrame frame = camera_frame(camera, o.width, o.height, "final gather");
-  for (int y = y0; y < y1; ++y)
-    for (int x = x0; x < x1; ++x) out.rays += impl_->pixel(frame, x, y, out);
-}
-
-GatherPasses FinalGather::render(const Camera& camera) const {
-  const GatherOptions& o = impl_->options;
-  const CameraFrame frame = camera_frame(camera, o.width, o.height, "final gather");
-  GatherPasses out = blank();
-  const unsigned threads = o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::thread::hardware_concurrency());
-  std::atomic<int> next_row{0};
+  GatherPasses out;
+  for (Image* image : {&out.direct, &out.indirect, &out.combined}) {
+    image->width = x1 - x0;
+    image->height = y1 - y0;
+    image->pixels.assign(static_cast<std::size_t>(image->width) * image->height, glm::vec3(0.0f));
+  }
+  const unsigned threads = std::min<unsigned>(o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::thread::hardware_concurrency()),
+                                              static_cast<unsigned>(std::max(1, y1 - y0)));
+  std::atomic<int> next_row{y0};
   std::vector<uint64_t> cast(threads, 0);
+  auto rows = [&](unsigned t) {  // whole rows each: no pixel is written by two threads
+    for (int y; (y = next_row.fetch_add(1)) < y1;)
+      for (int x = x0; x < x1; ++x) cast[t] += impl_->pixel(frame, x, y, x - x0, y - y0, out);
+  };
   std::vector<std::thread> pool;
-  for (unsigned t = 0; t < threads; ++t)
-    pool.emplace_back([&, t] {  // whole rows each: no pixel is written by two threads
-      for (int y; (y = next_row.fetch_add(1)) < o.height;)
-        for (int x = 0; x < o.width; ++x) cast[t] += impl_->pixel(frame, x, y, out);
-    });
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(rows, t);
+  rows(0);
   for (auto& th : pool) th.join();
   for (uint64_t c : cast) out.rays += c;
   return out;
+}
+
+GatherPasses FinalGather::render(const Camera& camera) const {
+  return render(camera, 0, 0, impl_->options.width, impl_->options.height);
 }
 
 }  // namespace sirad

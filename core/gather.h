@@ -13,7 +13,7 @@
 // meets a back face first or leaves the scene; coincident faces as in the bundles.
 //
 // A pixel's value depends only on the seed and the pixel's position: any split of the image
-// into tiles, on any number of threads or nodes, gives the same image bit for bit.
+// into regions (tiles), on any number of threads or nodes, gives the same image bit for bit.
 #pragma once
 #include <cstdint>
 #include <memory>
@@ -62,12 +62,11 @@ class FinalGather {
   FinalGather(const FinalGather&) = delete;
   FinalGather& operator=(const FinalGather&) = delete;
 
-  // Empty passes of the image's size, for render_tile to fill.
-  GatherPasses blank() const;
-  // The pixels [x0, x1) x [y0, y1) of the view from `camera` into `out` (from blank(); other
-  // pixels untouched), on this thread. Throws sirad::Error for a camera that defines no view.
-  void render_tile(const Camera& camera, int x0, int y0, int x1, int y1, GatherPasses& out) const;
-  // The whole image of the view from `camera`, in rows spread over options.threads threads.
+  // The pixels [x0, x1) x [y0, y1) of the view from `camera`: passes of the region's size (its
+  // pixel (0, 0) is the image's (x0, y0)), in rows spread over options.threads threads. Throws
+  // sirad::Error for a region not within the image or a camera that defines no view.
+  GatherPasses render(const Camera& camera, int x0, int y0, int x1, int y1) const;
+  // The whole image of the view from `camera`.
   GatherPasses render(const Camera& camera) const;
 
   const GatherOptions& options() const;

@@ -37,6 +37,10 @@ void check_file_name(const std::string& path, const std::string& flag) {
   if (std::filesystem::is_directory(path, ec)) fail("{} {}: is a directory, not a file", flag, path);
 }
 
+GatherOptions final_gather_of(const ResultOptions& options) {
+  return {.width = options.width, .height = options.height, .spp = options.gather_spp};
+}
+
 std::string wrote_lines(const ResultFiles& files) {
   std::string out;
   for (const std::string* f : {&files.exr, &files.png, &files.ply, &files.glb})
@@ -46,7 +50,7 @@ std::string wrote_lines(const ResultFiles& files) {
 
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
                           const std::vector<glm::vec3>& radiosity, const ResultOptions& options,
-                          const Attributes& attributes) {
+                          const Attributes& attributes, const GatherPasses* gathered) {
   if (options.width < 1 || options.height < 1 || options.width > 16384 || options.height > 16384)
     fail("image size {}x{} outside 1..16384", options.width, options.height);
   if (!mesh.camera) fail("{}: the mesh carries no camera", name);
@@ -59,8 +63,14 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
   with_camera.emplace_back("sirad.camera", camera_spec(*mesh.camera));
   GatherPasses passes;
   if (options.gather_spp > 0) {
-    GatherOptions go{.width = options.width, .height = options.height, .spp = options.gather_spp};
-    passes = FinalGather(mesh, radiosity, go).render(*mesh.camera);
+    if (gathered) {
+      if (gathered->combined.width != options.width || gathered->combined.height != options.height)
+        fail("{}: a gathered image of {}x{} for {}x{}", name, gathered->combined.width, gathered->combined.height, options.width,
+             options.height);
+      passes = *gathered;
+    } else {
+      passes = FinalGather(mesh, radiosity, final_gather_of(options)).render(*mesh.camera);
+    }
     with_camera.emplace_back("sirad.image", std::string("final gather"));
     with_camera.emplace_back("sirad.spp", static_cast<int64_t>(options.gather_spp));
   } else {

@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "core/gather.h"
 #include "core/output.h"
 
 namespace sirad {
@@ -20,6 +21,10 @@ struct ResultOptions {
   int gather_spp = 0;
 };
 
+// The final gather the options ask for (spp 0: none): the image's size and samples, the
+// gather's default seed. A cluster run renders it in tiles (cluster::RunConfig::final_gather).
+GatherOptions final_gather_of(const ResultOptions& options);
+
 struct ResultFiles {
   std::string exr, png, ply, glb;
 };
@@ -35,8 +40,10 @@ void check_output_name(const std::string& name, const std::string& flag);
 void check_file_name(const std::string& path, const std::string& flag);
 
 // Renders the view of the mesh's camera and writes NAME.exr, .png, .ply and .glb atomically.
+// `gathered`: with options.gather_spp > 0, the final gather's passes already rendered (a
+// cluster run's tiles: RunResult::image), of the options' size; null: rendered here.
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
                           const std::vector<glm::vec3>& radiosity, const ResultOptions& options,
-                          const Attributes& attributes);
+                          const Attributes& attributes, const GatherPasses* gathered = nullptr);
 
 }  // namespace sirad

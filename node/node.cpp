@@ -15,10 +15,13 @@
 
 #include "cluster/settings.h"
 #include "cluster/status.h"
+#include "cluster/tiles.h"
 #include "cluster/worker.h"
 #include "cluster/profile.h"
 #include "core/bundle_cl.h"
+#include "core/camera.h"
 #include "core/error.h"
+#include "core/gather.h"
 #include "core/log.h"
 #include "core/mesh.h"
 #include "core/scene_io.h"
@@ -62,6 +65,18 @@ struct RunState {
   uint64_t bundles = 0;  // run by this node in this run
 };
 
+// After a run whose STOP said its image follows (PROTOCOL.md section 3.4): the run's mesh,
+// kept for the final gather, and once IMAGE came, the gather and its view.
+struct ImageState {
+  uint64_t run_id = 0;
+  PatchMesh mesh;
+  std::unique_ptr<FinalGather> gather;
+  Camera camera;
+  std::optional<cluster::TileGrid> grid;
+  uint64_t tiles = 0;  // rendered here
+  double busy_s = 0;
+};
+
 class Node {
  public:
   Node(zmq::context_t& context, const std::string& endpoint, const NodeOptions& options)
@@ -82,7 +97,7 @@ class Node {
       // Without a run, say HELLO again: a coordinator that starts (or restarts) later hears of
       // this node that way. Every reconnect_ms while a coordinator answers; while none does,
       // the wait doubles up to reconnect_max_ms.
-      if (!state_ && !pending_ && Clock::now() - last_hello > hello_every_) {
+      if (!in_run() && Clock::now() - last_hello > hello_every_) {
         // libzmq ends a connection for good on a protocol error (a frame over ZMQ_MAXMSGSIZE
         // from a broken or hostile coordinator) and never reconnects it; after 16 s of silence,
         // a fresh socket (and routing id) connects again.
@@ -104,7 +119,8 @@ class Node {
       // A message is copied only within its command's bound for this node's run (none before
       // WELCOME: headers alone, a SCENE frame).
       const RunState* run = state_ ? state_.get() : pending_.get();
-      auto in = proto::receive(*socket_, poll_ms(), 0, run ? run->run.patches() : 0, run ? run->run.chunk_starts_size() : 0);
+      const std::size_t patches = run ? run->run.patches() : image_ ? image_->mesh.size() : 0;
+      auto in = proto::receive(*socket_, poll_ms(), 0, patches, run ? run->run.chunk_starts_size() : 0);
       if (state_ && granted_) idle_s_ += seconds(Clock::now() - waiting);  // blocked with nothing to run
       if (!in) {
         coordinator_liveness();
@@ -215,7 +231,7 @@ class Node {
   bool tick() {
     auto now = Clock::now();
     up_.flush(*socket_, seconds(now - epoch_));
-    if (!state_ && !pending_) return true;
+    if (!in_run()) return true;
     if (now - last_sent_ >= heartbeat_) send({Command::heartbeat, {}, {}});
     return !(state_ && emulation_.disconnect_at_s() >= 0 && seconds(now - ready_at_) >= emulation_.disconnect_at_s());
   }
@@ -245,15 +261,19 @@ class Node {
   // A run whose coordinator fell silent for `liveness` intervals is over for this node: it
   // forgets the run and says HELLO until a coordinator answers.
   void coordinator_liveness() {
-    if ((!state_ && !pending_) || Clock::now() - last_heard_ <= heartbeat_ * liveness_) return;
+    if (!in_run() || Clock::now() - last_heard_ <= heartbeat_ * liveness_) return;
     warn(fmt::format("coordinator silent for {:.1f} s; leaving the run", seconds(Clock::now() - last_heard_)),
          {{"event", "left"}, {"why", "coordinator silent"}});
     leave_run();
   }
 
+  // In a run: joining it, running it, or after it rendering its image.
+  bool in_run() const { return state_ || pending_ || image_; }
+
   void leave_run() {
     state_.reset();
     pending_.reset();
+    image_.reset();
     emulation_ = no_emulation();
     up_ = {};
   }
@@ -264,7 +284,9 @@ class Node {
       case Command::scene: scene(std::get<wire::SceneChunk>(m.header), m.bulk[0]); break;
       case Command::grant: grant(std::get<wire::Grant>(m.header)); break;
       case Command::update: update(std::get<wire::Update>(m.header), m.bulk); break;
-      case Command::stop: stop(); break;
+      case Command::stop: stop(std::get<wire::Stop>(m.header)); break;
+      case Command::image: image(std::get<wire::Image>(m.header), m.bulk[0]); break;
+      case Command::tiles: tiles(std::get<wire::Grant>(m.header)); break;
       case Command::heartbeat: break;
       case Command::error: {
         const wire::Error& e = std::get<wire::Error>(m.header);
@@ -273,7 +295,7 @@ class Node {
         // resumed from a checkpoint): leave the run and join again. The protocol's way, not a fault.
         if (e.rejoin()) {
           info(fmt::format("the coordinator asks for a HELLO ({}): joining", reason), {{"event", "rejoin"}, {"reason", reason}});
-          if (state_ || pending_) leave_run();
+          if (in_run()) leave_run();
           hello();  // also between runs: a farm asks its idle nodes so when a job starts
         } else {
           warn(fmt::format("coordinator: {}", reason), {{"event", "error"}, {"reason", reason}});
@@ -301,6 +323,7 @@ class Node {
       return error(fmt::format("WELCOME refused: {}", e.what()));
     }
     state_.reset();
+    image_.reset();
     pending_ = std::make_unique<RunState>();
     pending_->run = w.run();
     pending_->index = w.node_index();
@@ -469,6 +492,80 @@ class Node {
     return bulk;
   }
 
+  // IMAGE: the view and the solution to gather from; every field checked before the gather
+  // is made (its rays over this node's mesh: Embree, on the CPU).
+  void image(const wire::Image& h, const std::string& solution) {
+    if (!image_ || h.run_id() != image_->run_id) return error("IMAGE for no run of mine");
+    try {
+      ImageState& im = *image_;
+      constexpr uint32_t kMaxSide = 1u << 20;  // beyond any image: TileGrid refuses it by name
+      const int width = static_cast<int>(std::min(h.width(), kMaxSide)), height = static_cast<int>(std::min(h.height(), kMaxSide));
+      im.grid.emplace(width, height, static_cast<int>(std::min(h.tile(), kMaxSide)));
+      im.camera = parse_camera(h.camera());
+      camera_frame(im.camera, width, height, "IMAGE");  // a camera that defines a view
+      const std::vector<double> values = proto::unpack(solution);
+      if (values.size() != 3 * im.mesh.size()) fail("a solution of {} values for {} patches", values.size() / 3, im.mesh.size());
+      std::vector<glm::vec3> radiosity(im.mesh.size());
+      for (std::size_t j = 0; j < radiosity.size(); ++j) {
+        radiosity[j] = glm::vec3(glm::dvec3(values[3 * j], values[3 * j + 1], values[3 * j + 2]));
+        if (!std::isfinite(radiosity[j].x) || !std::isfinite(radiosity[j].y) || !std::isfinite(radiosity[j].z))
+          fail("the solution is not finite at patch {}", j);
+      }
+      const int spp = static_cast<int>(std::min<uint32_t>(h.spp(), kMaxSide));
+      im.gather = std::make_unique<FinalGather>(im.mesh, radiosity, GatherOptions{.width = width, .height = height, .spp = spp, .seed = h.seed()});
+      info(fmt::format("image: {}x{}, {} spp, {} tiles", width, height, spp, im.grid->count()),
+           {{"event", "image"}, {"width", width}, {"height", height}, {"spp", spp}});
+    } catch (const Error& e) {
+      image_->gather.reset();
+      return error(fmt::format("IMAGE refused: {}", e.what()));
+    }
+  }
+
+  // TILES: render the granted tiles (in bands of rows, the heartbeat between them), then PIXELS.
+  void tiles(const wire::Grant& g) {
+    if (!image_ || !image_->gather || g.run_id() != image_->run_id) return error("TILES for no image of mine");
+    ImageState& im = *image_;
+    const auto start = Clock::now();
+    wire::Pixels px;
+    px.set_run_id(g.run_id());
+    px.set_grant_id(g.grant_id());
+    std::vector<std::string> bulk;
+    uint64_t rays = 0;
+    try {
+      for (const auto& r : g.ranges()) {
+        if (r.last() <= r.first() || r.last() - r.first() > proto::kMaxTilesPerGrant - bulk.size())
+          fail("a grant of more than {} tiles, or an empty range", proto::kMaxTilesPerGrant);
+        for (uint64_t t = r.first(); t < r.last(); ++t) {
+          const cluster::TileRect rect = im.grid->rect(t);
+          const int band = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+          GatherPasses tile;
+          for (Image* p : {&tile.direct, &tile.indirect, &tile.combined}) p->width = rect.x1 - rect.x0;
+          for (int y = rect.y0; y < rect.y1; y += band) {
+            GatherPasses rows = im.gather->render(im.camera, rect.x0, y, rect.x1, std::min(y + band, rect.y1));
+            tile.direct.pixels.insert(tile.direct.pixels.end(), rows.direct.pixels.begin(), rows.direct.pixels.end());
+            tile.indirect.pixels.insert(tile.indirect.pixels.end(), rows.indirect.pixels.begin(), rows.indirect.pixels.end());
+            tile.combined.pixels.insert(tile.combined.pixels.end(), rows.combined.pixels.begin(), rows.combined.pixels.end());
+            rays += rows.rays;
+            tick();
+            if (stopping()) return;
+          }
+          bulk.push_back(cluster::pack_tile(tile));
+        }
+        *px.add_done() = r;
+      }
+    } catch (const Error& e) {
+      return error(fmt::format("TILES: {}", e.what()));
+    }
+    im.tiles += bulk.size();
+    const double busy = seconds(Clock::now() - start);
+    im.busy_s += busy;
+    px.set_busy_s(busy);
+    px.set_rays(rays);
+    Message m{Command::pixels, {}, std::move(bulk)};
+    m.header = px;
+    send(m);
+  }
+
   void update(const wire::Update& u, const std::vector<std::string>& bulk) {
     if (!state_ || u.run_id() != state_->run.run_id()) return;
     for (int i = 0; i < u.chunks_size(); ++i) {
@@ -480,7 +577,15 @@ class Node {
     }
   }
 
-  void stop() {
+  // STOP: the run's end (FINAL back; with image_follows the mesh is kept for the image), or
+  // after the image, its end.
+  void stop(const wire::Stop& s) {
+    if (!state_ && image_ && s.run_id() == image_->run_id) {
+      info(fmt::format("image done: {} tiles here, busy {:.2f} s", image_->tiles, image_->busy_s),
+           {{"event", "image done"}, {"tiles", image_->tiles}, {"busy_s", image_->busy_s}});
+      image_.reset();
+      return;
+    }
     if (!state_) return;
     wire::Report final_state;
     final_state.set_run_id(state_->run.run_id());
@@ -489,8 +594,18 @@ class Node {
     Message m{Command::final_state, {}, chunk_frames(state_->worker->all_states(), final_state)};
     m.header = final_state;
     send(m);
-    info(fmt::format("run done: {} bundles here, busy {:.2f} s, idle {:.2f} s; final state sent", state_->bundles, busy_s_, idle_s_),
+    info(fmt::format("run done: {} bundles here, busy {:.2f} s, idle {:.2f} s; final state sent{}", state_->bundles, busy_s_, idle_s_,
+                     s.image_follows() ? "; the image follows" : ""),
          {{"event", "done"}, {"bundles", state_->bundles}, {"busy_s", busy_s_}, {"idle_s", idle_s_}});
+    if (s.image_follows()) {
+      // The engines go first (they were made on the mesh), then the mesh moves to the image.
+      state_->worker.reset();
+      state_->shots.reset();
+      state_->engine.reset();
+      image_ = std::make_unique<ImageState>();
+      image_->run_id = state_->run.run_id();
+      image_->mesh = std::move(state_->mesh);
+    }
     state_.reset();
     // The FINAL leaves through the emulated link; the next run brings its own.
     while (!up_.empty() && !stopping()) {
@@ -507,6 +622,7 @@ class Node {
   DeviceInfo device_;
   std::unique_ptr<zmq::socket_t> socket_;
   std::unique_ptr<RunState> pending_, state_;
+  std::unique_ptr<ImageState> image_;
   std::string scene_bytes_;
   SceneCache cache_;
   std::set<std::string> said_held_;  // the scene hashes of the last HELLO

@@ -26,6 +26,7 @@ bool known(uint8_t c) {
     case Command::hello: case Command::welcome: case Command::scene: case Command::ready:
     case Command::grant: case Command::report: case Command::update: case Command::stop:
     case Command::final_state: case Command::heartbeat: case Command::bye: case Command::error:
+    case Command::image: case Command::tiles: case Command::pixels:
       return true;
   }
   return false;
@@ -38,7 +39,9 @@ Header empty_header(Command c) {
     case Command::welcome: return wire::Welcome{};
     case Command::scene: return wire::SceneChunk{};
     case Command::ready: return wire::Ready{};
-    case Command::grant: return wire::Grant{};
+    case Command::grant: case Command::tiles: return wire::Grant{};
+    case Command::image: return wire::Image{};
+    case Command::pixels: return wire::Pixels{};
     case Command::report: case Command::final_state: return wire::Report{};
     case Command::update: return wire::Update{};
     case Command::stop: return wire::Stop{};
@@ -77,6 +80,9 @@ const char* command_name(Command c) {
     case Command::final_state: return "FINAL";
     case Command::heartbeat: return "HEARTBEAT";
     case Command::bye: return "BYE";
+    case Command::image: return "IMAGE";
+    case Command::tiles: return "TILES";
+    case Command::pixels: return "PIXELS";
     case Command::error: return "ERROR";
   }
   return "?";
@@ -104,6 +110,8 @@ MessageBound message_bound(uint8_t command, std::size_t patches, std::size_t chu
     case Command::final_state:
       return {3 + std::min(chunks, kMaxChunks), envelope + 24 * patches};
     case Command::scene: return {4, envelope + kMaxSceneFrameBytes};
+    case Command::image: return {4, envelope + 24 * patches};
+    case Command::pixels: return {3 + kMaxTilesPerGrant, envelope + kMaxTilesPerGrant * kMaxTileSide * kMaxTileSide * kPixelBytes};
     default: return {3, envelope};
   }
 }
@@ -147,6 +155,24 @@ Message decode(const std::vector<std::string>& frames) {
       if (h.offset() > h.total_bytes() || m.bulk[0].size() > h.total_bytes() - h.offset())
         refuse(fmt::format("SCENE: bytes {}..{} beyond the scene's {}", h.offset(), h.offset() + m.bulk[0].size(),
                            h.total_bytes()));
+      break;
+    }
+    case Command::image:
+      if (m.bulk.size() != 1) refuse(fmt::format("IMAGE: {} bulk frames (expected 1)", m.bulk.size()));
+      if (m.bulk[0].size() % (3 * sizeof(double)) != 0)
+        refuse(fmt::format("IMAGE: solution frame of {} bytes, not whole (r, g, b) doubles", m.bulk[0].size()));
+      break;
+    case Command::pixels: {
+      uint64_t tiles = 0;
+      for (const wire::Range& r : std::get<wire::Pixels>(m.header).done()) {
+        if (r.last() <= r.first()) refuse(fmt::format("PIXELS: empty range [{}, {})", r.first(), r.last()));
+        if (r.last() - r.first() > kMaxTilesPerGrant - tiles) refuse(fmt::format("PIXELS: more than {} tiles", kMaxTilesPerGrant));
+        tiles += r.last() - r.first();
+      }
+      if (m.bulk.size() != tiles) refuse(fmt::format("PIXELS: {} tiles but {} bulk frames", tiles, m.bulk.size()));
+      for (std::size_t i = 0; i < m.bulk.size(); ++i)
+        if (m.bulk[i].empty() || m.bulk[i].size() % kPixelBytes != 0)
+          refuse(fmt::format("PIXELS: tile frame {} has {} bytes, not whole pixels of {} bytes", i, m.bulk[i].size(), kPixelBytes));
       break;
     }
     default:

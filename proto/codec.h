@@ -17,6 +17,10 @@ inline constexpr std::string_view kSignature = "SIRAD1";  // frame 0, every mess
 inline constexpr std::size_t kMaxHeaderBytes = 64 * 1024;  // section 6
 inline constexpr std::size_t kMaxSceneFrameBytes = 4 * 1024 * 1024;
 inline constexpr std::size_t kMaxChunks = 4096;
+// The image phase (section 3.4): a tile's side, and the tiles of one TILES grant, at most.
+inline constexpr uint32_t kMaxTileSide = 64;
+inline constexpr std::size_t kMaxTilesPerGrant = 16;
+inline constexpr std::size_t kPixelBytes = 9 * sizeof(float);  // direct, indirect, combined rgb
 
 enum class Command : uint8_t {
   hello = 0x01,
@@ -30,12 +34,16 @@ enum class Command : uint8_t {
   final_state = 0x09,
   heartbeat = 0x0A,
   bye = 0x0B,
+  image = 0x0C,
+  tiles = 0x0D,
+  pixels = 0x0E,
   error = 0x0F,
 };
 const char* command_name(Command c);
 
 using Header = std::variant<std::monostate, wire::Hello, wire::Welcome, wire::SceneChunk, wire::Ready,
-                            wire::Grant, wire::Report, wire::Update, wire::Stop, wire::Error>;
+                            wire::Grant, wire::Report, wire::Update, wire::Stop, wire::Error, wire::Image,
+                            wire::Pixels>;
 
 struct Message {
   Command command = Command::heartbeat;
@@ -51,8 +59,9 @@ class ProtocolError : public std::runtime_error {
 // The most one message of a command may hold as its receiver reads it (frames and bytes in
 // all, signature and command included), for a receiver whose run has `patches` patches in
 // `chunks` chunks (0 and 0 without a run): REPORT, UPDATE and FINAL at most one frame per chunk
-// and 24 bytes per patch in all; SCENE one frame of kMaxSceneFrameBytes; every other command
-// its header alone. An unknown command byte gets the header-only bound (decode refuses it).
+// and 24 bytes per patch in all; IMAGE one frame of 24 bytes per patch; SCENE one frame of
+// kMaxSceneFrameBytes; PIXELS kMaxTilesPerGrant frames of kMaxTileSide^2 pixels; every other
+// command its header alone. An unknown command byte gets the header-only bound (decode refuses it).
 struct MessageBound {
   std::size_t frames = 0, bytes = 0;
 };
@@ -63,8 +72,10 @@ std::vector<std::string> encode(const Message& message);
 
 // Parses and checks frames: signature and version, a known command, a header of the command's
 // type within the size limit, and the bulk frames the header announces (count; doubles for
-// chunk sums; at most one scene frame of at most 4 MiB). Sizes that depend on the run (patches
-// per chunk) are checked by the receiver's state machine.
+// chunk sums and an image's solution; at most one scene frame of at most 4 MiB; one frame of
+// whole pixels per tile done, at most kMaxTilesPerGrant). Sizes that depend on the run
+// (patches per chunk, the solution's patches, a tile's pixels) are checked by the receiver's
+// state machine.
 Message decode(const std::vector<std::string>& frames);
 
 }  // namespace sirad::proto

@@ -71,6 +71,28 @@ inline std::vector<Message> one_of_each() {
   out.push_back({Command::error, error, {}});
   out.push_back({Command::heartbeat, std::monostate{}, {}});
   out.push_back({Command::bye, std::monostate{}, {}});
+  wire::Image image;
+  image.set_run_id(9);
+  image.set_camera("eye 0 0 -1 look 0 0 0 up 0 1 0 fov 40");
+  image.set_width(40);
+  image.set_height(8);
+  image.set_spp(4);
+  image.set_seed(1);
+  image.set_tile(32);
+  out.push_back({Command::image, image, {doubles({1, 2, 3, 4, 5, 6})}});
+  wire::Grant tiles;
+  tiles.set_run_id(9);
+  tiles.set_grant_id(2);
+  auto* t = tiles.add_ranges();
+  t->set_first(1);
+  t->set_last(2);
+  out.push_back({Command::tiles, tiles, {}});
+  wire::Pixels pixels;
+  pixels.set_run_id(9);
+  pixels.set_grant_id(2);
+  *pixels.add_done() = *t;
+  pixels.set_busy_s(0.5);
+  out.push_back({Command::pixels, pixels, {std::string(8 * 8 * kPixelBytes, '\0')}});
   return out;
 }
 

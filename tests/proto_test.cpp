@@ -1,6 +1,7 @@
 // sirad tests: the SIRAD/1 codec against proto/PROTOCOL.md: every message type round-trips;
 // truncated, oversized, wrong-version, wrong-type and inconsistent messages are refused with a
 // one-line reason. Then the same frames over a real ZeroMQ ROUTER/DEALER pair.
+#include <algorithm>
 #include <cstring>
 
 #include <gtest/gtest.h>
@@ -94,6 +95,41 @@ TEST(ProtoCodec, MalformedMessagesAreRefusedWithAReason) {
   wire::SceneChunk sc;
   sc.set_total_bytes(4);
   expect_refused(encode({Command::scene, sc, {std::string("12345")}}), "beyond");
+}
+
+// The image phase's messages (PROTOCOL.md section 3.4): IMAGE carries one solution frame of
+// whole (r, g, b) doubles; PIXELS one frame of whole pixels per tile it names, at most
+// kMaxTilesPerGrant of them, in ranges that are not empty (a range so long that its length
+// would wrap the count is refused too).
+TEST(ProtoCodec, ImageMessagesAreRefusedWhenTheirFramesDoNotFit) {
+  const std::vector<Message> all = one_of_each();
+  auto find = [&](Command c) { return *std::find_if(all.begin(), all.end(), [&](const Message& m) { return m.command == c; }); };
+  const Message image = find(Command::image), pixels = find(Command::pixels);
+  expect_refused(encode({Command::image, image.header, {}}), "IMAGE: 0 bulk frames");
+  expect_refused(encode({Command::image, image.header, {doubles({1, 2})}}), "not whole");
+  expect_refused(encode({Command::image, image.header, {doubles({1, 2, 3}), doubles({1, 2, 3})}}), "IMAGE: 2 bulk frames");
+  expect_refused(encode({Command::pixels, pixels.header, {}}), "1 tiles but 0 bulk frames");
+  expect_refused(encode({Command::pixels, pixels.header, {std::string(kPixelBytes + 1, '\0')}}), "not whole pixels");
+  expect_refused(encode({Command::pixels, pixels.header, {std::string()}}), "not whole pixels");
+  wire::Pixels p = std::get<wire::Pixels>(pixels.header);
+  p.mutable_done(0)->set_last(p.done(0).first());
+  expect_refused(encode({Command::pixels, p, pixels.bulk}), "empty range");
+  p.mutable_done(0)->set_last(p.done(0).first() + kMaxTilesPerGrant + 1);
+  expect_refused(encode({Command::pixels, p, pixels.bulk}), "more than 16 tiles");
+  auto* wrap = p.add_done();  // 16 tiles, then a range of 2^64 - 16: the sum would wrap to 0
+  p.mutable_done(0)->set_last(p.done(0).first() + kMaxTilesPerGrant);
+  wrap->set_first(16);
+  wrap->set_last(0);
+  expect_refused(encode({Command::pixels, p, pixels.bulk}), "empty range");
+  wrap->set_first(0);
+  wrap->set_last(~uint64_t{0} - 15);
+  expect_refused(encode({Command::pixels, p, pixels.bulk}), "more than 16 tiles");
+  // The bounds the transport copies within: IMAGE 24 bytes a patch; PIXELS a static bound.
+  EXPECT_EQ(message_bound(static_cast<uint8_t>(Command::image), 1000, 4).frames, 4u);
+  EXPECT_GE(message_bound(static_cast<uint8_t>(Command::image), 1000, 4).bytes, 24000u);
+  EXPECT_LT(message_bound(static_cast<uint8_t>(Command::image), 1000, 4).bytes, 24000u + 70000u);
+  EXPECT_EQ(message_bound(static_cast<uint8_t>(Command::pixels), 0, 0).frames, 3 + kMaxTilesPerGrant);
+  EXPECT_GE(message_bound(static_cast<uint8_t>(Command::pixels), 0, 0).bytes, kMaxTilesPerGrant * 64 * 64 * kPixelBytes);
 }
 
 // The same frames across a real ROUTER/DEALER pair: the ROUTER sees the routing id first, then
