@@ -36,6 +36,7 @@
 #include "cluster/status.h"
 #include <nlohmann/json.hpp>
 
+#include "tests/exr_content.h"
 #include "tests/png_util.h"
 #include "tests/process_util.h"
 
@@ -378,6 +379,68 @@ KillRun run_with_kill(const fs::path& dir, std::vector<std::string> run_args, ui
   for (auto& n : nodes) n->terminate();
   if (fs::exists(dir / "ledger.csv")) out.ledger = read_ledger(dir / "ledger.csv");
   return out;
+}
+
+// The image phase over TCP (PROTOCOL.md section 3.4): a coordinator and two node processes
+// solve the Cornell box and render its final gather in 32-pixel tiles. Node p1 is stopped
+// (SIGSTOP) as soon as the status shows its FINAL in: the phase starts only with every FINAL
+// in and grants each node two tiles at once, so p1 holds tiles it never sends (or, had it
+// already rendered some, the ones granted after them: a node's grants are topped up while
+// tiles are free). The image cannot be finished without dropping p1, which the coordinator
+// does when p1 falls silent (5 s here); p0 renders p1's tiles. The run's EXR is, in every pass
+// and bit for bit, the one `sirad image` renders from the run's PLY on one machine.
+TEST(Processes, AnImageInTilesOverTcpIsTheImageOfOneMachineThoughANodeStops) {
+  const fs::path dir = fs::temp_directory_path() / fmt::format("sirad_tiles_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path status = dir / "status.json";
+  const std::vector<std::string> view = {"--width", "256", "--height", "256"};
+  std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY, "cornell", "--listen", "tcp://127.0.0.1:*", "--insecure",
+                                   "--endpoint-file", (dir / "endpoint").string(), "--min-nodes", "2", "--timeout",
+                                   sirad::test::kHangTimeout, "--heartbeat-ms", "200", "--liveness", "25", "--status-json",
+                                   status.string(), "--patches", "300", "--bundles", "256", "--final-gather", "128",
+                                   "--out", (dir / "run").string(), "-q"};
+  args.insert(args.end(), view.begin(), view.end());
+  Child coordinator(args, dir / "coordinator.log");
+  ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", coordinator)) << slurp(dir / "coordinator.log");
+  const std::string endpoint = slurp(dir / "endpoint");
+  auto node = [&](const char* name) {
+    return std::make_unique<Child>(std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", name},
+                                   dir / fmt::format("{}.log", name));
+  };
+  auto p0 = node("p0"), p1 = node("p1");
+  auto final_in = [&] {
+    for (const auto& n : status_nodes(status))
+      if (n.name == "p1" && n.state == "done") return true;
+    return false;
+  };
+  ASSERT_TRUE(wait_until(final_in)) << "p1's FINAL never came: " << slurp(dir / "coordinator.log");
+  p1->pause();
+  ASSERT_EQ(coordinator.wait(sirad::test::kHangS), 0) << slurp(dir / "coordinator.log");
+  const std::string log = slurp(dir / "coordinator.log");
+  EXPECT_NE(log.find("p1: dropped from the image (silent"), std::string::npos)
+      << "p1 was not dropped: the image was finished before p1 stopped (make it larger)\n" << log;
+  EXPECT_NE(log.find("image: 64 tiles in "), std::string::npos) << log;
+  const sirad::cluster::Status last = sirad::cluster::read_status(status.string());
+  EXPECT_EQ(last.image_tiles, 64u);
+  EXPECT_EQ(last.image_tiles_done, 64u);
+  uint64_t tiles = 0;
+  for (const auto& n : last.nodes) tiles += n.tiles;
+  EXPECT_EQ(tiles, 64u) << "every tile from a node, none twice";
+  p1->kill9();
+  p0->terminate();
+  std::vector<std::string> image = {SIRAD_BINARY, "image", (dir / "run.ply").string(), "--spp", "128", "--out",
+                                    (dir / "one").string(), "-q"};
+  image.insert(image.end(), view.begin(), view.end());
+  Child one(image, dir / "one.log");
+  ASSERT_EQ(one.wait(sirad::test::kHangS), 0) << slurp(dir / "one.log");
+  const auto tiled = sirad::test::exr_channels(dir / "run.exr"), whole = sirad::test::exr_channels(dir / "one.exr");
+  ASSERT_EQ(tiled.size(), 9u) << "R G B, direct.*, indirect.*";
+  for (const auto& [name, values] : whole) {
+    ASSERT_TRUE(tiled.count(name)) << name;
+    EXPECT_TRUE(tiled.at(name) == values) << name << " differs";
+  }
+  if (!HasFailure()) fs::remove_all(dir);
 }
 
 // Repetitions of the kill tests: SIRAD_KILL_REPEAT (default 1; 20 for the soak).

@@ -26,7 +26,8 @@ import zmq
 
 SIG = b"SIRAD1"
 CMD = {"hello": 0x01, "welcome": 0x02, "scene": 0x03, "ready": 0x04, "grant": 0x05, "report": 0x06,
-       "update": 0x07, "stop": 0x08, "final": 0x09, "heartbeat": 0x0A, "bye": 0x0B, "error": 0x0F}
+       "update": 0x07, "stop": 0x08, "final": 0x09, "heartbeat": 0x0A, "bye": 0x0B, "image": 0x0C, "tiles": 0x0D,
+       "pixels": 0x0E, "error": 0x0F}
 NAME = {v: k for k, v in CMD.items()}
 CAP_S = 240  # the cap on any one wait: a hang fails the case instead of blocking ctest
 
@@ -115,7 +116,8 @@ def wait_until(what, pred, procs=(), cap_s=CAP_S):
 
 def header_type(cmd):
     return {"hello": pb.Hello, "welcome": pb.Welcome, "scene": pb.SceneChunk, "ready": pb.Ready, "grant": pb.Grant,
-            "report": pb.Report, "update": pb.Update, "stop": pb.Stop, "final": pb.Report, "error": pb.Error}.get(cmd)
+            "report": pb.Report, "update": pb.Update, "stop": pb.Stop, "final": pb.Report, "error": pb.Error,
+            "image": pb.Image, "tiles": pb.Grant, "pixels": pb.Pixels}.get(cmd)
 
 
 def encode(cmd, header=None, bulk=()):
@@ -251,7 +253,7 @@ class Run:
     stalls (a process not scheduled, a slow disk) stay well inside, since an honest node declared
     dead fails every case."""
 
-    def __init__(self, build, work, bundles, min_nodes, extra=(), insecure=True):
+    def __init__(self, build, work, bundles, min_nodes, extra=(), insecure=True, size=(16, 16)):
         self.build, self.work, self.bundles = build, work, bundles
         self.endpoint_file = os.path.join(work, "endpoint")
         self.out = os.path.join(work, "furnace")
@@ -260,8 +262,8 @@ class Run:
         args = [os.path.join(build, "sirad-coordinator"), "furnace", "--listen", "tcp://127.0.0.1:*"] + \
                (["--insecure"] if insecure else []) + ["--endpoint-file", self.endpoint_file, "--bundles", str(bundles), "--patches", "300",
                 "--min-nodes", str(min_nodes), "--control-variate", "off", "--directions", "random",
-                "--shots-per-bundle", "0", "--exchange-every", "16", "--out", self.out, "--width", "16",
-                "--height", "16", "--ledger", self.ledger, "--status-json", self.status, "--timeout", "300",
+                "--shots-per-bundle", "0", "--exchange-every", "16", "--out", self.out, "--width", str(size[0]),
+                "--height", str(size[1]), "--ledger", self.ledger, "--status-json", self.status, "--timeout", "300",
                 "--heartbeat-ms", "200", "--liveness", "25", "-q"] + list(extra)
         self.coordinator = Proc(args, os.path.join(work, "coordinator.log"))
         wait_until("the endpoint file", lambda: os.path.exists(self.endpoint_file) and os.path.getsize(self.endpoint_file) > 0,
@@ -736,15 +738,12 @@ def case_foreign_run_report(build, work, ctx):
 
 class LyingProxy:
     """A real sirad-node that lies: the node connects to this proxy (a ROUTER on loopback), which
-    passes every message between it and the coordinator (a DEALER) unchanged, except the chunk
-    sums of its REPORTs and FINAL, which it multiplies by `factor` (0: zeros). The lie has the
-    batch structure of an honest chain, scaled: the plausible lie of class 17."""
+    passes every message between it and the coordinator (a DEALER) unchanged, except those that
+    `lie` (frames -> frames, or None to pass them as they are) rewrites."""
 
-    def __init__(self, ctx, coordinator_endpoint, factor):
-        import array
+    def __init__(self, ctx, coordinator_endpoint, lie):
         import threading
-        self.array = array
-        self.factor = factor
+        self.lie = lie
         self.front = ctx.socket(zmq.ROUTER)
         self.front.setsockopt(zmq.LINGER, 0)
         port = self.front.bind_to_random_port("tcp://127.0.0.1")
@@ -757,13 +756,6 @@ class LyingProxy:
         self.thread = threading.Thread(target=self.loop, daemon=True)
         self.thread.start()
 
-    def scaled(self, frame):
-        values = self.array.array("d")
-        values.frombytes(frame)
-        for i in range(len(values)):
-            values[i] *= self.factor
-        return values.tobytes()
-
     def loop(self):
         poller = zmq.Poller()
         poller.register(self.front, zmq.POLLIN)
@@ -773,8 +765,9 @@ class LyingProxy:
             for sock, _ in poller.poll(50):
                 if sock is self.front:
                     node, *frames = self.front.recv_multipart()
-                    if len(frames) > 3 and frames[0] == SIG and frames[1][0] in (CMD["report"], CMD["final"]):
-                        frames = frames[:3] + [self.scaled(f) for f in frames[3:]]
+                    lied = self.lie(frames)
+                    if lied is not None:
+                        frames = lied
                         self.lied += 1
                     self.back.send_multipart(frames)
                 else:
@@ -787,6 +780,23 @@ class LyingProxy:
         self.thread.join(10)
 
 
+def scaled_sums(factor):
+    """The chunk sums of REPORTs and FINAL multiplied by `factor` (0: zeros): the lie has the
+    batch structure of an honest chain, scaled (the plausible lie of class 17)."""
+    import array
+
+    def lie(frames):
+        if len(frames) <= 3 or frames[0] != SIG or frames[1][0] not in (CMD["report"], CMD["final"]):
+            return None
+        out = frames[:3]
+        for f in frames[3:]:
+            values = array.array("d")
+            values.frombytes(f)
+            out.append(array.array("d", (v * factor for v in values)).tobytes())
+        return out
+    return lie
+
+
 def lying_node_case(build, work, ctx, factor, honest, what):
     """Class 17: `honest` honest nodes and a real node behind a LyingProxy (`factor`). The liar
     is quarantined for `what` (the reason in the log: the scene's bound, or the median of the
@@ -795,7 +805,7 @@ def lying_node_case(build, work, ctx, factor, honest, what):
     its tolerance, no honest node quarantined). The coordinator's peak stays under 60 MiB (23 in
     the control case)."""
     run = Run(build, work, 4096, honest + 1)
-    proxy = LyingProxy(ctx, run.endpoint, factor)
+    proxy = LyingProxy(ctx, run.endpoint, scaled_sums(factor))
     run.honest(honest)
     liar = Proc([os.path.join(build, "sirad-node"), "--connect", proxy.endpoint, "--name", "liar", "--insecure"],
                 os.path.join(work, "liar.log"))
@@ -841,6 +851,64 @@ def case_liar_small_bias(build, work, ctx):
     is 12 standard errors off, which the honest spread of this setting reaches after a few
     hundred bundles of each node (plausibility.h)."""
     lying_node_case(build, work, ctx, 0.8, 2, "the median of 3 nodes")
+
+
+def lying_pixels_case(build, work, ctx, lie, what):
+    """Class 18: the image phase (PROTOCOL.md section 3.4). An honest node and a real node behind
+    a LyingProxy whose PIXELS `lie` rewrites render the furnace's final gather (96 x 64, 6 tiles
+    of 32 px). The liar is dropped from the image for `what` at its first PIXELS, nothing of
+    that message is placed, its tiles are granted again to the honest node, and the run's image
+    is the one `sirad image` renders from the run's PLY on one machine (the PNGs byte for byte)."""
+    pixels_cmd = CMD["pixels"]
+    first = {"done": False}
+
+    def once(frames):
+        if first["done"] or len(frames) < 3 or frames[0] != SIG or frames[1][0] != pixels_cmd:
+            return None
+        first["done"] = True
+        return lie(frames)
+
+    run = Run(build, work, 1024, 2, ["--final-gather", "4"], size=(96, 64))
+    proxy = LyingProxy(ctx, run.endpoint, once)
+    run.honest(1)
+    liar = Proc([os.path.join(build, "sirad-node"), "--connect", proxy.endpoint, "--name", "liar", "--insecure"],
+                os.path.join(work, "liar.log"))
+    try:
+        run.finish()
+    finally:
+        liar.stop()
+        proxy.stop()
+    log = run.check_result({"h0", "liar"})  # the liar ran its bundles honestly
+    check(proxy.lied == 1, f"{proxy.lied} lying PIXELS (the liar was granted no tiles?)")
+    check(f"liar: dropped from the image ({what}" in log, f"the liar was not dropped for {what!r}:\n{log[-3000:]}")
+    status = read_status(run.status)
+    check(status.get("image_tiles") == 6 and status.get("image_tiles_done") == 6, f"the image's tiles: {status}")
+    check(sum(n.get("tiles", 0) for n in status["nodes"]) == 6, f"not every tile from a node once: {status}")
+    one = Proc([os.path.join(build, "sirad"), "image", run.out + ".ply", "--spp", "4", "--width", "96", "--height", "64",
+                "--out", os.path.join(work, "one"), "-q"], os.path.join(work, "one.log"))
+    check(one.wait() == 0, f"sirad image: {one.log()}")
+    with open(run.out + ".png", "rb") as a, open(os.path.join(work, "one.png"), "rb") as b:
+        check(a.read() == b.read(), "the run's image is not the image of its solution")
+
+
+def case_pixels_not_finite(build, work, ctx):
+    """Class 18: a PIXELS whose first tile holds a NaN."""
+    def lie(frames):
+        tile = bytearray(frames[3])
+        tile[0:4] = struct.pack("<f", float("nan"))
+        return frames[:3] + [bytes(tile)] + frames[4:]
+    lying_pixels_case(build, work, ctx, lie, "a tile's pixel 0 is not finite")
+
+
+def case_pixels_other_tiles(build, work, ctx):
+    """Class 18: a PIXELS that names other tiles than its grant's (the next tile's index)."""
+    def lie(frames):
+        px = pb.Pixels.FromString(frames[2])
+        for r in px.done:
+            r.first += 1
+            r.last += 1
+        return frames[:2] + [px.SerializeToString()] + frames[3:]
+    lying_pixels_case(build, work, ctx, lie, "PIXELS for grant")
 
 
 CASES = {name[len("case_"):]: fn for name, fn in globals().items() if name.startswith("case_")}
