@@ -119,6 +119,10 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
         o["bundles_done"] = st->bundles_done;
         o["bundles"] = st->bundles;
         o["error_estimate"] = st->error_estimate;
+        if (st->image_tiles > 0) {  // the final gather's tiles, rendered after the solve
+          o["image_tiles"] = st->image_tiles;
+          o["image_tiles_done"] = st->image_tiles_done;
+        }
       }
       o["files"] = job_files(j, store_.folder(j.id));
       jobs.push_back(std::move(o));

@@ -598,7 +598,8 @@ int reference(const ReferenceArgs& r) {
   return 0;
 }
 
-// sirad image SOLUTION: a final gather (core/gather.h) of a solution read back from its PLY.
+// sirad image SOLUTION: a final gather (core/gather.h) of a solution read back from the PLY or
+// glTF sirad wrote (core/solution.h).
 struct ImageArgs {
   std::string solution, camera, cameras, out;
   GatherOptions gather;
@@ -607,9 +608,9 @@ struct ImageArgs {
 };
 
 CLI::App* add_image_command(CLI::App& app, ImageArgs& a) {
-  auto* cmd = app.add_subcommand("image", "Image a solved scene (the PLY sirad wrote) by a final gather: direct light traced, "
+  auto* cmd = app.add_subcommand("image", "Image a solved scene (the PLY or glb sirad wrote) by a final gather: direct light traced, "
                                           "indirect from the solution; write NAME.exr (passes direct, indirect) and NAME.png");
-  cmd->add_option("solution", a.solution, "The solution: a PLY written by sirad render, reference or a coordinator")->required();
+  cmd->add_option("solution", a.solution, "The solution: the .ply or .glb written by sirad render, reference or a coordinator")->required();
   auto* camera = cmd->add_option("--camera", a.camera,
                                  "The view: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the solution's camera)");
   cmd->add_option("--cameras", a.cameras,
@@ -655,7 +656,7 @@ int image(ImageArgs& a) {
   const std::string name = a.out.empty() ? fs::path(a.solution).stem().string() + "-image" : a.out;
   check_output_name(name, "--out");
   Solution s = read_solution(a.solution);
-  const FinalGather gather(s.mesh, s.radiosity, a.gather);  // the scene's rays made once, for every view
+  const FinalGather gather(s.mesh, std::move(s.corners), a.gather);  // the scene's rays made once, for every view
   std::vector<Camera> views;
   if (!a.cameras.empty()) views = read_cameras(a.cameras);
   else if (!a.camera.empty()) views = {cli::camera_flag(a.camera).value()};

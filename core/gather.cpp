@@ -35,10 +35,10 @@ struct FinalGather::Impl {
   std::vector<double> emitter_cdf;
   double emitter_area = 0.0;
 
-  Impl(const PatchMesh& m, const std::vector<glm::vec3>& radiosity, const GatherOptions& o)
+  Impl(const PatchMesh& m, std::vector<std::array<glm::vec3, 3>> c, const GatherOptions& o)
       : mesh(m),
         options(o),
-        corners(corner_radiosity(m, radiosity)),
+        corners(std::move(c)),
         offset(ray_offset(m)),
         rays(m, offset) {
     for (std::size_t j = 0; j < mesh.size(); ++j)
@@ -186,13 +186,27 @@ struct FinalGather::Impl {
   }
 };
 
-FinalGather::FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const GatherOptions& options) {
+namespace {
+
+void check_options(const GatherOptions& options) {
   if (options.spp < 1 || options.spp > 65536) fail("final gather: {} samples per pixel (1..65536)", options.spp);
   if (options.width < 1 || options.height < 1 || options.width > 16384 || options.height > 16384)
     fail("final gather: image {}x{} (1 to 16384 a side)", options.width, options.height);
   if (options.threads < 0) fail("final gather: {} threads", options.threads);
+}
+
+}  // namespace
+
+FinalGather::FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const GatherOptions& options) {
+  check_options(options);
   if (radiosity.size() != mesh.size()) fail("final gather: {} radiosity values for {} patches", radiosity.size(), mesh.size());
-  impl_ = std::make_unique<Impl>(mesh, radiosity, options);
+  impl_ = std::make_unique<Impl>(mesh, corner_radiosity(mesh, radiosity), options);
+}
+
+FinalGather::FinalGather(const PatchMesh& mesh, std::vector<std::array<glm::vec3, 3>> corners, const GatherOptions& options) {
+  check_options(options);
+  if (corners.size() != mesh.size()) fail("final gather: {} patches' corner values for {} patches", corners.size(), mesh.size());
+  impl_ = std::make_unique<Impl>(mesh, std::move(corners), options);
 }
 
 FinalGather::~FinalGather() = default;

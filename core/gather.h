@@ -15,6 +15,7 @@
 // A pixel's value depends only on the seed and the pixel's position: any split of the image
 // into regions (tiles), on any number of threads or nodes, gives the same image bit for bit.
 #pragma once
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -58,6 +59,9 @@ class FinalGather {
   // Throws sirad::Error for a solution or options that do not fit (a size mismatch, spp or
   // image size out of range).
   FinalGather(const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, const GatherOptions& options);
+  // The same from the solution as interpolated (core/output.h corner_radiosity: 3 values per
+  // patch), as a stored solution's glTF holds it.
+  FinalGather(const PatchMesh& mesh, std::vector<std::array<glm::vec3, 3>> corners, const GatherOptions& options);
   ~FinalGather();
   FinalGather(const FinalGather&) = delete;
   FinalGather& operator=(const FinalGather&) = delete;

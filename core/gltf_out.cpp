@@ -14,6 +14,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/scene.h"
 
 namespace sirad {
 
@@ -42,6 +43,12 @@ int add_accessor(tinygltf::Model& m, const std::vector<T>& values, std::size_t c
   return static_cast<int>(m.accessors.size() - 1);
 }
 
+// Three numbers as a JSON array (a float is a double exactly: read back, the same float).
+tinygltf::Value triple(const glm::vec3& v) {
+  return tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(static_cast<double>(v.x)), tinygltf::Value(static_cast<double>(v.y)),
+                                                tinygltf::Value(static_cast<double>(v.z))});
+}
+
 }  // namespace
 
 void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, float exposure,
@@ -53,6 +60,7 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
   tinygltf::Model m;
   m.asset.version = "2.0";
   m.asset.generator = "sirad";
+  m.asset.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_background", triple(mesh.background)}});
   m.extensionsUsed.push_back("KHR_materials_unlit");
   m.buffers.resize(1);
   for (const Material& mat : mesh.materials) {
@@ -62,6 +70,8 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
     g.pbrMetallicRoughness.metallicFactor = 0.0;
     g.pbrMetallicRoughness.roughnessFactor = 1.0;
     g.extensions["KHR_materials_unlit"] = tinygltf::Value(tinygltf::Value::Object());
+    g.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_reflectance", triple(mat.reflectance)},
+                                                       {"sirad_emission", triple(mat.emission)}});
     m.materials.push_back(g);
   }
   // Patches by object, then by material: one mesh per object, one primitive per material.
@@ -128,6 +138,7 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
     tinygltf::Node node;
     node.name = "sirad view";
     node.camera = 0;
+    node.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_camera", tinygltf::Value(camera_spec(*mesh.camera))}});
     node.matrix = {r.x, r.y, r.z, 0, u.x, u.y, u.z, 0, -f.x, -f.y, -f.z, 0, eye.x, eye.y, eye.z, 1};
     m.nodes.push_back(node);
     scene.nodes.push_back(static_cast<int>(m.nodes.size() - 1));

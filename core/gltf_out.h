@@ -6,6 +6,10 @@
 // borders stay sharp. Materials are KHR_materials_unlit with a white base colour: viewers show
 // the lighting as solved. Back faces stay one-sided (doubleSided false), as the solution is; a
 // two-sided surface carries both sides as two faces. The camera of the images is a camera node.
+// What a viewer has no use for, but rendering from the file again needs (core/solution.h), is
+// in `extras`: each material's sirad_reflectance and sirad_emission, the camera node's
+// sirad_camera (camera_spec: the view exactly, not rebuilt from the node's matrix) and the
+// asset's sirad_background. _RADIANCE holds the interpolated solution itself.
 #pragma once
 #include <string>
 #include <vector>

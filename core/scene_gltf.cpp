@@ -14,6 +14,7 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -48,7 +49,9 @@ std::string clean(const std::string& name) { return import::without_controls(nam
 
 class GltfReader {
  public:
-  GltfReader(std::string path, const tinygltf::Model& model) : path_(std::move(path)), m_(model) {}
+  // `radiance`: read the solution sirad wrote as well (import_gltf).
+  GltfReader(std::string path, const tinygltf::Model& model, std::vector<std::array<glm::vec3, 3>>* radiance)
+      : path_(std::move(path)), m_(model), radiance_(radiance) {}
 
   Scene read(const ImportOptions& options) {
     scene_.name = path_;
@@ -61,6 +64,8 @@ class GltfReader {
            "surfaces (give a mesh an emissive material, e.g. Blender's Emission strength)",
            path_, m_.lights.size(), m_.lights.size() == 1 ? "" : "s");
     if (m_.scenes.empty()) fail("{}: no scene", path_);
+    if (m_.asset.extras.Has("sirad_background"))
+      scene_.background = glm::vec3(sirad_triple(m_.asset.extras.Get("sirad_background"), "the asset's sirad_background", 0.0, 3.0e38));
     const int which = m_.defaultScene >= 0 ? m_.defaultScene : 0;
     if (which >= static_cast<int>(m_.scenes.size())) fail("{}: default scene {} does not exist", path_, which);
     // The node tree, depth first, each node once (a file whose children form a cycle is refused).
@@ -202,6 +207,10 @@ class GltfReader {
       }
       if (g.emissiveTexture.index >= 0)
         scene_.warnings.push_back(fmt::format("{}: {}: its emissive texture is not read; emissiveFactor is used", path_, what));
+      // A file sirad wrote: its viewers' colours are the solution (an unlit white base), the
+      // scene's reflectance and emission are in the extras.
+      if (g.extras.Has("sirad_reflectance")) rho = sirad_triple(g.extras.Get("sirad_reflectance"), what + " sirad_reflectance", 0.0, 1.0);
+      if (g.extras.Has("sirad_emission")) emission = sirad_triple(g.extras.Get("sirad_emission"), what + " sirad_emission", 0.0, 3.0e38);
       mat.reflectance = glm::vec3(rho);
       mat.emission = glm::vec3(emission);
       mat.two_sided = g.doubleSided;
@@ -288,6 +297,21 @@ class GltfReader {
         for (std::size_t i = 0; i < index.size(); ++i) index[i] = static_cast<uint32_t>(i);
       }
       const uint32_t mat = material(prim.material);
+      std::vector<glm::vec3> radiance;  // per vertex, when the solution is read
+      if (radiance_) {
+        auto r = prim.attributes.find("_RADIANCE");
+        if (r == prim.attributes.end()) fail("{}: {}: no _RADIANCE: not a solution sirad wrote", path_, what);
+        View rv = view(r->second, what + " _RADIANCE");
+        if (m_.accessors[static_cast<std::size_t>(r->second)].componentType != TINYGLTF_COMPONENT_TYPE_FLOAT || rv.components != 3 ||
+            rv.count != points.size())
+          fail("{}: {}: _RADIANCE is not float VEC3 with one value per vertex", path_, what);
+        radiance.resize(rv.count);
+        for (std::size_t i = 0; i < rv.count; ++i) {
+          std::memcpy(&radiance[i], rv.data + i * rv.stride, sizeof(float) * 3);
+          for (int k = 0; k < 3; ++k)
+            if (!std::isfinite(radiance[i][k])) fail("{}: {}: _RADIANCE of vertex {} is not finite", path_, what, i);
+        }
+      }
       auto add = [&](uint32_t a, uint32_t b, uint32_t c) {
         if (mirrored) std::swap(b, c);
         Triangle t;
@@ -304,6 +328,7 @@ class GltfReader {
         }
         if (scene_.triangles.size() >= kMaxTriangles) fail("{}: more than {} triangles", path_, kMaxTriangles);
         scene_.triangles.push_back(t);
+        if (radiance_) radiance_->push_back({radiance[a], radiance[b], radiance[c]});
       };
       if (prim.mode == TINYGLTF_MODE_TRIANGLES) {
         if (index.size() % 3 != 0) fail("{}: {}: {} indices are not whole triangles", path_, what, index.size());
@@ -326,6 +351,16 @@ class GltfReader {
       scene_.warnings.push_back(fmt::format("{}: {}: camera '{}' is {}, not perspective: not used", path_, where(node), clean(c.name), clean(c.type)));
       return;
     }
+    if (n.extras.Has("sirad_camera")) {  // the view sirad's images showed, exactly
+      const tinygltf::Value& spec = n.extras.Get("sirad_camera");
+      if (!spec.IsString()) fail("{}: {}: sirad_camera is not a string", path_, where(node));
+      try {
+        scene_.camera = parse_camera(spec.Get<std::string>());
+      } catch (const Error& e) {
+        fail("{}: {}: sirad_camera: {}", path_, where(node), e.what());
+      }
+      return;
+    }
     const double fov = c.perspective.yfov * 180.0 / std::numbers::pi;
     if (!(fov > 0.0 && fov < 180.0)) fail("{}: {}: camera yfov {} outside (0, pi)", path_, where(node), c.perspective.yfov);
     glm::dvec3 eye(world * glm::dvec4(0, 0, 0, 1)), forward(world * glm::dvec4(0, 0, -1, 0)), up(world * glm::dvec4(0, 1, 0, 0));
@@ -344,6 +379,20 @@ class GltfReader {
   Scene scene_;
   std::map<int, uint32_t> material_of_;
   std::size_t skipped_ = 0;
+  std::vector<std::array<glm::vec3, 3>>* radiance_ = nullptr;
+
+  // Three numbers in [lo, hi] from an `extras` value sirad wrote, or one error naming `what`.
+  glm::dvec3 sirad_triple(const tinygltf::Value& v, const std::string& what, double lo, double hi) const {
+    if (!v.IsArray() || v.ArrayLen() != 3) fail("{}: {}: not 3 numbers", path_, what);
+    glm::dvec3 out;
+    for (int k = 0; k < 3; ++k) {
+      const tinygltf::Value& x = v.Get(k);
+      if (!x.IsNumber()) fail("{}: {}: not 3 numbers", path_, what);
+      out[k] = x.GetNumberAsDouble();
+      if (!(out[k] >= lo && out[k] <= hi)) fail("{}: {}: {} outside [{}, {}]", path_, what, out[k], lo, hi);
+    }
+    return out;
+  }
 };
 
 // Every file tinygltf reads beside the scene (external buffers and images) is read as the scene
@@ -367,7 +416,7 @@ bool no_write(std::string* err, const std::string&, const std::vector<unsigned c
 
 }  // namespace
 
-Scene import_gltf(const std::string& path, const ImportOptions& options) {
+Scene import_gltf(const std::string& path, const ImportOptions& options, std::vector<std::array<glm::vec3, 3>>* radiance) {
   const std::string bytes = import::read_file(path, path);
   if (bytes.size() > std::numeric_limits<unsigned int>::max()) fail("{}: file is larger than 2 GiB", path);
   tinygltf::TinyGLTF loader;
@@ -387,7 +436,7 @@ Scene import_gltf(const std::string& path, const ImportOptions& options) {
     return import::without_controls(line, 300) + (line.size() > 300 ? "..." : "");
   };
   if (!ok) fail("{}: not a readable glTF file: {}", path, first_line(err.empty() ? warn : err));
-  Scene scene = GltfReader(path, model).read(options);
+  Scene scene = GltfReader(path, model, radiance).read(options);
   if (!warn.empty()) scene.warnings.push_back(fmt::format("{}: {}", path, first_line(warn)));
   return scene;
 }

@@ -1,15 +1,38 @@
 // sirad: a solution read back (see solution.h).
 #include "core/solution.h"
 
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+
 #include "core/error.h"
+#include "core/output.h"
+#include "core/scene_gltf.h"
 #include "core/scene_ply.h"
 
 namespace sirad {
 
 Solution read_solution(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  Solution s;
+  if (ext == ".glb" || ext == ".gltf") {
+    std::vector<std::array<glm::vec3, 3>> per_triangle;
+    Scene scene = import_gltf(path, {}, &per_triangle);
+    s.mesh = mesh_scene(scene, MeshOptions{});  // one patch per triangle, its corners in order
+    s.corners.resize(s.mesh.size());
+    for (std::size_t j = 0; j < s.mesh.size(); ++j) {
+      const uint32_t t = s.mesh.source_triangle[j];
+      if (t >= per_triangle.size()) fail("{}: patch {} has no triangle", path, j);
+      s.corners[j] = per_triangle[t];
+    }
+    s.radiosity.resize(s.mesh.size());
+    for (std::size_t j = 0; j < s.mesh.size(); ++j) s.radiosity[j] = (s.corners[j][0] + s.corners[j][1] + s.corners[j][2]) / 3.0f;
+    return s;
+  }
+  if (ext != ".ply") fail("{}: not a solution sirad reads (a .ply or .glb it wrote)", path);
   std::vector<glm::vec3> per_triangle;
   Scene scene = import_ply(path, {}, &per_triangle);
-  Solution s;
   s.mesh = mesh_scene(scene, MeshOptions{});  // one patch per triangle: the faces as written
   s.radiosity.resize(s.mesh.size());
   for (std::size_t j = 0; j < s.mesh.size(); ++j) {
@@ -17,6 +40,7 @@ Solution read_solution(const std::string& path) {
     if (t >= per_triangle.size()) fail("{}: patch {} has no face", path, j);
     s.radiosity[j] = per_triangle[t];
   }
+  s.corners = corner_radiosity(s.mesh, s.radiosity);
   return s;
 }
 

@@ -3,6 +3,7 @@
 // materials with emission strength, two-sided materials, the transform hierarchy and the camera
 // are read; the same scene as OBJ and as glTF gives the same answer; hostile files give one
 // clear error and never a crash.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <set>
@@ -21,11 +22,13 @@
 #include <tiny_gltf.h>
 
 #include "core/error.h"
+#include "core/gather.h"
 #include "core/gltf_out.h"
 #include "core/output.h"
 #include "core/mesh.h"
 #include "core/reference.h"
 #include "core/scene.h"
+#include "core/solution.h"
 
 namespace sirad {
 namespace {
@@ -234,6 +237,58 @@ TEST_F(GltfFiles, HostileFilesGiveOneLineErrors) {
     const std::string path = write("bad.glb", garbage);
     EXPECT_THROW(load_scene(path), Error);
   }
+}
+
+// A solution read back from the .glb sirad wrote renders as from its PLY (core/solution.h): the
+// same patches, the corner values the gather interpolates, the camera and background exactly,
+// so the final gathers of the two are one image bit for bit; reflectance and emission come
+// from the materials' extras (the base colour is an unlit white).
+TEST_F(GltfFiles, ASolutionReadBackFromItsGlbRendersAsFromItsPly) {
+  PatchMesh mesh = mesh_scene(builtin_cornell(), MeshOptions{.target_patches = 300});
+  mesh.background = glm::vec3(0.25f, 0.5f, 0.125f);
+  mesh.camera->eye.x += 0.1234567f;  // a view no matrix rebuilds exactly
+  std::vector<glm::vec3> radiosity(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j)
+    radiosity[j] = mesh.emission(j) + mesh.reflectance(j) * (1.0f + 0.37f * static_cast<float>(j % 11));
+  const std::string glb = (dir_ / "s.glb").string(), ply = (dir_ / "s.ply").string();
+  write_glb(glb, mesh, radiosity, 0.0f, 1.0);
+  write_ply(ply, mesh, radiosity, 0.0f);
+  const Solution a = read_solution(glb), b = read_solution(ply);
+  ASSERT_EQ(a.mesh.size(), mesh.size());
+  ASSERT_EQ(b.mesh.size(), mesh.size());
+  ASSERT_TRUE(a.mesh.camera && b.mesh.camera);
+  EXPECT_EQ(camera_spec(*a.mesh.camera), camera_spec(*mesh.camera));
+  EXPECT_EQ(a.mesh.background, mesh.background);
+  for (std::size_t m = 0; m < a.mesh.materials.size(); ++m) {
+    const Material& got = a.mesh.materials[m];
+    const auto want = std::find_if(mesh.materials.begin(), mesh.materials.end(), [&](const Material& x) { return x.name == got.name; });
+    ASSERT_NE(want, mesh.materials.end()) << got.name;
+    EXPECT_EQ(got.reflectance, want->reflectance) << got.name;
+    EXPECT_EQ(got.emission, want->emission) << got.name;
+  }
+  const GatherOptions o{.width = 20, .height = 16, .spp = 4, .seed = 3, .threads = 2};
+  const GatherPasses from_glb = FinalGather(a.mesh, a.corners, o).render(*a.mesh.camera);
+  const GatherPasses from_ply = FinalGather(b.mesh, b.corners, o).render(*b.mesh.camera);
+  EXPECT_EQ(from_glb.combined.pixels, from_ply.combined.pixels);
+  EXPECT_EQ(from_glb.direct.pixels, from_ply.direct.pixels);
+  EXPECT_EQ(from_glb.indirect.pixels, from_ply.indirect.pixels);
+  double sum = 0;
+  for (const glm::vec3& v : from_glb.indirect.pixels) sum += v.x;
+  EXPECT_GT(sum, 0.0) << "an image with light in it";
+  // A glTF from elsewhere is a scene, not a solution; a solution's extras out of range refused.
+  try {
+    read_solution(write("tri.gltf", gltf_text()));
+    ADD_FAILURE() << "a glTF without _RADIANCE read as a solution";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("no _RADIANCE"), std::string::npos) << e.what();
+  }
+  const std::string m = expect_refused(
+      "bad.gltf", gltf_text({{"materials", R"([{"emissiveFactor": [1, 1, 1], "extras": {"sirad_reflectance": [0.5, 2, 0.5]}}])"}}));
+  EXPECT_NE(m.find("sirad_reflectance"), std::string::npos) << m;
+  EXPECT_NE(expect_refused("bad.gltf", gltf_text({{"asset", R"({"version": "2.0", "extras": {"sirad_background": [1, -1, 0]}})"}}))
+                .find("sirad_background"),
+            std::string::npos);
+  EXPECT_THROW(read_solution(write("s.txt", "x")), Error);
 }
 
 // Random damage to Blender's .glb (bytes flipped, cut short, spans overwritten): every load

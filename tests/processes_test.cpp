@@ -754,8 +754,9 @@ double furnace_mean(const fs::path& ply) {
 // ends cancelled, its checkpoint gone), then the next (priority 1), then the last (priority 0);
 // each of the two that finish ran every bundle index once (its ledger), and the furnace's mean
 // is 2 within 4 standard deviations of a 512-bundle plain chain average (0.0097 sqrt(1024 / 512)
-// 4 = 0.055, the bound of Processes.CoordinatorAndThreeNodesOverTcp). Submitting without the
-// token is refused (401); the API lists the jobs and hands out their images.
+// 4 = 0.055, the bound of Processes.CoordinatorAndThreeNodesOverTcp); the Cornell job's final
+// gather is rendered in tiles by the nodes. Submitting without the token is refused (401); the
+// API lists the jobs and hands out their images.
 TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
   const fs::path dir = fresh_dir("sirad_farm");
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
@@ -771,7 +772,7 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
   auto [made, code] = curl(dir, {"-H", "Authorization: Bearer " + farm.token, "-F", "job=" + big, farm.url + "/api/jobs"});
   ASSERT_EQ(code, 201) << made;  // job 2
   submit({"cornell", "--farm", farm.url, "--token-file", (farm.folder / "token").string(), "--name", "mid", "--priority", "1",
-          "--patches", "300", "--bundles", "128", "--width", "8", "--height", "8"});  // job 3
+          "--patches", "300", "--bundles", "128", "--width", "40", "--height", "8", "--final-gather", "4"});  // job 3
   std::vector<std::unique_ptr<Child>> nodes = insecure_nodes(dir, farm.endpoint, "f", 2);
   ASSERT_TRUE(wait_until([&] { return bundles_done(farm.folder / "jobs" / "2" / "status.json") > 0; }))
       << "the highest priority never ran\n" << slurp(dir / "farm0.log");
@@ -790,6 +791,13 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
   EXPECT_LT(j3["started"].get<double>(), j1["started"].get<double>());
   expect_every_index_once(read_ledger(farm.folder / "jobs" / "1" / "ledger.csv"), 512);
   expect_every_index_once(read_ledger(farm.folder / "jobs" / "3" / "ledger.csv"), 128);
+  // Job 3's final gather: its two tiles (40 x 8 in 32-pixel tiles) rendered by the job's nodes.
+  const sirad::cluster::Status s3 = sirad::cluster::read_status((farm.folder / "jobs" / "3" / "status.json").string());
+  EXPECT_EQ(s3.image_tiles, 2u);
+  EXPECT_EQ(s3.image_tiles_done, 2u);
+  uint64_t tiles = 0;
+  for (const auto& n : s3.nodes) tiles += n.tiles;
+  EXPECT_EQ(tiles, 2u) << "the job's tiles come from its nodes";
   EXPECT_NEAR(furnace_mean(farm.folder / "jobs" / "1" / "low.ply"), 2.0, 0.055);
   auto [list, list_code] = curl(dir, {farm.url + "/api/jobs"});
   EXPECT_EQ(list_code, 200);
