@@ -213,7 +213,7 @@ FinalGather::~FinalGather() = default;
 
 const GatherOptions& FinalGather::options() const { return impl_->options; }
 
-GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, int y1) const {
+GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, int y1, const std::function<void()>& between) const {
   const GatherOptions& o = impl_->options;
   if (x0 < 0 || y0 < 0 || x1 > o.width || y1 > o.height || x0 > x1 || y0 > y1)
     fail("final gather: region [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
@@ -229,8 +229,10 @@ GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, i
   std::atomic<int> next_row{y0};
   std::vector<uint64_t> cast(threads, 0);
   auto rows = [&](unsigned t) {  // whole rows each: no pixel is written by two threads
-    for (int y; (y = next_row.fetch_add(1)) < y1;)
+    for (int y; (y = next_row.fetch_add(1)) < y1;) {
       for (int x = x0; x < x1; ++x) cast[t] += impl_->pixel(frame, x, y, x - x0, y - y0, out);
+      if (t == 0 && between) between();
+    }
   };
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back(rows, t);

@@ -521,7 +521,8 @@ class Node {
     }
   }
 
-  // TILES: render the granted tiles (in bands of rows, the heartbeat between them), then PIXELS.
+  // TILES: render the granted tiles (on every core; the heartbeat between this thread's rows),
+  // then PIXELS.
   void tiles(const wire::Grant& g) {
     if (!image_ || !image_->gather || g.run_id() != image_->run_id) return error("TILES for no image of mine");
     ImageState& im = *image_;
@@ -537,18 +538,9 @@ class Node {
           fail("a grant of more than {} tiles, or an empty range", proto::kMaxTilesPerGrant);
         for (uint64_t t = r.first(); t < r.last(); ++t) {
           const cluster::TileRect rect = im.grid->rect(t);
-          const int band = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-          GatherPasses tile;
-          for (Image* p : {&tile.direct, &tile.indirect, &tile.combined}) p->width = rect.x1 - rect.x0;
-          for (int y = rect.y0; y < rect.y1; y += band) {
-            GatherPasses rows = im.gather->render(im.camera, rect.x0, y, rect.x1, std::min(y + band, rect.y1));
-            tile.direct.pixels.insert(tile.direct.pixels.end(), rows.direct.pixels.begin(), rows.direct.pixels.end());
-            tile.indirect.pixels.insert(tile.indirect.pixels.end(), rows.indirect.pixels.begin(), rows.indirect.pixels.end());
-            tile.combined.pixels.insert(tile.combined.pixels.end(), rows.combined.pixels.begin(), rows.combined.pixels.end());
-            rays += rows.rays;
-            tick();
-            if (stopping()) return;
-          }
+          const GatherPasses tile = im.gather->render(im.camera, rect.x0, rect.y0, rect.x1, rect.y1, [this] { tick(); });
+          if (stopping()) return;
+          rays += tile.rays;
           bulk.push_back(cluster::pack_tile(tile));
         }
         *px.add_done() = r;
