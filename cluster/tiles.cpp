@@ -14,18 +14,11 @@ namespace {
 
 constexpr int kMinTileSide = 8;
 
-Image blank(int width, int height) {
-  Image image;
-  image.width = width;
-  image.height = height;
-  image.pixels.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), glm::vec3(0.0f));
-  return image;
-}
-
 }  // namespace
 
 TileGrid::TileGrid(int width, int height, int side) : width_(width), height_(height), side_(side) {
-  if (width < 1 || height < 1 || width > 16384 || height > 16384) fail("image {}x{} (1 to 16384 a side)", width, height);
+  if (width < 1 || height < 1 || width > kMaxImageSide || height > kMaxImageSide)
+    fail("image {}x{} (1 to {} a side)", width, height, kMaxImageSide);
   if (side < kMinTileSide || side > static_cast<int>(proto::kMaxTileSide))
     fail("tile side {} ({} to {})", side, kMinTileSide, proto::kMaxTileSide);
   across_ = (width + side - 1) / side;
@@ -80,9 +73,8 @@ void unpack_tile(const std::string& frame, const TileRect& rect, GatherPasses& i
   place(tile_values(frame, rect), rect, image);
 }
 
-TilePlan::TilePlan(int width, int height, int side) : grid_(width, height, side), ledger_(grid_.count()) {
-  passes_.direct = passes_.indirect = passes_.combined = blank(width, height);
-}
+TilePlan::TilePlan(int width, int height, int side)
+    : grid_(width, height, side), ledger_(grid_.count()), passes_(GatherPasses::of_size(width, height)) {}
 
 std::vector<TileGrant> TilePlan::top_up(uint32_t node) {
   std::vector<TileGrant> out;

@@ -94,8 +94,8 @@ const std::vector<std::string>& cluster_flag_names() {
 std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
   const std::vector<CLI::Option*> options = {
       cmd->add_option("--out", o.out, "Output name: writes NAME.exr, NAME.png, NAME.ply, NAME.glb (default: scene name)"),
-      cmd->add_option("--width", o.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str(),
-      cmd->add_option("--height", o.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str(),
+      cmd->add_option("--width", o.width, "Image width")->check(CLI::Range(1, kMaxImageSide))->capture_default_str(),
+      cmd->add_option("--height", o.height, "Image height")->check(CLI::Range(1, kMaxImageSide))->capture_default_str(),
       cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0)),
       cmd->add_flag("--flat", o.flat, "Flat-shaded image (one value per patch) instead of Gouraud"),
       cmd->add_option("--final-gather", o.final_gather,

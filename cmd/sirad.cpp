@@ -616,8 +616,8 @@ CLI::App* add_image_command(CLI::App& app, ImageArgs& a) {
   cmd->add_option("--cameras", a.cameras,
                   "A walkthrough: one view per line (as --camera; blank lines and # comments skipped), written NAME-0001 ...")
       ->excludes(camera);
-  cmd->add_option("--width", a.gather.width, "Image width")->check(CLI::Range(1, 16384))->capture_default_str();
-  cmd->add_option("--height", a.gather.height, "Image height")->check(CLI::Range(1, 16384))->capture_default_str();
+  cmd->add_option("--width", a.gather.width, "Image width")->check(CLI::Range(1, kMaxImageSide))->capture_default_str();
+  cmd->add_option("--height", a.gather.height, "Image height")->check(CLI::Range(1, kMaxImageSide))->capture_default_str();
   cmd->add_option("--spp", a.gather.spp, "Samples per pixel (each: a primary ray, an emitter sample, a gather ray)")
       ->check(CLI::Range(1, 65536))->capture_default_str();
   cmd->add_option("--seed", a.gather.seed, "Seed")->capture_default_str();

@@ -138,18 +138,10 @@ class Coordinator {
       if (!in) continue;
       const std::vector<std::string>& frames = in->frames;
       std::string id = frames.front();
-      Message m;
+      std::optional<Message> m = decoded(*in);
+      if (!m) continue;
       try {
-        if (in->over)
-          throw proto::ProtocolError(fmt::format("refused a message of {} frames, {} bytes: over the bound of its command",
-                                                 in->frames_seen, in->bytes_seen));
-        m = proto::decode({frames.begin() + 1, frames.end()});
-      } catch (const proto::ProtocolError& e) {
-        log(id, e.what());
-        continue;
-      }
-      try {
-        handle(id, key, in->address, m);
+        handle(id, key, in->address, *m);
       } catch (const Error& e) {
         if (config_.strict) throw;
         log(id, e.what());
@@ -224,6 +216,20 @@ class Coordinator {
     return in;
   }
 
+  // A message as decode reads it, or nothing (logged) when it was over its command's bound or
+  // malformed.
+  std::optional<Message> decoded(const proto::Received& in) {
+    try {
+      if (in.over)
+        throw proto::ProtocolError(fmt::format("refused a message of {} frames, {} bytes: over the bound of its command",
+                                               in.frames_seen, in.bytes_seen));
+      return proto::decode({in.frames.begin() + 1, in.frames.end()});
+    } catch (const proto::ProtocolError& e) {
+      log(in.frames.front(), e.what());
+      return std::nullopt;
+    }
+  }
+
   bool imaging() const { return config_.final_gather.spp > 0 && mesh_.camera.has_value(); }
 
   // The image phase (PROTOCOL.md section 3.4): the final gather of the solution, in tiles
@@ -289,32 +295,24 @@ class Coordinator {
       auto in = next(now, key);
       if (!in) continue;
       const std::string id = in->frames.front();
-      Message m;
-      try {
-        if (in->over)
-          throw proto::ProtocolError(fmt::format("refused a message of {} frames, {} bytes: over the bound of its command",
-                                                 in->frames_seen, in->bytes_seen));
-        m = proto::decode({in->frames.begin() + 1, in->frames.end()});
-      } catch (const proto::ProtocolError& e) {
-        log(id, e.what());
-        continue;
-      }
+      std::optional<Message> m = decoded(*in);
+      if (!m) continue;
       auto it = peers_.find(id);
       // The image is the run's last part: nobody joins now, and nodes done with the run (a
       // HELLO) or dropped from the image have nothing to say to it.
       if (it == peers_.end() || !it->second.imaging || it->second.key != key) {
-        if (m.command != Command::hello && m.command != Command::heartbeat)
-          log(id, fmt::format("{} during the image, from no node rendering it: ignored", proto::command_name(m.command)));
+        if (m->command != Command::hello && m->command != Command::heartbeat)
+          log(id, fmt::format("{} during the image, from no node rendering it: ignored", proto::command_name(m->command)));
         continue;
       }
       Peer& p = it->second;
       p.last_seen = Clock::now();
       try {
-        switch (m.command) {
-          case Command::pixels: pixels(p, std::get<wire::Pixels>(m.header), m.bulk, plan); break;
+        switch (m->command) {
+          case Command::pixels: pixels(p, std::get<wire::Pixels>(m->header), m->bulk, plan); break;
           case Command::heartbeat: break;
-          case Command::error: fail("node: {}", peer_text(std::get<wire::Error>(m.header).reason(), 300));
-          default: fail("unexpected {} during the image", proto::command_name(m.command));
+          case Command::error: fail("node: {}", peer_text(std::get<wire::Error>(m->header).reason(), 300));
+          default: fail("unexpected {} during the image", proto::command_name(m->command));
         }
       } catch (const Error& e) {
         drop_from_image(p, plan, e.what());
@@ -362,28 +360,19 @@ class Coordinator {
     plan.accept(p.index, px.grant_id(), done, bulk);
     std::erase_if(p.due, [&](const auto& d) { return d.first == px.grant_id(); });
     for (const std::string& f : bulk) p.bytes_in += f.size();
-    // Its time per tile (its own word, within [0, kMaxSeconds]), for the next deadlines.
-    if (px.busy_s() >= 0 && px.busy_s() <= kMaxSeconds) {
-      const uint64_t tiles = plan.tiles_done_by(p.index);
-      p.tile_s = std::max(p.tile_s, px.busy_s() / static_cast<double>(std::max<uint64_t>(1, tiles - p.tiles)));
-    }
-    p.tiles = plan.tiles_done_by(p.index);
+    // Its time per tile (its own word, within [0, kMaxSeconds]), for the next deadlines. Accepted,
+    // the PIXELS holds one frame per tile.
+    if (px.busy_s() >= 0 && px.busy_s() <= kMaxSeconds)
+      p.tile_s = std::max(p.tile_s, px.busy_s() / static_cast<double>(std::max<std::size_t>(1, bulk.size())));
+    p.tiles += bulk.size();
   }
 
   // The image phase's liveness: as keep_alive's, for the nodes rendering tiles.
   void image_keep_alive(Clock::time_point now, TilePlan& plan) {
-    const auto interval = std::chrono::milliseconds(config_.heartbeat_ms);
     for (auto& [id, p] : peers_) {
       if (!p.imaging) continue;
-      if (p.unreachable || p.down.failed() > 0) drop_from_image(p, plan, "a message to it could not be sent");
-      else if (read_up_to_ - p.last_seen > interval * config_.liveness)
-        drop_from_image(p, plan, fmt::format("silent for {:.1f} s", seconds(read_up_to_ - p.last_seen)));
-      else if (!p.due.empty() && read_up_to_ > p.due.front().second)
-        drop_from_image(p, plan, fmt::format("tiles of grant {} overdue", p.due.front().first));
-      else {
-        if (now - p.last_sent >= interval) send(p, {Command::heartbeat, {}, {}});
-        p.down.flush(router_, clock(now));
-      }
+      if (std::string why = gone(p, true); !why.empty()) drop_from_image(p, plan, why);
+      else keep_in_touch(p, now);
     }
   }
 
@@ -476,43 +465,44 @@ class Coordinator {
   // fsync on a loaded machine) the heartbeats that came meanwhile wait in the socket, and a node
   // is silent only if the socket, read up to date, holds nothing newer from it.
   void keep_alive(Clock::time_point now) {
-    const Clock::time_point judged = read_up_to_;
-    auto interval = std::chrono::milliseconds(config_.heartbeat_ms);
     for (auto& [id, p] : peers_) {
       const NodeState& n = policy_.node(p.index);
       if (n.dead) continue;
       if (n.final_in) {  // done with the run; waiting for the image, it hears from us meanwhile
-        if (imaging()) {
-          // Bundles to run again (a node quarantined at its FINAL gave them back): a node that
-          // waits for the image says no HELLO by itself, so it is asked to, and rejoins.
-          if (!policy_.closing() && policy_.ledger().available() > 0 && !p.asked_rejoin) {
-            p.asked_rejoin = true;
-            wire::Error e;
-            e.set_reason("bundles to run again; say HELLO");
-            e.set_rejoin(true);
-            send(p, {Command::error, e, {}});
-          } else if (now - p.last_sent >= interval) {
-            send(p, {Command::heartbeat, {}, {}});
-          }
+        // Bundles to run again (a node quarantined at its FINAL gave them back): a node that
+        // waits for the image says no HELLO by itself, so it is asked to, and rejoins.
+        if (imaging() && !policy_.closing() && policy_.ledger().available() > 0 && !p.asked_rejoin) {
+          p.asked_rejoin = true;
+          wire::Error e;
+          e.set_reason("bundles to run again; say HELLO");
+          e.set_rejoin(true);
+          send(p, {Command::error, e, {}});
         }
-        p.down.flush(router_, clock(now));
+        if (imaging()) keep_in_touch(p, now);
+        else p.down.flush(router_, clock(now));
         continue;
       }
-      if (p.unreachable || p.down.failed() > 0) {
-        declare_dead(p, "a message to it could not be sent");
-        continue;
-      }
-      if (n.ready && judged - p.last_seen > interval * config_.liveness) {
-        declare_dead(p, fmt::format("silent for {:.1f} s", seconds(judged - p.last_seen)));
-        continue;
-      }
-      if (!p.due.empty() && judged > p.due.front().second) {
-        declare_dead(p, fmt::format("grant {} overdue by {:.1f} s", p.due.front().first, seconds(judged - p.due.front().second)));
-        continue;
-      }
-      if (now - p.last_sent >= interval) send(p, {Command::heartbeat, {}, {}});
-      p.down.flush(router_, clock(now));
+      if (std::string why = gone(p, n.ready); !why.empty()) declare_dead(p, why);
+      else keep_in_touch(p, now);
     }
+  }
+
+  // Why `p` is gone, or "": a message to it could not be sent, it has been silent for the
+  // liveness window (when `watched`: a node is not before its READY), or its oldest grant is
+  // past due. Silence and deadlines are judged at read_up_to_ (keep_alive says why).
+  std::string gone(const Peer& p, bool watched) const {
+    if (p.unreachable || p.down.failed() > 0) return "a message to it could not be sent";
+    if (watched && read_up_to_ - p.last_seen > std::chrono::milliseconds(config_.heartbeat_ms) * config_.liveness)
+      return fmt::format("silent for {:.1f} s", seconds(read_up_to_ - p.last_seen));
+    if (!p.due.empty() && read_up_to_ > p.due.front().second)
+      return fmt::format("grant {} overdue by {:.1f} s", p.due.front().first, seconds(read_up_to_ - p.due.front().second));
+    return "";
+  }
+
+  // A HEARTBEAT to `p` if nothing went to it for an interval, and its emulated link's due messages.
+  void keep_in_touch(Peer& p, Clock::time_point now) {
+    if (now - p.last_sent >= std::chrono::milliseconds(config_.heartbeat_ms)) send(p, {Command::heartbeat, {}, {}});
+    p.down.flush(router_, clock(now));
   }
 
   // How long a peer may be silent (heartbeat_ms x liveness).

@@ -190,8 +190,8 @@ namespace {
 
 void check_options(const GatherOptions& options) {
   if (options.spp < 1 || options.spp > 65536) fail("final gather: {} samples per pixel (1..65536)", options.spp);
-  if (options.width < 1 || options.height < 1 || options.width > 16384 || options.height > 16384)
-    fail("final gather: image {}x{} (1 to 16384 a side)", options.width, options.height);
+  if (options.width < 1 || options.height < 1 || options.width > kMaxImageSide || options.height > kMaxImageSide)
+    fail("final gather: image {}x{} (1 to {} a side)", options.width, options.height, kMaxImageSide);
   if (options.threads < 0) fail("final gather: {} threads", options.threads);
 }
 
@@ -211,6 +211,16 @@ FinalGather::FinalGather(const PatchMesh& mesh, std::vector<std::array<glm::vec3
 
 FinalGather::~FinalGather() = default;
 
+GatherPasses GatherPasses::of_size(int width, int height) {
+  GatherPasses p;
+  for (Image* image : {&p.direct, &p.indirect, &p.combined}) {
+    image->width = width;
+    image->height = height;
+    image->pixels.assign(static_cast<std::size_t>(width) * static_cast<std::size_t>(height), glm::vec3(0.0f));
+  }
+  return p;
+}
+
 const GatherOptions& FinalGather::options() const { return impl_->options; }
 
 GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, int y1, const std::function<void()>& between) const {
@@ -218,12 +228,7 @@ GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, i
   if (x0 < 0 || y0 < 0 || x1 > o.width || y1 > o.height || x0 > x1 || y0 > y1)
     fail("final gather: region [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
   const CameraFrame frame = camera_frame(camera, o.width, o.height, "final gather");
-  GatherPasses out;
-  for (Image* image : {&out.direct, &out.indirect, &out.combined}) {
-    image->width = x1 - x0;
-    image->height = y1 - y0;
-    image->pixels.assign(static_cast<std::size_t>(image->width) * image->height, glm::vec3(0.0f));
-  }
+  GatherPasses out = GatherPasses::of_size(x1 - x0, y1 - y0);
   const unsigned threads = std::min<unsigned>(o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::thread::hardware_concurrency()),
                                               static_cast<unsigned>(std::max(1, y1 - y0)));
   std::atomic<int> next_row{y0};

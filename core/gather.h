@@ -47,6 +47,8 @@ struct GatherOptions {
 struct GatherPasses {
   Image direct, indirect, combined;
   uint64_t rays = 0;  // rays cast (primary, shadow, gather)
+  // Passes of width x height, every pixel 0.
+  static GatherPasses of_size(int width, int height);
   // The EXR layers (write_exr_layers): the combined unprefixed, then "direct" and "indirect".
   std::vector<std::pair<std::string, const Image*>> layers() const {
     return {{"", &combined}, {"direct", &direct}, {"indirect", &indirect}};

@@ -19,6 +19,9 @@ namespace sirad {
 using AttributeValue = std::variant<int64_t, double, std::string>;
 using Attributes = std::vector<std::pair<std::string, AttributeValue>>;
 
+// The largest image side any writer, the final gather and the image phase's tiles take.
+inline constexpr int kMaxImageSide = 16384;
+
 struct Image {
   int width = 0, height = 0;
   std::vector<glm::vec3> pixels;  // row-major, top row first

@@ -51,8 +51,8 @@ std::string wrote_lines(const ResultFiles& files) {
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
                           const std::vector<glm::vec3>& radiosity, const ResultOptions& options,
                           const Attributes& attributes, const GatherPasses* gathered) {
-  if (options.width < 1 || options.height < 1 || options.width > 16384 || options.height > 16384)
-    fail("image size {}x{} outside 1..16384", options.width, options.height);
+  if (options.width < 1 || options.height < 1 || options.width > kMaxImageSide || options.height > kMaxImageSide)
+    fail("image size {}x{} outside 1..{}", options.width, options.height, kMaxImageSide);
   if (!mesh.camera) fail("{}: the mesh carries no camera", name);
   if (radiosity.size() != mesh.size()) fail("{}: {} radiosity values for {} patches", name, radiosity.size(), mesh.size());
   for (std::size_t j = 0; j < radiosity.size(); ++j)

@@ -797,6 +797,21 @@ def scaled_sums(factor):
     return lie
 
 
+def run_with_liar(run, ctx, lie, honest):
+    """`honest` honest nodes and a real node named "liar" behind a LyingProxy (`lie`) in `run`,
+    until the run ends; the proxy (how often it lied)."""
+    proxy = LyingProxy(ctx, run.endpoint, lie)
+    run.honest(honest)
+    liar = Proc([os.path.join(run.build, "sirad-node"), "--connect", proxy.endpoint, "--name", "liar", "--insecure"],
+                os.path.join(run.work, "liar.log"))
+    try:
+        run.finish()
+    finally:
+        liar.stop()
+        proxy.stop()
+    return proxy
+
+
 def lying_node_case(build, work, ctx, factor, honest, what):
     """Class 17: `honest` honest nodes and a real node behind a LyingProxy (`factor`). The liar
     is quarantined for `what` (the reason in the log: the scene's bound, or the median of the
@@ -805,15 +820,7 @@ def lying_node_case(build, work, ctx, factor, honest, what):
     its tolerance, no honest node quarantined). The coordinator's peak stays under 60 MiB (23 in
     the control case)."""
     run = Run(build, work, 4096, honest + 1)
-    proxy = LyingProxy(ctx, run.endpoint, scaled_sums(factor))
-    run.honest(honest)
-    liar = Proc([os.path.join(build, "sirad-node"), "--connect", proxy.endpoint, "--name", "liar", "--insecure"],
-                os.path.join(work, "liar.log"))
-    try:
-        run.finish()
-    finally:
-        liar.stop()
-        proxy.stop()
+    proxy = run_with_liar(run, ctx, scaled_sums(factor), honest)
     log = run.check_result({f"h{i}" for i in range(honest)})
     status = read_status(run.status)
     liars = [n for n in status["nodes"] if n["name"] == "liar"]
@@ -869,15 +876,7 @@ def lying_pixels_case(build, work, ctx, lie, what):
         return lie(frames)
 
     run = Run(build, work, 1024, 2, ["--final-gather", "4"], size=(96, 64))
-    proxy = LyingProxy(ctx, run.endpoint, once)
-    run.honest(1)
-    liar = Proc([os.path.join(build, "sirad-node"), "--connect", proxy.endpoint, "--name", "liar", "--insecure"],
-                os.path.join(work, "liar.log"))
-    try:
-        run.finish()
-    finally:
-        liar.stop()
-        proxy.stop()
+    proxy = run_with_liar(run, ctx, once, 1)
     log = run.check_result({"h0", "liar"})  # the liar ran its bundles honestly
     check(proxy.lied == 1, f"{proxy.lied} lying PIXELS (the liar was granted no tiles?)")
     check(f"liar: dropped from the image ({what}" in log, f"the liar was not dropped for {what!r}:\n{log[-3000:]}")
