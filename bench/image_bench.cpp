@@ -5,7 +5,11 @@
 // machine (every core, as Cycles uses them). With a second reference of another seed
 // (--reference2) the reference is their mean, and rel_rms_net is the RMS less the reference's own
 // noise: the variance of (a - b) / 2 per pixel, (a - b)^2 / 4 relative, subtracted from the
-// mean square (a reference of finite samples is never exactly converged).
+// mean square (a reference of finite samples is never exactly converged). With --noise each final
+// gather is rendered twice, with seeds 1 and 2, and its own noise is measured the same way, per
+// pass: noise (combined), noise_direct and noise_indirect are the RMS over the compared pixels of
+// the one image's standard deviation, sqrt((a - b)^2 / 2), relative to the reference; bias is
+// what is left of rel_rms_net, sqrt(rel_rms_net^2 - noise^2): the error no sample count removes.
 //
 //   sirad_bench_image --reference ref.exr --scene cornell --patches 10000 --bundles 1000,4000
 //       --spp 16,64,256 [--candidate cycles-64.exr:12.5 ...]
@@ -72,6 +76,7 @@ Image read_rgb(const std::string& path) {
 
 struct Errors {
   double median = 0, p90 = 0, p99 = 0, rms = 0, rms_net = 0;
+  double mean = 0;  // the signed mean of (image - reference) / reference: a bias of all one way
   std::size_t pixels = 0;
 };
 
@@ -95,22 +100,28 @@ Reference make_reference(const Image& a, const Image* b) {
   return r;
 }
 
-Errors compare(const Image& image, const Reference& ref, double light_above) {
+// `region`, if given: only the pixels whose entry is `which`.
+Errors compare(const Image& image, const Reference& ref, double light_above, const std::vector<int>* region = nullptr, int which = 0) {
   if (image.width != ref.width || image.height != ref.height)
     fail("image {}x{} against a reference of {}x{}", image.width, image.height, ref.width, ref.height);
   const std::vector<double> a = luminance(image);
   const std::vector<double>& b = ref.y;
   std::vector<double> rel;
-  double sq = 0.0, noise = 0.0;
+  double sq = 0.0, noise = 0.0, sum = 0.0;
   for (std::size_t i = 0; i < a.size(); ++i) {
-    if (!(b[i] > 0.0) || b[i] > light_above) continue;
+    if (!(b[i] > 0.0) || b[i] > light_above || (region && (*region)[i] != which)) continue;
     rel.push_back(std::abs(a[i] - b[i]) / b[i]);
+    sum += (a[i] - b[i]) / b[i];
     sq += rel.back() * rel.back();
     noise += ref.rel_var[i];
   }
-  if (rel.empty()) fail("no pixel to compare");
+  if (rel.empty()) {
+    if (region) return Errors{};  // a region of light pixels only
+    fail("no pixel to compare");
+  }
   Errors e;
   e.pixels = rel.size();
+  e.mean = sum / static_cast<double>(rel.size());
   e.rms = std::sqrt(sq / static_cast<double>(rel.size()));
   e.rms_net = std::sqrt(std::max(0.0, sq - noise) / static_cast<double>(rel.size()));
   std::sort(rel.begin(), rel.end());
@@ -119,10 +130,74 @@ Errors compare(const Image& image, const Reference& ref, double light_above) {
   return e;
 }
 
+// An image's own noise: the relative RMS over the compared pixels of sqrt((a - b)^2 / 2), a and b
+// the same image of two seeds.
+double noise(const Image& a, const Image& b, const Reference& ref, double light_above, const std::vector<int>* region = nullptr,
+             int which = 0) {
+  const std::vector<double> ya = luminance(a), yb = luminance(b);
+  double sq = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < ya.size(); ++i) {
+    if (!(ref.y[i] > 0.0) || ref.y[i] > light_above || (region && (*region)[i] != which)) continue;
+    const double d = (ya[i] - yb[i]) / ref.y[i];
+    sq += d * d / 2.0;
+    ++n;
+  }
+  return n ? std::sqrt(sq / static_cast<double>(n)) : 0.0;
+}
+
+// The regions an error is also reported for: each pixel's by the patch its centre sees, one per
+// material and axis the patch faces (+x, -x, +y, ...: a wall, a floor and a block's tops), named by
+// the material's reflectance; -1 where the centre sees no patch. A scene-wide figure can hide one
+// surface far off; these show which.
+std::vector<int> regions(const PatchMesh& mesh, int width, int height, std::vector<std::string>& names) {
+  std::vector<glm::vec3> id(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const glm::vec3 n = mesh.normal[j];
+    int axis = 0;
+    for (int c = 1; c < 3; ++c)
+      if (std::abs(n[c]) > std::abs(n[axis])) axis = c;
+    id[j] = glm::vec3(static_cast<float>(1 + mesh.material[j] * 6 + axis * 2 + (n[axis] < 0.0f ? 1 : 0)), 0.0f, 0.0f);
+  }
+  const Image seen = render_view(mesh, id, *mesh.camera, width, height, Shading::flat);
+  std::vector<int> region(seen.pixels.size());
+  names.assign(mesh.materials.size() * 6, "");
+  for (std::size_t m = 0; m < mesh.materials.size(); ++m)
+    for (int f = 0; f < 6; ++f) {
+      const glm::vec3 r = mesh.materials[m].reflectance;
+      names[m * 6 + static_cast<std::size_t>(f)] = fmt::format("rho {:.2f} {:.2f} {:.2f} {}{}", r.x, r.y, r.z, "+-"[f % 2], "xyz"[f / 2]);
+    }
+  for (std::size_t i = 0; i < region.size(); ++i) region[i] = static_cast<int>(seen.pixels[i].x) - 1;
+  return region;
+}
+
+// The signed error of the mean of two seeds' images, relative to the reference, as a PNG: red
+// where the image is too bright, blue where too dark, full at 5 %; grey where not compared.
+void write_error_map(const std::string& path, const Image& a, const Image& b, const Reference& ref, double light_above) {
+  const std::vector<double> ya = luminance(a), yb = luminance(b);
+  Image map{a.width, a.height, std::vector<glm::vec3>(a.pixels.size(), glm::vec3(0.2f))};
+  for (std::size_t i = 0; i < ya.size(); ++i) {
+    if (!(ref.y[i] > 0.0) || ref.y[i] > light_above) continue;
+    const double e = ((ya[i] + yb[i]) / 2.0 - ref.y[i]) / ref.y[i] / 0.05;
+    map.pixels[i] = glm::vec3(static_cast<float>(std::clamp(e, 0.0, 1.0)), 0.0f, static_cast<float>(std::clamp(-e, 0.0, 1.0)));
+  }
+  write_png(path, map);
+}
+
+struct Noise {
+  double combined = 0, direct = 0, indirect = 0;
+};
+
 void row(const std::string& method, const std::string& patches, const std::string& bundles, int spp, double solve_s,
-         double image_s, const Errors& e) {
-  std::printf("%s,%s,%s,%d,%.3f,%.3f,%.3f,%.5f,%.5f,%.5f,%.5f,%.5f\n", method.c_str(), patches.c_str(), bundles.c_str(), spp,
+         double image_s, const Errors& e, const std::optional<Noise>& n = std::nullopt) {
+  std::printf("%s,%s,%s,%d,%.3f,%.3f,%.3f,%.5f,%.5f,%.5f,%.5f,%.5f", method.c_str(), patches.c_str(), bundles.c_str(), spp,
               solve_s, image_s, solve_s + image_s, e.median, e.p90, e.p99, e.rms, e.rms_net);
+  std::printf(",%.5f", e.mean);
+  if (n)
+    std::printf(",%.5f,%.5f,%.5f,%.5f\n", n->combined, n->direct, n->indirect,
+                std::sqrt(std::max(0.0, e.rms_net * e.rms_net - n->combined * n->combined)));
+  else
+    std::printf(",,,,\n");
   std::fflush(stdout);
 }
 
@@ -135,6 +210,7 @@ int main(int argc, char** argv) {
   std::vector<int> spp{16, 64};
   std::vector<std::string> candidates;
   double light_above = 3.0;
+  bool measure_noise = false;
   app.add_option("--reference", reference, "The converged reference (EXR, linear RGB)")->required();
   app.add_option("--reference2", reference2, "A second reference of another seed: the mean is the reference, its noise is measured");
   app.add_option("--scene", scene, "The scene (as sirad render takes it)")->capture_default_str();
@@ -143,6 +219,7 @@ int main(int argc, char** argv) {
   app.add_option("--spp", spp, "Final gather samples per pixel, comma-separated")->delimiter(',')->capture_default_str();
   app.add_option("--candidate", candidates, "Another image to score: FILE.exr:SECONDS");
   app.add_option("--light-above", light_above, "Reference luminance above which a pixel is the light's, left out")->capture_default_str();
+  app.add_flag("--noise", measure_noise, "Render each final gather with a second seed too and split its error into noise (per pass) and bias");
   app.add_option("--sirad", sirad, "The sirad program")->capture_default_str();
   app.add_option("--work", work, "Folder for the solutions")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -152,7 +229,7 @@ int main(int argc, char** argv) {
     if (!reference2.empty()) second = read_rgb(reference2);
     const Reference ref = make_reference(ref_image, second ? &*second : nullptr);
     fs::create_directories(work);
-    std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net\n");
+    std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net,mean,noise,noise_direct,noise_indirect,bias\n");
     for (const std::string& c : candidates) {
       const auto colon = c.rfind(':');
       if (colon == std::string::npos) fail("--candidate {}: FILE.exr:SECONDS", c);
@@ -178,7 +255,28 @@ int main(int argc, char** argv) {
           const auto t2 = Clock::now();
           GatherPasses g = FinalGather(s.mesh, s.radiosity, o).render(*s.mesh.camera);
           const double image_s = since(t2);
-          row("gather", p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above));
+          std::optional<Noise> split;
+          GatherPasses h;
+          if (measure_noise) {
+            o.seed = 2;
+            h = FinalGather(s.mesh, s.radiosity, o).render(*s.mesh.camera);
+            split = Noise{noise(g.combined, h.combined, ref, light_above), noise(g.direct, h.direct, ref, light_above),
+                      noise(g.indirect, h.indirect, ref, light_above)};
+          }
+          row("gather", p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above), split);
+          if (measure_noise) {
+            write_error_map(out + fmt::format("-gather{}-error.png", n), g.combined, h.combined, ref, light_above);
+            std::vector<std::string> names;
+            const std::vector<int> region = regions(s.mesh, ref.width, ref.height, names);
+            for (int r = 0; r < static_cast<int>(names.size()); ++r) {
+              if (std::count(region.begin(), region.end(), r) < 64) continue;  // too few pixels to say
+              const Errors e = compare(g.combined, ref, light_above, &region, r);
+              if (e.pixels == 0) continue;
+              row("region:" + names[static_cast<std::size_t>(r)], p, k, o.spp, solve_s, image_s, e,
+                  Noise{noise(g.combined, h.combined, ref, light_above, &region, r), noise(g.direct, h.direct, ref, light_above, &region, r),
+                        noise(g.indirect, h.indirect, ref, light_above, &region, r)});
+            }
+          }
           write_exr(out + fmt::format("-gather{}.exr", n), g.combined, {});
         }
       }

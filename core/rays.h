@@ -92,9 +92,16 @@ inline double ray_offset(const PatchMesh& mesh) {
 // is seen before any that shows its back (the two sides of a thin wall), and of faces that face
 // the same way the later patch is on top (a rug laid on a floor at zero gap): the one below is
 // covered and sees the back of the one on top.
+//
+// Only a face that shares a place with another facing the same way over an area (a rug on a
+// floor, a duplicated face: `overlapped`, found once when the scene is built) needs that rule
+// when it faces the ray: any other face within the tie of it meets it along a line (an edge, a
+// contact, a thin wall's other side, which faces away), where either face is the place. There
+// the first face met, facing the ray, is seen without a second look along the ray.
 class RayScene {
  public:
-  // `fast`: a quicker build of a slower tree, for a few rays (the scene checks).
+  // `fast`: a quicker build of a slower tree, for a few rays (the scene checks); every hit then
+  // takes the coincident-face rule's second look.
   RayScene(const PatchMesh& mesh, double tie, bool fast = false) : mesh_(mesh), tie_(tie) {
     device_ = rtcNewDevice(nullptr);
     if (!device_) fail("reference: cannot create an Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
@@ -116,6 +123,7 @@ class RayScene {
     rtcReleaseGeometry(g);
     rtcCommitScene(scene_);
     if (rtcGetDeviceError(device_) != RTC_ERROR_NONE) fail("reference: Embree failed to build the scene");
+    if (!fast) overlapped_ = find_overlaps();
   }
   ~RayScene() {
     rtcReleaseScene(scene_);
@@ -133,6 +141,7 @@ class RayScene {
   std::pair<int64_t, double> seen_at(const glm::dvec3& org, const glm::dvec3& dir) const {
     auto [first, t] = first_hit(org, dir);
     if (first < 0) return {-1, t};
+    if (!overlapped(static_cast<uint32_t>(first)) && glm::dot(glm::dvec3(mesh_.normal[first]), dir) < 0.0) return {first, t};
     // Every face within the tie of the nearest hit is at that place; the latest facing the ray
     // is seen.
     Hits near = hits_on(org, dir, std::max(0.0, t - tie_), t + tie_);
@@ -141,6 +150,9 @@ class RayScene {
       if (glm::dot(glm::dvec3(mesh_.normal[near.prim[k]]), dir) < 0.0) best = std::max<int64_t>(best, near.prim[k]);
     return {best, t};
   }
+  // Whether patch j shares a place with another patch facing the same way over more than a line
+  // (true for every patch of a `fast` scene: not looked for there).
+  bool overlapped(uint32_t j) const { return overlapped_.empty() || overlapped_[j] != 0; }
   // Whether the point x of patch i lies under a later patch at the same place facing the same
   // way (it then sees that patch's back, and no light reaches it).
   bool covered(uint32_t i, const glm::dvec3& x) const {
@@ -226,10 +238,13 @@ class RayScene {
     r.id = 0;
     r.flags = 0;
   }
+  // overlapped() for every patch (core/rays.cpp).
+  std::vector<uint8_t> find_overlaps() const;
   const PatchMesh& mesh_;
   double tie_;
   RTCDevice device_;
   RTCScene scene_;
+  std::vector<uint8_t> overlapped_;  // per patch; empty: not looked for
 };
 
 }  // namespace sirad
