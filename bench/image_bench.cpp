@@ -10,6 +10,11 @@
 // pass: noise (combined), noise_direct and noise_indirect are the RMS over the compared pixels of
 // the one image's standard deviation, sqrt((a - b)^2 / 2), relative to the reference; bias is
 // what is left of rel_rms_net, sqrt(rel_rms_net^2 - noise^2): the error no sample count removes.
+// It also writes each gather's error map (the two seeds' mean against the reference, as a PNG)
+// and the same figures per region (material and the axis a surface faces). With
+// --reference-passes (a multilayer EXR of the reference's diffuse passes, render_obj.py ...
+// passes) each gather's direct and indirect passes are compared with the reference's own: their
+// signed mean and RMS differences, relative to the reference's whole luminance.
 //
 //   sirad_bench_image --reference ref.exr --scene cornell --patches 10000 --bundles 1000,4000
 //       --spp 16,64,256 [--candidate cycles-64.exr:12.5 ...]
@@ -58,7 +63,8 @@ std::vector<double> luminance(const Image& image) {
   return y;
 }
 
-Image read_rgb(const std::string& path) {
+// The R, G, B channels of an EXR, or of one layer's (LAYER.R, ...) of a multilayer one.
+Image read_rgb(const std::string& path, const std::string& layer = "") {
   Imf::InputFile in(path.c_str());
   const Imath::Box2i dw = in.header().dataWindow();
   Image image;
@@ -68,7 +74,7 @@ Image read_rgb(const std::string& path) {
   char* base = reinterpret_cast<char*>(image.pixels.data()) - (dw.min.x + static_cast<std::ptrdiff_t>(dw.min.y) * image.width) * sizeof(glm::vec3);
   Imf::FrameBuffer fb;
   for (int c = 0; c < 3; ++c)
-    fb.insert(std::string(1, "RGB"[c]), Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(glm::vec3), sizeof(glm::vec3) * image.width));
+    fb.insert((layer.empty() ? "" : layer + ".") + std::string(1, "RGB"[c]), Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(glm::vec3), sizeof(glm::vec3) * image.width));
   in.setFrameBuffer(fb);
   in.readPixels(dw.min.y, dw.max.y);
   return image;
@@ -100,6 +106,12 @@ Reference make_reference(const Image& a, const Image* b) {
   return r;
 }
 
+// Whether pixel i is compared: not a light's (reference luminance above light_above), and in
+// `region`'s part `which` where a region is given.
+bool counted(const Reference& ref, double light_above, const std::vector<int>* region, int which, std::size_t i) {
+  return ref.y[i] > 0.0 && ref.y[i] <= light_above && (!region || (*region)[i] == which);
+}
+
 // `region`, if given: only the pixels whose entry is `which`.
 Errors compare(const Image& image, const Reference& ref, double light_above, const std::vector<int>* region = nullptr, int which = 0) {
   if (image.width != ref.width || image.height != ref.height)
@@ -109,7 +121,7 @@ Errors compare(const Image& image, const Reference& ref, double light_above, con
   std::vector<double> rel;
   double sq = 0.0, noise = 0.0, sum = 0.0;
   for (std::size_t i = 0; i < a.size(); ++i) {
-    if (!(b[i] > 0.0) || b[i] > light_above || (region && (*region)[i] != which)) continue;
+    if (!counted(ref, light_above, region, which, i)) continue;
     rel.push_back(std::abs(a[i] - b[i]) / b[i]);
     sum += (a[i] - b[i]) / b[i];
     sq += rel.back() * rel.back();
@@ -138,7 +150,7 @@ double noise(const Image& a, const Image& b, const Reference& ref, double light_
   double sq = 0.0;
   std::size_t n = 0;
   for (std::size_t i = 0; i < ya.size(); ++i) {
-    if (!(ref.y[i] > 0.0) || ref.y[i] > light_above || (region && (*region)[i] != which)) continue;
+    if (!counted(ref, light_above, region, which, i)) continue;
     const double d = (ya[i] - yb[i]) / ref.y[i];
     sq += d * d / 2.0;
     ++n;
@@ -177,7 +189,7 @@ void write_error_map(const std::string& path, const Image& a, const Image& b, co
   const std::vector<double> ya = luminance(a), yb = luminance(b);
   Image map{a.width, a.height, std::vector<glm::vec3>(a.pixels.size(), glm::vec3(0.2f))};
   for (std::size_t i = 0; i < ya.size(); ++i) {
-    if (!(ref.y[i] > 0.0) || ref.y[i] > light_above) continue;
+    if (!counted(ref, light_above, nullptr, 0, i)) continue;
     const double e = ((ya[i] + yb[i]) / 2.0 - ref.y[i]) / ref.y[i] / 0.05;
     map.pixels[i] = glm::vec3(static_cast<float>(std::clamp(e, 0.0, 1.0)), 0.0f, static_cast<float>(std::clamp(-e, 0.0, 1.0)));
   }
@@ -188,14 +200,59 @@ struct Noise {
   double combined = 0, direct = 0, indirect = 0;
 };
 
+// A path tracer's own split of the reference (render_obj.py ... passes), as sirad's passes: what
+// the camera sees emitted plus the light reflected straight from the emitters, Emit + DiffDir x
+// DiffCol, and the rest, DiffInd x DiffCol.
+struct ReferencePasses {
+  Image direct, indirect;
+};
+
+ReferencePasses read_passes(const std::string& path) {
+  const Image dir = read_rgb(path, "ViewLayer.DiffDir"), ind = read_rgb(path, "ViewLayer.DiffInd"), col = read_rgb(path, "ViewLayer.DiffCol"),
+              emit = read_rgb(path, "ViewLayer.Emit");
+  ReferencePasses r{dir, ind};
+  for (std::size_t i = 0; i < col.pixels.size(); ++i) {
+    r.direct.pixels[i] = r.direct.pixels[i] * col.pixels[i] + emit.pixels[i];
+    r.indirect.pixels[i] *= col.pixels[i];
+  }
+  return r;
+}
+
+// How far a pass is from the reference's same pass, relative to the reference's whole
+// luminance (so that the two passes' errors add up to the image's): the signed mean and the RMS.
+struct PassErrors {
+  double direct_mean = 0, direct_rms = 0, indirect_mean = 0, indirect_rms = 0;
+};
+
+PassErrors pass_errors(const GatherPasses& g, const ReferencePasses& rp, const Reference& ref, double light_above,
+                       const std::vector<int>* region = nullptr, int which = 0) {
+  const std::vector<double> gd = luminance(g.direct), gi = luminance(g.indirect), rd = luminance(rp.direct), ri = luminance(rp.indirect);
+  double sd = 0, sqd = 0, si = 0, sqi = 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < gd.size(); ++i) {
+    if (!counted(ref, light_above, region, which, i)) continue;
+    const double d = (gd[i] - rd[i]) / ref.y[i], e = (gi[i] - ri[i]) / ref.y[i];
+    sd += d, sqd += d * d, si += e, sqi += e * e;
+    ++n;
+  }
+  if (n == 0) return {};
+  const double k = 1.0 / static_cast<double>(n);
+  return {sd * k, std::sqrt(sqd * k), si * k, std::sqrt(sqi * k)};
+}
+
 void row(const std::string& method, const std::string& patches, const std::string& bundles, int spp, double solve_s,
-         double image_s, const Errors& e, const std::optional<Noise>& n = std::nullopt) {
+         double image_s, const Errors& e, const std::optional<Noise>& n = std::nullopt,
+         const std::optional<PassErrors>& pe = std::nullopt) {
   std::printf("%s,%s,%s,%d,%.3f,%.3f,%.3f,%.5f,%.5f,%.5f,%.5f,%.5f", method.c_str(), patches.c_str(), bundles.c_str(), spp,
               solve_s, image_s, solve_s + image_s, e.median, e.p90, e.p99, e.rms, e.rms_net);
   std::printf(",%.5f", e.mean);
   if (n)
-    std::printf(",%.5f,%.5f,%.5f,%.5f\n", n->combined, n->direct, n->indirect,
+    std::printf(",%.5f,%.5f,%.5f,%.5f", n->combined, n->direct, n->indirect,
                 std::sqrt(std::max(0.0, e.rms_net * e.rms_net - n->combined * n->combined)));
+  else
+    std::printf(",,,,");
+  if (pe)
+    std::printf(",%.5f,%.5f,%.5f,%.5f\n", pe->direct_mean, pe->direct_rms, pe->indirect_mean, pe->indirect_rms);
   else
     std::printf(",,,,\n");
   std::fflush(stdout);
@@ -205,7 +262,7 @@ void row(const std::string& method, const std::string& patches, const std::strin
 
 int main(int argc, char** argv) {
   CLI::App app{"sirad_bench_image: images against a converged reference (CSV)"};
-  std::string reference, reference2, scene = "cornell", sirad = SIRAD_BINARY, work = "bench-image";
+  std::string reference, reference2, reference_passes, scene = "cornell", sirad = SIRAD_BINARY, work = "bench-image";
   std::vector<std::string> patches{"10000"}, bundles{"1000"};  // as sirad render takes them, and as the CSV shows them
   std::vector<int> spp{16, 64};
   std::vector<std::string> candidates;
@@ -219,6 +276,8 @@ int main(int argc, char** argv) {
   app.add_option("--spp", spp, "Final gather samples per pixel, comma-separated")->delimiter(',')->capture_default_str();
   app.add_option("--candidate", candidates, "Another image to score: FILE.exr:SECONDS");
   app.add_option("--light-above", light_above, "Reference luminance above which a pixel is the light's, left out")->capture_default_str();
+  app.add_option("--reference-passes", reference_passes,
+                 "A multilayer EXR of the reference's diffuse passes (render_obj.py ... passes): each final gather's direct and indirect passes against them");
   app.add_flag("--noise", measure_noise, "Render each final gather with a second seed too and split its error into noise (per pass) and bias");
   app.add_option("--sirad", sirad, "The sirad program")->capture_default_str();
   app.add_option("--work", work, "Folder for the solutions")->capture_default_str();
@@ -228,8 +287,10 @@ int main(int argc, char** argv) {
     std::optional<Image> second;
     if (!reference2.empty()) second = read_rgb(reference2);
     const Reference ref = make_reference(ref_image, second ? &*second : nullptr);
+    std::optional<ReferencePasses> passes;
+    if (!reference_passes.empty()) passes = read_passes(reference_passes);
     fs::create_directories(work);
-    std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net,mean,noise,noise_direct,noise_indirect,bias\n");
+    std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net,mean,noise,noise_direct,noise_indirect,bias,direct_mean,direct_rms,indirect_mean,indirect_rms\n");
     for (const std::string& c : candidates) {
       const auto colon = c.rfind(':');
       if (colon == std::string::npos) fail("--candidate {}: FILE.exr:SECONDS", c);
@@ -263,7 +324,9 @@ int main(int argc, char** argv) {
             split = Noise{noise(g.combined, h.combined, ref, light_above), noise(g.direct, h.direct, ref, light_above),
                       noise(g.indirect, h.indirect, ref, light_above)};
           }
-          row("gather", p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above), split);
+          std::optional<PassErrors> pe;
+          if (passes) pe = pass_errors(g, *passes, ref, light_above);
+          row("gather", p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above), split, pe);
           if (measure_noise) {
             write_error_map(out + fmt::format("-gather{}-error.png", n), g.combined, h.combined, ref, light_above);
             std::vector<std::string> names;
@@ -274,7 +337,8 @@ int main(int argc, char** argv) {
               if (e.pixels == 0) continue;
               row("region:" + names[static_cast<std::size_t>(r)], p, k, o.spp, solve_s, image_s, e,
                   Noise{noise(g.combined, h.combined, ref, light_above, &region, r), noise(g.direct, h.direct, ref, light_above, &region, r),
-                        noise(g.indirect, h.indirect, ref, light_above, &region, r)});
+                        noise(g.indirect, h.indirect, ref, light_above, &region, r)},
+                  passes ? std::optional<PassErrors>(pass_errors(g, *passes, ref, light_above, &region, r)) : std::nullopt);
             }
           }
           write_exr(out + fmt::format("-gather{}.exr", n), g.combined, {});

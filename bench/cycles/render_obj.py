@@ -5,7 +5,12 @@
 # a box pixel filter of one pixel (each pixel the mean over its square, as sirad), 64 diffuse
 # bounces and nothing clamped, no denoising, no adaptive sampling; linear float EXR, and a PNG
 # beside it.
-#   blender -b --factory-startup --python bench/cycles/render_obj.py -- SCENE.obj OUT.exr W H SPP [SEED]
+#   blender -b --factory-startup --python bench/cycles/render_obj.py -- SCENE.obj OUT.exr W H SPP [SEED [passes]]
+# With `passes` the EXR is multilayer with Cycles' diffuse passes beside the combined image
+# (ViewLayer.DiffDir, DiffInd, DiffCol, Emit, each R G B): what the camera sees emitted plus the
+# light reflected straight from the emitters is Emit + DiffDir x DiffCol, the rest DiffInd x
+# DiffCol, what sirad image writes as its `direct` and `indirect` passes
+# (bench/image_bench.cpp --reference-passes compares them).
 # (Debian's `blender` 3.4; deploy/install-deps.sh does not install it: apt-get install blender.)
 # The figures of bench/RESULTS.md ("Images against Cycles") used SPP 4096 at 128 x 128 and 2048
 # at 512 x 512, seeds 0 and 2 for the two references, 1 for the candidates.
@@ -21,6 +26,7 @@ import mathutils
 args = sys.argv[sys.argv.index("--") + 1:]
 obj_path, out_path, width, height, spp = args[0], args[1], int(args[2]), int(args[3]), int(args[4])
 seed = int(args[5]) if len(args) > 5 else 0
+passes = len(args) > 6 and args[6] == "passes"
 
 # The OBJ and its MTL, read here (Blender's importer converts axes and merges materials).
 verts, faces, camera = [], [], None
@@ -137,7 +143,13 @@ scene.view_settings.view_transform = "Standard"
 scene.view_settings.look = "None"
 scene.view_settings.exposure = 0.0
 scene.view_settings.gamma = 1.0
-scene.render.image_settings.file_format = "OPEN_EXR"
+scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER" if passes else "OPEN_EXR"
+if passes:
+    layer = scene.view_layers[0]
+    layer.use_pass_diffuse_direct = True
+    layer.use_pass_diffuse_indirect = True
+    layer.use_pass_diffuse_color = True
+    layer.use_pass_emit = True
 scene.render.image_settings.color_depth = "32"
 scene.render.image_settings.color_mode = "RGB"
 scene.render.filepath = out_path
