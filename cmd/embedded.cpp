@@ -1,6 +1,7 @@
 // sirad: the embedded cluster driver (see embedded.h).
 #include "cmd/embedded.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <thread>
@@ -28,12 +29,18 @@ Outcome run(cluster::RunConfig config, const PatchMesh& mesh, const Options& o) 
     const std::string endpoint = router.get(zmq::sockopt::last_endpoint);
     std::atomic<bool> stop{false}, failed{false};
     std::vector<std::string> errors(static_cast<std::size_t>(o.nodes));
+    const int gather_threads =
+        o.gather_threads > 0 ? o.gather_threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / std::max(1, o.nodes));
     std::vector<std::jthread> threads;  // joined however this block ends (declared after what they use)
     for (int i = 0; i < o.nodes; ++i)
       threads.emplace_back([&, i] {
         try {
           node::serve(context, endpoint,
-                      {.name = fmt::format("{}{}", o.name_prefix, i), .device = o.device, .stop = &stop, .poll_ms = o.poll_ms});
+                      {.name = fmt::format("{}{}", o.name_prefix, i),
+                       .device = o.device,
+                       .stop = &stop,
+                       .poll_ms = o.poll_ms,
+                       .gather_threads = gather_threads});
         } catch (const std::exception& e) {
           errors[static_cast<std::size_t>(i)] = e.what();
           failed = true;

@@ -17,6 +17,10 @@ struct Options {
   std::string name_prefix = "local-";                // nodes are named PREFIX0, PREFIX1, ...
   std::string device;                                // each node's OpenCL device (select_device)
   int poll_ms = 100;                                 // the nodes' NodeOptions::poll_ms
+  // Threads each node renders a final gather's tiles on (NodeOptions::gather_threads); 0: the
+  // machine's cores split among the nodes, so that N nodes on one machine do not start N times
+  // as many threads as it has cores.
+  int gather_threads = 0;
   // Called once the run is over and the nodes are told to leave, before they are joined (the
   // outputs are written while they go).
   std::function<void(const cluster::RunResult&)> on_done;

@@ -38,6 +38,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--scene-cache", options.scene_cache,
                  "Keep the scenes this node is sent in this folder (named by their hash), so a restarted node is not sent them again");
+  app.add_option("--threads", options.gather_threads, "Threads that render a final gather's tiles (0: every core)")
+      ->check(CLI::Range(0, 1024))
+      ->capture_default_str();
   std::string curve_secret, server_key;
   bool check_config = false, insecure = false;
   auto* secret_opt = app.add_option("--curve-secret", curve_secret, "This node's CURVE secret key file (NAME.key_secret from sirad keygen; mode 0600)");

@@ -512,9 +512,10 @@ class Node {
           fail("the solution is not finite at patch {}", j);
       }
       const int spp = static_cast<int>(std::min<uint32_t>(h.spp(), kMaxSide));
-      im.gather = std::make_unique<FinalGather>(im.mesh, radiosity, GatherOptions{.width = width, .height = height, .spp = spp, .seed = h.seed()});
-      info(fmt::format("image: {}x{}, {} spp, {} tiles", width, height, spp, im.grid->count()),
-           {{"event", "image"}, {"width", width}, {"height", height}, {"spp", spp}});
+      im.gather = std::make_unique<FinalGather>(im.mesh, radiosity, GatherOptions{.width = width, .height = height, .spp = spp, .seed = h.seed(), .threads = options_.gather_threads});
+      const int threads = options_.gather_threads > 0 ? options_.gather_threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+      info(fmt::format("image: {}x{}, {} spp, {} tiles, {} threads", width, height, spp, im.grid->count(), threads),
+           {{"event", "image"}, {"width", width}, {"height", height}, {"spp", spp}, {"threads", threads}});
     } catch (const Error& e) {
       image_->gather.reset();
       return error(fmt::format("IMAGE refused: {}", e.what()));

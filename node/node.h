@@ -32,6 +32,9 @@ struct NodeOptions {
   // A folder that keeps the scenes this node was sent, named by their hash, across restarts
   // (node/scene_cache.h); empty: in memory only, for the process's life.
   std::string scene_cache;
+  // Threads that render this node's tiles of a final gather (0: every core). Nodes that share
+  // a machine (sirad render --nodes N) split its cores.
+  int gather_threads = 0;
 };
 
 // Serves runs until `stop` is set or the coordinator sends BYE. Throws sirad::Error on a local

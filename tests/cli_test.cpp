@@ -10,6 +10,7 @@
 #include <sstream>
 #include <set>
 #include <string>
+#include <thread>
 #include <tuple>
 
 #include <OpenEXR/ImfHeader.h>
@@ -683,6 +684,11 @@ TEST_F(Cli, ImageOfAStoredSolutionIsTheRendersFinalGather) {
   for (std::size_t k = 0; k < red.size(); ++k) EXPECT_NEAR(red[k], imaged.at("direct.R")[k] + imaged.at("indirect.R")[k], 1e-5f);
   EXPECT_GT(*std::max_element(imaged.at("indirect.R").begin(), imaged.at("indirect.R").end()), 0.0f);
   EXPECT_TRUE(fs::exists(dir_ / "again.png"));
+  // Two embedded nodes render the tiles on half the machine's cores each (not every core each).
+  Outcome two = sirad("render cornell --patches 400 --bundles 64 --width 24 --height 20 --final-gather 4 --nodes 2 --out two");
+  ASSERT_EQ(two.status, 0) << two.err;
+  const int half = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / 2);
+  EXPECT_NE(two.err.find(fmt::format("image: 24x20, 4 spp, 1 tiles, {} threads", half)), std::string::npos) << two.err;
   // The .glb the render wrote is a solution as well: the same image.
   Outcome g = sirad("image cornell.glb --width 24 --height 20 --spp 4 --out fromglb -q");
   ASSERT_EQ(g.status, 0) << g.err;
