@@ -68,50 +68,52 @@ struct FinalGather::Impl {
   // direction meets the emitter's front at cosine `cos_light`.
   double light_pdf(double r2, double cos_light) const { return r2 / (cos_light * emitter_area); }
 
-  // The light reflected at point x of patch j (normal n, reflectance rho) toward the viewer,
-  // into `direct` (from the emitters) and `indirect` (from the rest), before rho: one emitter
-  // point from `light` with its shadow ray and one cosine gather ray from `gather` (points of the
-  // unit square), MIS-combined for the emitters' light. The gather ray takes the solution where
-  // it lands, less its emission; where it lands closer than kNear patch sizes (a corner, a
-  // contact: where the patch-wise solution is least right), the light reflected there is
-  // traced once more instead, from `more`'s points (at `depth` 0 only).
-  void reflected(const glm::dvec3& x, const glm::dvec3& n, const std::array<double, 2>& light, const std::array<double, 2>& gather,
-                 Rng& more, int depth, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
-    const glm::dvec3 origin = x + n * offset;
+  // A shadow ray of the direct light and what it brings if nothing blocks it.
+  struct ShadowRay {
+    glm::dvec3 from, to, light;
+  };
 
-    // The direct light: a point on an emitter, chosen by area, and its shadow ray. The first
-    // coordinate picks the emitter and, rescaled within its share, the point's first coordinate
-    // on it: stratified points of the square stay stratified over all the emitters' area.
-    if (!emitter.empty()) {
-      const double pick = light[0] * emitter_area;
-      const std::size_t k = std::min<std::size_t>(
-          static_cast<std::size_t>(std::upper_bound(emitter_cdf.begin(), emitter_cdf.end(), pick) - emitter_cdf.begin()),
-          emitter.size() - 1);
-      const uint32_t e = emitter[k];
-      const double below = k == 0 ? 0.0 : emitter_cdf[k - 1];
-      const double s = std::clamp((pick - below) / (emitter_cdf[k] - below), 0.0, 1.0);
-      const auto& p = mesh.patches[e];
-      const glm::dvec3 y = on_triangle(glm::dvec3(mesh.vertices[p[0]]), glm::dvec3(mesh.vertices[p[1]]),
-                                       glm::dvec3(mesh.vertices[p[2]]), s, light[1]);
-      const glm::dvec3 ne(mesh.normal[e]);
-      const glm::dvec3 d = y - x;
-      const double r2 = glm::dot(d, d);
-      if (r2 > 0.0) {
-        const glm::dvec3 w = d / std::sqrt(r2);
-        const double cos_x = glm::dot(n, w), cos_y = -glm::dot(ne, w);
-        if (cos_x > 0.0 && cos_y > 0.0) {
-          ++cast;
-          if (!rays.blocked(origin, y + ne * offset)) {
-            const double p_light = light_pdf(r2, cos_y), p_gather = cos_x / std::numbers::pi;
-            // E cos_x / pi d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
-            direct += glm::dvec3(mesh.emission(e)) * (cos_x / std::numbers::pi / (p_light + p_gather));
-          }
-        }
-      }
-    }
+  // The emitter sample of the light reflected at point x (its ray leaving at `origin`, normal n)
+  // from the unit-square point `light`: a point on an emitter, chosen by area, and its shadow
+  // ray, with the light it brings before rho (MIS-weighted against the gather ray). The first
+  // coordinate picks the emitter and, rescaled within its share, the point's first coordinate
+  // on it: stratified points of the square stay stratified over all the emitters' area. False
+  // where no ray is cast (no emitter, or one the point does not face or that does not face it).
+  bool light_sample(const glm::dvec3& x, const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& light,
+                    ShadowRay& out) const {
+    if (emitter.empty()) return false;
+    const double pick = light[0] * emitter_area;
+    const std::size_t k = std::min<std::size_t>(
+        static_cast<std::size_t>(std::upper_bound(emitter_cdf.begin(), emitter_cdf.end(), pick) - emitter_cdf.begin()),
+        emitter.size() - 1);
+    const uint32_t e = emitter[k];
+    const double below = k == 0 ? 0.0 : emitter_cdf[k - 1];
+    const double s = std::clamp((pick - below) / (emitter_cdf[k] - below), 0.0, 1.0);
+    const auto& p = mesh.patches[e];
+    const glm::dvec3 y = on_triangle(glm::dvec3(mesh.vertices[p[0]]), glm::dvec3(mesh.vertices[p[1]]),
+                                     glm::dvec3(mesh.vertices[p[2]]), s, light[1]);
+    const glm::dvec3 ne(mesh.normal[e]);
+    const glm::dvec3 d = y - x;
+    const double r2 = glm::dot(d, d);
+    if (!(r2 > 0.0)) return false;
+    const glm::dvec3 w = d / std::sqrt(r2);
+    const double cos_x = glm::dot(n, w), cos_y = -glm::dot(ne, w);
+    if (!(cos_x > 0.0 && cos_y > 0.0)) return false;
+    const double p_light = light_pdf(r2, cos_y), p_gather = cos_x / std::numbers::pi;
+    // E cos_x / pi d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
+    out = {origin, y + ne * offset, glm::dvec3(mesh.emission(e)) * (cos_x / std::numbers::pi / (p_light + p_gather))};
+    return true;
+  }
 
-    // The gather ray, cosine-distributed: the reflected light where it lands, and, if that is
-    // an emitter, its light weighted against the emitter sample.
+  // The gather ray of the light reflected at a point (its ray leaving at `origin`, normal n),
+  // cosine-distributed from the unit-square point `gather`: the reflected light where it lands,
+  // into `indirect`, and, if that is an emitter, its light weighted against the emitter sample,
+  // into `direct` (both before rho). The solution where it lands, less its emission; where it
+  // lands closer than kNear patch sizes (a corner, a contact: where the patch-wise solution is
+  // least right), the light reflected there is traced once more instead, from `more`'s points
+  // (at `depth` 0 only).
+  void gathered(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, Rng& more, int depth,
+                glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 g = cosine_direction(n, gather[0], gather[1]);
     const auto [seen, s] = rays.seen_at(origin, g);
     ++cast;
@@ -139,28 +141,24 @@ struct FinalGather::Impl {
     }
   }
 
-  // One sample of pixel (px, py) of the view `frame` at raster offset (u, v): adds what it sees
-  // to `direct` and `indirect`.
-  void sample(const CameraFrame& frame, int px, int py, double u, double v, const std::array<double, 2>& light,
-              const std::array<double, 2>& gather, Rng& more, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
-    const glm::dvec3 dir = frame.direction(px + u, py + v);
-    const auto [hit, t] = rays.seen_at(frame.eye, dir);
-    ++cast;
-    if (hit < 0) {
-      direct += glm::dvec3(mesh.background);
-      return;
+  // The light reflected at point x (normal n) toward the viewer, before rho: one emitter sample
+  // with its shadow ray (light_sample) and one gather ray (gathered), ray by ray.
+  void reflected(const glm::dvec3& x, const glm::dvec3& n, const std::array<double, 2>& light, const std::array<double, 2>& gather,
+                 Rng& more, int depth, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
+    const glm::dvec3 origin = x + n * offset;
+    ShadowRay shadow;
+    if (light_sample(x, origin, n, light, shadow)) {
+      ++cast;
+      if (!rays.blocked(shadow.from, shadow.to)) direct += shadow.light;
     }
-    const uint32_t j = static_cast<uint32_t>(hit);
-    const glm::dvec3 rho(mesh.reflectance(j));
-    direct += glm::dvec3(mesh.emission(j));
-    if (rho == glm::dvec3(0.0)) return;
-    glm::dvec3 d(0.0), i(0.0);
-    reflected(frame.eye + dir * t, glm::dvec3(mesh.normal[j]), light, gather, more, 0, d, i, cast);
-    direct += rho * d;
-    indirect += rho * i;
+    gathered(origin, n, gather, more, depth, direct, indirect, cast);
   }
 
-  // Pixel (px, py) of the view `frame` into `out` at (ox, oy); returns the rays it cast.
+  // Pixel (px, py) of the view `frame` into `out` at (ox, oy); returns the rays it cast. The
+  // samples go in batches: the batch's primary rays (one origin, nearly one direction) traced
+  // together as a stream, then their shadow rays (towards the same emitters) as another, then
+  // each sample's gather ray (every way: one by one, a stream gains nothing); each sample's
+  // light is added in sample order, as one sample at a time would.
   uint64_t pixel(const CameraFrame& frame, int px, int py, int ox, int oy, GatherPasses& out) const {
     const uint64_t index = static_cast<uint64_t>(py) * static_cast<uint64_t>(options.width) + static_cast<uint64_t>(px);
     // Each of the sample's three 2D choices (the position in the pixel, the emitter point, the
@@ -172,11 +170,62 @@ struct FinalGather::Impl {
     stratified_square(options.spp, jitter, positions);
     stratified_square(options.spp, light, lights);
     stratified_square(options.spp, gather, gathers);
+    constexpr std::size_t kBatch = 64;
+    struct Sample {
+      glm::dvec3 seen;  // what the camera sees emitted (or the background)
+      glm::dvec3 rho;   // 0: nothing reflected
+      glm::dvec3 origin, normal;
+      int shadow;       // index into the batch's shadow rays, or -1
+    };
+    std::array<glm::dvec3, kBatch> dirs;
+    std::array<std::pair<int64_t, double>, kBatch> hits;
+    std::array<Sample, kBatch> samples;
+    std::array<glm::dvec3, kBatch> from, to, brings;
+    std::array<bool, kBatch> blocked;
     glm::dvec3 direct(0.0), indirect(0.0);
     uint64_t cast = 0;
-    for (int i = 0; i < options.spp; ++i) {
-      const std::size_t k = static_cast<std::size_t>(i);
-      sample(frame, px, py, positions[k][0], positions[k][1], lights[k], gathers[k], more, direct, indirect, cast);
+    const std::size_t spp = static_cast<std::size_t>(options.spp);
+    for (std::size_t b0 = 0; b0 < spp; b0 += kBatch) {
+      const std::size_t n = std::min(kBatch, spp - b0);
+      for (std::size_t i = 0; i < n; ++i) dirs[i] = frame.direction(px + positions[b0 + i][0], py + positions[b0 + i][1]);
+      rays.seen_at(frame.eye, dirs.data(), n, hits.data());
+      cast += n;
+      std::size_t shadows = 0;
+      for (std::size_t i = 0; i < n; ++i) {
+        Sample& a = samples[i];
+        a.shadow = -1;
+        a.rho = glm::dvec3(0.0);
+        const auto [hit, t] = hits[i];
+        if (hit < 0) {
+          a.seen = glm::dvec3(mesh.background);
+          continue;
+        }
+        const uint32_t j = static_cast<uint32_t>(hit);
+        a.seen = glm::dvec3(mesh.emission(j));
+        a.rho = glm::dvec3(mesh.reflectance(j));
+        if (a.rho == glm::dvec3(0.0)) continue;
+        const glm::dvec3 x = frame.eye + dirs[i] * t;
+        a.normal = glm::dvec3(mesh.normal[j]);
+        a.origin = x + a.normal * offset;
+        ShadowRay r;
+        if (light_sample(x, a.origin, a.normal, lights[b0 + i], r)) {
+          a.shadow = static_cast<int>(shadows);
+          from[shadows] = r.from, to[shadows] = r.to, brings[shadows] = r.light;
+          ++shadows;
+        }
+      }
+      rays.blocked(from.data(), to.data(), shadows, blocked.data());
+      cast += shadows;
+      for (std::size_t i = 0; i < n; ++i) {
+        const Sample& a = samples[i];
+        direct += a.seen;
+        if (a.rho == glm::dvec3(0.0)) continue;
+        glm::dvec3 d(0.0), r(0.0);
+        if (a.shadow >= 0 && !blocked[static_cast<std::size_t>(a.shadow)]) d += brings[static_cast<std::size_t>(a.shadow)];
+        gathered(a.origin, a.normal, gathers[b0 + i], more, 0, d, r, cast);
+        direct += a.rho * d;
+        indirect += a.rho * r;
+      }
     }
     const double w = 1.0 / options.spp;
     out.direct.at(ox, oy) = glm::vec3(direct * w);

@@ -88,6 +88,39 @@ bool candidate(RTCPointQueryFunctionArguments* args) {
 
 }  // namespace
 
+void RayScene::seen_at(const glm::dvec3& org, const glm::dvec3* dir, std::size_t n, std::pair<int64_t, double>* out) const {
+  thread_local std::vector<RTCRayHit> rh;
+  rh.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    set_ray(rh[i].ray, org, dir[i], 0.0f, std::numeric_limits<float>::infinity());
+    rh[i].hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh[i].hit.primID = RTC_INVALID_GEOMETRY_ID;
+  }
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  rtcIntersect1M(scene_, &ctx, rh.data(), static_cast<unsigned>(n), sizeof(RTCRayHit));
+  for (std::size_t i = 0; i < n; ++i) {
+    if (rh[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+      out[i] = {-1, std::numeric_limits<double>::infinity()};
+      continue;
+    }
+    const double t = rh[i].ray.tfar;
+    out[i] = {seen_from(org, dir[i], rh[i].hit.primID, t), t};
+  }
+}
+
+void RayScene::blocked(const glm::dvec3* org, const glm::dvec3* to, std::size_t n, bool* out) const {
+  thread_local std::vector<RTCRay> rays;
+  rays.resize(n);
+  for (std::size_t i = 0; i < n; ++i) set_ray(rays[i], org[i], to[i] - org[i], 0.0f, 1.0f);
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  rtcOccluded1M(scene_, &ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRay));
+  for (std::size_t i = 0; i < n; ++i) out[i] = rays[i].tfar < 0.0f;
+}
+
 std::vector<uint8_t> RayScene::find_overlaps() const {
   const uint32_t n = static_cast<uint32_t>(mesh_.size());
   std::vector<uint8_t> out(n, 0);

@@ -140,16 +140,14 @@ class RayScene {
   // seen(), with the distance (in units of |dir|) to the place it meets first (infinity: none).
   std::pair<int64_t, double> seen_at(const glm::dvec3& org, const glm::dvec3& dir) const {
     auto [first, t] = first_hit(org, dir);
-    if (first < 0) return {-1, t};
-    if (!overlapped(static_cast<uint32_t>(first)) && glm::dot(glm::dvec3(mesh_.normal[first]), dir) < 0.0) return {first, t};
-    // Every face within the tie of the nearest hit is at that place; the latest facing the ray
-    // is seen.
-    Hits near = hits_on(org, dir, std::max(0.0, t - tie_), t + tie_);
-    int64_t best = -1;
-    for (uint32_t k = 0; k < near.n; ++k)
-      if (glm::dot(glm::dvec3(mesh_.normal[near.prim[k]]), dir) < 0.0) best = std::max<int64_t>(best, near.prim[k]);
-    return {best, t};
+    return {seen_from(org, dir, first, t), t};
   }
+  // seen_at for n rays from one origin that go nearly one way (a camera's rays through one
+  // pixel), traced together as a stream (Embree then traces them in packets): the same patches
+  // and distances as n calls of seen_at.
+  void seen_at(const glm::dvec3& org, const glm::dvec3* dir, std::size_t n, std::pair<int64_t, double>* out) const;
+  // blocked for n segments (out[i]: whether org[i] to to[i] is), traced together as a stream.
+  void blocked(const glm::dvec3* org, const glm::dvec3* to, std::size_t n, bool* out) const;
   // Whether patch j shares a place with another patch facing the same way over more than a line
   // (true for every patch of a `fast` scene: not looked for there).
   bool overlapped(uint32_t j) const { return overlapped_.empty() || overlapped_[j] != 0; }
@@ -181,6 +179,18 @@ class RayScene {
   }
 
  private:
+  // What a ray sees whose first hit is `first` at `t`: that face if it faces the ray and shares
+  // no place; else, by the rule, the latest face within the tie of t that faces the ray (-1: none,
+  // or no first hit).
+  int64_t seen_from(const glm::dvec3& org, const glm::dvec3& dir, int64_t first, double t) const {
+    if (first < 0) return -1;
+    if (!overlapped(static_cast<uint32_t>(first)) && glm::dot(glm::dvec3(mesh_.normal[first]), dir) < 0.0) return first;
+    Hits near = hits_on(org, dir, std::max(0.0, t - tie_), t + tie_);
+    int64_t best = -1;
+    for (uint32_t k = 0; k < near.n; ++k)
+      if (glm::dot(glm::dvec3(mesh_.normal[near.prim[k]]), dir) < 0.0) best = std::max<int64_t>(best, near.prim[k]);
+    return best;
+  }
   // The nearest patch on org + t dir, t > 0, and its t (-1 and infinity: none).
   std::pair<int64_t, double> first_hit(const glm::dvec3& org, const glm::dvec3& dir) const {
     RTCIntersectContext ctx;

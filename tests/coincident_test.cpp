@@ -6,6 +6,7 @@
 // of their neighbours' edges (T-junctions). Each is compared per region (the room lit only
 // through a doorway, the patches under a rug, each side of a panel) against the reference solver
 // (core/reference.h), for the bundle transport (tests/agreement.h) and for the first shot.
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -331,6 +332,29 @@ TEST(Coincident, OnlyFacesSharingAPlaceTakeTheSecondLook) {
       EXPECT_NEAR(ta, tb, 2.0 * tie) << "ray " << i;
     }
     EXPECT_LE(differ, kRays * 2 / 1000);
+    // The streams (a batch of rays from one origin, a batch of segments) find what the rays one
+    // by one find, exactly.
+    for (int b = 0; b < 200; ++b) {
+      const dvec3 o = rot * (c.lo + (c.hi - c.lo) * dvec3(rng.uniform(), rng.uniform(), rng.uniform()));
+      const dvec3 axis = glm::normalize(dvec3(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5));
+      std::array<dvec3, 64> dirs, ends;
+      for (std::size_t i = 0; i < dirs.size(); ++i) {
+        const double spread = b % 2 ? 0.02 : 1.0;  // a pixel's rays, or every way
+        dirs[i] = glm::normalize(axis + spread * dvec3(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5));
+        ends[i] = rot * (c.lo + (c.hi - c.lo) * dvec3(rng.uniform(), rng.uniform(), rng.uniform()));
+      }
+      std::array<std::pair<int64_t, double>, 64> hits;
+      rays.seen_at(o, dirs.data(), dirs.size(), hits.data());
+      std::array<dvec3, 64> starts;
+      starts.fill(o);
+      std::array<bool, 64> blocked;
+      rays.blocked(starts.data(), ends.data(), ends.size(), blocked.data());
+      for (std::size_t i = 0; i < dirs.size(); ++i) {
+        EXPECT_EQ(hits[i], rays.seen_at(o, dirs[i])) << "batch " << b << ", ray " << i;
+        EXPECT_EQ(blocked[i], rays.blocked(o, ends[i])) << "batch " << b << ", segment " << i;
+      }
+      if (HasFailure()) break;
+    }
   }
 }
 
