@@ -88,7 +88,18 @@ std::vector<TileGrant> TilePlan::top_up(uint32_t node) {
   return out;
 }
 
-void TilePlan::accept(uint32_t node, uint64_t grant, const std::vector<Range>& done, const std::vector<std::string>& frames) {
+void check_pixel(const float* sent, const GatherPasses& here, double floor, int x, int y) {
+  static constexpr const char* kChannel[9] = {"direct r", "direct g", "direct b", "indirect r", "indirect g", "indirect b", "r", "g", "b"};
+  const Image* passes[3] = {&here.direct, &here.indirect, &here.combined};
+  for (int k = 0; k < 9; ++k) {
+    const double a = sent[k], b = passes[k / 3]->at(0, 0)[k % 3];
+    if (!(std::abs(a - b) <= kPixelTolerance * std::max(std::abs(a), std::abs(b)) + floor))
+      fail("pixel ({}, {}) is not what it renders here: {} {} against {}", x, y, kChannel[k], a, b);
+  }
+}
+
+void TilePlan::accept(uint32_t node, uint64_t grant, const std::vector<Range>& done, const std::vector<std::string>& frames,
+                      const TileCheck& check) {
   auto held = outstanding_.find(node);
   if (held == outstanding_.end()) fail("PIXELS for grant {}, which is not outstanding", grant);
   auto g = std::find_if(held->second.begin(), held->second.end(), [&](const TileGrant& t) { return t.id == grant; });
@@ -101,6 +112,8 @@ void TilePlan::accept(uint32_t node, uint64_t grant, const std::vector<Range>& d
   // Every frame checked before any is placed, so a bad last tile leaves nothing placed.
   std::vector<std::vector<float>> values;
   for (std::size_t i = 0; i < rects.size(); ++i) values.push_back(tile_values(frames[i], rects[i]));
+  if (check)
+    for (std::size_t i = 0; i < rects.size(); ++i) check(rects[i], values[i]);
   for (std::size_t i = 0; i < rects.size(); ++i) place(values[i], rects[i], passes_);
   for (const Range& r : done) ledger_.done(node, r);
   held->second.erase(g);

@@ -4,6 +4,7 @@
 // pixels a node sends back checked and placed. The coordinator drives it over ZeroMQ.
 #pragma once
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -44,6 +45,20 @@ std::string pack_tile(const GatherPasses& tile);
 // `image` untouched, for a frame of the wrong size or a value that is not finite.
 void unpack_tile(const std::string& frame, const TileRect& rect, GatherPasses& image);
 
+// A node's pixel against the same pixel rendered here (`here`: passes of 1 x 1), for the
+// coordinator's spot checks: a pixel depends only on the seed and its place (core/gather.h), so
+// an honest node of the same build sends it bit for bit; another machine's arithmetic may send
+// a sample that grazes an edge another way, which moves a pixel by that sample's share. Each
+// channel of `sent` (9 floats: direct, indirect, combined r, g, b) must be within kPixelTolerance
+// of here's, relative, or `floor` (the scene's radiance scale times 1e-6) absolute; throws
+// sirad::Error naming the pixel (x, y) and the channel otherwise.
+constexpr double kPixelTolerance = 0.01;
+void check_pixel(const float* sent, const GatherPasses& here, double floor, int x, int y);
+
+// A check of one tile's pixels before they are placed (its place and values, 9 floats a pixel,
+// rows from the top); throws sirad::Error naming what is wrong.
+using TileCheck = std::function<void(const TileRect& rect, const std::vector<float>& values)>;
+
 // One TILES grant: its id and the tiles it names.
 struct TileGrant {
   uint64_t id = 0;
@@ -63,10 +78,12 @@ class TilePlan {
   // Grants (one tile each) for `node` until it holds kGrantsPerNode or no tile is left free.
   std::vector<TileGrant> top_up(uint32_t node);
   // `node`'s PIXELS for grant `grant`: `done` must be that grant's tiles, in order, and
-  // `frames` their pixels (unpack_tile). Everything is checked before anything is placed;
-  // throws sirad::Error naming the first problem (a grant not outstanding for the node, other
-  // tiles, a frame of the wrong size, a value not finite).
-  void accept(uint32_t node, uint64_t grant, const std::vector<Range>& done, const std::vector<std::string>& frames);
+  // `frames` their pixels (unpack_tile), which `check` (if given) passes. Everything is checked
+  // before anything is placed; throws sirad::Error naming the first problem (a grant not
+  // outstanding for the node, other tiles, a frame of the wrong size, a value not finite, what
+  // `check` throws).
+  void accept(uint32_t node, uint64_t grant, const std::vector<Range>& done, const std::vector<std::string>& frames,
+              const TileCheck& check = nullptr);
   // `node` is gone: its outstanding tiles return to be granted again (those it sent stay).
   void abandon(uint32_t node);
   // For tiles no node is left to render: the next free tile (neither granted nor done), now

@@ -46,6 +46,9 @@ constexpr double kGrantSlackS = 10;
 // The image phase's tile side in pixels (PROTOCOL.md section 3.4): 1,024 pixels a tile, so a
 // 512 x 512 image has 256 tiles to spread and a tile's PIXELS is 36 KiB.
 constexpr int kTileSide = 32;
+// Pixels of each tile a node sends that the coordinator renders too and compares
+// (Coordinator::spot_check): 2 of 1,024, so the checks cost a node's image 0.2 %.
+constexpr int kSpotChecks = 2;
 
 // Joins (HELLOs that make a new node entry) per CURVE key or address in any 10 s: enough for a
 // farm of 256 nodes behind one address (a NAT, one host) to start at once.
@@ -263,7 +266,9 @@ class Coordinator {
     say(logging::Level::info, fmt::format("image: {}x{}, {} spp, {} tiles of {} px for {} nodes", o.width, o.height, o.spp,
                                           plan.grid().count(), kTileSide, imaging_peers()),
         {{"event", "image"}, {"tiles", plan.grid().count()}, {"nodes", imaging_peers()}});
-    std::unique_ptr<FinalGather> here;  // made only when no node is left
+    image_solution_ = &result.radiosity;
+    spot_rng_.seed(std::random_device{}());
+    bool rendering_here = false;
     auto last_status = Clock::now();
     while (!plan.finished()) {
       auto now = Clock::now();
@@ -278,15 +283,15 @@ class Coordinator {
         if (p.imaging)
           for (const TileGrant& g : plan.top_up(p.index)) grant_tiles(p, g, plan);
       if (imaging_peers() == 0) {
-        if (!here) {
+        if (!rendering_here) {
+          rendering_here = true;
           say(logging::Level::warn, fmt::format("image: no node left; the coordinator renders the {} tiles left",
                                                 plan.grid().count() - plan.done_count()),
               {{"event", "image"}, {"here", true}});
-          here = std::make_unique<FinalGather>(mesh_, result.radiosity, o);
         }
         if (std::optional<uint64_t> t = plan.take_here()) {
           const TileRect r = plan.grid().rect(*t);
-          plan.place_here(*t, here->render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
+          plan.place_here(*t, here().render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
           ++result.tiles_here;
         }
         continue;
@@ -357,7 +362,7 @@ class Coordinator {
     if (px.run_id() != run_.run_id()) fail("PIXELS for run {:x}, not this run", px.run_id());
     std::vector<Range> done;
     for (const auto& r : px.done()) done.push_back({r.first(), r.last()});
-    plan.accept(p.index, px.grant_id(), done, bulk);
+    plan.accept(p.index, px.grant_id(), done, bulk, [&](const TileRect& r, const std::vector<float>& v) { spot_check(r, v); });
     std::erase_if(p.due, [&](const auto& d) { return d.first == px.grant_id(); });
     for (const std::string& f : bulk) p.bytes_in += f.size();
     // Its time per tile (its own word, within [0, kMaxSeconds]), for the next deadlines. Accepted,
@@ -365,6 +370,30 @@ class Coordinator {
     if (px.busy_s() >= 0 && px.busy_s() <= kMaxSeconds)
       p.tile_s = std::max(p.tile_s, px.busy_s() / static_cast<double>(std::max<std::size_t>(1, bulk.size())));
     p.tiles += bulk.size();
+  }
+
+  // The final gather on this machine, made at its first use (a spot check, or tiles no node is
+  // left to render): the rays of the whole mesh, as a node's.
+  const FinalGather& here() {
+    if (!here_) here_ = std::make_unique<FinalGather>(mesh_, *image_solution_, config_.final_gather);
+    return *here_;
+  }
+
+  // kSpotChecks pixels of each tile a node sends, chosen here as it arrives (no node can know
+  // which), rendered here and compared (cluster/tiles.h check_pixel): a node whose pixels are
+  // finite but not the image's is caught where it changed the pixels checked (every tile it
+  // changed throughout).
+  void spot_check(const TileRect& r, const std::vector<float>& values) {
+    double floor = std::max({mesh_.background.x, mesh_.background.y, mesh_.background.z});
+    for (const Material& m : mesh_.materials) floor = std::max({floor, static_cast<double>(m.emission.x), static_cast<double>(m.emission.y),
+                                                                static_cast<double>(m.emission.z)});
+    floor *= 1e-6;
+    for (int k = 0; k < kSpotChecks; ++k) {
+      const int x = r.x0 + static_cast<int>(spot_rng_() % static_cast<uint64_t>(r.x1 - r.x0));
+      const int y = r.y0 + static_cast<int>(spot_rng_() % static_cast<uint64_t>(r.y1 - r.y0));
+      const std::size_t i = (static_cast<std::size_t>(y - r.y0) * static_cast<std::size_t>(r.x1 - r.x0) + static_cast<std::size_t>(x - r.x0)) * 9;
+      check_pixel(&values[i], here().render(*mesh_.camera, x, y, x + 1, y + 1), floor, x, y);
+    }
   }
 
   // The image phase's liveness: as keep_alive's, for the nodes rendering tiles.
@@ -863,6 +892,9 @@ class Coordinator {
   Clock::time_point read_up_to_ = Clock::now();
   uint32_t read_in_a_row_ = 0;
   uint64_t image_tiles_ = 0, image_done_ = 0;  // the image's tiles, and those placed (the status)
+  const std::vector<glm::vec3>* image_solution_ = nullptr;  // the solution the image is gathered from
+  std::unique_ptr<FinalGather> here_;                       // here(): made at its first use
+  std::mt19937_64 spot_rng_;                                // which pixels spot_check renders
 };
 
 }  // namespace

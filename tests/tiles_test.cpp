@@ -97,6 +97,16 @@ TEST(Tiles, APlanGrantsTwoAtATimeAndPlacesWhatFits) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   std::memcpy(nan_frame[0].data() + 4 * proto::kPixelBytes + 8, &nan, sizeof nan);
   EXPECT_THROW(plan.accept(0, a[0].id, a[0].tiles, nan_frame), Error);
+  // A check that refuses the tile's pixels (the coordinator's spot check): nothing placed.
+  int checked = 0;
+  EXPECT_THROW(plan.accept(0, a[0].id, a[0].tiles, frames_of(a[0]),
+                           [&](const TileRect& r, const std::vector<float>& v) {
+                             ++checked;
+                             EXPECT_EQ(v.size(), 9u * r.pixels());
+                             fail("not what it renders here");
+                           }),
+               Error);
+  EXPECT_EQ(checked, 1);
   EXPECT_EQ(plan.done_count(), 0u);
   for (const glm::vec3& v : plan.passes().combined.pixels) ASSERT_EQ(v, glm::vec3(0)) << "nothing placed";
   // Accepted once; the same grant again is refused (nothing counted twice).
@@ -124,6 +134,39 @@ TEST(Tiles, APlanGrantsTwoAtATimeAndPlacesWhatFits) {
   EXPECT_EQ(plan.passes().direct.pixels, numbered(40, 20).direct.pixels);
   EXPECT_EQ(plan.passes().indirect.pixels, numbered(40, 20).indirect.pixels);
   EXPECT_EQ(plan.tiles_done_by(0), 3u);
+}
+
+// A node's pixel against the same pixel rendered here: equal, or within 1 % relative per
+// channel (another machine's rounding), passes; a channel 2 % off, or off by more than the floor
+// where here's is 0, is refused with the pixel and the channel named.
+TEST(Tiles, ASpotCheckedPixelMustBeWhatItRendersHere) {
+  GatherPasses here = GatherPasses::of_size(1, 1);
+  here.direct.at(0, 0) = glm::vec3(0.5f, 0.25f, 0.0f);
+  here.indirect.at(0, 0) = glm::vec3(0.1f, 0.2f, 0.3f);
+  here.combined.at(0, 0) = here.direct.at(0, 0) + here.indirect.at(0, 0);
+  auto sent = [&] {
+    std::vector<float> v;
+    for (const Image* p : {&here.direct, &here.indirect, &here.combined})
+      for (int c = 0; c < 3; ++c) v.push_back(p->at(0, 0)[c]);
+    return v;
+  };
+  std::vector<float> v = sent();
+  EXPECT_NO_THROW(check_pixel(v.data(), here, 1e-6, 3, 4));
+  v[4] *= 1.009f;  // indirect g, 0.9 % off
+  EXPECT_NO_THROW(check_pixel(v.data(), here, 1e-6, 3, 4));
+  v[4] = sent()[4] * 1.02f;
+  try {
+    check_pixel(v.data(), here, 1e-6, 3, 4);
+    ADD_FAILURE() << "a channel 2 % off passed";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("pixel (3, 4)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("indirect g"), std::string::npos) << e.what();
+  }
+  v = sent();
+  v[2] = 5e-7f;  // direct b: here 0, within the floor
+  EXPECT_NO_THROW(check_pixel(v.data(), here, 1e-6, 0, 0));
+  v[2] = 2e-6f;
+  EXPECT_THROW(check_pixel(v.data(), here, 1e-6, 0, 0), Error);
 }
 
 }  // namespace

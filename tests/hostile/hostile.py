@@ -910,6 +910,17 @@ def case_pixels_other_tiles(build, work, ctx):
     lying_pixels_case(build, work, ctx, lie, "PIXELS for grant")
 
 
+def case_pixels_wrong(build, work, ctx):
+    """Class 18: a PIXELS of finite pixels that are not the image's (every value of its first tile
+    1.5 times what the node rendered): the coordinator's spot check of two of the tile's pixels,
+    rendered there, refuses it."""
+    def lie(frames):
+        n = len(frames[3]) // 4
+        values = struct.unpack(f"<{n}f", frames[3])
+        return frames[:3] + [struct.pack(f"<{n}f", *(1.5 * v for v in values))] + frames[4:]
+    lying_pixels_case(build, work, ctx, lie, "pixel (")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in globals().items() if name.startswith("case_")}
 
 
