@@ -49,6 +49,9 @@ constexpr int kTileSide = 32;
 // Pixels of each tile a node sends that the coordinator renders too and compares
 // (Coordinator::spot_check): 2 of 1,024, so the checks cost a node's image 0.2 %.
 constexpr int kSpotChecks = 2;
+// Once a node has measured its time per tile, the first tiles of the nodes that have sent none
+// are due this many times that (Coordinator::tighten_first_tiles).
+constexpr double kUnequalTiles = 16;
 
 // Joins (HELLOs that make a new node entry) per CURVE key or address in any 10 s: enough for a
 // farm of 256 nodes behind one address (a NAT, one host) to start at once.
@@ -370,6 +373,32 @@ class Coordinator {
     if (px.busy_s() >= 0 && px.busy_s() <= kMaxSeconds)
       p.tile_s = std::max(p.tile_s, px.busy_s() / static_cast<double>(std::max<std::size_t>(1, bulk.size())));
     p.tiles += bulk.size();
+    tighten_first_tiles(p);
+  }
+
+  // A node's first tiles are due kFirstGrantS and 20 us a sample after their grant: a bound for
+  // the slowest start, minutes at many samples. Once `measured` has sent tiles, the k-th
+  // outstanding grant of each node that has sent none is due (k + 1) kUnequalTiles times its time
+  // per tile from now (plus the grant slack), if that is sooner: a node that holds tiles without
+  // rendering them, or renders them sixteen times slower, is dropped then and its tiles granted
+  // again, not minutes later.
+  void tighten_first_tiles(const Peer& measured) {
+    const auto now = Clock::now();
+    bool tightened = false;
+    for (auto& [id, q] : peers_) {
+      if (!q.imaging || q.tiles > 0) continue;
+      for (std::size_t k = 0; k < q.due.size(); ++k) {
+        const auto due = now + grant_slack() +
+                         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
+                             static_cast<double>(k + 1) * kUnequalTiles * measured.tile_s));
+        if (due < q.due[k].second) q.due[k].second = due, tightened = true;
+      }
+    }
+    if (tightened)
+      say(logging::Level::info, fmt::format("image: first tiles now due within {:.1f} s of now ({} times {}'s {:.3f} s a tile)",
+                                            seconds(grant_slack()) + kUnequalTiles * measured.tile_s, kUnequalTiles, measured.name,
+                                            measured.tile_s),
+          {{"event", "first tiles due"}, {"tile_s", measured.tile_s}});
   }
 
   // The final gather on this machine, made at its first use (a spot check, or tiles no node is

@@ -910,6 +910,30 @@ def case_pixels_other_tiles(build, work, ctx):
     lying_pixels_case(build, work, ctx, lie, "PIXELS for grant")
 
 
+def case_pixels_withheld(build, work, ctx):
+    """Class 18: a node that renders its tiles but never sends them (each PIXELS replaced by a
+    HEARTBEAT, so it looks alive): once the honest node has sent tiles, the liar's first grant is
+    due 16 times the honest time per tile (plus the slack), not the 30 s and more a first grant
+    may take; it is dropped as overdue and its tiles are granted again."""
+    pixels_cmd = CMD["pixels"]
+
+    def withhold(frames):
+        if len(frames) < 3 or frames[0] != SIG or frames[1][0] != pixels_cmd:
+            return None
+        return [SIG, bytes([CMD["heartbeat"]]) + frames[1][1:], b""]
+
+    run = Run(build, work, 1024, 2, ["--final-gather", "4"], size=(96, 64))
+    proxy = run_with_liar(run, ctx, withhold, 1)
+    log = run.check_result({"h0", "liar"})
+    check(proxy.lied >= 1, "the liar withheld no PIXELS (it was granted no tiles?)")
+    check("image: first tiles now due within" in log, f"the first grants were not brought forward:\n{log[-3000:]}")
+    check("liar: dropped from the image (grant" in log and "overdue" in log, f"the liar was not dropped as overdue:\n{log[-3000:]}")
+    status = read_status(run.status)
+    check(status.get("image_tiles_done") == 6, f"the image's tiles: {status}")
+    honest = [n for n in status["nodes"] if n["name"] == "h0"]
+    check(honest and honest[0].get("tiles") == 6, f"the honest node did not render every tile: {status['nodes']}")
+
+
 def case_pixels_wrong(build, work, ctx):
     """Class 18: a PIXELS of finite pixels that are not the image's (every value of its first tile
     1.5 times what the node rendered): the coordinator's spot check of two of the tile's pixels,
