@@ -214,7 +214,7 @@ struct FinalGather::Impl {
           ++shadows;
         }
       }
-      rays.blocked(from.data(), to.data(), shadows, blocked.data());
+      if (shadows > 0) rays.blocked(from.data(), to.data(), shadows, blocked.data());
       cast += shadows;
       for (std::size_t i = 0; i < n; ++i) {
         const Sample& a = samples[i];

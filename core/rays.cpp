@@ -1,4 +1,5 @@
-// sirad: which patches share a place with another facing the same way (see rays.h).
+// sirad: rays traced as streams, and which patches share a place with another facing the same
+// way (see rays.h).
 #include "core/rays.h"
 
 #include <atomic>

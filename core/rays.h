@@ -1,5 +1,5 @@
-// sirad: ray casting and sampling shared by the reference solver (core/reference.h) and the
-// scene checks (core/scene_check.h): a counter-keyed random stream, stratified points,
+// sirad: ray casting and sampling shared by the reference solver (core/reference.h), the final
+// gather (core/gather.h) and the scene checks (core/scene_check.h): a counter-keyed random stream, stratified points,
 // cosine-distributed directions, and an Embree 3 scene of a mesh's patches that applies the
 // coincident-face rule of DESIGN.md section 1.
 #pragma once
