@@ -317,7 +317,9 @@ TEST(Coincident, OnlyFacesSharingAPlaceTakeTheSecondLook) {
       overlapped += rays.overlapped(j);
       EXPECT_TRUE(rule.overlapped(j));
     }
-    if (c.scene.name.starts_with("rug")) EXPECT_GT(overlapped, 10u);
+    if (c.scene.name.starts_with("rug")) {
+      EXPECT_GT(overlapped, 10u);
+    }
     Rng rng(7, 0, 0, 0);
     constexpr int kRays = 100000;
     int differ = 0;
