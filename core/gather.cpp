@@ -260,6 +260,10 @@ FinalGather::FinalGather(const PatchMesh& mesh, std::vector<std::array<glm::vec3
 
 FinalGather::~FinalGather() = default;
 
+int GatherOptions::thread_count() const {
+  return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
 GatherPasses GatherPasses::of_size(int width, int height) {
   GatherPasses p;
   for (Image* image : {&p.direct, &p.indirect, &p.combined}) {
@@ -278,7 +282,7 @@ GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, i
     fail("final gather: region [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
   const CameraFrame frame = camera_frame(camera, o.width, o.height, "final gather");
   GatherPasses out = GatherPasses::of_size(x1 - x0, y1 - y0);
-  const unsigned threads = std::min<unsigned>(o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::thread::hardware_concurrency()),
+  const unsigned threads = std::min<unsigned>(static_cast<unsigned>(o.thread_count()),
                                               static_cast<unsigned>(std::max(1, y1 - y0)));
   std::atomic<int> next_row{y0};
   std::vector<uint64_t> cast(threads, 0);

@@ -38,6 +38,8 @@ struct GatherOptions {
   int spp = 64;
   uint64_t seed = 1;
   int threads = 0;  // 0: every core
+  // The threads a render starts at most: `threads`, or every core (0).
+  int thread_count() const;
 };
 
 // The passes compositors expect, in linear radiance: `direct` is what the camera sees emitted

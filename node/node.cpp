@@ -513,7 +513,7 @@ class Node {
       }
       const int spp = static_cast<int>(std::min<uint32_t>(h.spp(), kMaxSide));
       im.gather = std::make_unique<FinalGather>(im.mesh, radiosity, GatherOptions{.width = width, .height = height, .spp = spp, .seed = h.seed(), .threads = options_.gather_threads});
-      const int threads = options_.gather_threads > 0 ? options_.gather_threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+      const int threads = im.gather->options().thread_count();
       info(fmt::format("image: {}x{}, {} spp, {} tiles, {} threads", width, height, spp, im.grid->count(), threads),
            {{"event", "image"}, {"width", width}, {"height", height}, {"spp", spp}, {"threads", threads}});
     } catch (const Error& e) {
