@@ -271,6 +271,11 @@ class Coordinator {
         {{"event", "image"}, {"tiles", plan.grid().count()}, {"nodes", imaging_peers()}});
     image_solution_ = &result.radiosity;
     spot_rng_.seed(std::random_device{}());
+    // The spot checks' absolute floor: 1e-6 of the scene's largest radiance (an emission, the
+    // background).
+    spot_floor_ = std::max({mesh_.background.x, mesh_.background.y, mesh_.background.z});
+    for (const Material& m : mesh_.materials) spot_floor_ = std::max(spot_floor_, static_cast<double>(std::max({m.emission.x, m.emission.y, m.emission.z})));
+    spot_floor_ *= 1e-6;
     bool rendering_here = false;
     auto last_status = Clock::now();
     while (!plan.finished()) {
@@ -413,15 +418,11 @@ class Coordinator {
   // finite but not the image's is caught where it changed the pixels checked (every tile it
   // changed throughout).
   void spot_check(const TileRect& r, const std::vector<float>& values) {
-    double floor = std::max({mesh_.background.x, mesh_.background.y, mesh_.background.z});
-    for (const Material& m : mesh_.materials) floor = std::max({floor, static_cast<double>(m.emission.x), static_cast<double>(m.emission.y),
-                                                                static_cast<double>(m.emission.z)});
-    floor *= 1e-6;
     for (int k = 0; k < kSpotChecks; ++k) {
       const int x = r.x0 + static_cast<int>(spot_rng_() % static_cast<uint64_t>(r.x1 - r.x0));
       const int y = r.y0 + static_cast<int>(spot_rng_() % static_cast<uint64_t>(r.y1 - r.y0));
       const std::size_t i = (static_cast<std::size_t>(y - r.y0) * static_cast<std::size_t>(r.x1 - r.x0) + static_cast<std::size_t>(x - r.x0)) * 9;
-      check_pixel(&values[i], here().render(*mesh_.camera, x, y, x + 1, y + 1), floor, x, y);
+      check_pixel(&values[i], here().render(*mesh_.camera, x, y, x + 1, y + 1), spot_floor_, x, y);
     }
   }
 
@@ -924,6 +925,7 @@ class Coordinator {
   const std::vector<glm::vec3>* image_solution_ = nullptr;  // the solution the image is gathered from
   std::unique_ptr<FinalGather> here_;                       // here(): made at its first use
   std::mt19937_64 spot_rng_;                                // which pixels spot_check renders
+  double spot_floor_ = 0;                                   // check_pixel's floor for spot_check
 };
 
 }  // namespace
