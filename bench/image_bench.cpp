@@ -73,8 +73,11 @@ Image read_rgb(const std::string& path, const std::string& layer = "") {
   image.pixels.assign(static_cast<std::size_t>(image.width) * image.height, glm::vec3(0.0f));
   char* base = reinterpret_cast<char*>(image.pixels.data()) - (dw.min.x + static_cast<std::ptrdiff_t>(dw.min.y) * image.width) * sizeof(glm::vec3);
   Imf::FrameBuffer fb;
-  for (int c = 0; c < 3; ++c)
-    fb.insert((layer.empty() ? "" : layer + ".") + std::string(1, "RGB"[c]), Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(glm::vec3), sizeof(glm::vec3) * image.width));
+  for (int c = 0; c < 3; ++c) {
+    const std::string name = (layer.empty() ? "" : layer + ".") + std::string(1, "RGB"[c]);
+    if (!in.header().channels().findChannel(name)) fail("{}: no channel {}", path, name);  // OpenEXR would read zeros
+    fb.insert(name, Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(glm::vec3), sizeof(glm::vec3) * image.width));
+  }
   in.setFrameBuffer(fb);
   in.readPixels(dw.min.y, dw.max.y);
   return image;
@@ -210,6 +213,8 @@ struct ReferencePasses {
 ReferencePasses read_passes(const std::string& path) {
   const Image dir = read_rgb(path, "ViewLayer.DiffDir"), ind = read_rgb(path, "ViewLayer.DiffInd"), col = read_rgb(path, "ViewLayer.DiffCol"),
               emit = read_rgb(path, "ViewLayer.Emit");
+  for (const Image* p : {&ind, &col, &emit})
+    if (p->width != dir.width || p->height != dir.height) fail("{}: its passes differ in size", path);
   ReferencePasses r{dir, ind};
   for (std::size_t i = 0; i < col.pixels.size(); ++i) {
     r.direct.pixels[i] = r.direct.pixels[i] * col.pixels[i] + emit.pixels[i];
@@ -288,7 +293,12 @@ int main(int argc, char** argv) {
     if (!reference2.empty()) second = read_rgb(reference2);
     const Reference ref = make_reference(ref_image, second ? &*second : nullptr);
     std::optional<ReferencePasses> passes;
-    if (!reference_passes.empty()) passes = read_passes(reference_passes);
+    if (!reference_passes.empty()) {
+      passes = read_passes(reference_passes);
+      if (passes->direct.width != ref.width || passes->direct.height != ref.height)
+        fail("{}: passes of {}x{} for a reference of {}x{}", reference_passes, passes->direct.width, passes->direct.height, ref.width,
+             ref.height);
+    }
     fs::create_directories(work);
     std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net,mean,noise,noise_direct,noise_indirect,bias,direct_mean,direct_rms,indirect_mean,indirect_rms\n");
     for (const std::string& c : candidates) {
@@ -311,6 +321,8 @@ int main(int argc, char** argv) {
         int side = std::clamp(4096 / std::max(ref.width, ref.height), 1, 4);
         const Image mesh = render_view_antialiased(s.mesh, s.radiosity, *s.mesh.camera, ref.width, ref.height, Shading::gouraud, side);
         row("mesh", p, k, side * side, solve_s, since(t1), compare(mesh, ref, light_above));
+        std::vector<std::string> names;  // the regions (--noise), the same for every --spp
+        const std::vector<int> region = measure_noise ? regions(s.mesh, ref.width, ref.height, names) : std::vector<int>{};
         for (const int n : spp) {
           GatherOptions o{.width = ref.width, .height = ref.height, .spp = n};
           const auto t2 = Clock::now();
@@ -329,8 +341,6 @@ int main(int argc, char** argv) {
           row("gather", p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above), split, pe);
           if (measure_noise) {
             write_error_map(out + fmt::format("-gather{}-error.png", n), g.combined, h.combined, ref, light_above);
-            std::vector<std::string> names;
-            const std::vector<int> region = regions(s.mesh, ref.width, ref.height, names);
             for (int r = 0; r < static_cast<int>(names.size()); ++r) {
               if (std::count(region.begin(), region.end(), r) < 64) continue;  // too few pixels to say
               const Errors e = compare(g.combined, ref, light_above, &region, r);
