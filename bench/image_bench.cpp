@@ -267,18 +267,24 @@ void row(const std::string& method, const std::string& patches, const std::strin
 
 int main(int argc, char** argv) {
   CLI::App app{"sirad_bench_image: images against a converged reference (CSV)"};
-  std::string reference, reference2, reference_passes, scene = "cornell", sirad = SIRAD_BINARY, work = "bench-image";
+  std::string reference, reference2, reference_passes, solution, scene = "cornell", sirad = SIRAD_BINARY, work = "bench-image";
   std::vector<std::string> patches{"10000"}, bundles{"1000"};  // as sirad render takes them, and as the CSV shows them
   std::vector<int> spp{16, 64};
+  std::vector<std::string> cache{"on"};
   std::vector<std::string> candidates;
   double light_above = 3.0;
   bool measure_noise = false;
   app.add_option("--reference", reference, "The converged reference (EXR, linear RGB)")->required();
   app.add_option("--reference2", reference2, "A second reference of another seed: the mean is the reference, its noise is measured");
   app.add_option("--scene", scene, "The scene (as sirad render takes it)")->capture_default_str();
+  app.add_option("--solution", solution, "A stored solution (PLY) to render instead of solving (--patches and --bundles then name it in the CSV only)");
   app.add_option("--patches", patches, "Patch counts, comma-separated")->delimiter(',')->capture_default_str();
   app.add_option("--bundles", bundles, "Bundle budgets, comma-separated")->delimiter(',')->capture_default_str();
   app.add_option("--spp", spp, "Final gather samples per pixel, comma-separated")->delimiter(',')->capture_default_str();
+  app.add_option("--cache", cache, "The final gather's irradiance cache, comma-separated: on, off (each sample's own gather ray)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   app.add_option("--candidate", candidates, "Another image to score: FILE.exr:SECONDS");
   app.add_option("--light-above", light_above, "Reference luminance above which a pixel is the light's, left out")->capture_default_str();
   app.add_option("--reference-passes", reference_passes,
@@ -310,21 +316,26 @@ int main(int argc, char** argv) {
     for (const std::string& p : patches)
       for (const std::string& k : bundles) {
         const std::string out = (fs::path(work) / fmt::format("{}-{}-{}", scene, p, k)).string();
-        const std::string cmd = fmt::format("'{}' render {} --patches {} --bundles {} --width {} --height {} -q --out '{}' >/dev/null", sirad,
-                                            scene, p, k, ref.width, ref.height, out);
-        const auto t0 = Clock::now();
-        const int rc = std::system(cmd.c_str());
-        const double solve_s = since(t0);
-        if (rc != 0) fail("{}: exit {}", cmd, rc);
-        Solution s = read_solution(out + ".ply");
+        double solve_s = 0.0;
+        if (solution.empty()) {
+          const std::string cmd = fmt::format("'{}' render {} --patches {} --bundles {} --width {} --height {} -q --out '{}' >/dev/null", sirad,
+                                              scene, p, k, ref.width, ref.height, out);
+          const auto t0 = Clock::now();
+          const int rc = std::system(cmd.c_str());
+          solve_s = since(t0);
+          if (rc != 0) fail("{}: exit {}", cmd, rc);
+        }
+        Solution s = read_solution(solution.empty() ? out + ".ply" : solution);
         const auto t1 = Clock::now();
         int side = std::clamp(4096 / std::max(ref.width, ref.height), 1, 4);
         const Image mesh = render_view_antialiased(s.mesh, s.radiosity, *s.mesh.camera, ref.width, ref.height, Shading::gouraud, side);
         row("mesh", p, k, side * side, solve_s, since(t1), compare(mesh, ref, light_above));
         std::vector<std::string> names;  // the regions (--noise), the same for every --spp
         const std::vector<int> region = measure_noise ? regions(s.mesh, ref.width, ref.height, names) : std::vector<int>{};
+        for (const std::string& mode : cache)
         for (const int n : spp) {
-          GatherOptions o{.width = ref.width, .height = ref.height, .spp = n};
+          GatherOptions o{.width = ref.width, .height = ref.height, .spp = n, .cache = mode == "on"};
+          const std::string method = mode == "on" ? "gather" : "gather-nocache";
           const auto t2 = Clock::now();
           GatherPasses g = FinalGather(s.mesh, s.radiosity, o).render(*s.mesh.camera);
           const double image_s = since(t2);
@@ -338,20 +349,20 @@ int main(int argc, char** argv) {
           }
           std::optional<PassErrors> pe;
           if (passes) pe = pass_errors(g, *passes, ref, light_above);
-          row("gather", p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above), split, pe);
+          row(method, p, k, o.spp, solve_s, image_s, compare(g.combined, ref, light_above), split, pe);
           if (measure_noise) {
-            write_error_map(out + fmt::format("-gather{}-error.png", n), g.combined, h.combined, ref, light_above);
+            write_error_map(out + fmt::format("-{}{}-error.png", method, n), g.combined, h.combined, ref, light_above);
             for (int r = 0; r < static_cast<int>(names.size()); ++r) {
               if (std::count(region.begin(), region.end(), r) < 64) continue;  // too few pixels to say
               const Errors e = compare(g.combined, ref, light_above, &region, r);
               if (e.pixels == 0) continue;
-              row("region:" + names[static_cast<std::size_t>(r)], p, k, o.spp, solve_s, image_s, e,
+              row(method + ":" + names[static_cast<std::size_t>(r)], p, k, o.spp, solve_s, image_s, e,
                   Noise{noise(g.combined, h.combined, ref, light_above, &region, r), noise(g.direct, h.direct, ref, light_above, &region, r),
                         noise(g.indirect, h.indirect, ref, light_above, &region, r)},
                   passes ? std::optional<PassErrors>(pass_errors(g, *passes, ref, light_above, &region, r)) : std::nullopt);
             }
           }
-          write_exr(out + fmt::format("-gather{}.exr", n), g.combined, {});
+          write_exr(out + fmt::format("-{}{}.exr", method, n), g.combined, {});
         }
       }
   } catch (const std::exception& e) {

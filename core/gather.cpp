@@ -4,8 +4,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <limits>
+#include <mutex>
 #include <numbers>
 #include <thread>
+#include <unordered_map>
 
 #include "core/camera.h"
 #include "core/error.h"
@@ -16,13 +19,91 @@ namespace sirad {
 namespace {
 
 // Purposes of the random streams (Rng's last key): one stream per pixel and purpose.
-constexpr uint64_t kJitter = 1, kLight = 2, kGather = 3, kMore = 4;
+constexpr uint64_t kJitter = 1, kLight = 2, kGather = 3, kMore = 4, kRecordGather = 5, kRecordMore = 6;
 
 // A gather ray that lands closer than this many patch sizes (sqrt(2 area)) of the patch it hits
 // traces the light reflected there one bounce further instead of taking the solution.
 constexpr double kNear = 2.0;
 
+// The irradiance cache (gather.h): records at the raster points of a grid kCacheSpacing pixels
+// apart; a block of the grid is split in four, down to kCacheLeast pixels, while its four corner
+// records
+//   - are not all on reflecting surfaces, or
+//   - face ways more than acos(kCacheCos) apart, or lie off each other's planes by more than
+//     kCachePlane of their distance, or
+//   - lie further apart than kCacheWard of the least distance any of their rays went (Ward's
+//     criterion, with the least distance as Tabellion and Lamorlette take it: the indirect light
+//     changes over the distance to what reflects it; the harmonic mean misses a small bright
+//     surface among rays that leave the scene, 15 % off in the test of a lit square).
+// Blocks of kCacheLeast pixels are taken at any distance. A sample takes the corners of its
+// pixel's block if its own point faces their way and lies in their planes (the same measures);
+// in a block of kCacheLeast pixels whose corners are not one surface (an edge), the corners on
+// the sample's own; where there are none, it traces its own gather ray.
+constexpr int kCacheSpacing = 16, kCacheLeast = 2;
+constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.05;
+
 }  // namespace
+
+// A record of the irradiance cache: the indirect light (before rho) reflected at the point x
+// (normal n) a raster point of the view sees, from record_rays() gather rays, and the least
+// distance one of them went (infinity if all left the scene). Not valid where the raster point
+// sees no reflecting surface.
+struct CacheRecord {
+  glm::dvec3 x{0.0}, n{0.0}, e{0.0};
+  double r = 0.0;
+  double emitters = 0.0;  // the share of the rays that met an emitter
+  bool valid = false;
+};
+
+// The records of one view, made where first needed, by whichever thread needs one first (a
+// record depends only on the view, the seed and its raster point: any thread, tile or node makes
+// the same). Sharded maps; a thread that needs a record another is making waits for it.
+class RecordStore {
+ public:
+  template <class Make>
+  const CacheRecord& get(uint64_t key, const Make& make) {
+    Shard& shard = shards_[Rng::mix(key) % kShards];
+    Slot* slot;
+    bool mine = false;
+    {
+      std::lock_guard lock(shard.mutex);
+      auto& p = shard.slots[key];
+      if (!p) {
+        p = std::make_unique<Slot>();
+        mine = true;
+      }
+      slot = p.get();
+    }
+    if (mine) {
+      try {
+        slot->record = make();
+      } catch (...) {
+        slot->state.store(kFailed, std::memory_order_release);
+        throw;
+      }
+      slot->state.store(kReady, std::memory_order_release);
+      return slot->record;
+    }
+    for (int s; (s = slot->state.load(std::memory_order_acquire)) != kReady;) {
+      if (s == kFailed) fail("final gather: a cache record could not be made");
+      std::this_thread::yield();
+    }
+    return slot->record;
+  }
+
+ private:
+  static constexpr int kMaking = 0, kReady = 1, kFailed = 2;
+  static constexpr std::size_t kShards = 64;
+  struct Slot {
+    std::atomic<int> state{kMaking};
+    CacheRecord record;
+  };
+  struct Shard {
+    std::mutex mutex;
+    std::unordered_map<uint64_t, std::unique_ptr<Slot>> slots;
+  };
+  std::array<Shard, kShards> shards_;
+};
 
 struct FinalGather::Impl {
   const PatchMesh& mesh;
@@ -34,6 +115,24 @@ struct FinalGather::Impl {
   std::vector<uint32_t> emitter;
   std::vector<double> emitter_cdf;
   double emitter_area = 0.0;
+  // The cache records of the last view rendered (a view's tiles, rendered one after another,
+  // share them).
+  mutable std::mutex views_mutex;
+  mutable std::shared_ptr<RecordStore> view_records;
+  mutable Camera view_camera;
+
+  // The records of the view from `camera` (null without a cache).
+  std::shared_ptr<RecordStore> records(const Camera& camera) const {
+    if (!options.cache) return nullptr;
+    std::lock_guard lock(views_mutex);
+    const bool same = view_records && view_camera.eye == camera.eye && view_camera.look_at == camera.look_at &&
+                      view_camera.up == camera.up && view_camera.vfov_deg == camera.vfov_deg;
+    if (!same) {
+      view_records = std::make_shared<RecordStore>();
+      view_camera = camera;
+    }
+    return view_records;
+  }
 
   Impl(const PatchMesh& m, std::vector<std::array<glm::vec3, 3>> c, const GatherOptions& o)
       : mesh(m),
@@ -75,11 +174,12 @@ struct FinalGather::Impl {
 
   // The emitter sample of the light reflected at point x (its ray leaving at `origin`, normal n)
   // from the unit-square point `light`: a point on an emitter, chosen by area, and its shadow
-  // ray, with the light it brings before rho (MIS-weighted against the gather ray). The first
+  // ray, with the light it brings before rho (with `mis`, weighted against the gather ray that
+  // meets an emitter; without, the sample is the whole direct estimate). The first
   // coordinate picks the emitter and, rescaled within its share, the point's first coordinate
   // on it: stratified points of the square stay stratified over all the emitters' area. False
   // where no ray is cast (no emitter, or one the point does not face or that does not face it).
-  bool light_sample(const glm::dvec3& x, const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& light,
+  bool light_sample(const glm::dvec3& x, const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& light, bool mis,
                     ShadowRay& out) const {
     if (emitter.empty()) return false;
     const double pick = light[0] * emitter_area;
@@ -99,7 +199,7 @@ struct FinalGather::Impl {
     const glm::dvec3 w = d / std::sqrt(r2);
     const double cos_x = glm::dot(n, w), cos_y = -glm::dot(ne, w);
     if (!(cos_x > 0.0 && cos_y > 0.0)) return false;
-    const double p_light = light_pdf(r2, cos_y), p_gather = cos_x / std::numbers::pi;
+    const double p_light = light_pdf(r2, cos_y), p_gather = mis ? cos_x / std::numbers::pi : 0.0;
     // E cos_x / pi d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
     out = {origin, y + ne * offset, glm::dvec3(mesh.emission(e)) * (cos_x / std::numbers::pi / (p_light + p_gather))};
     return true;
@@ -111,15 +211,19 @@ struct FinalGather::Impl {
   // into `direct` (both before rho). The solution where it lands, less its emission; where it
   // lands closer than kNear patch sizes (a corner, a contact: where the patch-wise solution is
   // least right), the light reflected there is traced once more instead, from `more`'s points
-  // (at `depth` 0 only).
-  void gathered(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, Rng& more, int depth,
-                glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
+  // (at `depth` 0 only). Returns where the ray went.
+  struct Landed {
+    double distance = std::numeric_limits<double>::infinity();  // infinity: it left the scene
+    bool emitter = false;                                       // it met an emitter's front
+  };
+  Landed gathered(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, Rng& more, int depth,
+                  glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 g = cosine_direction(n, gather[0], gather[1]);
     const auto [seen, s] = rays.seen_at(origin, g);
     ++cast;
     if (seen < 0) {
       indirect += glm::dvec3(mesh.background);
-      return;
+      return {};
     }
     const uint32_t k = static_cast<uint32_t>(seen);
     const glm::dvec3 y = origin + g * s;
@@ -132,13 +236,28 @@ struct FinalGather::Impl {
     } else {
       indirect += radiosity_at(k, y) - e;
     }
-    if (mesh.emits(k)) {
-      const double cos_x = glm::dot(n, g), cos_y = -glm::dot(glm::dvec3(mesh.normal[k]), g);
-      if (cos_x > 0.0 && cos_y > 0.0) {
-        const double p_gather = cos_x / std::numbers::pi, p_light = light_pdf(s * s, cos_y);
-        direct += e * (p_gather / (p_light + p_gather));
-      }
-    }
+    return {s, emitter_met(k, n, g, s, direct)};
+  }
+
+  // Whether a gather ray along g from a point of normal n that meets patch k at distance s meets
+  // an emitter's front; if so its light, weighted against the emitter sample, into `direct`.
+  bool emitter_met(uint32_t k, const glm::dvec3& n, const glm::dvec3& g, double s, glm::dvec3& direct) const {
+    if (!mesh.emits(k)) return false;
+    const double cos_x = glm::dot(n, g), cos_y = -glm::dot(glm::dvec3(mesh.normal[k]), g);
+    if (!(cos_x > 0.0 && cos_y > 0.0)) return false;
+    const double p_gather = cos_x / std::numbers::pi, p_light = light_pdf(s * s, cos_y);
+    direct += glm::dvec3(mesh.emission(k)) * (p_gather / (p_light + p_gather));
+    return true;
+  }
+
+  // The gather ray of the direct light alone (a sample that takes the indirect light from the
+  // cache, where emitters are large): what it brings if it meets an emitter, into `direct`.
+  void emitter_ray(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, glm::dvec3& direct,
+                   uint64_t& cast) const {
+    const glm::dvec3 g = cosine_direction(n, gather[0], gather[1]);
+    const auto [seen, s] = rays.seen_at(origin, g);
+    ++cast;
+    if (seen >= 0) emitter_met(static_cast<uint32_t>(seen), n, g, s, direct);
   }
 
   // The light reflected at point x (normal n) toward the viewer, before rho: one emitter sample
@@ -147,19 +266,124 @@ struct FinalGather::Impl {
                  Rng& more, int depth, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 origin = x + n * offset;
     ShadowRay shadow;
-    if (light_sample(x, origin, n, light, shadow)) {
+    if (light_sample(x, origin, n, light, true, shadow)) {
       ++cast;
       if (!rays.blocked(shadow.from, shadow.to)) direct += shadow.light;
     }
     gathered(origin, n, gather, more, depth, direct, indirect, cast);
   }
 
+  // The gather rays of a cache record: 4 per sample of a pixel, within [256, 16384] (measured on
+  // the Cornell box at 512 x 512: the noise of the direct light stays the larger, bench/RESULTS.md).
+  int record_rays() const { return std::clamp(4 * options.spp, 256, 16384); }
+
+  // The cache record of raster point (gx, gy) of the view `frame`, `key` its key in the store.
+  CacheRecord make_record(const CameraFrame& frame, int gx, int gy, uint64_t key, uint64_t& cast) const {
+    CacheRecord r;
+    const glm::dvec3 dir = frame.direction(gx, gy);
+    const auto [hit, t] = rays.seen_at(frame.eye, dir);
+    ++cast;
+    if (hit < 0 || mesh.reflectance(static_cast<uint32_t>(hit)) == glm::vec3(0.0f)) return r;
+    r.x = frame.eye + dir * t;
+    r.n = glm::dvec3(mesh.normal[static_cast<std::size_t>(hit)]);
+    const glm::dvec3 origin = r.x + r.n * offset;
+    Rng gather(options.seed, key, 0, kRecordGather), more(options.seed, key, 0, kRecordMore);
+    thread_local std::vector<std::array<double, 2>> gathers;
+    stratified_square(record_rays(), gather, gathers);
+    glm::dvec3 direct(0.0), indirect(0.0);
+    r.r = std::numeric_limits<double>::infinity();
+    std::size_t emitters = 0;
+    for (const auto& g : gathers) {
+      const Landed l = gathered(origin, r.n, g, more, 0, direct, indirect, cast);
+      r.r = std::min(r.r, l.distance);
+      emitters += l.emitter;
+    }
+    r.e = indirect / static_cast<double>(gathers.size());
+    r.emitters = static_cast<double>(emitters) / static_cast<double>(gathers.size());
+    r.valid = true;
+    return r;
+  }
+
+  // A block of the cache's grid: raster [x0, x0 + side] x [y0, y0 + side] and its corner
+  // records (x0, y0), (x0 + side, y0), (x0, y0 + side), (x0 + side, y0 + side); `fits` whether
+  // they make a block (else it is a pixel on an edge, whose samples take the corners on their own
+  // surface). No corners: no cache. `mis`: a corner's rays met emitters more than kCacheMis of
+  // the time, so the block's samples weigh their emitter samples against a gather ray of their
+  // own (MIS: light sampling alone is noisy near a large emitter).
+  struct Block {
+    int x0 = 0, y0 = 0, side = 1;
+    std::array<const CacheRecord*, 4> c{};
+    bool fits = false, mis = false;
+  };
+
+  // Whether corner records c make a block of `side` pixels the indirect light can be
+  // interpolated over (the criteria at kCacheSpacing; r is each record's least distance).
+  static bool fits(const std::array<const CacheRecord*, 4>& c, int side) {
+    double r = std::numeric_limits<double>::infinity(), extent = 0.0;
+    for (const CacheRecord* a : c) {
+      if (!a->valid) return false;
+      r = std::min(r, a->r);
+    }
+    for (std::size_t a = 0; a < 4; ++a)
+      for (std::size_t b = a + 1; b < 4; ++b) {
+        if (glm::dot(c[a]->n, c[b]->n) < kCacheCos) return false;
+        const glm::dvec3 d = c[b]->x - c[a]->x;
+        const double len = glm::length(d);
+        if (std::abs(glm::dot(c[a]->n, d)) > kCachePlane * len || std::abs(glm::dot(c[b]->n, d)) > kCachePlane * len) return false;
+        extent = std::max(extent, len);
+      }
+    return side <= kCacheLeast || extent <= kCacheWard * r;
+  }
+
+  // The block of pixel (px, py): the largest that fits, from kCacheSpacing pixels down to
+  // kCacheLeast (which is taken if it does not: an edge).
+  Block block(const CameraFrame& frame, RecordStore& store, int px, int py, uint64_t& cast) const {
+    const uint64_t row = static_cast<uint64_t>(options.width) + kCacheSpacing + 1;
+    for (int side = kCacheSpacing;; side /= 2) {
+      Block b{px / side * side, py / side * side, side, {}, false};
+      for (int k = 0; k < 4; ++k) {
+        const int gx = b.x0 + (k & 1) * side, gy = b.y0 + (k >> 1) * side;
+        const uint64_t key = static_cast<uint64_t>(gy) * row + static_cast<uint64_t>(gx);
+        b.c[static_cast<std::size_t>(k)] = &store.get(key, [&] { return make_record(frame, gx, gy, key, cast); });
+      }
+      b.fits = fits(b.c, side);
+      if (b.fits || side <= kCacheLeast) {
+        for (const CacheRecord* r : b.c) b.mis = b.mis || r->emitters > kCacheMis;
+        return b;
+      }
+    }
+  }
+
+  // The cached indirect light (before rho) at point x (normal n) that the sample at raster (sx,
+  // sy) sees, interpolated over block b's corners (bilinear in raster space) into `out`. A corner
+  // is of x's surface if it faces x's way and x lies in its plane (both by the criteria at
+  // kCacheSpacing); in a block that fits, every corner must be, else only those that are count
+  // (an edge's pixel). False where none can be taken: the sample gathers for itself.
+  bool cached(const Block& b, const glm::dvec3& x, const glm::dvec3& n, double sx, double sy, glm::dvec3& out) const {
+    if (!b.c[0]) return false;
+    const double u = std::clamp((sx - b.x0) / b.side, 0.0, 1.0), v = std::clamp((sy - b.y0) / b.side, 0.0, 1.0);
+    const std::array<double, 4> w{(1.0 - u) * (1.0 - v), u * (1.0 - v), (1.0 - u) * v, u * v};
+    glm::dvec3 sum(0.0);
+    double weight = 0.0;
+    for (std::size_t k = 0; k < 4; ++k) {
+      const CacheRecord& r = *b.c[k];
+      const bool here = r.valid && glm::dot(n, r.n) >= kCacheCos && std::abs(glm::dot(r.n, x - r.x)) <= kCachePlane * glm::length(x - r.x);
+      if (!here && b.fits) return false;
+      if (here) sum += w[k] * r.e, weight += w[k];
+    }
+    if (!(weight > 0.0)) return false;
+    out = sum / weight;
+    return true;
+  }
+
   // Pixel (px, py) of the view `frame` into `out` at (ox, oy); returns the rays it cast. The
   // samples go in batches: the batch's primary rays (one origin, nearly one direction) traced
   // together as a stream, then their shadow rays (towards the same emitters) as another, then
-  // each sample's gather ray (every way: one by one, a stream gains nothing); each sample's
-  // light is added in sample order, as one sample at a time would.
-  uint64_t pixel(const CameraFrame& frame, int px, int py, int ox, int oy, GatherPasses& out) const {
+  // each sample's gather ray (every way: one by one, a stream gains nothing) unless it takes the
+  // indirect light from the cache (`store`; null: none), whose records' rays count into
+  // `record_cast`; each sample's light is added in sample order, as one sample at a time would.
+  uint64_t pixel(const CameraFrame& frame, RecordStore* store, int px, int py, int ox, int oy, GatherPasses& out,
+                 uint64_t& record_cast) const {
     const uint64_t index = static_cast<uint64_t>(py) * static_cast<uint64_t>(options.width) + static_cast<uint64_t>(px);
     // Each of the sample's three 2D choices (the position in the pixel, the emitter point, the
     // gather direction) stratified over the pixel's samples, the sets paired in random order
@@ -170,12 +394,15 @@ struct FinalGather::Impl {
     stratified_square(options.spp, jitter, positions);
     stratified_square(options.spp, light, lights);
     stratified_square(options.spp, gather, gathers);
+    const Block cache = store ? block(frame, *store, px, py, record_cast) : Block{};
     constexpr std::size_t kBatch = 64;
     struct Sample {
       glm::dvec3 seen;  // what the camera sees emitted (or the background)
       glm::dvec3 rho;   // 0: nothing reflected
       glm::dvec3 origin, normal;
       int shadow;       // index into the batch's shadow rays, or -1
+      bool cached;      // the indirect light is `indirect`, from the cache
+      glm::dvec3 indirect;
     };
     std::array<glm::dvec3, kBatch> dirs;
     std::array<std::pair<int64_t, double>, kBatch> hits;
@@ -207,8 +434,9 @@ struct FinalGather::Impl {
         const glm::dvec3 x = frame.eye + dirs[i] * t;
         a.normal = glm::dvec3(mesh.normal[j]);
         a.origin = x + a.normal * offset;
+        a.cached = cached(cache, x, a.normal, px + positions[b0 + i][0], py + positions[b0 + i][1], a.indirect);
         ShadowRay r;
-        if (light_sample(x, a.origin, a.normal, lights[b0 + i], r)) {
+        if (light_sample(x, a.origin, a.normal, lights[b0 + i], !a.cached || cache.mis, r)) {
           a.shadow = static_cast<int>(shadows);
           from[shadows] = r.from, to[shadows] = r.to, brings[shadows] = r.light;
           ++shadows;
@@ -222,7 +450,11 @@ struct FinalGather::Impl {
         if (a.rho == glm::dvec3(0.0)) continue;
         glm::dvec3 d(0.0), r(0.0);
         if (a.shadow >= 0 && !blocked[static_cast<std::size_t>(a.shadow)]) d += brings[static_cast<std::size_t>(a.shadow)];
-        gathered(a.origin, a.normal, gathers[b0 + i], more, 0, d, r, cast);
+        if (a.cached) {
+          r = a.indirect;
+          if (cache.mis) emitter_ray(a.origin, a.normal, gathers[b0 + i], d, cast);
+        } else
+          gathered(a.origin, a.normal, gathers[b0 + i], more, 0, d, r, cast);
         direct += a.rho * d;
         indirect += a.rho * r;
       }
@@ -284,11 +516,12 @@ GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, i
   GatherPasses out = GatherPasses::of_size(x1 - x0, y1 - y0);
   const unsigned threads = std::min<unsigned>(static_cast<unsigned>(o.thread_count()),
                                               static_cast<unsigned>(std::max(1, y1 - y0)));
+  const std::shared_ptr<RecordStore> records = impl_->records(camera);
   std::atomic<int> next_row{y0};
-  std::vector<uint64_t> cast(threads, 0);
+  std::vector<uint64_t> cast(threads, 0), record_cast(threads, 0);
   auto rows = [&](unsigned t) {  // whole rows each: no pixel is written by two threads
     for (int y; (y = next_row.fetch_add(1)) < y1;) {
-      for (int x = x0; x < x1; ++x) cast[t] += impl_->pixel(frame, x, y, x - x0, y - y0, out);
+      for (int x = x0; x < x1; ++x) cast[t] += impl_->pixel(frame, records.get(), x, y, x - x0, y - y0, out, record_cast[t]);
       if (t == 0 && between) between();
     }
   };
@@ -297,6 +530,7 @@ GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, i
   rows(0);
   for (auto& th : pool) th.join();
   for (uint64_t c : cast) out.rays += c;
+  for (uint64_t c : record_cast) out.record_rays += c;
   return out;
 }
 

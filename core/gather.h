@@ -4,16 +4,29 @@
 //   - the direct light, by sampling the emitters (area-proportional) with shadow rays, combined
 //     by multiple importance sampling (balance heuristic) with the cosine-distributed gather
 //     ray that hits an emitter;
-//   - the indirect light, from one cosine-distributed gather ray per sample that looks up the
-//     solved radiosity where it lands, interpolated over the surface (the corner radiosities of
-//     core/output.h, barycentric), less the patch's emission: the reflected part Y = B - E only,
-//     so the light of the emitters is counted once, by the direct estimate.
+//   - the indirect light, from cosine-distributed gather rays that look up the solved radiosity
+//     where they land, interpolated over the surface (the corner radiosities of core/output.h,
+//     barycentric), less the patch's emission: the reflected part Y = B - E only, so the light of
+//     the emitters is counted once, by the direct estimate. Where a gather ray lands closer than
+//     two patch sizes (a corner, a contact) the light reflected there is traced one bounce
+//     further instead.
+// The indirect light comes from an irradiance cache of the view (Ward's, on a grid of the image;
+// GatherOptions::cache): records of the indirect light at raster points of a grid 16 pixels
+// apart, each from 4 x spp gather rays (256 to 16,384), the grid refined down to 2 pixels where
+// the corners of a block are not one surface or lie further apart than a quarter of the distance
+// to what reflects light to them; a sample takes its block's corners bilinearly, and gathers for
+// itself where none is of its surface. Then the direct light is the emitter sample alone, without
+// MIS against a gather ray. The cache trades the gather ray's noise for a bias where the indirect
+// light bends within a block (bench/RESULTS.md: measured per region); without it each sample
+// traces one gather ray, as a path tracer's first bounce.
 // In radiance units, as the solver (DESIGN.md section 1). What a ray sees follows the solver's
 // rule (core/rays.h RayScene::seen): the front face it meets first, the background when it
 // meets a back face first or leaves the scene; coincident faces as in the bundles.
 //
-// A pixel's value depends only on the seed and the pixel's position: any split of the image
-// into regions (tiles), on any number of threads or nodes, gives the same image bit for bit.
+// A pixel's value depends only on the seed, the view and the pixel's position (a cache record
+// only on the seed, the view and its raster point, whichever thread, tile or node makes it): any
+// split of the image into regions (tiles), on any number of threads or nodes, gives the same
+// image bit for bit.
 #pragma once
 #include <array>
 #include <cstdint>
@@ -34,10 +47,13 @@ namespace sirad {
 struct GatherOptions {
   int width = 512, height = 512;
   // Samples per pixel: each a jittered primary ray, one emitter sample with its shadow ray and
-  // one gather ray. 1..65536.
+  // (where it takes nothing from the cache) one gather ray. 1..65536.
   int spp = 64;
   uint64_t seed = 1;
   int threads = 0;  // 0: every core
+  // The indirect light from an irradiance cache of the view (above), or (false) from each
+  // sample's own gather ray.
+  bool cache = true;
   // The threads a render starts at most: `threads`, or every core (0).
   int thread_count() const;
 };
@@ -48,7 +64,8 @@ struct GatherOptions {
 // their sum.
 struct GatherPasses {
   Image direct, indirect, combined;
-  uint64_t rays = 0;  // rays cast (primary, shadow, gather)
+  uint64_t rays = 0;         // rays cast by the pixels' samples (primary, shadow, gather)
+  uint64_t record_rays = 0;  // and for the cache records this render made
   // Passes of width x height, every pixel 0.
   static GatherPasses of_size(int width, int height);
   // The EXR layers (write_exr_layers): the combined unprefixed, then "direct" and "indirect".

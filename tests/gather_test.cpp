@@ -83,28 +83,46 @@ TEST(Camera, EdgesOnPixelBoundariesCoverWholePixels) {
 // is 2 within 4 x 0.1875 / 32 = 0.0234; the pixels' RMS deviation from 2 is at most 0.1875 (1.2
 // x that allows for the RMS's own spread over 1,024 pixels, about 2 %); the indirect pass (sd at
 // most 0.25 a sample) has mean 0.5 within 4 x 0.0625 / 32 = 0.0078, each pixel in [0.25, 0.75].
+// With the cache the pixels share records, so only the direct pass keeps those bounds: a sample's
+// direct part (1 + rho D, every block weighing its emitter samples: the furnace's records meet
+// emitters with every ray) lies in [1, 2], sd at most 0.5 / 4 a pixel, mean 1.5 within 4 x 0.125 /
+// 32 = 0.0156. A record is the mean of 256 values of I in [0.5, 1.5] (16 spp: the fewest a record
+// takes), within 0.17 of 1 but with probability 2 exp(-2 x 256 x 0.17^2) = 7.6e-7 (Hoeffding);
+// all of them (at most 17 x 17 grid points 2 pixels apart) but with probability 2.2e-4. A pixel's
+// indirect is rho times a mix of records (and of its own gather rays where none fits), so it lies
+// in [0.25, 0.75], and the image's in 0.5 +- 0.085.
 TEST(Gather, AFurnaceIsTwoEverywhere) {
   const Scene furnace = builtin_furnace();
   PatchMesh mesh = mesh_scene(furnace, MeshOptions{.target_patches = 600});
   const std::vector<glm::vec3> exact(mesh.size(), glm::vec3(2.0f));
   const Camera camera{{0.5f, 0.5f, 0.1f}, {0.6f, 0.45f, 1.0f}, {0, 1, 0}, 100.0f};  // sees walls, floor and ceiling
-  GatherOptions o{.width = 32, .height = 32, .spp = 16, .seed = 3};
-  GatherPasses p = FinalGather(mesh, exact, o).render(camera);
-  double sum = 0.0, sq = 0.0, indirect = 0.0;
-  for (std::size_t k = 0; k < p.combined.pixels.size(); ++k) {
-    const glm::vec3 v = p.combined.pixels[k];
-    EXPECT_EQ(v.x, v.y);  // grey: every channel the same estimate
-    sum += v.x;
-    sq += (v.x - 2.0) * (v.x - 2.0);
-    indirect += p.indirect.pixels[k].x;
-    EXPECT_GE(p.indirect.pixels[k].x, 0.25f - 1e-5f);
-    EXPECT_LE(p.indirect.pixels[k].x, 0.75f + 1e-5f);
+  for (const bool cache : {false, true}) {
+    GatherOptions o{.width = 32, .height = 32, .spp = 16, .seed = 3, .cache = cache};
+    GatherPasses p = FinalGather(mesh, exact, o).render(camera);
+    double sum = 0.0, sq = 0.0, direct = 0.0, indirect = 0.0;
+    for (std::size_t k = 0; k < p.combined.pixels.size(); ++k) {
+      const glm::vec3 v = p.combined.pixels[k];
+      EXPECT_EQ(v.x, v.y);  // grey: every channel the same estimate
+      sum += v.x;
+      sq += (v.x - 2.0) * (v.x - 2.0);
+      direct += p.direct.pixels[k].x;
+      indirect += p.indirect.pixels[k].x;
+      EXPECT_GE(p.indirect.pixels[k].x, 0.25f - 1e-5f);
+      EXPECT_LE(p.indirect.pixels[k].x, 0.75f + 1e-5f);
+    }
+    const double n = static_cast<double>(p.combined.pixels.size());
+    if (!cache) {
+      EXPECT_NEAR(sum / n, 2.0, 0.0234);
+      EXPECT_LE(std::sqrt(sq / n), 0.1875 * 1.2);
+      EXPECT_NEAR(indirect / n, 0.5, 0.0078);
+      EXPECT_GT(p.rays, static_cast<uint64_t>(n) * 16 * 2);
+      EXPECT_EQ(p.record_rays, 0u);
+    } else {
+      EXPECT_NEAR(direct / n, 1.5, 0.0156);
+      EXPECT_NEAR(indirect / n, 0.5, 0.085);
+      EXPECT_GT(p.record_rays, 0u);
+    }
   }
-  const double n = static_cast<double>(p.combined.pixels.size());
-  EXPECT_NEAR(sum / n, 2.0, 0.0234);
-  EXPECT_LE(std::sqrt(sq / n), 0.1875 * 1.2);
-  EXPECT_NEAR(indirect / n, 0.5, 0.0078);
-  EXPECT_GT(p.rays, static_cast<uint64_t>(n) * 16 * 2);
 }
 
 // Reflected radiance at (px, py, 0) on a floor of reflectance rho under a square emitter of
@@ -254,6 +272,93 @@ TEST(Gather, AWallBesideACeilingLightMatchesLambertsFormula) {
   std::printf("wall beside a ceiling light: worst block %.3f %% off\n", 100.0 * worst);
 }
 
+// The indirect light against its closed form, where the cache interpolates a light that peaks: a
+// floor (rho 0.5) under a square (side 1, height 1, facing down) that emits nothing but whose
+// solution is B = 1, and no emitter. A floor point's radiance is then all indirect, rho B F with F
+// its form factor to the square (floor_radiance above): the gather rays that meet the square
+// take B - E = 1 there (they land at least 1 away, beyond the near bounce of kNear = 2 patch
+// sizes: the square's patches are 0.1 across), the others leave the scene (background 0). Seen
+// from above, the image spans the peak under the square and its fall beyond the square's edge.
+// As in the wall test, R = 12 renders of independent seeds give each 8 x 8 block's mean and
+// standard error (a cache record's error included: records are independent per seed); each
+// block's mean must lie within 6 standard errors of the exact mean (Student's t with 11 degrees
+// of freedom exceeds 6 with probability 9e-5). The cache may add its interpolation's bias: over a
+// block of side h (bilinear, and linear in world space on a plane seen by a pinhole) at most
+// h^2 / 8 (|f_xx| + |f_yy|) for f = rho F, and its blocks here are at most h = 0.25 / sqrt(2)
+// across (corners at most kCacheWard = 0.25 of the least gather distance apart, and every ray
+// that meets the square goes at least 1); the second derivatives are the closed form's, largest
+// over the floor in view. The harmonic mean distance that Ward took would let blocks span the
+// whole view here (most rays leave the scene), 15 % off at the peak.
+TEST(Gather, TheIndirectLightUnderALitSquareMatchesItsClosedForm) {
+  QuadScene q;
+  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t square = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  q.quad({-4, -4, 0}, {4, -4, 0}, {4, 4, 0}, {-4, 4, 0}, floor);                         // faces +z
+  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, square);  // faces -z
+  PatchMesh mesh = mesh_scene(q.scene, MeshOptions{.target_patches = 4000});
+  std::vector<glm::vec3> solution(mesh.size());
+  std::size_t on_square = 0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const bool up = mesh.normal[j].z < -0.5f;
+    solution[j] = up ? glm::vec3(1.0f) : glm::vec3(0.0f);
+    if (up) {
+      ++on_square;
+      ASSERT_LT(2.0 * std::sqrt(2.0 * mesh.area[j]), 0.99) << "a gather ray from the floor to the square must not take the near bounce";
+    }
+  }
+  ASSERT_GT(on_square, 0u);
+  const Camera camera{{0.7f, 0, 0.8f}, {0.7f, 0, 0}, {1, 0, 0}, 90.0f};
+  constexpr int W = 32, H = 32, R = 12;
+  const CameraFrame f = camera_frame(camera, W, H);
+  auto radiance = [](double x, double y) { return floor_radiance(x, y, -0.5, 0.5, -0.5, 0.5, 1.0, 0.5, 1.0); };
+  double curvature = 0.0;  // max |f_xx| + |f_yy| over the floor in view (central differences)
+  constexpr double step = 1e-3;
+  for (double x = -0.2; x <= 1.7; x += 0.01)
+    for (double y = -0.9; y <= 0.9; y += 0.01) {
+      const double c = radiance(x, y);
+      curvature = std::max(curvature, std::abs(radiance(x + step, y) - 2 * c + radiance(x - step, y)) / (step * step) +
+                                          std::abs(radiance(x, y + step) - 2 * c + radiance(x, y - step)) / (step * step));
+    }
+  const double h = 0.25 / std::sqrt(2.0), interpolation = h * h / 8.0 * curvature;
+  std::vector<double> want((W / 8) * (H / 8), 0.0);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      for (int j = 0; j < 8; ++j)
+        for (int i = 0; i < 8; ++i) {
+          const glm::dvec3 d = f.direction(x + (i + 0.5) / 8, y + (j + 0.5) / 8);
+          const glm::dvec3 at = f.eye + d * (-f.eye.z / d.z);
+          ASSERT_TRUE(at.x > -0.2 && at.x < 1.7 && std::abs(at.y) < 0.9);
+          want[static_cast<std::size_t>((y / 8) * (W / 8) + x / 8)] += radiance(at.x, at.y) / (64.0 * 64.0);
+        }
+  std::printf("interpolation bound %.6f (%.2f %% of the peak)\n", interpolation, 100.0 * interpolation / radiance(0, 0));
+  for (const bool cache : {true, false}) {
+    std::vector<double> sum(want.size(), 0.0), sq(want.size(), 0.0);
+    uint64_t record_rays = 0;
+    for (int r = 0; r < R; ++r) {
+      GatherOptions o{.width = W, .height = H, .spp = 64, .seed = static_cast<uint64_t>(41 + r), .cache = cache};
+      const GatherPasses p = FinalGather(mesh, solution, o).render(camera);
+      record_rays += p.record_rays;
+      std::vector<double> block(want.size(), 0.0);
+      for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          block[static_cast<std::size_t>((y / 8) * (W / 8) + x / 8)] += p.combined.at(x, y).x / 64.0;
+          EXPECT_EQ(p.direct.at(x, y).x, 0.0f);
+        }
+      for (std::size_t b = 0; b < block.size(); ++b) sum[b] += block[b], sq[b] += block[b] * block[b];
+    }
+    EXPECT_EQ(record_rays > 0, cache);
+    double worst = 0.0;
+    for (std::size_t b = 0; b < want.size(); ++b) {
+      const double mean = sum[b] / R, s = std::sqrt(std::max(0.0, (sq[b] - R * mean * mean) / (R - 1)));
+      EXPECT_NEAR(mean, want[b], 6.0 * s / std::sqrt(double(R)) + (cache ? interpolation : 0.0)) << "block " << b << (cache ? ", cache" : ", no cache");
+      worst = std::max(worst, std::abs(mean / want[b] - 1.0));
+      std::printf("%s block %zu: %.6f, closed form %.6f, standard error %.3f %%\n", cache ? "cache" : "rays", b, mean, want[b],
+                  100.0 * s / std::sqrt(double(R)) / want[b]);
+    }
+    std::printf("indirect under a square, %s: worst block %.3f %% off\n", cache ? "cache" : "no cache", 100.0 * worst);
+  }
+}
+
 // Tiles: any split of the image, on any number of threads, is the same image bit for bit.
 TEST(Gather, TilesAndThreadsGiveTheSameImage) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), MeshOptions{.target_patches = 300});
@@ -285,6 +390,7 @@ TEST(Gather, TilesAndThreadsGiveTheSameImage) {
   EXPECT_EQ(a.direct.pixels, b.direct.pixels);
   EXPECT_EQ(a.indirect.pixels, b.indirect.pixels);
   EXPECT_EQ(a.rays, b.rays);
+  EXPECT_GT(a.record_rays, 0u);  // the cache was on
   EXPECT_THROW(one.render(*mesh.camera, 0, 0, 25, 1), Error);
   EXPECT_THROW(one.render(*mesh.camera, 3, 0, 2, 1), Error);
   EXPECT_THROW(FinalGather(mesh, radiosity, GatherOptions{.spp = 0}), Error);
