@@ -682,8 +682,9 @@ int image(ImageArgs& a) {
     write_png(out + ".png", p.combined, a.exposure);
     std::printf("wrote %s\nwrote %s\n", fs::absolute(out + ".exr").c_str(), fs::absolute(out + ".png").c_str());
     if (!a.quiet)
-      std::printf("%dx%d, %d spp, %zu patches, %.2f s, %.3g rays/s\n", a.gather.width, a.gather.height, a.gather.spp, s.mesh.size(),
-                  seconds, static_cast<double>(p.rays) / std::max(seconds, 1e-9));
+      std::printf("%dx%d, %d spp, %zu patches, %.2f s, %.3g rays/s (%.0f %% of them for the cache)\n", a.gather.width, a.gather.height,
+                  a.gather.spp, s.mesh.size(), seconds, static_cast<double>(p.rays + p.record_rays) / std::max(seconds, 1e-9),
+                  100.0 * static_cast<double>(p.record_rays) / std::max<double>(1.0, static_cast<double>(p.rays + p.record_rays)));
   }
   return 0;
 }

@@ -13,8 +13,9 @@
 // The indirect light comes from an irradiance cache of the view (Ward's, on a grid of the image;
 // GatherOptions::cache): records of the indirect light at raster points of a grid 16 pixels
 // apart, each from 4 x spp gather rays (256 to 16,384), the grid refined down to 2 pixels where
-// the corners of a block are not one surface or lie further apart than a quarter of the distance
-// to what reflects light to them; a sample takes its block's corners bilinearly, and gathers for
+// the corners of a block are not one surface, and down to 4 where they lie further apart than a
+// quarter of the distance to what reflects light to them; a sample takes its block's corners
+// bilinearly, and gathers for
 // itself where none is of its surface. Then the direct light is the emitter sample alone, without
 // MIS against a gather ray. The cache trades the gather ray's noise for a bias where the indirect
 // light bends within a block (bench/RESULTS.md: measured per region); without it each sample

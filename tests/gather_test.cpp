@@ -284,10 +284,10 @@ TEST(Gather, AWallBesideACeilingLightMatchesLambertsFormula) {
 // block's mean must lie within 6 standard errors of the exact mean (Student's t with 11 degrees
 // of freedom exceeds 6 with probability 9e-5). The cache may add its interpolation's bias: over a
 // block of side h (bilinear, and linear in world space on a plane seen by a pinhole) at most
-// h^2 / 8 (|f_xx| + |f_yy|) for f = rho F, and its blocks here are at most h = 0.25 / sqrt(2)
-// across (corners at most kCacheWard = 0.25 of the least gather distance apart, and every ray
-// that meets the square goes at least 1); the second derivatives are the closed form's, largest
-// over the floor in view. The harmonic mean distance that Ward took would let blocks span the
+// h^2 / 8 (|f_xx| + |f_yy|) for f = rho F, and its blocks here are at most h across: 0.25 /
+// sqrt(2) (corners at most kCacheWard = 0.25 of the least gather distance apart, and every ray
+// that meets the square goes at least 1) or 4 pixels (taken at any distance), whichever is more;
+// the second derivatives are the closed form's, largest over the floor in view. The harmonic mean distance that Ward took would let blocks span the
 // whole view here (most rays leave the scene), 15 % off at the peak.
 TEST(Gather, TheIndirectLightUnderALitSquareMatchesItsClosedForm) {
   QuadScene q;
@@ -319,7 +319,8 @@ TEST(Gather, TheIndirectLightUnderALitSquareMatchesItsClosedForm) {
       curvature = std::max(curvature, std::abs(radiance(x + step, y) - 2 * c + radiance(x - step, y)) / (step * step) +
                                           std::abs(radiance(x, y + step) - 2 * c + radiance(x, y - step)) / (step * step));
     }
-  const double h = 0.25 / std::sqrt(2.0), interpolation = h * h / 8.0 * curvature;
+  const double pixel = 2.0 * 0.8 * std::tan(45.0 * std::numbers::pi / 180.0) / W;  // on the floor, 0.8 below the eye
+  const double h = std::max(0.25 / std::sqrt(2.0), 4.0 * pixel), interpolation = h * h / 8.0 * curvature;
   std::vector<double> want((W / 8) * (H / 8), 0.0);
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x)
