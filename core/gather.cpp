@@ -38,10 +38,11 @@ constexpr double kNear = 2.0;
 // Blocks of kCacheAny pixels or fewer are taken at any distance (near walls the criterion would
 // split blocks down to kCacheLeast for a light that changes there nearly linearly: at 512 x 512
 // twice the records and 1.5 times the time for the same error against Cycles). A sample takes
-// the corners of its
-// pixel's block if its own point faces their way and lies in their planes (the same measures);
-// in a block of kCacheLeast pixels whose corners are not one surface (an edge), the corners on
-// the sample's own; where there are none, it traces its own gather ray.
+// the corners of its pixel's block if its own point faces their way and lies in their planes
+// (the same measures); in a block of kCacheLeast pixels whose corners are not one surface (an
+// edge), the corners on the sample's own; where there are none, it traces its own gather ray.
+// Where a block's records met emitters with more than kCacheMis of their rays, its samples keep
+// a gather ray for the direct light's MIS.
 constexpr int kCacheSpacing = 16, kCacheAny = 4, kCacheLeast = 2;
 constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.05;
 
