@@ -6,7 +6,7 @@
 // (--reference2) the reference is their mean, and rel_rms_net is the RMS less the reference's own
 // noise: the variance of (a - b) / 2 per pixel, (a - b)^2 / 4 relative, subtracted from the
 // mean square (a reference of finite samples is never exactly converged). With --noise each final
-// gather is rendered twice, with seeds 1 and 2, and its own noise is measured the same way, per
+// gather is rendered twice, with seeds S and S + 1 (--seed, 1), and its own noise is measured the same way, per
 // pass: noise (combined), noise_direct and noise_indirect are the RMS over the compared pixels of
 // the one image's standard deviation, sqrt((a - b)^2 / 2), relative to the reference; bias is
 // what is left of rel_rms_net, sqrt(rel_rms_net^2 - noise^2): the error no sample count removes.
@@ -271,6 +271,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> patches{"10000"}, bundles{"1000"};  // as sirad render takes them, and as the CSV shows them
   std::vector<int> spp{16, 64};
   std::vector<std::string> cache{"on"};
+  uint64_t seed = 1;
   std::vector<std::string> candidates;
   double light_above = 3.0;
   bool measure_noise = false;
@@ -285,6 +286,7 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
+  app.add_option("--seed", seed, "The final gathers' seed (with --noise, seed + 1 for the second)")->capture_default_str();
   app.add_option("--candidate", candidates, "Another image to score: FILE.exr:SECONDS");
   app.add_option("--light-above", light_above, "Reference luminance above which a pixel is the light's, left out")->capture_default_str();
   app.add_option("--reference-passes", reference_passes,
@@ -334,7 +336,7 @@ int main(int argc, char** argv) {
         const std::vector<int> region = measure_noise ? regions(s.mesh, ref.width, ref.height, names) : std::vector<int>{};
         for (const std::string& mode : cache)
         for (const int n : spp) {
-          GatherOptions o{.width = ref.width, .height = ref.height, .spp = n, .cache = mode == "on"};
+          GatherOptions o{.width = ref.width, .height = ref.height, .spp = n, .seed = seed, .cache = mode == "on"};
           const std::string method = mode == "on" ? "gather" : "gather-nocache";
           const auto t2 = Clock::now();
           GatherPasses g = FinalGather(s.mesh, s.radiosity, o).render(*s.mesh.camera);
@@ -342,7 +344,7 @@ int main(int argc, char** argv) {
           std::optional<Noise> split;
           GatherPasses h;
           if (measure_noise) {
-            o.seed = 2;
+            o.seed = seed + 1;
             h = FinalGather(s.mesh, s.radiosity, o).render(*s.mesh.camera);
             split = Noise{noise(g.combined, h.combined, ref, light_above), noise(g.direct, h.direct, ref, light_above),
                       noise(g.indirect, h.indirect, ref, light_above)};
@@ -363,6 +365,7 @@ int main(int argc, char** argv) {
             }
           }
           write_exr(out + fmt::format("-{}{}.exr", method, n), g.combined, {});
+          if (measure_noise) write_exr(out + fmt::format("-{}{}-seed{}.exr", method, n, seed + 1), h.combined, {});
         }
       }
   } catch (const std::exception& e) {

@@ -44,7 +44,7 @@ constexpr double kNear = 2.0;
 // Where a block's records met emitters with more than kCacheMis of their rays, its samples keep
 // a gather ray for the direct light's MIS.
 constexpr int kCacheSpacing = 16, kCacheAny = 4, kCacheLeast = 2;
-constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.05;
+constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.02;
 
 }  // namespace
 
@@ -313,7 +313,7 @@ struct FinalGather::Impl {
   // they make a block (else it is a pixel on an edge, whose samples take the corners on their own
   // surface). No corners: no cache. `mis`: a corner's rays met emitters more than kCacheMis of
   // the time, so the block's samples weigh their emitter samples against a gather ray of their
-  // own (MIS: light sampling alone is noisy near a large emitter).
+  // own (MIS: light sampling alone is noisy near a large emitter or among many).
   struct Block {
     int x0 = 0, y0 = 0, side = 1;
     std::array<const CacheRecord*, 4> c{};

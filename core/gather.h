@@ -16,8 +16,8 @@
 // the corners of a block are not one surface, and down to 4 where they lie further apart than a
 // quarter of the distance to what reflects light to them; a sample takes its block's corners
 // bilinearly, and gathers for itself where none is of its surface. Then the direct light is the
-// emitter sample alone, without MIS against a gather ray, except near large emitters (where a
-// block's records met emitters with more than 5 % of their rays: its samples still trace a
+// emitter sample alone, without MIS against a gather ray, except near large or many emitters (where a
+// block's records met emitters with more than 2 % of their rays: its samples still trace a
 // gather ray for the MIS). The cache trades the gather ray's noise for a bias where the indirect
 // light bends within a block (bench/RESULTS.md: measured per region); without it each sample
 // traces one gather ray, as a path tracer's first bounce.
