@@ -6,10 +6,13 @@
 // (--reference2) the reference is their mean, and rel_rms_net is the RMS less the reference's own
 // noise: the variance of (a - b) / 2 per pixel, (a - b)^2 / 4 relative, subtracted from the
 // mean square (a reference of finite samples is never exactly converged). With --noise each final
-// gather is rendered twice, with seeds S and S + 1 (--seed, 1), and its own noise is measured the same way, per
-// pass: noise (combined), noise_direct and noise_indirect are the RMS over the compared pixels of
-// the one image's standard deviation, sqrt((a - b)^2 / 2), relative to the reference; bias is
-// what is left of rel_rms_net, sqrt(rel_rms_net^2 - noise^2): the error no sample count removes.
+// gather is rendered twice, with seeds S and S + 1 (--seed S, 1 unless given), and its own noise
+// is measured the same way, per pass: noise (combined), noise_direct and noise_indirect are the
+// RMS over the compared pixels of the one image's standard deviation, sqrt((a - b)^2 / 2),
+// relative to the reference; bias is what is left of rel_rms_net, sqrt(rel_rms_net^2 - noise^2):
+// the error no sample count removes. Rows `gather` are the final gather with its irradiance
+// cache, `gather-nocache` without (--cache); --solution renders a stored solution instead of
+// solving one.
 // It also writes each gather's error map (the two seeds' mean against the reference, as a PNG)
 // and the same figures per region (material and the axis a surface faces). With
 // --reference-passes (a multilayer EXR of the reference's diffuse passes, render_obj.py ...
@@ -307,6 +310,8 @@ int main(int argc, char** argv) {
         fail("{}: passes of {}x{} for a reference of {}x{}", reference_passes, passes->direct.width, passes->direct.height, ref.width,
              ref.height);
     }
+    if (!solution.empty() && (patches.size() != 1 || bundles.size() != 1))
+      fail("--solution {}: one solution, so one --patches and one --bundles to name it", solution);
     fs::create_directories(work);
     std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net,mean,noise,noise_direct,noise_indirect,bias,direct_mean,direct_rms,indirect_mean,indirect_rms\n");
     for (const std::string& c : candidates) {
