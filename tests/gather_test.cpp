@@ -2,6 +2,7 @@
 // exact framing, a furnace, a square light over a floor against its closed form, and tiles.
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numbers>
 #include <vector>
 
@@ -137,6 +138,49 @@ double floor_radiance(double px, double py, double x0, double x1, double y0, dou
   return rho * E * F;
 }
 
+// A floor (rho 0.5, the plane z = 0 within 4 of the origin, facing +z) under a square of side 1
+// at height 1 facing down (x and y in [-0.5, 0.5]) of reflectance rho and emission e.
+QuadScene floor_under_square(glm::vec3 rho, glm::vec3 e) {
+  QuadScene q;
+  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t square = q.material(rho, e);
+  q.quad({-4, -4, 0}, {4, -4, 0}, {4, 4, 0}, {-4, 4, 0}, floor);                         // faces +z
+  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, square);  // faces -z
+  return q;
+}
+
+// The exact mean of each block of 8 x 8 pixels (row-major) of a W x H view `f` whose radiance
+// along a view direction is `radiance`, from 8 x 8 points of each pixel.
+void exact_block_means(const CameraFrame& f, const std::function<double(const glm::dvec3&)>& radiance, std::vector<double>& want) {
+  want.assign(static_cast<std::size_t>((f.width / 8) * (f.height / 8)), 0.0);
+  for (int y = 0; y < f.height; ++y)
+    for (int x = 0; x < f.width; ++x)
+      for (int j = 0; j < 8; ++j)
+        for (int i = 0; i < 8; ++i)
+          want[static_cast<std::size_t>((y / 8) * (f.width / 8) + x / 8)] += radiance(f.direction(x + (i + 0.5) / 8, y + (j + 0.5) / 8)) / (64.0 * 64.0);
+}
+
+// The means of an image's blocks of 8 x 8 pixels (red channel, row-major), over renders of
+// independent seeds: each block's mean and its standard error s / sqrt(renders).
+struct BlockSpread {
+  std::vector<double> sum, sq;
+  int renders = 0;
+  void add(const Image& image) {
+    const std::size_t blocks = static_cast<std::size_t>((image.width / 8) * (image.height / 8));
+    sum.resize(blocks, 0.0), sq.resize(blocks, 0.0);
+    std::vector<double> block(blocks, 0.0);
+    for (int y = 0; y < image.height; ++y)
+      for (int x = 0; x < image.width; ++x) block[static_cast<std::size_t>((y / 8) * (image.width / 8) + x / 8)] += image.at(x, y).x / 64.0;
+    for (std::size_t b = 0; b < blocks; ++b) sum[b] += block[b], sq[b] += block[b] * block[b];
+    ++renders;
+  }
+  double mean(std::size_t b) const { return sum[b] / renders; }
+  double standard_error(std::size_t b) const {
+    const double m = mean(b);
+    return std::sqrt(std::max(0.0, (sq[b] - renders * m * m) / (renders - 1)) / renders);
+  }
+};
+
 // A square light (side 1, E = 1, rho = 0) at height 1 over a floor (rho = 0.5), nothing else: a
 // floor point's radiance is rho E F (closed form above); no indirect light (a gather ray from the
 // floor meets the light's front, whose B - E is 0, or leaves the scene). The camera looks down at
@@ -147,11 +191,7 @@ double floor_radiance(double px, double py, double x0, double x1, double y0, dou
 // of pixels of N samples each has variance at most sum(2 M mu / N) / pixels^2. Each 8 x 8 block
 // (per region, not only the whole image) and the whole image must lie within 4 sd of it.
 TEST(Gather, ASquareLightOverAFloorMatchesItsClosedForm) {
-  QuadScene q;
-  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
-  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(1.0f));
-  q.quad({-4, -4, 0}, {4, -4, 0}, {4, 4, 0}, {-4, 4, 0}, floor);                        // faces +z
-  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, light);  // faces -z
+  const QuadScene q = floor_under_square(glm::vec3(0.0f), glm::vec3(1.0f));
   PatchMesh mesh = mesh_scene(q.scene, MeshOptions{});
   std::vector<glm::vec3> solution(mesh.size());
   for (std::size_t j = 0; j < mesh.size(); ++j) solution[j] = mesh.emits(j) ? glm::vec3(1.0f) : glm::vec3(0.01f);
@@ -240,34 +280,29 @@ TEST(Gather, AWallBesideACeilingLightMatchesLambertsFormula) {
   constexpr int W = 32, H = 32, N = 256, R = 16;
   const CameraFrame f = camera_frame(camera, W, H);
   const std::vector<glm::dvec3> square{{-0.5, -0.5, 1}, {-0.5, 0.5, 1}, {0.5, 0.5, 1}, {0.5, -0.5, 1}};
-  std::vector<double> want((W / 8) * (H / 8), 0.0);  // the exact mean of each block of 8 x 8 pixels
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int j = 0; j < 8; ++j)
-        for (int i = 0; i < 8; ++i) {
-          const glm::dvec3 d = f.direction(x + (i + 0.5) / 8, y + (j + 0.5) / 8);
-          const glm::dvec3 at = f.eye + d * ((1.0 - f.eye.x) / d.x);
-          ASSERT_TRUE(at.z > 0.0 && at.z < 1.0 && std::abs(at.y) < 2.0) << "pixel " << x << ", " << y << " sees past the wall";
-          want[static_cast<std::size_t>((y / 8) * (W / 8) + x / 8)] += 0.5 * 1.0 * polygon_form_factor(at, {-1, 0, 0}, square) / (64.0 * 64.0);
-        }
-  std::vector<double> sum(want.size(), 0.0), sq(want.size(), 0.0);
+  std::vector<double> want;
+  bool on_wall = true;
+  exact_block_means(f, [&](const glm::dvec3& d) {
+    const glm::dvec3 at = f.eye + d * ((1.0 - f.eye.x) / d.x);
+    on_wall = on_wall && at.z > 0.0 && at.z < 1.0 && std::abs(at.y) < 2.0;
+    return 0.5 * 1.0 * polygon_form_factor(at, {-1, 0, 0}, square);
+  }, want);
+  ASSERT_TRUE(on_wall) << "a pixel sees past the wall";
+  BlockSpread spread;
   for (int r = 0; r < R; ++r) {
     GatherOptions o{.width = W, .height = H, .spp = N, .seed = static_cast<uint64_t>(13 + r)};
     const GatherPasses p = FinalGather(mesh, solution, o).render(camera);
-    std::vector<double> block(want.size(), 0.0);
+    spread.add(p.combined);
     for (int y = 0; y < H; ++y)
-      for (int x = 0; x < W; ++x) {
-        block[static_cast<std::size_t>((y / 8) * (W / 8) + x / 8)] += p.combined.at(x, y).x / 64.0;
+      for (int x = 0; x < W; ++x)
         EXPECT_NEAR(p.indirect.at(x, y).x, 0.0f, 1e-6f);  // B - E of the light: 0 but for the interpolation's rounding
-      }
-    for (std::size_t b = 0; b < block.size(); ++b) sum[b] += block[b], sq[b] += block[b] * block[b];
   }
   double worst = 0.0;
   for (std::size_t b = 0; b < want.size(); ++b) {
-    const double mean = sum[b] / R, s = std::sqrt(std::max(0.0, (sq[b] - R * mean * mean) / (R - 1)));
-    EXPECT_NEAR(mean, want[b], 6.0 * s / std::sqrt(double(R))) << "block " << b;
+    const double mean = spread.mean(b), se = spread.standard_error(b);
+    EXPECT_NEAR(mean, want[b], 6.0 * se) << "block " << b;
     worst = std::max(worst, std::abs(mean / want[b] - 1.0));
-    std::printf("block %zu: %.6f, Lambert %.6f, standard error %.3f %%\n", b, mean, want[b], 100.0 * s / std::sqrt(double(R)) / want[b]);
+    std::printf("block %zu: %.6f, Lambert %.6f, standard error %.3f %%\n", b, mean, want[b], 100.0 * se / want[b]);
   }
   std::printf("wall beside a ceiling light: worst block %.3f %% off\n", 100.0 * worst);
 }
@@ -287,14 +322,11 @@ TEST(Gather, AWallBesideACeilingLightMatchesLambertsFormula) {
 // h^2 / 8 (|f_xx| + |f_yy|) for f = rho F, and its blocks here are at most h across: 0.25 /
 // sqrt(2) (corners at most kCacheWard = 0.25 of the least gather distance apart, and every ray
 // that meets the square goes at least 1) or 4 pixels (taken at any distance), whichever is more;
-// the second derivatives are the closed form's, largest over the floor in view. The harmonic mean distance that Ward took would let blocks span the
-// whole view here (most rays leave the scene), 15 % off at the peak.
+// the second derivatives are the closed form's, largest over the floor in view. The harmonic
+// mean distance that Ward took would let blocks span the whole view here (most rays leave the
+// scene), 15 % off at the peak.
 TEST(Gather, TheIndirectLightUnderALitSquareMatchesItsClosedForm) {
-  QuadScene q;
-  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
-  const uint32_t square = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
-  q.quad({-4, -4, 0}, {4, -4, 0}, {4, 4, 0}, {-4, 4, 0}, floor);                         // faces +z
-  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, square);  // faces -z
+  const QuadScene q = floor_under_square(glm::vec3(0.5f), glm::vec3(0.0f));
   PatchMesh mesh = mesh_scene(q.scene, MeshOptions{.target_patches = 4000});
   std::vector<glm::vec3> solution(mesh.size());
   std::size_t on_square = 0;
@@ -321,40 +353,33 @@ TEST(Gather, TheIndirectLightUnderALitSquareMatchesItsClosedForm) {
     }
   const double pixel = 2.0 * 0.8 * std::tan(45.0 * std::numbers::pi / 180.0) / W;  // on the floor, 0.8 below the eye
   const double h = std::max(0.25 / std::sqrt(2.0), 4.0 * pixel), interpolation = h * h / 8.0 * curvature;
-  std::vector<double> want((W / 8) * (H / 8), 0.0);
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int j = 0; j < 8; ++j)
-        for (int i = 0; i < 8; ++i) {
-          const glm::dvec3 d = f.direction(x + (i + 0.5) / 8, y + (j + 0.5) / 8);
-          const glm::dvec3 at = f.eye + d * (-f.eye.z / d.z);
-          ASSERT_TRUE(at.x > -0.2 && at.x < 1.7 && std::abs(at.y) < 0.9);
-          want[static_cast<std::size_t>((y / 8) * (W / 8) + x / 8)] += radiance(at.x, at.y) / (64.0 * 64.0);
-        }
+  std::vector<double> want;
+  bool in_view = true;  // within the floor over which the curvature was taken
+  exact_block_means(f, [&](const glm::dvec3& d) {
+    const glm::dvec3 at = f.eye + d * (-f.eye.z / d.z);
+    in_view = in_view && at.x > -0.2 && at.x < 1.7 && std::abs(at.y) < 0.9;
+    return radiance(at.x, at.y);
+  }, want);
+  ASSERT_TRUE(in_view);
   std::printf("interpolation bound %.6f (%.2f %% of the peak)\n", interpolation, 100.0 * interpolation / radiance(0, 0));
   for (const bool cache : {true, false}) {
-    std::vector<double> sum(want.size(), 0.0), sq(want.size(), 0.0);
+    BlockSpread spread;
     uint64_t record_rays = 0;
     for (int r = 0; r < R; ++r) {
       GatherOptions o{.width = W, .height = H, .spp = 64, .seed = static_cast<uint64_t>(41 + r), .cache = cache};
       const GatherPasses p = FinalGather(mesh, solution, o).render(camera);
       record_rays += p.record_rays;
-      std::vector<double> block(want.size(), 0.0);
+      spread.add(p.combined);
       for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-          block[static_cast<std::size_t>((y / 8) * (W / 8) + x / 8)] += p.combined.at(x, y).x / 64.0;
-          EXPECT_EQ(p.direct.at(x, y).x, 0.0f);
-        }
-      for (std::size_t b = 0; b < block.size(); ++b) sum[b] += block[b], sq[b] += block[b] * block[b];
+        for (int x = 0; x < W; ++x) EXPECT_EQ(p.direct.at(x, y).x, 0.0f);
     }
     EXPECT_EQ(record_rays > 0, cache);
     double worst = 0.0;
     for (std::size_t b = 0; b < want.size(); ++b) {
-      const double mean = sum[b] / R, s = std::sqrt(std::max(0.0, (sq[b] - R * mean * mean) / (R - 1)));
-      EXPECT_NEAR(mean, want[b], 6.0 * s / std::sqrt(double(R)) + (cache ? interpolation : 0.0)) << "block " << b << (cache ? ", cache" : ", no cache");
+      const double mean = spread.mean(b), se = spread.standard_error(b);
+      EXPECT_NEAR(mean, want[b], 6.0 * se + (cache ? interpolation : 0.0)) << "block " << b << (cache ? ", cache" : ", no cache");
       worst = std::max(worst, std::abs(mean / want[b] - 1.0));
-      std::printf("%s block %zu: %.6f, closed form %.6f, standard error %.3f %%\n", cache ? "cache" : "rays", b, mean, want[b],
-                  100.0 * s / std::sqrt(double(R)) / want[b]);
+      std::printf("%s block %zu: %.6f, closed form %.6f, standard error %.3f %%\n", cache ? "cache" : "rays", b, mean, want[b], 100.0 * se / want[b]);
     }
     std::printf("indirect under a square, %s: worst block %.3f %% off\n", cache ? "cache" : "no cache", 100.0 * worst);
   }
