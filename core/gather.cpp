@@ -11,6 +11,7 @@
 #include <unordered_map>
 
 #include "core/camera.h"
+#include "core/emitters.h"
 #include "core/error.h"
 #include "core/rays.h"
 
@@ -115,8 +116,9 @@ struct FinalGather::Impl {
   std::vector<std::array<glm::vec3, 3>> corners;  // interpolated radiosity at each patch corner
   double offset;                                  // ray_offset: how far a ray leaves its surface
   RayScene rays;
-  // The emitters: patch, and the running sum of their areas (area-proportional sampling).
-  std::vector<uint32_t> emitter;
+  // The emitters as lights (core/emitters.h), and the running sum of their areas
+  // (area-proportional sampling).
+  std::vector<Light> lights;
   std::vector<double> emitter_cdf;
   double emitter_area = 0.0;
   // The cache records of the last view rendered (a view's tiles, rendered one after another,
@@ -144,12 +146,11 @@ struct FinalGather::Impl {
         corners(std::move(c)),
         offset(ray_offset(m)),
         rays(m, offset) {
-    for (std::size_t j = 0; j < mesh.size(); ++j)
-      if (mesh.emits(j)) {
-        emitter.push_back(static_cast<uint32_t>(j));
-        emitter_area += mesh.area[j];
-        emitter_cdf.push_back(emitter_area);
-      }
+    for (const Light& l : find_lights(mesh)) {
+      lights.push_back(l);
+      emitter_area += l.area;
+      emitter_cdf.push_back(emitter_area);
+    }
   }
 
   // The solution at point x of patch j: its corner radiosities, interpolated by x's barycentric
@@ -177,26 +178,25 @@ struct FinalGather::Impl {
   };
 
   // The emitter sample of the light reflected at point x (its ray leaving at `origin`, normal n)
-  // from the unit-square point `light`: a point on an emitter, chosen by area, and its shadow
+  // from the unit-square point `light`: a point on a light, chosen by area, and its shadow
   // ray, with the light it brings before rho (with `mis`, weighted against the gather ray that
   // meets an emitter; without, the sample is the whole direct estimate). The first
-  // coordinate picks the emitter and, rescaled within its share, the point's first coordinate
-  // on it: stratified points of the square stay stratified over all the emitters' area. False
-  // where no ray is cast (no emitter, or one the point does not face or that does not face it).
+  // coordinate picks the light and, rescaled within its share, the point's first coordinate
+  // on it: stratified points of the square stay stratified over all the lights' area, each
+  // stratum a compact cell of a light. False where no ray is cast (no emitter, or one the point
+  // does not face or that does not face it).
   bool light_sample(const glm::dvec3& x, const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& light, bool mis,
                     ShadowRay& out) const {
-    if (emitter.empty()) return false;
+    if (lights.empty()) return false;
     const double pick = light[0] * emitter_area;
     const std::size_t k = std::min<std::size_t>(
         static_cast<std::size_t>(std::upper_bound(emitter_cdf.begin(), emitter_cdf.end(), pick) - emitter_cdf.begin()),
-        emitter.size() - 1);
-    const uint32_t e = emitter[k];
+        lights.size() - 1);
+    const Light& e = lights[k];
     const double below = k == 0 ? 0.0 : emitter_cdf[k - 1];
     const double s = std::clamp((pick - below) / (emitter_cdf[k] - below), 0.0, 1.0);
-    const auto& p = mesh.patches[e];
-    const glm::dvec3 y = on_triangle(glm::dvec3(mesh.vertices[p[0]]), glm::dvec3(mesh.vertices[p[1]]),
-                                     glm::dvec3(mesh.vertices[p[2]]), s, light[1]);
-    const glm::dvec3 ne(mesh.normal[e]);
+    const glm::dvec3 y = e.at(s, light[1]);
+    const glm::dvec3& ne = e.normal;
     const glm::dvec3 d = y - x;
     const double r2 = glm::dot(d, d);
     if (!(r2 > 0.0)) return false;
@@ -205,7 +205,7 @@ struct FinalGather::Impl {
     if (!(cos_x > 0.0 && cos_y > 0.0)) return false;
     const double p_light = light_pdf(r2, cos_y), p_gather = mis ? cos_x / std::numbers::pi : 0.0;
     // E cos_x / pi d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
-    out = {origin, y + ne * offset, glm::dvec3(mesh.emission(e)) * (cos_x / std::numbers::pi / (p_light + p_gather))};
+    out = {origin, y + ne * offset, e.emission * (cos_x / std::numbers::pi / (p_light + p_gather))};
     return true;
   }
 

@@ -3,7 +3,9 @@
 //   - primary visibility per sample, at jittered positions inside the pixel (core/camera.h);
 //   - the direct light, by sampling the emitters (area-proportional) with shadow rays, combined
 //     by multiple importance sampling (balance heuristic) with the cosine-distributed gather
-//     ray that hits an emitter;
+//     ray that hits an emitter; the emitters are sampled as the lights their patches make
+//     (core/emitters.h: a light cut into patches is one triangle or parallelogram), so that a
+//     pixel's stratified emitter points are one per cell of the light and penumbrae are quiet;
 //   - the indirect light, from cosine-distributed gather rays that look up the solved radiosity
 //     where they land, interpolated over the surface (the corner radiosities of core/output.h,
 //     barycentric), less the patch's emission: the reflected part Y = B - E only, so the light of

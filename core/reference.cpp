@@ -29,6 +29,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/atomic_file.h"
+#include "core/emitters.h"
 #include "core/error.h"
 #include "core/rays.h"
 
@@ -73,75 +74,6 @@ double polygon_form_factor(const dvec3& x, const dvec3& n, const dvec3* p, int c
   return std::abs(sum) / (2.0 * std::numbers::pi);
 }
 
-// An emitting input triangle (all its patches share its material), rebuilt from its patches.
-struct Emitter {
-  dvec3 p[3];
-  dvec3 normal;
-  double area;
-  dvec3 emission;
-};
-
-// The emitters, one per emitting source triangle: its corners are the extreme points of its
-// patches' vertices (regular subdivision keeps them). If a rebuilt triangle does not match its
-// patches (area or normal), each patch is its own emitter, which is always right, only slower.
-std::vector<Emitter> find_emitters(const PatchMesh& mesh) {
-  std::map<uint32_t, std::vector<uint32_t>> groups;
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    if (mesh.emits(j)) groups[mesh.source_triangle[j]].push_back(static_cast<uint32_t>(j));
-  }
-  std::vector<Emitter> out;
-  auto vertex = [&](uint32_t v) { return dvec3(mesh.vertices[v]); };
-  auto patch_emitter = [&](uint32_t j) {
-    Emitter e;
-    for (int k = 0; k < 3; ++k) e.p[k] = vertex(mesh.patches[j][k]);
-    e.normal = dvec3(mesh.normal[j]);
-    e.area = mesh.area[j];
-    e.emission = dvec3(mesh.emission(j));
-    return e;
-  };
-  for (const auto& [tri, members] : groups) {
-    std::vector<dvec3> pts;
-    double area = 0.0;
-    bool same = true;
-    for (uint32_t j : members) {
-      for (int k = 0; k < 3; ++k) pts.push_back(vertex(mesh.patches[j][k]));
-      area += mesh.area[j];
-      same = same && mesh.material[j] == mesh.material[members[0]];
-    }
-    dvec3 centre(0.0);
-    for (const dvec3& q : pts) centre += q / static_cast<double>(pts.size());
-    auto farthest = [&](const dvec3& from) {
-      std::size_t best = 0;
-      for (std::size_t k = 1; k < pts.size(); ++k)
-        if (glm::length(pts[k] - from) > glm::length(pts[best] - from)) best = k;
-      return pts[best];
-    };
-    dvec3 a = farthest(centre), b = farthest(a), c = a;
-    double best = -1.0;
-    for (const dvec3& q : pts) {
-      double s = glm::length(glm::cross(b - a, q - a));
-      if (s > best) best = s, c = q;
-    }
-    Emitter e = patch_emitter(members[0]);
-    dvec3 cr = glm::cross(b - a, c - a);
-    double tri_area = 0.5 * glm::length(cr);
-    bool ok = same && tri_area > 0.0 && std::abs(tri_area - area) <= 1e-4 * area &&
-              std::abs(glm::dot(cr / (2.0 * tri_area), e.normal)) > 0.9999;
-    if (!ok) {
-      for (uint32_t j : members) out.push_back(patch_emitter(j));
-      continue;
-    }
-    if (glm::dot(cr, e.normal) < 0.0) std::swap(b, c);
-    e.p[0] = a;
-    e.p[1] = b;
-    e.p[2] = c;
-    e.normal = glm::normalize(glm::cross(b - a, c - a));
-    e.area = tri_area;
-    out.push_back(e);
-  }
-  return out;
-}
-
 // One batch's system: sparse rows of F (patch, weight), the background weight, the direct part.
 struct Row {
   std::vector<std::pair<uint32_t, float>> entries;
@@ -163,7 +95,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
   const std::size_t n = mesh.size();
   const int R = o.batches;
   const int rays_b = o.rays_per_patch / R, points_b = o.light_samples / R;
-  const std::vector<Emitter> emitters = find_emitters(mesh);
+  const std::vector<Light> emitters = find_lights(mesh);
   // Ray origins leave the surface along its normal by eps: a few hundred float ulps of the
   // scene's coordinates, so a ray never re-hits its own patch or the back-to-back twin of a
   // thin wall, and far below any patch size (its effect on a form factor is O(eps / distance)).
@@ -217,7 +149,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
             else row.entries.emplace_back(hits[k], weight);
             k = e;
           }
-          // Direct: exact unoccluded form factor to each emitter triangle minus the visibility
+          // Direct: exact unoccluded form factor to each light (core/emitters.h) minus the visibility
           // control variate A_L K(x, y) (1 - V(x, y)), y stratified on L, one per point and L:
           // E[A_L K (1 - V)] = F_analytic - F_visible, so the estimate is unbiased, and exact
           // wherever nothing occludes.
@@ -226,7 +158,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
           stratified_square(points_b, lrng, pts);
           dvec3 sum(0.0);
           for (std::size_t l = 0; l < emitters.size(); ++l) {
-            const Emitter& L = emitters[l];
+            const Light& L = emitters[l];
             if (glm::dot(L.normal, (a + b + c) / 3.0 - L.p[0]) <= 0.0 && glm::dot(L.normal, a - L.p[0]) <= 0.0 &&
                 glm::dot(L.normal, b - L.p[0]) <= 0.0 && glm::dot(L.normal, c - L.p[0]) <= 0.0)
               continue;  // the patch is wholly behind L: L shows it only its back
@@ -239,9 +171,9 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
               // receives nothing from it, though rounding may put it a hair in front.
               if (glm::dot(L.normal, nx) < -0.9999 && glm::dot(L.normal, x - L.p[0]) <= eps) continue;
               if (rays.covered(static_cast<uint32_t>(i), x)) continue;  // under a coincident face
-              double fa = polygon_form_factor(x, nx, L.p, 3);
+              double fa = polygon_form_factor(x, nx, L.p.data(), L.corners);
               if (fa <= 0.0) continue;
-              dvec3 y = on_triangle(L.p[0], L.p[1], L.p[2], ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
+              dvec3 y = L.at(ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
               dvec3 r = y - x;
               double r2 = glm::dot(r, r), cx = glm::dot(nx, r), cy = -glm::dot(L.normal, r);
               double corr = 0.0;
