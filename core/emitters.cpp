@@ -111,9 +111,11 @@ void by_input_triangle(const PatchMesh& mesh, const std::vector<uint32_t>& membe
   for (const auto& [t, patches] : triangles) {
     std::vector<dvec3> pts;
     double area = 0.0;
+    bool same = true;
     for (uint32_t j : patches) {
       for (uint32_t v : mesh.patches[j]) pts.push_back(dvec3(mesh.vertices[v]));
       area += mesh.area[j];
+      same = same && mesh.material[j] == mesh.material[patches[0]];
     }
     dvec3 centre(0.0);
     for (const dvec3& q : pts) centre += q / static_cast<double>(pts.size());
@@ -132,7 +134,7 @@ void by_input_triangle(const PatchMesh& mesh, const std::vector<uint32_t>& membe
     Light l = patch_light(mesh, patches[0]);
     const dvec3 cr = glm::cross(b - a, c - a);
     const double tri_area = 0.5 * glm::length(cr);
-    if (t == 0xffffffffu || !(tri_area > 0.0) || std::abs(tri_area - area) > kSameArea * area ||
+    if (t == 0xffffffffu || !same || !(tri_area > 0.0) || std::abs(tri_area - area) > kSameArea * area ||
         std::abs(glm::dot(cr / (2.0 * tri_area), l.normal)) <= kSameNormal) {
       for (uint32_t j : patches) out.push_back(patch_light(mesh, j));
       continue;
@@ -195,6 +197,15 @@ std::vector<Light> find_lights(const PatchMesh& mesh) {
     if (as_one_shape(mesh, members, dvec3(mesh.normal[members[0]]), l)) out.push_back(l);
     else by_input_triangle(mesh, members, out);
   }
+  return out;
+}
+
+std::vector<Light> input_triangle_lights(const PatchMesh& mesh) {
+  std::vector<uint32_t> emitting;
+  for (std::size_t j = 0; j < mesh.size(); ++j)
+    if (mesh.emits(j)) emitting.push_back(static_cast<uint32_t>(j));
+  std::vector<Light> out;
+  by_input_triangle(mesh, emitting, out);
   return out;
 }
 

@@ -40,4 +40,10 @@ struct Light {
 // the emitting patches.
 std::vector<Light> find_lights(const PatchMesh& mesh);
 
+// The emitting input triangles of `mesh`, in their order, each rebuilt from its patches (the
+// extreme points of their vertices: regular subdivision keeps the corners) where they fill it,
+// else its patches: the lights of the reference solver (core/reference.h), which integrates
+// Lambert's formula over each.
+std::vector<Light> input_triangle_lights(const PatchMesh& mesh);
+
 }  // namespace sirad

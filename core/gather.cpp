@@ -38,7 +38,9 @@ constexpr double kNear = 2.0;
 //     surface among rays that leave the scene, 15 % off in the test of a lit square).
 // Blocks of kCacheAny pixels or fewer are taken at any distance (near walls the criterion would
 // split blocks down to kCacheLeast for a light that changes there nearly linearly: at 512 x 512
-// twice the records and 1.5 times the time for the same error against Cycles). A sample takes
+// twice the records and 1.5 times the time for the same error against Cycles), if their corners
+// of one surface see each other (a thin wall between two corners on one floor; else split, and
+// at kCacheLeast no cache). A sample takes
 // the corners of its pixel's block if its own point faces their way and lies in their planes
 // (the same measures); in a block of kCacheLeast pixels whose corners are not one surface (an
 // edge), the corners on the sample's own; where there are none, it traces its own gather ray.
@@ -320,6 +322,15 @@ struct FinalGather::Impl {
     bool fits = false, mis = false;
   };
 
+  // Whether points x1 (normal n1) and x2 (normal n2) are of one surface: they face ways at most
+  // acos(kCacheCos) apart, and each lies in the other's plane to kCachePlane of their distance.
+  static bool one_surface(const glm::dvec3& x1, const glm::dvec3& n1, const glm::dvec3& x2, const glm::dvec3& n2) {
+    if (glm::dot(n1, n2) < kCacheCos) return false;
+    const glm::dvec3 d = x2 - x1;
+    const double len = glm::length(d);
+    return std::abs(glm::dot(n1, d)) <= kCachePlane * len && std::abs(glm::dot(n2, d)) <= kCachePlane * len;
+  }
+
   // Whether corner records c make a block of `side` pixels the indirect light can be
   // interpolated over (the criteria at kCacheSpacing; r is each record's least distance).
   static bool fits(const std::array<const CacheRecord*, 4>& c, int side) {
@@ -330,17 +341,30 @@ struct FinalGather::Impl {
     }
     for (std::size_t a = 0; a < 4; ++a)
       for (std::size_t b = a + 1; b < 4; ++b) {
-        if (glm::dot(c[a]->n, c[b]->n) < kCacheCos) return false;
-        const glm::dvec3 d = c[b]->x - c[a]->x;
-        const double len = glm::length(d);
-        if (std::abs(glm::dot(c[a]->n, d)) > kCachePlane * len || std::abs(glm::dot(c[b]->n, d)) > kCachePlane * len) return false;
-        extent = std::max(extent, len);
+        if (!one_surface(c[a]->x, c[a]->n, c[b]->x, c[b]->n)) return false;
+        extent = std::max(extent, glm::length(c[b]->x - c[a]->x));
       }
     return side <= kCacheAny || extent <= kCacheWard * r;
   }
 
+  // Whether each two corners of c that are of one surface see each other (nothing between them
+  // just above it): a thin wall standing on a floor between two corners on that floor, which
+  // blocks of kCacheAny pixels or fewer (taken at any distance) and edges' blocks would
+  // otherwise interpolate across.
+  bool in_sight(const std::array<const CacheRecord*, 4>& c, uint64_t& cast) const {
+    for (std::size_t a = 0; a < 4; ++a)
+      for (std::size_t b = a + 1; b < 4; ++b)
+        if (c[a]->valid && c[b]->valid && one_surface(c[a]->x, c[a]->n, c[b]->x, c[b]->n)) {
+          ++cast;
+          if (rays.blocked(c[a]->x + c[a]->n * offset, c[b]->x + c[b]->n * offset)) return false;
+        }
+    return true;
+  }
+
   // The block of pixel (px, py): the largest that fits, from kCacheSpacing pixels down to
-  // kCacheLeast (which is taken if it does not: an edge).
+  // kCacheLeast (which is taken if it does not: an edge). A block of kCacheAny pixels or fewer
+  // whose corners of one surface do not all see each other is split, and at kCacheLeast gives
+  // no cache (its samples gather for themselves).
   Block block(const CameraFrame& frame, RecordStore& store, int px, int py, uint64_t& cast) const {
     const uint64_t row = static_cast<uint64_t>(options.width) + kCacheSpacing + 1;
     for (int side = kCacheSpacing;; side /= 2) {
@@ -351,6 +375,10 @@ struct FinalGather::Impl {
         b.c[static_cast<std::size_t>(k)] = &store.get(key, [&] { return make_record(frame, gx, gy, key, cast); });
       }
       b.fits = fits(b.c, side);
+      if (side <= kCacheAny && (b.fits || side <= kCacheLeast) && !in_sight(b.c, cast)) {
+        if (side > kCacheLeast) continue;
+        return Block{};
+      }
       if (b.fits || side <= kCacheLeast) {
         for (const CacheRecord* r : b.c) b.mis = b.mis || r->emitters > kCacheMis;
         return b;
@@ -371,7 +399,7 @@ struct FinalGather::Impl {
     double weight = 0.0;
     for (std::size_t k = 0; k < 4; ++k) {
       const CacheRecord& r = *b.c[k];
-      const bool here = r.valid && glm::dot(n, r.n) >= kCacheCos && std::abs(glm::dot(r.n, x - r.x)) <= kCachePlane * glm::length(x - r.x);
+      const bool here = r.valid && one_surface(x, n, r.x, r.n);
       if (!here && b.fits) return false;
       if (here) sum += w[k] * r.e, weight += w[k];
     }

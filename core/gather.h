@@ -16,8 +16,10 @@
 // GatherOptions::cache): records of the indirect light at raster points of a grid 16 pixels
 // apart, each from 4 x spp gather rays (256 to 16,384), the grid refined down to 2 pixels where
 // the corners of a block are not one surface, and down to 4 where they lie further apart than a
-// quarter of the distance to what reflects light to them; a sample takes its block's corners
-// bilinearly, and gathers for itself where none is of its surface. Then the direct light is the
+// quarter of the distance to what reflects light to them; a block of 4 pixels or fewer is taken
+// only if its corners of one surface see each other (a thin wall between two corners on one
+// floor: no light carried through it); a sample takes its block's corners bilinearly, and
+// gathers for itself where none is of its surface. Then the direct light is the
 // emitter sample alone, without MIS against a gather ray, except near large or many emitters (where a
 // block's records met emitters with more than 2 % of their rays: its samples still trace a
 // gather ray for the MIS). The cache trades the gather ray's noise for a bias where the indirect

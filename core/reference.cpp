@@ -95,7 +95,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
   const std::size_t n = mesh.size();
   const int R = o.batches;
   const int rays_b = o.rays_per_patch / R, points_b = o.light_samples / R;
-  const std::vector<Light> emitters = find_lights(mesh);
+  const std::vector<Light> emitters = input_triangle_lights(mesh);
   // Ray origins leave the surface along its normal by eps: a few hundred float ulps of the
   // scene's coordinates, so a ray never re-hits its own patch or the back-to-back twin of a
   // thin wall, and far below any patch size (its effect on a form factor is O(eps / distance)).
@@ -149,7 +149,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
             else row.entries.emplace_back(hits[k], weight);
             k = e;
           }
-          // Direct: exact unoccluded form factor to each light (core/emitters.h) minus the visibility
+          // Direct: exact unoccluded form factor to each emitting input triangle (core/emitters.h) minus the visibility
           // control variate A_L K(x, y) (1 - V(x, y)), y stratified on L, one per point and L:
           // E[A_L K (1 - V)] = F_analytic - F_visible, so the estimate is unbiased, and exact
           // wherever nothing occludes.

@@ -33,7 +33,7 @@ namespace sirad {
 struct ReferenceOptions {
   int rays_per_patch = 2048;  // cosine-distributed rays per patch, all batches together
   // Points per patch (all batches together) for the direct light: each point takes the exact
-  // form factor of every light (core/emitters.h) in front of it and one shadow ray to a stratified
+  // form factor of every emitting input triangle in front of it and one shadow ray to a stratified
   // point on each of them (the visibility control variate).
   int light_samples = 64;
   int batches = 8;            // independent batches (>= 2 for a standard error)

@@ -492,6 +492,58 @@ TEST(Gather, APenumbraIsAsQuietAsTheLightsStrata) {
               measured / allowed);
 }
 
+// The cache does not carry light through a thin wall. Two rooms' floors (rho 0.5) lie in one
+// plane, z = 0, either side of a wall 0.014 thick and 1 high (x in [0.021, 0.035]); a light over
+// room A (x < 0) lights its floor and the wall's A side, which the solution says are bright (1),
+// room B's floor and wall side dark (0). Seen from high above (64 x 64 pixels, 0.6 across at
+// the floor, nearly square on), the wall's top falls between the cache's grid points at raster
+// x = 34 (floor A) and 36 (floor B): a block whose corners were taken because they are one
+// plane would give room B's floor beside the wall the light of room A's. Right of the wall's A
+// side (as the camera sees it: x > 0.021 x 30 / 29 on the floor), what a sample sees (the wall's
+// top, floor B) has no indirect light: a gather ray from there meets the light (B - E = 0), the
+// dark side or nothing, and so does the bounce further. Without the cache and with it, every
+// pixel there must have an indirect light of 0.
+TEST(Gather, TheCacheDoesNotCarryLightThroughAThinWall) {
+  QuadScene q;
+  const uint32_t white = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(5.0f));
+  const float w0 = 0.021f, w1 = 0.035f, eye = 30.0f;
+  q.quad({-2, -1, 0}, {w0, -1, 0}, {w0, 1, 0}, {-2, 1, 0}, white);        // floor A, faces +z
+  q.quad({w1, -1, 0}, {2, -1, 0}, {2, 1, 0}, {w1, 1, 0}, white);          // floor B
+  q.quad({w0, -1, 0}, {w0, -1, 1}, {w0, 1, 1}, {w0, 1, 0}, white);        // the wall's A side, faces -x
+  q.quad({w1, -1, 0}, {w1, 1, 0}, {w1, 1, 1}, {w1, -1, 1}, white);        // its B side, faces +x
+  q.quad({w0, -1, 1}, {w1, -1, 1}, {w1, 1, 1}, {w0, 1, 1}, white);        // its top, faces +z
+  q.quad({-1.5f, -0.5f, 1.5f}, {-1.5f, 0.5f, 1.5f}, {-0.5f, 0.5f, 1.5f}, {-0.5f, -0.5f, 1.5f}, light);  // faces -z
+  const PatchMesh mesh = mesh_scene(q.scene, MeshOptions{.max_edge = 0.05});
+  std::vector<glm::vec3> solution(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const auto& p = mesh.patches[j];
+    const float cx = (mesh.vertices[p[0]].x + mesh.vertices[p[1]].x + mesh.vertices[p[2]].x) / 3.0f;
+    solution[j] = mesh.emits(j) ? glm::vec3(5.0f) : glm::vec3(cx < w0 + 0.001f ? 1.0f : 0.0f);
+  }
+  const double half = 0.3;
+  const Camera camera{{0, 0, eye}, {0, 0, 0}, {0, 1, 0}, static_cast<float>(2.0 * std::atan(half / eye) * 180.0 / std::numbers::pi)};
+  const int W = 64, H = 64;
+  const double a_side = w0 * eye / (eye - 1.0);  // where the A side's top edge is seen, on the floor
+  for (bool cache : {false, true}) {
+    const GatherPasses p = FinalGather(mesh, solution, GatherOptions{.width = W, .height = H, .spp = 64, .seed = 3, .cache = cache}).render(camera);
+    double beside_a = 0.0;
+    int right = 0;
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        const double left = -half + 2.0 * half * x / W;  // the pixel's footprint on the floor, x
+        if (left > a_side) {
+          ++right;
+          EXPECT_LE(std::abs(p.indirect.at(x, y).x), 1e-9f) << "pixel " << x << ", " << y << (cache ? ", cache" : ", no cache");  // rounding only
+        }
+        if (left + 2.0 * half / W < w0 && left + 4.0 * half / W > w0) beside_a += p.indirect.at(x, y).x / H;
+      }
+    EXPECT_GT(right, 25 * H);
+    EXPECT_GT(beside_a, 0.05) << "room A's floor beside the wall has indirect light";
+    std::printf("thin wall, %s: room A's floor beside the wall %.4f\n", cache ? "cache" : "no cache", beside_a);
+  }
+}
+
 // Tiles: any split of the image, on any number of threads, is the same image bit for bit.
 TEST(Gather, TilesAndThreadsGiveTheSameImage) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), MeshOptions{.target_patches = 300});
