@@ -546,20 +546,33 @@ GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, i
     fail("final gather: region [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
   const CameraFrame frame = camera_frame(camera, o.width, o.height, "final gather");
   GatherPasses out = GatherPasses::of_size(x1 - x0, y1 - y0);
-  const unsigned threads = std::min<unsigned>(static_cast<unsigned>(o.thread_count()),
-                                              static_cast<unsigned>(std::max(1, y1 - y0)));
+  // The work: the region's parts in tiles of the cache's grid (kCacheSpacing pixels a side),
+  // those of one colour of a checkerboard first. Tiles worked on at once then share at most a
+  // corner record, and a tile of the other colour finds its edges' records made: threads taking
+  // rows in turn waited for the records the other was making (a fifth of the time at 36 spp).
+  std::vector<std::array<int, 4>> tiles;
+  for (int colour = 0; colour < 2; ++colour)
+    for (int ty = y0 / kCacheSpacing; ty * kCacheSpacing < y1; ++ty)
+      for (int tx = x0 / kCacheSpacing; tx * kCacheSpacing < x1; ++tx)
+        if (((tx + ty) & 1) == colour)
+          tiles.push_back({std::max(x0, tx * kCacheSpacing), std::max(y0, ty * kCacheSpacing), std::min(x1, (tx + 1) * kCacheSpacing),
+                           std::min(y1, (ty + 1) * kCacheSpacing)});
+  const unsigned threads = std::min<unsigned>(static_cast<unsigned>(o.thread_count()), static_cast<unsigned>(std::max<std::size_t>(1, tiles.size())));
   const std::shared_ptr<RecordStore> records = impl_->records(camera);
-  std::atomic<int> next_row{y0};
+  std::atomic<std::size_t> next_tile{0};
   std::vector<uint64_t> cast(threads, 0), record_cast(threads, 0);
-  auto rows = [&](unsigned t) {  // whole rows each: no pixel is written by two threads
-    for (int y; (y = next_row.fetch_add(1)) < y1;) {
-      for (int x = x0; x < x1; ++x) cast[t] += impl_->pixel(frame, records.get(), x, y, x - x0, y - y0, out, record_cast[t]);
-      if (t == 0 && between) between();
+  auto work = [&](unsigned t) {  // whole tiles each: no pixel is written by two threads
+    for (std::size_t k; (k = next_tile.fetch_add(1)) < tiles.size();) {
+      const auto [tx0, ty0, tx1, ty1] = tiles[k];
+      for (int y = ty0; y < ty1; ++y) {
+        for (int x = tx0; x < tx1; ++x) cast[t] += impl_->pixel(frame, records.get(), x, y, x - x0, y - y0, out, record_cast[t]);
+        if (t == 0 && between) between();
+      }
     }
   };
   std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(rows, t);
-  rows(0);
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
+  work(0);
   for (auto& th : pool) th.join();
   for (uint64_t c : cast) out.rays += c;
   for (uint64_t c : record_cast) out.record_rays += c;
