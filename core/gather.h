@@ -97,8 +97,8 @@ class FinalGather {
   // The pixels [x0, x1) x [y0, y1) of the view from `camera`: passes of the region's size (its
   // pixel (0, 0) is the image's (x0, y0)), in tiles of 16 x 16 pixels spread over
   // options.threads threads, one of them the caller's. `between`, if given, is called on the
-  // caller's thread after each row of a tile it renders (a node's heartbeat). Throws sirad::Error for a region not within the image or a
-  // camera that defines no view.
+  // caller's thread after each row of a tile it renders (a node's heartbeat). Throws
+  // sirad::Error for a region not within the image or a camera that defines no view.
   GatherPasses render(const Camera& camera, int x0, int y0, int x1, int y1, const std::function<void()>& between = nullptr) const;
   // The whole image of the view from `camera`.
   GatherPasses render(const Camera& camera) const;
