@@ -322,7 +322,8 @@ int main(int argc, char** argv) {
     }
     for (const std::string& p : patches)
       for (const std::string& k : bundles) {
-        const std::string out = (fs::path(work) / fmt::format("{}-{}-{}", scene, p, k)).string();
+        // Named after the scene's file (a path's stem: the outputs stay in --work, never beside the scene).
+        const std::string out = (fs::path(work) / fmt::format("{}-{}-{}", fs::path(scene).stem().string(), p, k)).string();
         double solve_s = 0.0;
         if (solution.empty()) {
           const std::string cmd = fmt::format("'{}' render {} --patches {} --bundles {} --width {} --height {} -q --out '{}' >/dev/null", sirad,

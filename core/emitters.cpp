@@ -105,7 +105,11 @@ bool as_one_shape(const PatchMesh& mesh, const std::vector<uint32_t>& members, c
 
 // The input triangles of `members`, each rebuilt from its patches (the extreme points of their
 // vertices: regular subdivision keeps the corners) where they fill it; else its patches.
-void by_input_triangle(const PatchMesh& mesh, const std::vector<uint32_t>& members, std::vector<Light>& out) {
+void by_input_triangle(const PatchMesh& mesh, const std::vector<uint32_t>& members, std::vector<Light>& out,
+                       std::vector<int32_t>* light_of = nullptr) {
+  auto mark = [&](uint32_t j) {
+    if (light_of) (*light_of)[j] = static_cast<int32_t>(out.size() - 1);
+  };
   std::map<uint32_t, std::vector<uint32_t>> triangles;
   for (uint32_t j : members) triangles[j < mesh.source_triangle.size() ? mesh.source_triangle[j] : 0xffffffffu].push_back(j);
   for (const auto& [t, patches] : triangles) {
@@ -136,7 +140,10 @@ void by_input_triangle(const PatchMesh& mesh, const std::vector<uint32_t>& membe
     const double tri_area = 0.5 * glm::length(cr);
     if (t == 0xffffffffu || !same || !(tri_area > 0.0) || std::abs(tri_area - area) > kSameArea * area ||
         std::abs(glm::dot(cr / (2.0 * tri_area), l.normal)) <= kSameNormal) {
-      for (uint32_t j : patches) out.push_back(patch_light(mesh, j));
+      for (uint32_t j : patches) {
+        out.push_back(patch_light(mesh, j));
+        mark(j);
+      }
       continue;
     }
     if (glm::dot(cr, l.normal) < 0.0) std::swap(b, c);
@@ -144,6 +151,7 @@ void by_input_triangle(const PatchMesh& mesh, const std::vector<uint32_t>& membe
     l.normal = glm::normalize(glm::cross(b - a, c - a));
     l.area = tri_area;
     out.push_back(l);
+    for (uint32_t j : patches) mark(j);
   }
 }
 
@@ -154,7 +162,8 @@ dvec3 Light::at(double s, double t) const {
   return on_triangle(p[0], p[1], p[2], s, t);
 }
 
-std::vector<Light> find_lights(const PatchMesh& mesh) {
+std::vector<Light> find_lights(const PatchMesh& mesh, std::vector<int32_t>* light_of) {
+  if (light_of) light_of->assign(mesh.size(), -1);
   std::vector<uint32_t> emitting;
   for (std::size_t j = 0; j < mesh.size(); ++j)
     if (mesh.emits(j)) emitting.push_back(static_cast<uint32_t>(j));
@@ -194,8 +203,13 @@ std::vector<Light> find_lights(const PatchMesh& mesh) {
   std::vector<Light> out;
   for (const std::vector<uint32_t>& members : ordered) {
     Light l;
-    if (as_one_shape(mesh, members, dvec3(mesh.normal[members[0]]), l)) out.push_back(l);
-    else by_input_triangle(mesh, members, out);
+    if (as_one_shape(mesh, members, dvec3(mesh.normal[members[0]]), l)) {
+      out.push_back(l);
+      if (light_of)
+        for (uint32_t j : members) (*light_of)[j] = static_cast<int32_t>(out.size() - 1);
+    } else {
+      by_input_triangle(mesh, members, out, light_of);
+    }
   }
   return out;
 }

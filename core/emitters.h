@@ -9,6 +9,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -38,7 +39,9 @@ struct Light {
 // it; else each patch a light of its own (always right, only noisier). The lights' areas sum to
 // the emitting patches' area (to 1e-4), and a point sampled uniformly on them is uniform over
 // the emitting patches.
-std::vector<Light> find_lights(const PatchMesh& mesh);
+// `light_of`, if given, is set to each patch's light (its index; -1 for a patch that does not
+// emit).
+std::vector<Light> find_lights(const PatchMesh& mesh, std::vector<int32_t>* light_of = nullptr);
 
 // The emitting input triangles of `mesh`, in their order, each rebuilt from its patches (the
 // extreme points of their vertices: regular subdivision keeps the corners) where they fill it,

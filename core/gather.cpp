@@ -118,10 +118,11 @@ struct FinalGather::Impl {
   std::vector<std::array<glm::vec3, 3>> corners;  // interpolated radiosity at each patch corner
   double offset;                                  // ray_offset: how far a ray leaves its surface
   RayScene rays;
-  // The emitters as lights (core/emitters.h), and the running sum of their areas
-  // (area-proportional sampling).
+  // The emitters as lights (core/emitters.h), each patch's light (-1: none), and the lights'
+  // area-proportional choice (a Choice's cumulative probabilities).
   std::vector<Light> lights;
-  std::vector<double> emitter_cdf;
+  std::vector<int32_t> light_of;
+  std::vector<double> by_area;
   double emitter_area = 0.0;
   // The cache records of the last view rendered (a view's tiles, rendered one after another,
   // share them).
@@ -148,11 +149,57 @@ struct FinalGather::Impl {
         corners(std::move(c)),
         offset(ray_offset(m)),
         rays(m, offset) {
-    for (const Light& l : find_lights(mesh)) {
-      lights.push_back(l);
+    lights = find_lights(mesh, &light_of);
+    for (const Light& l : lights) {
       emitter_area += l.area;
-      emitter_cdf.push_back(emitter_area);
+      by_area.push_back(emitter_area);
     }
+    for (double& c : by_area) c /= emitter_area;
+  }
+
+  // How a point's emitter sample chooses its light: the cumulative probabilities of the lights
+  // in order (the last 1). A pixel's samples share one (Impl::choice); elsewhere (the bounce
+  // further, the records) the choice is by area.
+  using Choice = const double*;
+  double chance(Choice c, std::size_t k) const { return c[k] - (k == 0 ? 0.0 : c[k - 1]); }
+
+  // The choice for the samples of a pixel whose first reflecting hit is x (normal n), into
+  // `cdf`: with probability 1 - kByArea a light in proportion to an estimate of what it sends to x
+  // unoccluded (its emission's mean x area x cos at x x cos at the light / (r^2 + area), the
+  // cosines of its centre, the one at x the largest of its corners'), else by area, so that
+  // every light keeps a chance (the sample stays unbiased wherever the estimate is wrong: a
+  // light behind a wall). By area where nothing reflects, or past kChoiceLights lights (the
+  // estimate costs a pass over them per pixel).
+  static constexpr double kByArea = 0.25;
+  static constexpr std::size_t kChoiceLights = 4096;
+  Choice choice(const glm::dvec3* x, const glm::dvec3& n, std::vector<double>& cdf) const {
+    if (!x || lights.size() < 2 || lights.size() > kChoiceLights) return by_area.data();
+    cdf.resize(lights.size());
+    double total = 0.0;
+    for (std::size_t k = 0; k < lights.size(); ++k) {
+      const Light& l = lights[k];
+      glm::dvec3 c(0.0);
+      double cos_x = 0.0;
+      for (int i = 0; i < l.corners; ++i) {
+        const glm::dvec3 d = l.p[static_cast<std::size_t>(i)] - *x;
+        const double len = glm::length(d);
+        c += l.p[static_cast<std::size_t>(i)] / static_cast<double>(l.corners);
+        if (len > 0.0) cos_x = std::max(cos_x, glm::dot(n, d) / len);
+      }
+      const glm::dvec3 d = *x - c;
+      const double r2 = glm::dot(d, d), cos_l = r2 > 0.0 ? glm::dot(l.normal, d) / std::sqrt(r2) : 0.0;
+      const double w = (l.emission.x + l.emission.y + l.emission.z) / 3.0 * l.area * cos_x * std::max(cos_l, 0.0) / (r2 + l.area);
+      cdf[k] = std::isfinite(w) && w > 0.0 ? w : 0.0;
+      total += cdf[k];
+    }
+    if (!(total > 0.0) || !std::isfinite(total)) return by_area.data();
+    double sum = 0.0;
+    for (std::size_t k = 0; k < lights.size(); ++k) {
+      sum += (1.0 - kByArea) * cdf[k] / total + kByArea * chance(by_area.data(), k);
+      cdf[k] = sum;
+    }
+    for (double& v : cdf) v /= sum;  // the last exactly 1
+    return cdf.data();
   }
 
   // The solution at point x of patch j: its corner radiosities, interpolated by x's barycentric
@@ -170,9 +217,9 @@ struct FinalGather::Impl {
     return wa * glm::dvec3(corners[j][0]) + wb * glm::dvec3(corners[j][1]) + wc * glm::dvec3(corners[j][2]);
   }
 
-  // The emitter sample's pdf per solid angle seen from a point at distance^2 `r2` whose
-  // direction meets the emitter's front at cosine `cos_light`.
-  double light_pdf(double r2, double cos_light) const { return r2 / (cos_light * emitter_area); }
+  // The emitter sample's pdf per solid angle, under choice c, of a point of light k at
+  // distance^2 `r2` whose direction meets the light's front at cosine `cos_light`.
+  double light_pdf(Choice c, std::size_t k, double r2, double cos_light) const { return chance(c, k) * r2 / (cos_light * lights[k].area); }
 
   // A shadow ray of the direct light and what it brings if nothing blocks it.
   struct ShadowRay {
@@ -180,23 +227,21 @@ struct FinalGather::Impl {
   };
 
   // The emitter sample of the light reflected at point x (its ray leaving at `origin`, normal n)
-  // from the unit-square point `light`: a point on a light, chosen by area, and its shadow
-  // ray, with the light it brings before rho (with `mis`, weighted against the gather ray that
-  // meets an emitter; without, the sample is the whole direct estimate). The first
+  // from the unit-square point `light`: a light chosen by c, a point on it by area, and its
+  // shadow ray, with the light it brings before rho (with `mis`, weighted against the gather ray
+  // that meets an emitter; without, the sample is the whole direct estimate). The first
   // coordinate picks the light and, rescaled within its share, the point's first coordinate
-  // on it: stratified points of the square stay stratified over all the lights' area, each
-  // stratum a compact cell of a light. False where no ray is cast (no emitter, or one the point
-  // does not face or that does not face it).
+  // on it: stratified points of the square stay stratified over the lights, each stratum a
+  // compact cell of a light. False where no ray is cast (no emitter, or one the point does not
+  // face or that does not face it).
   bool light_sample(const glm::dvec3& x, const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& light, bool mis,
-                    ShadowRay& out) const {
+                    Choice c, ShadowRay& out) const {
     if (lights.empty()) return false;
-    const double pick = light[0] * emitter_area;
-    const std::size_t k = std::min<std::size_t>(
-        static_cast<std::size_t>(std::upper_bound(emitter_cdf.begin(), emitter_cdf.end(), pick) - emitter_cdf.begin()),
-        lights.size() - 1);
+    const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(std::upper_bound(c, c + lights.size(), light[0]) - c), lights.size() - 1);
     const Light& e = lights[k];
-    const double below = k == 0 ? 0.0 : emitter_cdf[k - 1];
-    const double s = std::clamp((pick - below) / (emitter_cdf[k] - below), 0.0, 1.0);
+    const double below = k == 0 ? 0.0 : c[k - 1];
+    if (!(c[k] > below)) return false;  // no chance (rounding)
+    const double s = std::clamp((light[0] - below) / (c[k] - below), 0.0, 1.0);
     const glm::dvec3 y = e.at(s, light[1]);
     const glm::dvec3& ne = e.normal;
     const glm::dvec3 d = y - x;
@@ -205,7 +250,7 @@ struct FinalGather::Impl {
     const glm::dvec3 w = d / std::sqrt(r2);
     const double cos_x = glm::dot(n, w), cos_y = -glm::dot(ne, w);
     if (!(cos_x > 0.0 && cos_y > 0.0)) return false;
-    const double p_light = light_pdf(r2, cos_y), p_gather = mis ? cos_x / std::numbers::pi : 0.0;
+    const double p_light = light_pdf(c, k, r2, cos_y), p_gather = mis ? cos_x / std::numbers::pi : 0.0;
     // E cos_x / pi d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
     out = {origin, y + ne * offset, e.emission * (cos_x / std::numbers::pi / (p_light + p_gather))};
     return true;
@@ -222,7 +267,7 @@ struct FinalGather::Impl {
     double distance = std::numeric_limits<double>::infinity();  // infinity: it left the scene
     bool emitter = false;                                       // it met an emitter's front
   };
-  Landed gathered(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, Rng& more, int depth,
+  Landed gathered(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, Rng& more, int depth, Choice c,
                   glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 g = cosine_direction(n, gather[0], gather[1]);
     const auto [seen, s] = rays.seen_at(origin, g);
@@ -242,28 +287,28 @@ struct FinalGather::Impl {
     } else {
       indirect += radiosity_at(k, y) - e;
     }
-    return {s, emitter_met(k, n, g, s, direct)};
+    return {s, emitter_met(k, n, g, s, c, direct)};
   }
 
   // Whether a gather ray along g from a point of normal n that meets patch k at distance s meets
   // an emitter's front; if so its light, weighted against the emitter sample, into `direct`.
-  bool emitter_met(uint32_t k, const glm::dvec3& n, const glm::dvec3& g, double s, glm::dvec3& direct) const {
-    if (!mesh.emits(k)) return false;
+  bool emitter_met(uint32_t k, const glm::dvec3& n, const glm::dvec3& g, double s, Choice c, glm::dvec3& direct) const {
+    if (!mesh.emits(k) || light_of[k] < 0) return false;
     const double cos_x = glm::dot(n, g), cos_y = -glm::dot(glm::dvec3(mesh.normal[k]), g);
     if (!(cos_x > 0.0 && cos_y > 0.0)) return false;
-    const double p_gather = cos_x / std::numbers::pi, p_light = light_pdf(s * s, cos_y);
+    const double p_gather = cos_x / std::numbers::pi, p_light = light_pdf(c, static_cast<std::size_t>(light_of[k]), s * s, cos_y);
     direct += glm::dvec3(mesh.emission(k)) * (p_gather / (p_light + p_gather));
     return true;
   }
 
   // The gather ray of the direct light alone (a sample that takes the indirect light from the
   // cache, where emitters are large): what it brings if it meets an emitter, into `direct`.
-  void emitter_ray(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, glm::dvec3& direct,
+  void emitter_ray(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, Choice c, glm::dvec3& direct,
                    uint64_t& cast) const {
     const glm::dvec3 g = cosine_direction(n, gather[0], gather[1]);
     const auto [seen, s] = rays.seen_at(origin, g);
     ++cast;
-    if (seen >= 0) emitter_met(static_cast<uint32_t>(seen), n, g, s, direct);
+    if (seen >= 0) emitter_met(static_cast<uint32_t>(seen), n, g, s, c, direct);
   }
 
   // The light reflected at point x (normal n) toward the viewer, before rho: one emitter sample
@@ -272,11 +317,11 @@ struct FinalGather::Impl {
                  Rng& more, int depth, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 origin = x + n * offset;
     ShadowRay shadow;
-    if (light_sample(x, origin, n, light, true, shadow)) {
+    if (light_sample(x, origin, n, light, true, by_area.data(), shadow)) {
       ++cast;
       if (!rays.blocked(shadow.from, shadow.to)) direct += shadow.light;
     }
-    gathered(origin, n, gather, more, depth, direct, indirect, cast);
+    gathered(origin, n, gather, more, depth, by_area.data(), direct, indirect, cast);
   }
 
   // The gather rays of a cache record: 4 per sample of a pixel, within [256, 16384] (measured on
@@ -300,7 +345,7 @@ struct FinalGather::Impl {
     r.r = std::numeric_limits<double>::infinity();
     std::size_t emitters = 0;
     for (const auto& g : gathers) {
-      const Landed l = gathered(origin, r.n, g, more, 0, direct, indirect, cast);
+      const Landed l = gathered(origin, r.n, g, more, 0, by_area.data(), direct, indirect, cast);
       r.r = std::min(r.r, l.distance);
       emitters += l.emitter;
     }
@@ -423,6 +468,8 @@ struct FinalGather::Impl {
     Rng jitter(options.seed, index, 0, kJitter), light(options.seed, index, 0, kLight), gather(options.seed, index, 0, kGather),
         more(options.seed, index, 0, kMore);
     thread_local std::vector<std::array<double, 2>> positions, lights, gathers;
+    thread_local std::vector<double> cdf;
+    Choice pick = nullptr;  // the emitter samples' choice of lights: set at the first reflecting hit
     stratified_square(options.spp, jitter, positions);
     stratified_square(options.spp, light, lights);
     stratified_square(options.spp, gather, gathers);
@@ -468,7 +515,8 @@ struct FinalGather::Impl {
         a.origin = x + a.normal * offset;
         a.cached = cached(cache, x, a.normal, px + positions[b0 + i][0], py + positions[b0 + i][1], a.indirect);
         ShadowRay r;
-        if (light_sample(x, a.origin, a.normal, lights[b0 + i], !a.cached || cache.mis, r)) {
+        if (!pick) pick = choice(&x, a.normal, cdf);
+        if (light_sample(x, a.origin, a.normal, lights[b0 + i], !a.cached || cache.mis, pick, r)) {
           a.shadow = static_cast<int>(shadows);
           from[shadows] = r.from, to[shadows] = r.to, brings[shadows] = r.light;
           ++shadows;
@@ -484,9 +532,9 @@ struct FinalGather::Impl {
         if (a.shadow >= 0 && !blocked[static_cast<std::size_t>(a.shadow)]) d += brings[static_cast<std::size_t>(a.shadow)];
         if (a.cached) {
           r = a.indirect;
-          if (cache.mis) emitter_ray(a.origin, a.normal, gathers[b0 + i], d, cast);
+          if (cache.mis) emitter_ray(a.origin, a.normal, gathers[b0 + i], pick, d, cast);
         } else
-          gathered(a.origin, a.normal, gathers[b0 + i], more, 0, d, r, cast);
+          gathered(a.origin, a.normal, gathers[b0 + i], more, 0, pick, d, r, cast);
         direct += a.rho * d;
         indirect += a.rho * r;
       }

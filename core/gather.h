@@ -6,6 +6,10 @@
 //     ray that hits an emitter; the emitters are sampled as the lights their patches make
 //     (core/emitters.h: a light cut into patches is one triangle or parallelogram), so that a
 //     pixel's stratified emitter points are one per cell of the light and penumbrae are quiet;
+//     among many lights, a pixel's samples choose one in proportion to an estimate of what it
+//     sends to the pixel's first hit (distance, cosines, power), mixed with a quarter by area so
+//     that every light keeps a chance (the gather ray that meets a light is weighed by the same
+//     choice's pdf);
 //   - the indirect light, from cosine-distributed gather rays that look up the solved radiosity
 //     where they land, interpolated over the surface (the corner radiosities of core/output.h,
 //     barycentric), less the patch's emission: the reflected part Y = B - E only, so the light of
