@@ -467,11 +467,11 @@ struct FinalGather::Impl {
     // (in buffers of this thread's, kept from pixel to pixel).
     Rng jitter(options.seed, index, 0, kJitter), light(options.seed, index, 0, kLight), gather(options.seed, index, 0, kGather),
         more(options.seed, index, 0, kMore);
-    thread_local std::vector<std::array<double, 2>> positions, lights, gathers;
+    thread_local std::vector<std::array<double, 2>> positions, emitter_points, gathers;
     thread_local std::vector<double> cdf;
     Choice pick = nullptr;  // the emitter samples' choice of lights: set at the first reflecting hit
     stratified_square(options.spp, jitter, positions);
-    stratified_square(options.spp, light, lights);
+    stratified_square(options.spp, light, emitter_points);
     stratified_square(options.spp, gather, gathers);
     const Block cache = store ? block(frame, *store, px, py, record_cast) : Block{};
     constexpr std::size_t kBatch = 64;
@@ -516,7 +516,7 @@ struct FinalGather::Impl {
         a.cached = cached(cache, x, a.normal, px + positions[b0 + i][0], py + positions[b0 + i][1], a.indirect);
         ShadowRay r;
         if (!pick) pick = choice(&x, a.normal, cdf);
-        if (light_sample(x, a.origin, a.normal, lights[b0 + i], !a.cached || cache.mis, pick, r)) {
+        if (light_sample(x, a.origin, a.normal, emitter_points[b0 + i], !a.cached || cache.mis, pick, r)) {
           a.shadow = static_cast<int>(shadows);
           from[shadows] = r.from, to[shadows] = r.to, brings[shadows] = r.light;
           ++shadows;
