@@ -23,8 +23,11 @@ namespace {
 constexpr uint64_t kJitter = 1, kLight = 2, kGather = 3, kMore = 4, kRecordGather = 5, kRecordMore = 6;
 
 // A gather ray that lands closer than this many patch sizes (sqrt(2 area)) of the patch it hits
-// traces the light reflected there one bounce further instead of taking the solution.
-constexpr double kNear = 2.0;
+// traces the light reflected there one bounce further instead of taking the solution (the
+// Cornell box at 512 x 512 against Cycles, 256 spp: 4 takes the bias from 1.42 to 1.23 % and the
+// error from 1.83 to 1.73 % in the same time; 6 and 10 add more noise than they remove bias,
+// and every gather ray bouncing once more 1.18 % bias but 2.1 % error; bench/RESULTS.md).
+constexpr double kNear = 4.0;
 
 // The irradiance cache (gather.h): records at the raster points of a grid kCacheSpacing pixels
 // apart; a block of the grid is split in four, down to kCacheLeast pixels, while its four corner

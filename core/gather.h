@@ -14,7 +14,7 @@
 //     where they land, interpolated over the surface (the corner radiosities of core/output.h,
 //     barycentric), less the patch's emission: the reflected part Y = B - E only, so the light of
 //     the emitters is counted once, by the direct estimate. Where a gather ray lands closer than
-//     two patch sizes (a corner, a contact) the light reflected there is traced one bounce
+//     four patch sizes (a corner, a contact) the light reflected there is traced one bounce
 //     further instead.
 // The indirect light comes from an irradiance cache of the view (Ward's, on a grid of the image;
 // GatherOptions::cache): records of the indirect light at raster points of a grid 16 pixels

@@ -312,7 +312,7 @@ TEST(Gather, AWallBesideACeilingLightMatchesLambertsFormula) {
 // floor (rho 0.5) under a square (side 1, height 1, facing down) that emits nothing but whose
 // solution is B = 1, and no emitter. A floor point's radiance is then all indirect, rho B F with F
 // its form factor to the square (floor_radiance above): the gather rays that meet the square
-// take B - E = 1 there (they land at least 1 away, beyond the near bounce of kNear = 2 patch
+// take B - E = 1 there (they land at least 1 away, beyond the near bounce of kNear = 4 patch
 // sizes: the square's patches are 0.1 across), the others leave the scene (background 0). Seen
 // from above, the image spans the peak under the square and its fall beyond the square's edge.
 // As in the wall test, R = 12 renders of independent seeds give each 8 x 8 block's mean and
@@ -336,7 +336,7 @@ TEST(Gather, TheIndirectLightUnderALitSquareMatchesItsClosedForm) {
     solution[j] = up ? glm::vec3(1.0f) : glm::vec3(0.0f);
     if (up) {
       ++on_square;
-      ASSERT_LT(2.0 * std::sqrt(2.0 * mesh.area[j]), 0.99) << "a gather ray from the floor to the square must not take the near bounce";
+      ASSERT_LT(4.0 * std::sqrt(2.0 * mesh.area[j]), 0.99) << "a gather ray from the floor to the square must not take the near bounce";
     }
   }
   ASSERT_GT(on_square, 0u);
