@@ -171,12 +171,14 @@ struct FinalGather::Impl {
   // unoccluded (its emission's mean x area x cos at x x cos at the light / (r^2 + area), the
   // cosines of its centre, the one at x the largest of its corners'), else by area, so that
   // every light keeps a chance (the sample stays unbiased wherever the estimate is wrong: a
-  // light behind a wall). By area where nothing reflects, or past kChoiceLights lights (the
-  // estimate costs a pass over them per pixel).
+  // light behind a wall). By area where nothing reflects, or past max(kChoiceLights, 2 x spp)
+  // lights (the estimate is a pass over them per pixel: an emitting sphere of a thousand
+  // triangles would double a pixel's time at low spp).
   static constexpr double kByArea = 0.25;
-  static constexpr std::size_t kChoiceLights = 4096;
+  static constexpr std::size_t kChoiceLights = 64;
   Choice choice(const glm::dvec3* x, const glm::dvec3& n, std::vector<double>& cdf) const {
-    if (!x || lights.size() < 2 || lights.size() > kChoiceLights) return by_area.data();
+    if (!x || lights.size() < 2 || lights.size() > std::max<std::size_t>(kChoiceLights, 2 * static_cast<std::size_t>(options.spp)))
+      return by_area.data();
     cdf.resize(lights.size());
     double total = 0.0;
     for (std::size_t k = 0; k < lights.size(); ++k) {
