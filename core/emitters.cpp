@@ -4,8 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <unordered_map>
 #include <numeric>
+#include <unordered_map>
 
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
@@ -34,6 +34,13 @@ struct Groups {  // union-find
   }
   void join(uint32_t a, uint32_t b) { parent[find(a)] = find(b); }
 };
+
+std::vector<uint32_t> emitting_patches(const PatchMesh& mesh) {
+  std::vector<uint32_t> out;
+  for (std::size_t j = 0; j < mesh.size(); ++j)
+    if (mesh.emits(j)) out.push_back(static_cast<uint32_t>(j));
+  return out;
+}
 
 Light patch_light(const PatchMesh& mesh, uint32_t j) {
   Light l;
@@ -89,7 +96,7 @@ bool as_one_shape(const PatchMesh& mesh, const std::vector<uint32_t>& members, c
   hull.resize(k - 1);  // the last point is the first
   if (hull.size() != 3 && hull.size() != 4) return false;
   out.corners = static_cast<int>(hull.size());
-  for (std::size_t k = 0; k < hull.size(); ++k) out.p[k] = pts[hull[k]];
+  for (std::size_t i = 0; i < hull.size(); ++i) out.p[i] = pts[hull[i]];
   const dvec3 c = glm::cross(out.p[1] - out.p[0], out.p[hull.size() - 1] - out.p[0]);
   if (hull.size() == 4) {
     if (glm::length(out.p[0] + out.p[2] - out.p[1] - out.p[3]) > kSamePlane * extent) return false;
@@ -164,9 +171,7 @@ dvec3 Light::at(double s, double t) const {
 
 std::vector<Light> find_lights(const PatchMesh& mesh, std::vector<int32_t>* light_of) {
   if (light_of) light_of->assign(mesh.size(), -1);
-  std::vector<uint32_t> emitting;
-  for (std::size_t j = 0; j < mesh.size(); ++j)
-    if (mesh.emits(j)) emitting.push_back(static_cast<uint32_t>(j));
+  const std::vector<uint32_t> emitting = emitting_patches(mesh);
   Groups groups{std::vector<uint32_t>(emitting.size())};
   std::iota(groups.parent.begin(), groups.parent.end(), 0u);
   // Whether emitting patches a and b (indices into `emitting`) may be one light's.
@@ -195,7 +200,7 @@ std::vector<Light> find_lights(const PatchMesh& mesh, std::vector<int32_t>* ligh
         }
       if (!joined && seen.size() < kGroupsAtAVertex) seen.push_back(a);
     }
-  std::map<uint32_t, std::vector<uint32_t>> sets;  // by root, in the order of their first patch
+  std::map<uint32_t, std::vector<uint32_t>> sets;  // by root; then in the order of their first patch
   for (uint32_t a = 0; a < emitting.size(); ++a) sets[groups.find(a)].push_back(emitting[a]);
   std::vector<std::vector<uint32_t>> ordered;
   for (auto& [root, members] : sets) ordered.push_back(std::move(members));
@@ -215,11 +220,8 @@ std::vector<Light> find_lights(const PatchMesh& mesh, std::vector<int32_t>* ligh
 }
 
 std::vector<Light> input_triangle_lights(const PatchMesh& mesh) {
-  std::vector<uint32_t> emitting;
-  for (std::size_t j = 0; j < mesh.size(); ++j)
-    if (mesh.emits(j)) emitting.push_back(static_cast<uint32_t>(j));
   std::vector<Light> out;
-  by_input_triangle(mesh, emitting, out);
+  by_input_triangle(mesh, emitting_patches(mesh), out);
   return out;
 }
 
