@@ -1,7 +1,7 @@
 // sirad: the final gather, an image of a solved scene as good as a path tracer's. The radiosity
 // solution is view-independent; per pixel this traces what the mesh cannot show:
 //   - primary visibility per sample, at jittered positions inside the pixel (core/camera.h);
-//   - the direct light, by sampling the emitters (area-proportional) with shadow rays, combined
+//   - the direct light, by sampling points on the emitters with shadow rays, combined
 //     by multiple importance sampling (balance heuristic) with the cosine-distributed gather
 //     ray that hits an emitter; the emitters are sampled as the lights their patches make
 //     (core/emitters.h: a light cut into patches is one triangle or parallelogram), so that a
