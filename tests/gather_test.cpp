@@ -386,8 +386,8 @@ TEST(Gather, TheIndirectLightUnderALitSquareMatchesItsClosedForm) {
   }
 }
 
-// Many lights, each pixel's emitter samples choosing among them by what they send it (core/
-// gather.cpp Impl::choice): a floor (rho 0.5, z = 0) under 16 square lights (side 0.25, E = 1,
+// Many lights, each pixel's emitter samples choosing among them by what they send it
+// (Impl::choice in core/gather.cpp): a floor (rho 0.5, z = 0) under 16 square lights (side 0.25, E = 1,
 // rho = 0, facing down at height 1, a 4 x 4 grid 1 apart), seen from below them straight down.
 // A floor point's radiance is the sum of the lights' closed forms (floor_radiance); there is no
 // indirect light (the lights reflect nothing). The choice must leave the estimate unbiased,
