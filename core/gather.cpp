@@ -126,7 +126,6 @@ struct FinalGather::Impl {
   std::vector<Light> lights;
   std::vector<int32_t> light_of;
   std::vector<double> by_area;
-  double emitter_area = 0.0;
   // The cache records of the last view rendered (a view's tiles, rendered one after another,
   // share them).
   mutable std::mutex views_mutex;
@@ -153,11 +152,9 @@ struct FinalGather::Impl {
         offset(ray_offset(m)),
         rays(m, offset) {
     lights = find_lights(mesh, &light_of);
-    for (const Light& l : lights) {
-      emitter_area += l.area;
-      by_area.push_back(emitter_area);
-    }
-    for (double& c : by_area) c /= emitter_area;
+    double area = 0.0;
+    for (const Light& l : lights) by_area.push_back(area += l.area);
+    for (double& v : by_area) v /= area;
   }
 
   // How a point's emitter sample chooses its light: the cumulative probabilities of the lights
