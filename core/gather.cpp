@@ -52,6 +52,18 @@ constexpr double kNear = 4.0;
 constexpr int kCacheSpacing = 16, kCacheAny = 4, kCacheLeast = 2;
 constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.02;
 
+// From kEdgeSpp samples per pixel on, an edge's pixels (a block of kCacheLeast pixels whose
+// corners are not one surface) take nothing from the cache: their samples gather for themselves,
+// as do all samples that take nothing from it, with kEdgeRays gather rays each. The corners of
+// the sample's own surface lie up to 2 pixels away, and towards a concave edge the indirect
+// light changes fast: the Cornell box's blocks' sides are 1.2-1.7 % too bright against Cycles at
+// 512 x 512 (1,024 spp; 3.4 % on the whole image at 128 x 128, where 2 pixels are four times as
+// far). One gather ray a sample there is noisier than the cache's pixels by far; 8 make them as
+// quiet (at 1,024 spp the whole image's error 0.97 -> 0.73 % for a third more time). Below
+// kEdgeSpp the noise they add outweighs the bias they remove (36 and 64 spp: 4.01 -> 4.42 % and
+// 3.27 -> 3.48 %), and edges' samples take the corners of their own surface (bench/RESULTS.md).
+constexpr int kEdgeSpp = 256, kEdgeRays = 8;
+
 }  // namespace
 
 // A record of the irradiance cache: the indirect light (before rho) reflected at the point x
@@ -360,7 +372,7 @@ struct FinalGather::Impl {
   // A block of the cache's grid: raster [x0, x0 + side] x [y0, y0 + side] and its corner
   // records (x0, y0), (x0 + side, y0), (x0, y0 + side), (x0 + side, y0 + side); `fits` whether
   // they make a block (else it is a pixel on an edge, whose samples take the corners on their own
-  // surface). No corners: no cache. `mis`: a corner's rays met emitters more than kCacheMis of
+  // surface below kEdgeSpp). No corners: no cache. `mis`: a corner's rays met emitters more than kCacheMis of
   // the time, so the block's samples weigh their emitter samples against a gather ray of their
   // own (MIS: light sampling alone is noisy near a large emitter or among many).
   struct Block {
@@ -409,9 +421,10 @@ struct FinalGather::Impl {
   }
 
   // The block of pixel (px, py): the largest that fits, from kCacheSpacing pixels down to
-  // kCacheLeast (which is taken if it does not: an edge). A block of kCacheAny pixels or fewer
-  // whose corners of one surface do not all see each other is split, and at kCacheLeast gives
-  // no cache (its samples gather for themselves).
+  // kCacheLeast (which is taken if it does not, an edge, below kEdgeSpp; from kEdgeSpp on an edge
+  // gives no cache). A block of kCacheAny pixels or fewer whose corners of one surface do not all
+  // see each other is split, and at kCacheLeast gives no cache (its samples gather for
+  // themselves).
   Block block(const CameraFrame& frame, RecordStore& store, int px, int py, uint64_t& cast) const {
     const uint64_t row = static_cast<uint64_t>(options.width) + kCacheSpacing + 1;
     for (int side = kCacheSpacing;; side /= 2) {
@@ -426,6 +439,7 @@ struct FinalGather::Impl {
         if (side > kCacheLeast) continue;
         return Block{};
       }
+      if (!b.fits && side <= kCacheLeast && options.spp >= kEdgeSpp) return Block{};
       if (b.fits || side <= kCacheLeast) {
         for (const CacheRecord* r : b.c) b.mis = b.mis || r->emitters > kCacheMis;
         return b;
@@ -476,6 +490,8 @@ struct FinalGather::Impl {
     stratified_square(options.spp, light, emitter_points);
     stratified_square(options.spp, gather, gathers);
     const Block cache = store ? block(frame, *store, px, py, record_cast) : Block{};
+    // Gather rays of a sample that takes nothing from the cache (one without a cache).
+    const int own_rays = store && options.spp >= kEdgeSpp ? kEdgeRays : 1;
     constexpr std::size_t kBatch = 64;
     struct Sample {
       glm::dvec3 seen;  // what the camera sees emitted (or the background)
@@ -535,8 +551,18 @@ struct FinalGather::Impl {
         if (a.cached) {
           r = a.indirect;
           if (cache.mis) emitter_ray(a.origin, a.normal, gathers[b0 + i], pick, d, cast);
-        } else
+        } else if (own_rays == 1) {
           gathered(a.origin, a.normal, gathers[b0 + i], more, 0, pick, d, r, cast);
+        } else {
+          // The first ray from the pixel's strata, the others from `more`; each weighed against
+          // the emitter sample as if alone (the balance heuristic's weights for one ray of each
+          // sum to one per direction, so their mean stays unbiased).
+          glm::dvec3 dk(0.0), rk(0.0);
+          gathered(a.origin, a.normal, gathers[b0 + i], more, 0, pick, dk, rk, cast);
+          for (int k = 1; k < own_rays; ++k) gathered(a.origin, a.normal, {more.uniform(), more.uniform()}, more, 0, pick, dk, rk, cast);
+          d += dk / static_cast<double>(own_rays);
+          r += rk / static_cast<double>(own_rays);
+        }
         direct += a.rho * d;
         indirect += a.rho * r;
       }

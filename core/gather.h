@@ -23,7 +23,11 @@
 // quarter of the distance to what reflects light to them; a block of 4 pixels or fewer is taken
 // only if its corners of one surface see each other (a thin wall between two corners on one
 // floor: no light carried through it); a sample takes its block's corners bilinearly, and
-// gathers for itself where none is of its surface. Then the direct light is the
+// gathers for itself where none is of its surface. At an edge (a block of 2 pixels whose corners
+// are not one surface) a sample takes the corners of its own surface below 256 spp; from 256 spp
+// on it gathers for itself (the corners lie up to 2 pixels off, and towards a concave edge the
+// indirect light changes fast), and from 256 spp every sample that gathers for itself in a
+// cached render traces 8 gather rays, as quiet as the cache's pixels. Then the direct light is the
 // emitter sample alone, without MIS against a gather ray, except near large or many emitters (where a
 // block's records met emitters with more than 2 % of their rays: its samples still trace a
 // gather ray for the MIS). The cache trades the gather ray's noise for a bias where the indirect
@@ -57,7 +61,8 @@ namespace sirad {
 struct GatherOptions {
   int width = 512, height = 512;
   // Samples per pixel: each a jittered primary ray, one emitter sample with its shadow ray and
-  // (where it takes nothing from the cache) one gather ray. 1..65536.
+  // (where it takes nothing from the cache) one gather ray, 8 with the cache from 256 spp on.
+  // 1..65536.
   int spp = 64;
   uint64_t seed = 1;
   int threads = 0;  // 0: every core
