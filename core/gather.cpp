@@ -56,9 +56,9 @@ constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCache
 // corners are not one surface) take nothing from the cache: their samples gather for themselves,
 // as do all samples that take nothing from it, with kEdgeRays gather rays each. The corners of
 // the sample's own surface lie up to 2 pixels away, and towards a concave edge the indirect
-// light changes fast: the Cornell box's blocks' sides are 1.2-1.7 % too bright against Cycles at
-// 512 x 512 (1,024 spp; 3.4 % on the whole image at 128 x 128, where 2 pixels are four times as
-// far). One gather ray a sample there is noisier than the cache's pixels by far; 8 make them as
+// light changes fast: it left the Cornell box's blocks' sides a bias of 1.2-1.7 % against Cycles
+// at 512 x 512 (1,024 spp; 3.4 % on the whole image at 128 x 128, where 2 pixels are four times
+// as far). One gather ray a sample there is noisier than the cache's pixels by far; 8 make them as
 // quiet (at 1,024 spp the whole image's error 0.97 -> 0.73 % for a third more time). Below
 // kEdgeSpp the noise they add outweighs the bias they remove (36 and 64 spp: 4.01 -> 4.42 % and
 // 3.27 -> 3.48 %), and edges' samples take the corners of their own surface (bench/RESULTS.md).

@@ -671,33 +671,38 @@ TEST(Gather, TilesAndThreadsGiveTheSameImage) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), MeshOptions{.target_patches = 300});
   std::vector<glm::vec3> radiosity(mesh.size());
   for (std::size_t j = 0; j < mesh.size(); ++j) radiosity[j] = mesh.emission(j) + mesh.reflectance(j) * 3.0f;
-  GatherOptions o{.width = 24, .height = 20, .spp = 4, .seed = 5, .threads = 2};
-  FinalGather whole(mesh, radiosity, o);
-  const GatherPasses a = whole.render(*mesh.camera);
-  o.threads = 1;
-  FinalGather one(mesh, radiosity, o);
-  GatherPasses b = a;
-  for (Image* image : {&b.direct, &b.indirect, &b.combined}) std::fill(image->pixels.begin(), image->pixels.end(), glm::vec3(-1.0f));
-  b.rays = 0;
-  for (int y = 0; y < 20; y += 7)
-    for (int x = 0; x < 24; x += 5) {
-      const int x1 = std::min(x + 5, 24), y1 = std::min(y + 7, 20);
-      const GatherPasses t = one.render(*mesh.camera, x, y, x1, y1);
-      ASSERT_EQ(t.combined.width, x1 - x) << "a region's passes are of its size";
-      ASSERT_EQ(t.combined.height, y1 - y);
-      for (int ty = y; ty < y1; ++ty)
-        for (int tx = x; tx < x1; ++tx) {
-          b.direct.at(tx, ty) = t.direct.at(tx - x, ty - y);
-          b.indirect.at(tx, ty) = t.indirect.at(tx - x, ty - y);
-          b.combined.at(tx, ty) = t.combined.at(tx - x, ty - y);
-        }
-      b.rays += t.rays;
-    }
-  EXPECT_EQ(a.combined.pixels, b.combined.pixels);
-  EXPECT_EQ(a.direct.pixels, b.direct.pixels);
-  EXPECT_EQ(a.indirect.pixels, b.indirect.pixels);
-  EXPECT_EQ(a.rays, b.rays);
-  EXPECT_GT(a.record_rays, 0u);  // the cache was on
+  // 256 spp: an edge's samples gather for themselves, 8 rays each (kEdgeSpp in core/gather.cpp).
+  for (const int spp : {4, 256}) {
+    SCOPED_TRACE(fmt::format("{} spp", spp));
+    GatherOptions o{.width = 24, .height = 20, .spp = spp, .seed = 5, .threads = 2};
+    FinalGather whole(mesh, radiosity, o);
+    const GatherPasses a = whole.render(*mesh.camera);
+    o.threads = 1;
+    FinalGather one(mesh, radiosity, o);
+    GatherPasses b = a;
+    for (Image* image : {&b.direct, &b.indirect, &b.combined}) std::fill(image->pixels.begin(), image->pixels.end(), glm::vec3(-1.0f));
+    b.rays = 0;
+    for (int y = 0; y < 20; y += 7)
+      for (int x = 0; x < 24; x += 5) {
+        const int x1 = std::min(x + 5, 24), y1 = std::min(y + 7, 20);
+        const GatherPasses t = one.render(*mesh.camera, x, y, x1, y1);
+        ASSERT_EQ(t.combined.width, x1 - x) << "a region's passes are of its size";
+        ASSERT_EQ(t.combined.height, y1 - y);
+        for (int ty = y; ty < y1; ++ty)
+          for (int tx = x; tx < x1; ++tx) {
+            b.direct.at(tx, ty) = t.direct.at(tx - x, ty - y);
+            b.indirect.at(tx, ty) = t.indirect.at(tx - x, ty - y);
+            b.combined.at(tx, ty) = t.combined.at(tx - x, ty - y);
+          }
+        b.rays += t.rays;
+      }
+    EXPECT_EQ(a.combined.pixels, b.combined.pixels);
+    EXPECT_EQ(a.direct.pixels, b.direct.pixels);
+    EXPECT_EQ(a.indirect.pixels, b.indirect.pixels);
+    EXPECT_EQ(a.rays, b.rays);
+    EXPECT_GT(a.record_rays, 0u);  // the cache was on
+  }
+  FinalGather one(mesh, radiosity, GatherOptions{.width = 24, .height = 20, .spp = 4, .seed = 5, .threads = 1});
   EXPECT_THROW(one.render(*mesh.camera, 0, 0, 25, 1), Error);
   EXPECT_THROW(one.render(*mesh.camera, 3, 0, 2, 1), Error);
   EXPECT_THROW(FinalGather(mesh, radiosity, GatherOptions{.spp = 0}), Error);
