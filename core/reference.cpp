@@ -166,10 +166,14 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
             double f = 0.0;
             for (int k = 0; k < points_b; ++k) {
               dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
-              if (glm::dot(L.normal, x - L.p[0]) <= 0.0) continue;  // behind L (or in its plane)
-              // A point on the back of an emitter (its twin: the other side of one two-sided face)
-              // receives nothing from it, though rounding may put it a hair in front.
-              if (glm::dot(L.normal, nx) < -0.9999 && glm::dot(L.normal, x - L.p[0]) <= eps) continue;
+              const double ahead = glm::dot(L.normal, x - L.p[0]);
+              if (ahead <= 0.0) continue;  // behind L (or in its plane)
+              // A point within eps of L's plane and parallel to it receives nothing from L, though
+              // rounding may put it a hair in front: on L's back (its twin, the other side of one
+              // two-sided face) L faces away; facing the way L faces (a ceiling around a flush
+              // lamp) L lies in its tangent plane, where the contour formula sees L's corners a
+              // hair above or below that plane and gives anything from 0 to 1.
+              if (std::abs(glm::dot(L.normal, nx)) > 0.9999 && ahead <= eps) continue;
               if (rays.covered(static_cast<uint32_t>(i), x)) continue;  // under a coincident face
               double fa = polygon_form_factor(x, nx, L.p.data(), L.corners);
               if (fa <= 0.0) continue;

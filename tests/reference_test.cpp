@@ -18,6 +18,7 @@
 #include "core/error.h"
 #include "core/reference.h"
 #include "tests/agreement.h"
+#include "tests/coincident_scenes.h"
 #include "tests/test_util.h"
 
 namespace sirad {
@@ -153,6 +154,43 @@ TEST(ReferenceFormFactor, OccludedSquaresMatchQuadrature) {
               parallel_rectangles(1, 1));
   ASSERT_LT(fine, 0.9 * parallel_rectangles(1, 1)) << "the occluder must hide a real part of the lamp";
   check_receiver("occluded", two_squares(false, true), fine, 2 * std::abs(fine - coarse));
+}
+
+// A lamp flush with the ceiling: the lamp [0, 0.5] x [0, 1] and the ceiling [0.5, 1] x [0, 1] in
+// one plane y = 1, both facing down and both reflecting, over a floor, turned obliquely so that
+// no coordinate is exact. A point of the ceiling or of the lamp itself has the lamp in its own
+// tangent plane, so its form factor to it is 0 exactly, and the floor emits nothing: their
+// direct part is exactly 0. Rounding puts such a point a hair in front of the lamp's plane or
+// behind it, and the lamp's corners a hair above or below the point's tangent plane (the
+// normals differ by float rounding), where the contour formula sees a sliver of the lamp: here
+// up to 1e-13 at 195 of the lamp's and ceiling's patches, but a point inside a light whose
+// normal is not quite its own (a light rebuilt from many faces) gets up to the whole F = 1.
+TEST(ReferenceFormFactor, ALampFlushWithTheCeilingGivesTheCeilingNothing) {
+  test::ObjBuilder o(test::oblique(41.0));
+  o.material("lamp");
+  o.quad({0, 1, 0}, {0.5, 1, 0}, {0.5, 1, 1}, {0, 1, 1});
+  o.material("ceiling");
+  o.quad({0.5, 1, 0}, {1, 1, 0}, {1, 1, 1}, {0.5, 1, 1});
+  o.material("floor");
+  o.quad({0, 0, 0}, {0, 0, 1}, {1, 0, 1}, {1, 0, 0});
+  const Scene scene = o.scene("flush lamp", "newmtl lamp\nKd 0.5 0.5 0.5\nKe 1 1 1\nnewmtl ceiling\nKd 0.5 0.5 0.5\n"
+                                            "newmtl floor\nKd 0.5 0.5 0.5\n");
+  PatchMesh mesh = mesh_scene(scene, {.target_patches = 400});
+  ReferenceSolution s = solve_reference(mesh, {.rays_per_patch = 16, .light_samples = 64, .batches = 2, .seed = 7});
+  const dvec3 down = o.rotation() * dvec3(0, -1, 0);
+  std::size_t lamp = 0, ceiling = 0, floor = 0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    if (glm::dot(dvec3(mesh.normal[j]), down) > 0.99) {
+      ++(mesh.emission(j) != glm::vec3(0.0f) ? lamp : ceiling);
+      EXPECT_EQ(s.direct[j], dvec3(0.0)) << "patch " << j << (mesh.emission(j) != glm::vec3(0.0f) ? " of the lamp" : " of the ceiling");
+    } else {
+      ++floor;
+      EXPECT_GT(s.direct[j].x, 0.0) << "floor patch " << j;  // every point of it sees the lamp
+    }
+  }
+  EXPECT_GT(lamp, 50u);
+  EXPECT_GT(ceiling, 50u);
+  EXPECT_GT(floor, 100u);
 }
 
 // Standard-error calibration. Over S = 6 seeds, the sample variance v_i of patch i's estimate
