@@ -3,6 +3,8 @@
 
 #include <cmath>
 
+#include <fmt/format.h>
+
 #include "cluster/exchange.h"
 #include "core/error.h"
 
@@ -32,6 +34,17 @@ CLI::Validator number_check(bool zero_too) {
 CLI::Validator positive() { return number_check(false); }
 CLI::Validator non_negative() { return number_check(true); }
 
+CLI::Validator finite_in(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        double v = 0;
+        if (!CLI::detail::lexical_cast(text, v) || !std::isfinite(v)) return "'" + text + "' is not a finite number";
+        if (v >= lo && v <= hi) return "";
+        return fmt::format("must be in [{}, {}] (got {})", lo, hi, text);
+      },
+      fmt::format("[{}, {}]", lo, hi));
+}
+
 std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
   std::vector<CLI::Option*> options = {
       cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
@@ -56,7 +69,7 @@ std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
       cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")->check(CLI::Range(0, 1 << 20)),
       cmd->add_option("--shots-per-bundle", r.shots_per_bundle,
                       "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
-          ->check(CLI::Range(0.0, 1024.0))
+          ->check(finite_in(0.0, 1024.0))
           ->capture_default_str(),
       cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
           ->check(CLI::Range(0, 2048))
@@ -65,7 +78,7 @@ std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
                       "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)")
           ->capture_default_str(),
       cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")
-          ->check(CLI::Range(1e-9, 1.0))
+          ->check(finite_in(1e-9, 1.0))
           ->capture_default_str(),
       cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str(),
       cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str(),
@@ -77,7 +90,7 @@ std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
       cmd->add_option("--target-error", r.target_error,
                       "End the run at this relative error estimate (one node: batch means; 2+ nodes with --exchange-every: the "
                       "nodes' spread)")
-          ->check(CLI::Range(0.0, 1.0)),
+          ->check(finite_in(0.0, 1.0)),
       cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")->check(CLI::Range(1, 4096))->capture_default_str(),
   };
   std::vector<std::string> names;
@@ -96,7 +109,7 @@ std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
       cmd->add_option("--out", o.out, "Output name: writes NAME.exr, NAME.png, NAME.ply, NAME.glb (default: scene name)"),
       cmd->add_option("--width", o.width, "Image width")->check(CLI::Range(1, kMaxImageSide))->capture_default_str(),
       cmd->add_option("--height", o.height, "Image height")->check(CLI::Range(1, kMaxImageSide))->capture_default_str(),
-      cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0)),
+      cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(finite_in(-64.0, 64.0)),
       cmd->add_flag("--flat", o.flat, "Flat-shaded image (one value per patch) instead of Gouraud"),
       cmd->add_option("--final-gather", o.final_gather,
                       "Image the view by a final gather with this many samples per pixel (direct light traced, indirect "

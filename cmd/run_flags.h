@@ -64,6 +64,8 @@ std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& flags);
 // CLI11's PositiveNumber and NonNegativeNumber would refuse with a 300-digit bound.
 CLI::Validator positive();
 CLI::Validator non_negative();
+// A floating-point flag within [lo, hi]; NaN and infinities refused (CLI::Range lets NaN through).
+CLI::Validator finite_in(double lo, double hi);
 // The flags of the run flags that only a cluster uses (refused on one node).
 const std::vector<std::string>& cluster_flag_names();
 // Import and output: --out, --width, --height, --exposure, --flat, --final-gather,

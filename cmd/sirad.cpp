@@ -399,8 +399,8 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
   auto* cmd = app.add_subcommand("model", "The paper's cost and error model: predicted error and effective samples (CSV)");
   cmd->add_option("--processors", m.setup.processors, "P")->check(CLI::Range(1, 1000000))->capture_default_str();
   cmd->add_option("--exchange-every", m.setup.exchange_every, "I (0: never)")->check(CLI::Range(uint64_t{0}, uint64_t{1} << 40))->capture_default_str();
-  cmd->add_option("--fraction", m.setup.fraction, "S in (0, 1]")->check(CLI::Range(1e-9, 1.0))->capture_default_str();
-  cmd->add_option("--contraction", m.scene_params.contraction, "a in [0, 1)")->check(CLI::Range(0.0, 0.999999))->capture_default_str();
+  cmd->add_option("--fraction", m.setup.fraction, "S in (0, 1]")->check(cli::finite_in(1e-9, 1.0))->capture_default_str();
+  cmd->add_option("--contraction", m.scene_params.contraction, "a in [0, 1)")->check(cli::finite_in(0.0, 0.999999))->capture_default_str();
   cmd->add_option("--sigma", m.scene_params.sigma_ratio, "sigma_1 / C")->check(cli::positive())->capture_default_str();
   cmd->add_option("--t-iteration", m.costs.t_iteration, "T_i, seconds per iteration")->check(cli::positive())->capture_default_str();
   m.t_exchange_flag = cmd->add_option("--t-exchange", m.costs.t_exchange, "T_e, seconds per exchange with one processor")
@@ -415,7 +415,7 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
       ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
   cmd->add_option("--device", m.device, "OpenCL device for the fit");
   cmd->add_option("--time-to", m.time_to, "Also print the time each setup needs to reach this relative error (column time_to_error)")
-      ->check(CLI::Range(1e-9, 1e9));
+      ->check(cli::finite_in(1e-9, 1e9));
   cmd->add_option("--from-run", m.from_run,
                   "A run's --status-json file: its P, I, S, time, T_i (busy / bundles) and T_e (idle / exchanges) are the setup");
   cmd->add_option("--profile", m.profile,
@@ -622,7 +622,7 @@ CLI::App* add_image_command(CLI::App& app, ImageArgs& a) {
       ->check(CLI::Range(1, 65536))->capture_default_str();
   cmd->add_option("--seed", a.gather.seed, "Seed")->capture_default_str();
   cmd->add_option("--threads", a.gather.threads, "Threads (0: all cores)")->check(CLI::Range(0, 1024))->capture_default_str();
-  cmd->add_option("--exposure", a.exposure, "PNG exposure in stops")->check(CLI::Range(-64.0, 64.0));
+  cmd->add_option("--exposure", a.exposure, "PNG exposure in stops")->check(cli::finite_in(-64.0, 64.0));
   cmd->add_option("--out", a.out, "Output name: NAME.exr and NAME.png (default: the solution's name with -image)");
   cmd->add_flag("-q,--quiet", a.quiet, "No progress output");
   return cmd;

@@ -165,7 +165,7 @@ int main(int argc, char** argv) {
   app.add_option("--checkpoint", checkpoint,
                  "Write the run's checkpoint here (atomically) every --checkpoint-every seconds and on SIGTERM/SIGINT");
   app.add_option("--checkpoint-every", checkpoint_every, "Seconds between checkpoints")
-      ->check(CLI::Range(0.1, 86400.0))->capture_default_str();
+      ->check(cli::finite_in(0.1, 86400.0))->capture_default_str();
   app.add_option("--resume", resume,
                  "Continue the run of this checkpoint (its settings; the same scene), checkpointing to it unless --checkpoint");
   app.add_flag("--check-config", check_config, "Check the flags, scene, profile and output place; run nothing");

@@ -483,6 +483,13 @@ TEST_F(Cli, NonsensicalFlags) {
   expect_error(sirad("render cornell --out no/such/dir/x --bundles 2"), "no/such/dir");
   expect_error(sirad("render cornell --nodes 2 --exchange-every often"), "--exchange-every");
   expect_error(sirad("render cornell --nodes 2 --topology mesh"), "--topology");
+  // CLI11's Range lets NaN through (every comparison with it is false): the floating-point
+  // flags are refused before anything runs, not when their value is first used.
+  expect_error(sirad("render cornell --patches 200 --bundles 4 --exposure nan"), "--exposure");
+  expect_error(sirad("render cornell --patches 200 --bundles 4 --exposure inf"), "--exposure");
+  expect_error(sirad("render cornell --patches 200 --bundles 4 --target-error nan"), "--target-error");
+  expect_error(sirad("render cornell --patches 200 --bundles 4 --shots-per-bundle nan"), "--shots-per-bundle");
+  expect_error(sirad("render cornell --patches 200 --bundles 4 --nodes 2 --exchange-fraction nan"), "--exchange-fraction");
 }
 
 // CURVE keys (issue 6): keygen writes a public file and a secret one readable by its owner only,
@@ -538,6 +545,9 @@ TEST_F(Cli, ResumeRefusesWhatIsNotACheckpoint) {
                "--ledger no/such/ledger.csv: directory 'no/such' does not exist", "sirad-coordinator");
   expect_error(program(coordinator, "furnace --listen tcp://127.0.0.1:5555 --insecure --check-config --checkpoint no/such/c"),
                "--checkpoint no/such/c: directory 'no/such' does not exist", "sirad-coordinator");
+  expect_error(program(coordinator, "furnace --listen tcp://127.0.0.1:5555 --insecure --check-config --checkpoint c "
+                                    "--checkpoint-every nan"),
+               "--checkpoint-every: 'nan' is not a finite number", "sirad-coordinator");
 }
 
 // Emulation profiles and the run-ending flags: bad ones are one line naming file, line and key.
@@ -603,6 +613,8 @@ TEST_F(ModelCli, PrintsTheModelAndRefusesBadFlags) {
   expect_error(sirad("model --scene nothere.obj"), "nothere.obj");
   expect_error(sirad("model --fraction 0"), "--fraction");
   expect_error(sirad("model --contraction 1"), "--contraction");
+  expect_error(sirad("model --contraction nan"), "--contraction");
+  expect_error(sirad("model --time-to nan"), "--time-to");
   expect_error(sirad("model --sweep everything"), "--sweep");
 }
 
@@ -709,5 +721,6 @@ TEST_F(Cli, ImageOfAStoredSolutionIsTheRendersFinalGather) {
                      "property float emission_b\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2 1 1 1\n");
   expect_error(sirad("image a-scene"), "not a solution");  // (a PLY scene; named so no .ply is taken for an output)
   expect_error(sirad("image nothing.ply"), "nothing.ply");
+  expect_error(sirad("image nothing.ply --exposure nan"), "--exposure");
   expect_error(sirad("render cornell --final-gather 4 --flat"), "--flat");
 }
