@@ -88,6 +88,8 @@ struct Peer {
   std::string dead_why;       // why it was declared dead (the status's "why" of a dead node)
   bool from_checkpoint = false;  // a node of the run before this process resumed it
   bool imaging = false;         // renders tiles of the run's image (section 3.4)
+  bool image_joiner = false;    // joined during the image: its READY gets a STOP, its FINAL the IMAGE
+  bool image_stop_sent = false; // that STOP went out
   bool asked_rejoin = false;    // after its FINAL, asked to rejoin: the run had bundles again
   uint64_t tiles = 0;           // tiles of the image it sent
   double tile_s = 0;            // its longest time per tile so far
@@ -207,8 +209,10 @@ class Coordinator {
   // The next message (its routing id first), within the bound of its command; nothing after
   // wait_ms. Keeps read_up_to_ (keep_alive's judge) and, behind a broker, puts the sender's
   // CURVE key in `key` and its address in the message.
-  std::optional<proto::Received> next(Clock::time_point now, std::string& key) {
-    auto in = proto::receive(router_, wait_ms(now), 1, mesh_.size(), run_.chunk_starts_size(), &key);
+  // `no_wait`: only what is in already (the coordinator renders tiles between reads).
+  std::optional<proto::Received> next(Clock::time_point now, std::string& key, bool no_wait = false) {
+    const int ms = wait_ms(now);
+    auto in = proto::receive(router_, no_wait ? 0 : ms, 1, mesh_.size(), run_.chunk_starts_size(), &key);
     if (!in || ++read_in_a_row_ >= kReadUpToDateAfter) {
       read_up_to_ = now;
       read_in_a_row_ = 0;
@@ -241,7 +245,13 @@ class Coordinator {
   // The image phase (PROTOCOL.md section 3.4): the final gather of the solution, in tiles
   // (cluster/tiles.h) granted to the nodes that sent their FINAL, two grants each at a time; a
   // node that falls silent, misses a deadline or sends what does not fit is dropped and its
-  // tiles are granted again. With no node left, the coordinator renders the rest itself.
+  // tiles are granted again. Nodes join during the image as during the bundles (image_joiner):
+  // HELLO, WELCOME, READY, then at once a STOP that says the image follows, their FINAL (no
+  // bundles; the solution was final before the image began: not taken) and the IMAGE. A
+  // resumed run none of whose nodes is here (its checkpoint was written during its image)
+  // waits for --min-nodes of them to join before its first tile, as a run waits before its
+  // first grant. With no node left otherwise, the coordinator renders the rest itself, reading
+  // messages between its tiles: a node that joins takes tiles from the next one.
   void image_phase(RunResult& result) {
     const auto began = Clock::now();
     const GatherOptions& o = config_.final_gather;
@@ -277,6 +287,11 @@ class Coordinator {
     for (const Material& m : mesh_.materials) spot_floor_ = std::max(spot_floor_, static_cast<double>(std::max({m.emission.x, m.emission.y, m.emission.z})));
     spot_floor_ *= 1e-6;
     bool rendering_here = false;
+    // A resumed run none of whose nodes is here to render: min_nodes to join before the first tile.
+    bool waiting = imaging_peers() == 0 && config_.resume != nullptr;
+    if (waiting)
+      say(logging::Level::info, fmt::format("image: waiting for {} node{} to join", config_.min_nodes, config_.min_nodes == 1 ? "" : "s"),
+          {{"event", "image waits"}, {"nodes", config_.min_nodes}});
     auto last_status = Clock::now();
     while (!plan.finished()) {
       auto now = Clock::now();
@@ -290,7 +305,9 @@ class Coordinator {
       for (auto& [id, p] : peers_)
         if (p.imaging)
           for (const TileGrant& g : plan.top_up(p.index)) grant_tiles(p, g, plan);
-      if (imaging_peers() == 0) {
+      if (waiting && imaging_peers() >= config_.min_nodes) waiting = false;
+      const bool here_now = imaging_peers() == 0 && !waiting;
+      if (here_now) {
         if (!rendering_here) {
           rendering_here = true;
           say(logging::Level::warn, fmt::format("image: no node left; the coordinator renders the {} tiles left",
@@ -302,19 +319,26 @@ class Coordinator {
           plan.place_here(*t, here().render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
           ++result.tiles_here;
         }
-        continue;
       }
       std::string key;
-      auto in = next(now, key);
+      auto in = next(now, key, here_now);
       if (!in) continue;
       const std::string id = in->frames.front();
       std::optional<Message> m = decoded(*in);
       if (!m) continue;
+      if (m->command == Command::hello) {
+        join_image(id, key, in->address, *m);
+        continue;
+      }
       auto it = peers_.find(id);
-      // The image is the run's last part: nobody joins now, and nodes done with the run (a
-      // HELLO) or dropped from the image have nothing to say to it.
+      if (it != peers_.end() && it->second.image_joiner && !it->second.imaging && it->second.key == key &&
+          !policy_.node(it->second.index).dead) {
+        joiner(it->second, *m, h, bulk);
+        continue;
+      }
+      // Nodes dropped from the image, or done with it, have nothing to say to it.
       if (it == peers_.end() || !it->second.imaging || it->second.key != key) {
-        if (m->command != Command::hello && m->command != Command::heartbeat)
+        if (m->command != Command::heartbeat)
           log(id, fmt::format("{} during the image, from no node rendering it: ignored", proto::command_name(m->command)));
         continue;
       }
@@ -339,6 +363,75 @@ class Coordinator {
     result.image_seconds = seconds(Clock::now() - began);
     say(logging::Level::info, fmt::format("image done: {} tiles in {:.2f} s", result.image_tiles, result.image_seconds),
         {{"event", "image done"}, {"tiles", result.image_tiles}, {"seconds", result.image_seconds}, {"here", result.tiles_here}});
+  }
+
+  // A HELLO during the image: a new node (or one that lost its run) joins as during the bundles
+  // (hello: WELCOME and the scene), marked to join the image; a node already known (one
+  // repeating HELLO while idle) changes nothing.
+  void join_image(const std::string& id, const std::string& key, const std::string& address, const Message& m) {
+    auto before = peers_.find(id);
+    const std::optional<uint32_t> index = before == peers_.end() ? std::nullopt : std::optional<uint32_t>(before->second.index);
+    try {
+      handle(id, key, address, m);
+    } catch (const Error& e) {
+      if (config_.strict) throw;
+      log(id, e.what());
+      error(id, e.what());
+      return;
+    }
+    auto after = peers_.find(id);
+    if (after != peers_.end() && (!index || after->second.index != *index)) after->second.image_joiner = true;
+  }
+
+  // A message from a node that joined during the image and has no IMAGE yet: READY gets the
+  // STOP that says the image follows, the FINAL that answers it the IMAGE (its states are not
+  // taken: the solution was final before the image began). Anything else, or a run id not this
+  // run's, drops it (declared dead: it may say HELLO again).
+  void joiner(Peer& p, const Message& m, const wire::Image& h, const std::vector<std::string>& bulk) {
+    p.last_seen = Clock::now();
+    try {
+      switch (m.command) {
+        case Command::ready: {
+          const auto& r = std::get<wire::Ready>(m.header);
+          if (r.run_id() != run_.run_id()) fail("READY for run {:x}, not this run", r.run_id());
+          if (p.image_stop_sent) fail("READY twice");
+          p.ready_at = Clock::now();
+          p.ms_per_bundle = r.ms_per_bundle();
+          wire::Stop s;
+          s.set_run_id(run_.run_id());
+          s.set_image_follows(true);
+          send(p, {Command::stop, s, {}});
+          p.image_stop_sent = true;
+          return;
+        }
+        case Command::final_state: {
+          if (!p.image_stop_sent) fail("FINAL without STOP");
+          if (std::get<wire::Report>(m.header).run_id() != run_.run_id()) fail("FINAL for another run");
+          p.imaging = true;
+          p.due.clear();
+          send(p, {Command::image, h, bulk});
+          say(logging::Level::info, fmt::format("{} joined the image", p.name), {{"event", "image joined"}, {"peer", p.name}});
+          return;
+        }
+        case Command::heartbeat: return;
+        case Command::error:
+          log(p.id, "node: " + peer_text(std::get<wire::Error>(m.header).reason(), 300));
+          return;
+        default: fail("unexpected {} while joining the image", proto::command_name(m.command));
+      }
+    } catch (const Error& e) {
+      if (config_.strict) throw;
+      drop_joiner(p, e.what());
+    }
+  }
+
+  void drop_joiner(Peer& p, const std::string& why) {
+    policy_.dead(p.index);
+    p.dead_why = why;
+    p.down.clear();
+    p.due.clear();
+    log(p.id, fmt::format("dropped while joining the image ({})", why));
+    error(p.id, why, true);
   }
 
   std::size_t imaging_peers() const {
@@ -426,12 +519,17 @@ class Coordinator {
     }
   }
 
-  // The image phase's liveness: as keep_alive's, for the nodes rendering tiles.
+  // The image phase's liveness: as keep_alive's, for the nodes rendering tiles and those joining
+  // the image (watched from their READY, as in a run).
   void image_keep_alive(Clock::time_point now, TilePlan& plan) {
     for (auto& [id, p] : peers_) {
-      if (!p.imaging) continue;
-      if (std::string why = gone(p, true); !why.empty()) drop_from_image(p, plan, why);
-      else keep_in_touch(p, now);
+      if (p.imaging) {
+        if (std::string why = gone(p, true); !why.empty()) drop_from_image(p, plan, why);
+        else keep_in_touch(p, now);
+      } else if (p.image_joiner && !policy_.node(p.index).dead) {
+        if (std::string why = gone(p, p.image_stop_sent); !why.empty()) drop_joiner(p, why);
+        else keep_in_touch(p, now);
+      }
     }
   }
 
@@ -510,6 +608,7 @@ class Coordinator {
       n.bytes_out = p->bytes_out;
       n.tiles = p->tiles;
       if (ns.dead && !ns.quarantined) n.why = p->dead_why;
+      if (p->image_joiner && !ns.dead && p->imaging) n.state = "done";  // its FINAL is in (not taken)
       if (p->from_checkpoint) {  // not dead: it ran in the run before this process resumed it
         n.state = "before resume";
         n.rate = 0;

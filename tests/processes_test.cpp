@@ -443,6 +443,82 @@ TEST(Processes, AnImageInTilesOverTcpIsTheImageOfOneMachineThoughANodeStops) {
   if (!HasFailure()) fs::remove_all(dir);
 }
 
+// A coordinator stopped (SIGTERM) during its image checkpoints the run with every bundle done;
+// resumed, it has none of its nodes: it waits for --min-nodes (2) to join, which come as to a
+// run (HELLO, WELCOME, READY), get a STOP that says the image follows, answer with a FINAL that
+// is not taken and render every tile, and the image is `sirad image`'s of the run's PLY bit for
+// bit. The first run is held in its image by stopping both nodes as soon as each has logged its
+// FINAL: the 64 tiles take seconds, and until the nodes are silent for the liveness window
+// (20 s) nobody else renders them.
+TEST(Processes, ACoordinatorStoppedInItsImageResumesItOnNodesThatJoin) {
+  const fs::path dir = fs::temp_directory_path() / fmt::format("sirad_image_resume_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path status = dir / "status.json", checkpoint = dir / "run.checkpoint";
+  const std::vector<std::string> image_flags = {"--final-gather", "128", "--width", "256", "--height", "256"};
+  auto coordinator = [&](const std::string& listen, std::vector<std::string> extra, int n) {
+    std::vector<std::string> args = {SIRAD_COORDINATOR_BINARY, "cornell", "--listen", listen, "--insecure", "--endpoint-file",
+                                     (dir / "endpoint").string(), "--min-nodes", "2", "--timeout", sirad::test::kHangTimeout,
+                                     "--heartbeat-ms", "200", "--liveness", "100", "--status-json", status.string(),
+                                     "--checkpoint", checkpoint.string(), "--out", (dir / "run").string(), "-q"};
+    args.insert(args.end(), image_flags.begin(), image_flags.end());
+    args.insert(args.end(), extra.begin(), extra.end());
+    fs::remove(status);
+    return std::make_unique<Child>(args, dir / fmt::format("coordinator{}.log", n));
+  };
+  auto node = [&](const std::string& name) {
+    return std::make_unique<Child>(std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", slurp(dir / "endpoint"), "--insecure",
+                                                            "--name", name},
+                                   dir / fmt::format("{}.log", name));
+  };
+  auto first = coordinator("tcp://127.0.0.1:*", {"--patches", "300", "--bundles", "256"}, 0);
+  ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", *first)) << slurp(dir / "coordinator0.log");
+  const std::string endpoint = slurp(dir / "endpoint");
+  auto p0 = node("p0"), p1 = node("p1");
+  for (const auto& [n, name] : {std::pair{p0.get(), "p0"}, std::pair{p1.get(), "p1"}}) {
+    ASSERT_TRUE(wait_until([&] { return slurp(dir / fmt::format("{}.log", name)).find("final state sent") != std::string::npos; }))
+        << name << " never sent its FINAL: " << slurp(dir / "coordinator0.log");
+    n->pause();
+  }
+  first->terminate();
+  EXPECT_NE(first->wait(sirad::test::kHangS), 0) << "the image was finished before the nodes stopped (make it larger)";
+  const std::string log0 = slurp(dir / "coordinator0.log");
+  ASSERT_NE(log0.find("interrupted after 256 bundles"), std::string::npos) << log0;
+  p0->kill9();
+  p1->kill9();
+
+  auto second = coordinator(endpoint, {"--resume", checkpoint.string()}, 1);
+  auto p2 = node("p2"), p3 = node("p3");
+  ASSERT_EQ(second->wait(sirad::test::kHangS), 0) << slurp(dir / "coordinator1.log");
+  const sirad::cluster::Status last = sirad::cluster::read_status(status.string());
+  EXPECT_EQ(last.image_tiles_done, 64u);
+  uint64_t tiles = 0;
+  for (const auto& n : last.nodes) {
+    tiles += n.tiles;
+    if (n.name == "p2" || n.name == "p3") EXPECT_GT(n.tiles, 0u) << n.name << " joined the image but rendered none of it";
+    else EXPECT_EQ(n.tiles, 0u) << n.name;
+  }
+  EXPECT_EQ(tiles, 64u) << "every tile from a node that joined, none here\n" << slurp(dir / "coordinator1.log");
+  for (const char* name : {"p2", "p3"}) {
+    const std::string nlog = slurp(dir / fmt::format("{}.log", name));
+    EXPECT_NE(nlog.find("image done: "), std::string::npos) << nlog;
+    EXPECT_EQ(nlog.find(": coordinator: "), std::string::npos) << "an error from the coordinator\n" << nlog;
+  }
+  p2->terminate();
+  p3->terminate();
+  Child one({SIRAD_BINARY, "image", (dir / "run.ply").string(), "--spp", "128", "--width", "256", "--height", "256", "--out",
+             (dir / "one").string(), "-q"},
+            dir / "one.log");
+  ASSERT_EQ(one.wait(sirad::test::kHangS), 0) << slurp(dir / "one.log");
+  const auto tiled = sirad::test::exr_channels(dir / "run.exr"), whole = sirad::test::exr_channels(dir / "one.exr");
+  ASSERT_EQ(tiled.size(), 9u) << "R G B, direct.*, indirect.*";
+  for (const auto& [name, values] : whole) {
+    ASSERT_TRUE(tiled.count(name)) << name;
+    EXPECT_TRUE(tiled.at(name) == values) << name << " differs";
+  }
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
 // Repetitions of the kill tests: SIRAD_KILL_REPEAT (default 1; 20 for the soak).
 int kill_repeats() {
   const char* r = std::getenv("SIRAD_KILL_REPEAT");
