@@ -466,14 +466,14 @@ TEST(Processes, ACoordinatorStoppedInItsImageResumesItOnNodesThatJoin) {
     fs::remove(status);
     return std::make_unique<Child>(args, dir / fmt::format("coordinator{}.log", n));
   };
+  std::string endpoint;  // the first coordinator's; the resumed one listens on it too
   auto node = [&](const std::string& name) {
-    return std::make_unique<Child>(std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", slurp(dir / "endpoint"), "--insecure",
-                                                            "--name", name},
+    return std::make_unique<Child>(std::vector<std::string>{SIRAD_NODE_BINARY, "--connect", endpoint, "--insecure", "--name", name},
                                    dir / fmt::format("{}.log", name));
   };
   auto first = coordinator("tcp://127.0.0.1:*", {"--patches", "300", "--bundles", "256"}, 0);
   ASSERT_TRUE(sirad::test::wait_for_file(dir / "endpoint", *first)) << slurp(dir / "coordinator0.log");
-  const std::string endpoint = slurp(dir / "endpoint");
+  endpoint = slurp(dir / "endpoint");
   auto p0 = node("p0"), p1 = node("p1");
   for (const auto& [n, name] : {std::pair{p0.get(), "p0"}, std::pair{p1.get(), "p1"}}) {
     ASSERT_TRUE(wait_until([&] { return slurp(dir / fmt::format("{}.log", name)).find("final state sent") != std::string::npos; }))
