@@ -381,6 +381,22 @@ KillRun run_with_kill(const fs::path& dir, std::vector<std::string> run_args, ui
   return out;
 }
 
+// `sirad image` of dir/run.ply (spp samples, `view` its size flags) into dir/one: its EXR must
+// be the cluster's dir/run.exr bit for bit, every channel.
+void expect_the_image_of_one_machine(const fs::path& dir, const std::string& spp, const std::vector<std::string>& view) {
+  std::vector<std::string> image = {SIRAD_BINARY, "image", (dir / "run.ply").string(), "--spp", spp, "--out",
+                                    (dir / "one").string(), "-q"};
+  image.insert(image.end(), view.begin(), view.end());
+  Child one(image, dir / "one.log");
+  ASSERT_EQ(one.wait(sirad::test::kHangS), 0) << slurp(dir / "one.log");
+  const auto tiled = sirad::test::exr_channels(dir / "run.exr"), whole = sirad::test::exr_channels(dir / "one.exr");
+  ASSERT_EQ(tiled.size(), 9u) << "R G B, direct.*, indirect.*";
+  for (const auto& [name, values] : whole) {
+    ASSERT_TRUE(tiled.count(name)) << name;
+    EXPECT_TRUE(tiled.at(name) == values) << name << " differs";
+  }
+}
+
 // The image phase over TCP (PROTOCOL.md section 3.4): a coordinator and two node processes
 // solve the Cornell box and render its final gather in 32-pixel tiles. Node p1 is stopped
 // (SIGSTOP) as soon as the status shows its FINAL in: the phase starts only with every FINAL
@@ -429,17 +445,7 @@ TEST(Processes, AnImageInTilesOverTcpIsTheImageOfOneMachineThoughANodeStops) {
   EXPECT_EQ(tiles, 64u) << "every tile from a node, none twice";
   p1->kill9();
   p0->terminate();
-  std::vector<std::string> image = {SIRAD_BINARY, "image", (dir / "run.ply").string(), "--spp", "128", "--out",
-                                    (dir / "one").string(), "-q"};
-  image.insert(image.end(), view.begin(), view.end());
-  Child one(image, dir / "one.log");
-  ASSERT_EQ(one.wait(sirad::test::kHangS), 0) << slurp(dir / "one.log");
-  const auto tiled = sirad::test::exr_channels(dir / "run.exr"), whole = sirad::test::exr_channels(dir / "one.exr");
-  ASSERT_EQ(tiled.size(), 9u) << "R G B, direct.*, indirect.*";
-  for (const auto& [name, values] : whole) {
-    ASSERT_TRUE(tiled.count(name)) << name;
-    EXPECT_TRUE(tiled.at(name) == values) << name << " differs";
-  }
+  expect_the_image_of_one_machine(dir, "128", view);
   if (!HasFailure()) fs::remove_all(dir);
 }
 
@@ -506,16 +512,7 @@ TEST(Processes, ACoordinatorStoppedInItsImageResumesItOnNodesThatJoin) {
   }
   p2->terminate();
   p3->terminate();
-  Child one({SIRAD_BINARY, "image", (dir / "run.ply").string(), "--spp", "128", "--width", "256", "--height", "256", "--out",
-             (dir / "one").string(), "-q"},
-            dir / "one.log");
-  ASSERT_EQ(one.wait(sirad::test::kHangS), 0) << slurp(dir / "one.log");
-  const auto tiled = sirad::test::exr_channels(dir / "run.exr"), whole = sirad::test::exr_channels(dir / "one.exr");
-  ASSERT_EQ(tiled.size(), 9u) << "R G B, direct.*, indirect.*";
-  for (const auto& [name, values] : whole) {
-    ASSERT_TRUE(tiled.count(name)) << name;
-    EXPECT_TRUE(tiled.at(name) == values) << name << " differs";
-  }
+  expect_the_image_of_one_machine(dir, "128", {"--width", "256", "--height", "256"});
   if (!HasFailure()) fs::remove_all(dir);
 }
 
