@@ -24,6 +24,7 @@
 #include <utility>
 
 #include "core/error.h"
+#include "core/polygon.h"
 #include "core/resources.h"
 #include "core/scene_gltf.h"
 #include "core/scene_import.h"
@@ -177,8 +178,9 @@ void validate_material(const Material& m, const std::string& file) {
   }
 }
 
-// An OBJ file parsed line by line so that every message can name its line; fan-triangulated
-// faces are kept as vertex indices until the end, when materials and vertices are resolved.
+// An OBJ file parsed line by line so that every message can name its line; faces are kept as
+// vertex indices until the end, when vertices and materials are resolved and each face is cut
+// into triangles (core/polygon.h: a convex face as its fan, a concave one by ear clipping).
 class ObjParser {
  public:
   explicit ObjParser(std::string name) : name_(std::move(name)) {}
@@ -199,10 +201,10 @@ class ObjParser {
   Scene finish(const MtlSource& source, const ImportOptions& options);
 
  private:
-  struct RawTriangle {
-    std::array<uint32_t, 3> v;
+  struct RawFace {
+    uint32_t first, count;  // its corners: corners_[first, first + count)
     uint32_t line;
-    uint32_t slot;  // index into slots_, or kNone without `usemtl`
+    uint32_t slot;  // index into slots_, or kNone without a material
     uint32_t object;  // index into objects_
   };
 
@@ -297,14 +299,19 @@ class ObjParser {
         error("face index {} out of range ({} vertices)", k, vertices_.size());
       face_.push_back(static_cast<uint32_t>(index));
     }
-    if (triangles_.size() + (count - 2) > kMaxTriangles)
+    if (triangle_bound_ + (count - 2) > kMaxTriangles)
       error("more than {} triangles", kMaxTriangles);
-    for (std::size_t i = 1; i + 1 < count; ++i)
-      triangles_.push_back({{face_[0], face_[i], face_[i + 1]}, line_, slot_, object_});
+    triangle_bound_ += count - 2;
+    faces_.push_back({static_cast<uint32_t>(corners_.size()), static_cast<uint32_t>(count), line_, slot_, object_});
+    corners_.insert(corners_.end(), face_.begin(), face_.end());
   }
 
   void usemtl(const std::string& name) {
-    if (name.empty()) error("usemtl without a material name");
+    // Blender writes `usemtl` and no name for an empty material slot: the default material.
+    if (name.empty()) {
+      slot_ = kNone;
+      return;
+    }
     const auto [it, added] = slot_of_.try_emplace(name, static_cast<uint32_t>(slots_.size()));
     if (added) slots_.push_back(name);
     slot_ = it->second;
@@ -327,7 +334,9 @@ class ObjParser {
   std::vector<std::string_view> tokens_;
   std::vector<uint32_t> face_;
   std::vector<glm::vec3> vertices_;
-  std::vector<RawTriangle> triangles_;
+  std::vector<RawFace> faces_;
+  std::vector<uint32_t> corners_;  // the faces' vertex indices
+  std::size_t triangle_bound_ = 0;  // sum over faces of corners - 2
   std::vector<std::string> slots_;  // material names in order of first `usemtl`
   std::unordered_map<std::string, uint32_t> slot_of_;
   uint32_t slot_ = kNone;
@@ -365,23 +374,34 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
   scene.objects = objects_;
   std::vector<uint32_t> index_of_slot(slots_.size(), kNone);
   uint32_t default_index = kNone;
-  std::size_t skipped = 0;
-  scene.triangles.reserve(triangles_.size());
-  for (const RawTriangle& raw : triangles_) {
+  std::size_t skipped = 0, without_material = 0;
+  uint32_t first_without_material = 0;  // its line
+  scene.triangles.reserve(triangle_bound_);
+  std::vector<glm::vec3> corners;
+  for (const RawFace& raw : faces_) {
     line_ = raw.line;
-    Triangle t;
-    for (int k = 0; k < 3; ++k) {
-      if (raw.v[k] >= vertices_.size())
-        error("face index {} out of range ({} vertices)", raw.v[k] + 1, vertices_.size());
-      t.p[k] = vertices_[raw.v[k]];
+    const std::span<const uint32_t> v(corners_.data() + raw.first, raw.count);
+    corners.clear();
+    for (uint32_t k : v) {
+      if (k >= vertices_.size()) error("face index {} out of range ({} vertices)", k + 1, vertices_.size());
+      corners.push_back(vertices_[k]);
     }
+    std::vector<std::array<uint32_t, 3>> cut;
+    try {
+      cut = triangulate_polygon(corners);
+    } catch (const Error& e) {
+      error("{}", e.what());
+    }
+    for (const auto& c : cut) {
+    Triangle t;
+    for (int k = 0; k < 3; ++k) t.p[k] = corners[c[k]];
     if (is_degenerate(t.p)) {
       if (!options.skip_degenerate)
-        error("degenerate triangle (zero area) with vertices {}, {}, {}", raw.v[0] + 1,
-              raw.v[1] + 1, raw.v[2] + 1);
+        error("degenerate triangle (zero area) with vertices {}, {}, {}", v[c[0]] + 1, v[c[1]] + 1, v[c[2]] + 1);
       ++skipped;
       continue;
     }
+    if (raw.slot == kNone && without_material++ == 0) first_without_material = raw.line;
     uint32_t& index = raw.slot == kNone ? default_index : index_of_slot[raw.slot];
     if (index == kNone) {
       index = static_cast<uint32_t>(scene.materials.size());
@@ -402,7 +422,12 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
     t.source_line = raw.line;
     t.object = raw.object;
     scene.triangles.push_back(t);
+    }
   }
+  if (without_material > 0)
+    scene.warnings.push_back(fmt::format("{}:{}: {} triangles have no material (no usemtl, or one without a name): they "
+                                         "take the default, reflectance {} and one-sided", name_,
+                                         first_without_material, without_material, kDefaultReflectance));
 
   // Step 3: something to solve: a triangle and an emitter.
   if (scene.triangles.empty()) {

@@ -182,6 +182,8 @@ class GltfReader {
     Material mat;
     if (index < 0) {
       mat = {"default", glm::vec3(kDefaultReflectance), glm::vec3(0.0f)};
+      scene_.warnings.push_back(fmt::format("{}: a mesh has no material: it takes the default, reflectance {} and one-sided",
+                                            path_, kDefaultReflectance));
     } else {
       if (index >= static_cast<int>(m_.materials.size())) fail("{}: material {} does not exist", path_, index);
       const tinygltf::Material& g = m_.materials[static_cast<std::size_t>(index)];

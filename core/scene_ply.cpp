@@ -7,7 +7,8 @@
 // What a face's material is: its float properties reflectance_r/g/b and emission_r/g/b when
 // present (sirad's own PLY, so a solution's PLY is a scene again), else the face's or its first
 // vertex's red/green/blue (bytes / 255, sRGB-decoded; floats as they are) as reflectance, else
-// 0.8. Faces with equal properties share one material. Polygons are fan-triangulated.
+// 0.8. Faces with equal properties share one material. Polygons are cut into triangles by
+// triangulate_polygon (core/polygon.h: convex ones as their fan, concave ones by ear clipping).
 #include "core/scene_ply.h"
 
 #include <algorithm>
@@ -26,6 +27,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/error.h"
+#include "core/polygon.h"
 #include "core/scene_import.h"
 
 namespace sirad {
@@ -298,6 +300,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
   scene.background = background;
   std::map<std::tuple<float, float, float, float, float, float>, uint32_t> material_of;
   std::size_t skipped = 0;
+  std::vector<glm::vec3> corners;
   for (std::size_t i = 0; i < faces.size(); ++i) {
     const Face& f = faces[i];
     glm::vec3 rho = f.reflectance.x < 0 ? glm::vec3(import::kDefaultReflectance) : f.reflectance;
@@ -313,9 +316,17 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
       for (int c = 0; c < 3; ++c)
         if (!std::isfinite(f.radiosity[c]) || std::abs(f.radiosity[c]) > 3e38f)  // an estimate may dip below 0
           fail("{}: face {}: radiosity {} is not finite", path, i, f.radiosity[c]);
-    for (std::size_t k = 1; k + 1 < f.v.size(); ++k) {
+    corners.clear();
+    for (uint32_t v : f.v) corners.push_back(positions[v]);
+    std::vector<std::array<uint32_t, 3>> cut;
+    try {
+      cut = triangulate_polygon(corners);
+    } catch (const Error& e) {
+      fail("{}: face {}: {}", path, i, e.what());
+    }
+    for (const auto& c : cut) {
       Triangle t;
-      t.p = {positions[f.v[0]], positions[f.v[k]], positions[f.v[k + 1]]};
+      t.p = {corners[c[0]], corners[c[1]], corners[c[2]]};
       t.material = it->second;
       if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) {
         if (!options.skip_degenerate) fail("{}: face {}: degenerate triangle (zero area) (skipping degenerate triangles drops them)", path, i);

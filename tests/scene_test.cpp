@@ -204,6 +204,51 @@ void expect_parts(const std::string& message, const std::vector<std::string>& pa
   EXPECT_EQ(message.find('\n'), std::string::npos) << message;
 }
 
+// Faces as Blender's OBJ exporter writes them: a wall with a door cut by a Boolean is one concave
+// 8-cornered face (its fan from corner 0 would close the doorway), and an empty material slot is
+// `usemtl` with no name: those faces take the default material, and a warning names the line.
+TEST(SceneFile, ObjFacesAsBlenderWritesThem) {
+  const std::string obj =
+      "mtllib lib.mtl\n"
+      "o Wall\n"
+      "v 0 0 0\nv 1 0 0\nv 1 2.1 0\nv 1.9 2.1 0\nv 1.9 0 0\nv 4 0 0\nv 4 2.6 0\nv 0 2.6 0\n"
+      "usemtl white\n"
+      "f 1 2 3 4 5 6 7 8\n"
+      "o Lamp\nusemtl light\nv 0 0 1\nv 0 1 1\nv 1 0 1\nf 9 10 11\n"
+      "o Wardrobe\nusemtl \nf 9 11 10\n";
+  const Scene s = parse_obj("mem", obj, {{"lib.mtl", kMtl}});
+  std::size_t wall = 0;
+  double area = 0.0;
+  for (const Triangle& t : s.triangles) {
+    if (t.object != 1u) continue;
+    ++wall;
+    const glm::dvec3 n = normal_of(t);
+    EXPECT_GT(n.z, 0.0);
+    area += glm::length(n) / 2.0;
+    // No triangle covers the doorway, x in (1, 1.9) below 2.1.
+    const glm::dvec3 c = (glm::dvec3(t.p[0]) + glm::dvec3(t.p[1]) + glm::dvec3(t.p[2])) / 3.0;
+    EXPECT_FALSE(c.x > 1.0 && c.x < 1.9 && c.y < 2.1) << c.x << " " << c.y;
+    EXPECT_EQ(t.source_line, 12u);
+  }
+  EXPECT_EQ(wall, 6u);
+  EXPECT_NEAR(area, 4.0 * 2.6 - 0.9 * 2.1, 1e-5);
+  const Triangle& wardrobe = s.triangles.back();
+  EXPECT_EQ(s.objects.at(wardrobe.object), "Wardrobe");
+  EXPECT_EQ(s.materials.at(wardrobe.material).name, "default");
+  EXPECT_EQ(s.materials.at(wardrobe.material).reflectance, glm::vec3(0.8f));
+  ASSERT_EQ(s.warnings.size(), 1u);
+  expect_parts(s.warnings[0], {"mem:21:", "1 triangles have no material", "default"});
+
+  // A face that crosses itself is refused with its line, never cut into triangles outside it.
+  try {
+    parse_obj("mem", "mtllib lib.mtl\nusemtl light\nv 0 0 0\nv 2 2 0\nv 2 0 0\nv 1 3 0\nv 0 2 0\nv 1 -1 0\nf 1 2 3 4 5 6\n",
+              {{"lib.mtl", kMtl}});
+    ADD_FAILURE() << "a face that crosses itself was taken";
+  } catch (const Error& e) {
+    expect_parts(e.what(), {"mem:9:", "crosses itself"});
+  }
+}
+
 // `o` and `g` name the faces that follow; a material with `sirad_two_sided 1` gets a reversed
 // twin right after each of its triangles (same corners, opposite winding), as does every
 // material under ImportOptions::two_sided; a texture map is noted, not silently dropped.
