@@ -517,20 +517,6 @@ Scene parse_obj(const std::string& name, const std::string& obj_text,
   return with_options(import_obj(name, obj_text, source, options), options);
 }
 
-void add_back_faces(Scene& scene) {
-  std::vector<Triangle> out;
-  out.reserve(scene.triangles.size());
-  for (const Triangle& t : scene.triangles) {
-    out.push_back(t);
-    if (!scene.materials[t.material].two_sided) continue;
-    Triangle back = t;
-    std::swap(back.p[1], back.p[2]);
-    out.push_back(back);
-  }
-  if (out.size() > kMaxTriangles) fail("{}: more than {} triangles with the back faces of two-sided materials", scene.name, kMaxTriangles);
-  scene.triangles = std::move(out);
-}
-
 bool is_builtin_scene(const std::string& name) {
   return name == "cornell" || name == "furnace" || name == "bright-room" || name == "three-lights";
 }

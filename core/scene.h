@@ -72,8 +72,12 @@ Scene parse_obj(const std::string& name, const std::string& obj_text,
                 const std::vector<std::pair<std::string, std::string>>& mtl_files,
                 const ImportOptions& options = {});
 
-// Gives every triangle of a two-sided material a reversed twin right after it (same place,
-// opposite normal, same material): each side then has a value of its own, as in Cycles.
+// Gives triangles of two-sided materials a reversed twin (same place, opposite normal, same
+// material): each side then has a value of its own, as in Cycles. Only twins whose side can
+// exchange light are kept (a few cosine rays from each meet an original's front or an emitter's:
+// not the inside of a solid, not a side facing into nothing, not one covered by an original at
+// its place), and they come before all original triangles, so that an original is on top of a
+// twin at one place (core/two_sided.cpp; DESIGN.md section 1, "Two-sided surfaces").
 void add_back_faces(Scene& scene);
 
 // The built-in scenes. `furnace`: a closed cube (side 1, inward normals), every face E = 1,

@@ -8,7 +8,9 @@
 #include <Random123/philox.h>
 #include <glm/geometric.hpp>
 
+#include "core/emitters.h"
 #include "core/error.h"
+#include "core/rays.h"
 
 namespace sirad {
 
@@ -33,10 +35,15 @@ std::array<double, 8> shot_uniforms(uint64_t seed, uint64_t index, Stream stream
 
 }  // namespace
 
-EmitterTable emitter_table(const PatchMesh& mesh) {
+namespace {
+
+// The emitter table of the emitting patches that `take` accepts.
+template <typename Take>
+EmitterTable table_of(const PatchMesh& mesh, Take take) {
   EmitterTable t;
   double total = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
+    if (!take(j)) continue;
     glm::dvec3 e(mesh.emission(j));
     double power = static_cast<double>(mesh.area[j]) * (e.x + e.y + e.z);
     if (!(power > 0.0)) continue;
@@ -52,6 +59,46 @@ EmitterTable emitter_table(const PatchMesh& mesh) {
   }
   if (!t.cdf.empty()) t.cdf.back() = 1.0;
   return t;
+}
+
+}  // namespace
+
+EmitterTable emitter_table(const PatchMesh& mesh) {
+  return table_of(mesh, [](std::size_t) { return true; });
+}
+
+EmitterTable shot_emitter_table(const PatchMesh& mesh, std::vector<double>* near_power) {
+  std::vector<int32_t> light_of;
+  const std::vector<Light> lights = find_lights(mesh, &light_of);
+  if (near_power) near_power->assign(lights.size(), 0.0);
+  if (lights.empty()) return {};
+  const RayScene rays(mesh, ray_offset(mesh), /*fast=*/true);
+  const double eps = ray_offset(mesh);
+  const int per_light = std::max(16, std::min(kNearRays, static_cast<int>(65536 / lights.size())));
+  std::vector<uint8_t> shot(lights.size(), 0);
+  std::vector<std::array<double, 2>> pts, dirs;
+  for (std::size_t l = 0; l < lights.size(); ++l) {
+    const Light& light = lights[l];
+    double diameter = 0.0;
+    for (int a = 0; a < light.corners; ++a)
+      for (int b = a + 1; b < light.corners; ++b) diameter = std::max(diameter, glm::length(light.p[a] - light.p[b]));
+    if (light.corners == 4) diameter = std::max(diameter, glm::length(light.p[0] - light.p[2]));
+    Rng rng(0x5407, l, 0, 5);
+    stratified_square(per_light, rng, pts);
+    stratified_square(per_light, rng, dirs);
+    int near = 0;
+    for (int k = 0; k < per_light; ++k) {
+      const auto i = static_cast<std::size_t>(k);
+      const glm::dvec3 x = light.at(pts[i][0], pts[i][1]);
+      const glm::dvec3 d = cosine_direction(light.normal, dirs[i][0], dirs[i][1]);
+      const auto [hit, t] = rays.seen_at(x + light.normal * eps, d);
+      near += hit >= 0 && t < diameter;
+    }
+    const double fraction = static_cast<double>(near) / per_light;
+    if (near_power) (*near_power)[l] = fraction;
+    shot[l] = fraction <= kNearPowerShot;
+  }
+  return table_of(mesh, [&](std::size_t j) { return light_of[j] >= 0 && shot[static_cast<std::size_t>(light_of[j])]; });
 }
 
 ShotDraw draw_shot(const PatchMesh& mesh, const EmitterTable& table, uint64_t seed, uint64_t index, Stream stream,

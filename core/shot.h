@@ -37,6 +37,18 @@ struct EmitterTable {
   bool empty() const { return patch.empty(); }
 };
 EmitterTable emitter_table(const PatchMesh& mesh);
+// The emitters a run shoots from (DESIGN.md section 1, "Which emitters the shot takes"): the
+// emitting patches of the lights (core/emitters.h) that send at most kNearPowerShot of their
+// power to surfaces nearer than the light's diameter, found with kNearRays cosine rays per light
+// (fewer, but at least 16, past 256 lights); deterministic. A shot's one point y estimates a
+// near receiver badly (the ceiling 1.5 cm above a lamp's upper side is lit almost only from the
+// point under it), where the bundles' lines estimate it like any other exchange; the emission of
+// the lights left out stays in what the bundles carry, which keeps the estimate unbiased for any
+// split (core/solver.cpp). `near_power`, if given, gets each light's fraction, in find_lights'
+// order.
+inline constexpr double kNearPowerShot = 0.02;
+inline constexpr int kNearRays = 256;
+EmitterTable shot_emitter_table(const PatchMesh& mesh, std::vector<double>* near_power = nullptr);
 
 // One shot's draw (double precision) and its view as engines render it.
 struct ShotDraw {

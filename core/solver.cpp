@@ -45,8 +45,12 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   if (options.shots_per_bundle > 0.0) {
     if (shots == nullptr) fail("first shot: no shot engine given");
     // A scene that emits nothing has no direct light to shoot: D = 0 and the plain iteration.
-    emitters_ = emitter_table(mesh);
+    // Only the emitters whose light the shot estimates well (shot_emitter_table); the others'
+    // emission stays in what the bundles carry.
+    emitters_ = shot_emitter_table(mesh);
     if (!emitters_.empty()) shots_ = shots;
+    shot_emission_.assign(mesh.size(), glm::dvec3(0.0));
+    for (uint32_t j : emitters_.patch) shot_emission_[j] = glm::dvec3(mesh.emission(j));
     shot_resolution_ = options.shot_resolution ? options.shot_resolution : auto_shot_resolution(mesh);
   }
   if (options.grid < 0 || options.grid == 1) fail("grid must be at least 2 (got {})", options.grid);
@@ -107,9 +111,11 @@ void Solver::update_source(uint64_t index, Stream stream) {
 }
 
 void Solver::run_bundle(uint64_t index, Stream stream) {
-  // With a first shot the bundles transport Y = B - E: the emission is already in D.
+  // With a first shot the bundles transport Y = B - E_s, E_s the emission of the emitters shot
+  // from (their light is already in D); the other emitters' emission E_l stays in Y:
+  // Y = E_l + D + rho F Y, and the estimate E + D_m + rho T(Y) has mean E_s + Y = B.
   for (std::size_t j = 0; j < state_.size(); ++j)
-    input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - glm::dvec3(mesh_.emission(j)) : state_[j]), 0.0f);
+    input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - shot_emission_[j] : state_[j]), 0.0f);
   SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream, sampling_);
   engine_.run(b, input_, result_);
   crossings_ += result_.crossings;

@@ -131,6 +131,7 @@ class Solver {
   void update_source(uint64_t index, Stream stream);
   ShotEngine* shots_ = nullptr;
   EmitterTable emitters_;                  // built once: every step's shots draw from it
+  std::vector<glm::dvec3> shot_emission_;  // E_s: the emission of the patches in emitters_
   ShotSums shot_sums_;                     // the last update_source's shots
   ShotScratch shot_scratch_;               // reused by every shot
   std::unique_ptr<BatchMeans> batches_;

@@ -117,6 +117,19 @@ inline void room_shell(ObjBuilder& o) {
   o.quad({0, 0, D}, {0, H, D}, {W, H, D}, {W, 0, D});
 }
 
+// A closed room 4 x 3 x 4 m (room_shell) with a two-sided lamp panel 1.2 x 0.6 m hung `gap` below
+// the ceiling (as Blender exports an emitting plane: its upper side emits into the gap too), its
+// front facing down.
+inline Scene lamp_under_ceiling(double gap) {
+  ObjBuilder o;
+  room_shell(o);
+  o.material("two_sided_lamp");
+  const double y = 3.0 - gap;
+  o.quad({1.4, y, 1.7}, {1.4, y, 2.3}, {2.6, y, 2.3}, {2.6, y, 1.7});
+  return o.scene(fmt::format("lamp {} m under the ceiling", gap),
+                 std::string(kMtl) + "newmtl two_sided_lamp\nKd 0.5 0.5 0.5\nKe 5 5 5\nsirad_two_sided 1\n");
+}
+
 // A closed room 4 x 3 x 4 m with a large ceiling lamp and a free-standing zero-thickness panel
 // (2 x 1.6 m of material `panel`, turned 30 degrees about y, its front tilted 50 degrees up towards
 // the lamp): its front as a 2 x 2 grid of rectangles, its back as one rectangle split along the

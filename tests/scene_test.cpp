@@ -250,41 +250,44 @@ TEST(SceneFile, ObjFacesAsBlenderWritesThem) {
 }
 
 // `o` and `g` name the faces that follow; a material with `sirad_two_sided 1` gets a reversed
-// twin right after each of its triangles (same corners, opposite winding), as does every
-// material under ImportOptions::two_sided; a texture map is noted, not silently dropped.
+// twin (same corners, opposite winding) where that side sees light, as does every material under
+// ImportOptions::two_sided; twins come before every original; a texture map is noted, not
+// silently dropped. Here a lamp 1 m above a floor faces up: its twin faces the floor and is kept,
+// while the floor's twins would face down into nothing and are not made.
 TEST(SceneFile, ObjectsTwoSidedMaterialsAndTextureNotes) {
   const std::string obj =
       "mtllib lib.mtl\n"
-      "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
+      "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0.2 0.2 1\nv 0.8 0.2 1\nv 0.2 0.8 1\n"
       "o Floor\nusemtl plain\nf 1 2 3\n"
-      "g Lamp shade\nusemtl glow\nf 1 3 4\n"
-      "o Floor\nusemtl plain\nf 2 3 4\n";
+      "g Lamp shade\nusemtl glow\nf 5 6 7\n"
+      "o Floor\nusemtl plain\nf 2 4 3\n";
   const std::string mtl =
       "newmtl plain\nKd 0.5 0.5 0.5\nmap_Kd wood.png\n"
       "newmtl glow\nKd 0.1 0.1 0.1\nKe 2 2 2\nsirad_two_sided 1\n";
   const Scene s = parse_obj("mem", obj, {{"lib.mtl", mtl}});
   ASSERT_EQ(s.objects, (std::vector<std::string>{"(unnamed)", "Floor", "Lamp shade"}));
   ASSERT_EQ(s.triangles.size(), 4u);
-  EXPECT_EQ(s.triangles[0].object, 1u);
-  EXPECT_EQ(s.triangles[1].object, 2u);
+  EXPECT_EQ(s.triangles[0].object, 2u);  // the lamp's twin first
+  EXPECT_EQ(s.triangles[1].object, 1u);
   EXPECT_EQ(s.triangles[2].object, 2u);
   EXPECT_EQ(s.triangles[3].object, 1u);
   EXPECT_FALSE(s.materials[0].two_sided);
   EXPECT_TRUE(s.materials[1].two_sided);
   // The glowing triangle and its twin: the same corners, the other way round.
-  EXPECT_EQ(s.triangles[2].p[0], s.triangles[1].p[0]);
-  EXPECT_EQ(s.triangles[2].p[1], s.triangles[1].p[2]);
-  EXPECT_EQ(s.triangles[2].p[2], s.triangles[1].p[1]);
-  EXPECT_NEAR(glm::dot(glm::normalize(normal_of(s.triangles[1])), glm::normalize(normal_of(s.triangles[2]))), -1.0, 1e-9);
+  EXPECT_EQ(s.triangles[0].p[0], s.triangles[2].p[0]);
+  EXPECT_EQ(s.triangles[0].p[1], s.triangles[2].p[2]);
+  EXPECT_EQ(s.triangles[0].p[2], s.triangles[2].p[1]);
+  EXPECT_NEAR(glm::dot(glm::normalize(normal_of(s.triangles[0])), glm::normalize(normal_of(s.triangles[2]))), -1.0, 1e-9);
   ASSERT_EQ(s.warnings.size(), 1u);
   EXPECT_NE(s.warnings[0].find("'plain'"), std::string::npos) << s.warnings[0];
   EXPECT_NE(s.warnings[0].find("wood.png"), std::string::npos) << s.warnings[0];
 
+  // Everything two-sided: the floor's backs face down into nothing and get no twin.
   const Scene all = parse_obj("mem", obj, {{"lib.mtl", mtl}}, {.two_sided = true});
-  EXPECT_EQ(all.triangles.size(), 6u);
-  for (std::size_t k = 0; k < all.triangles.size(); k += 2)
-    EXPECT_NEAR(glm::dot(glm::normalize(normal_of(all.triangles[k])), glm::normalize(normal_of(all.triangles[k + 1]))), -1.0, 1e-9);
-  EXPECT_EQ(load_scene("furnace", {.two_sided = true}).triangles.size(), 2 * builtin_furnace().triangles.size());
+  ASSERT_EQ(all.triangles.size(), 4u);
+  EXPECT_EQ(all.triangles[0].p, s.triangles[0].p);
+  // A closed furnace made two-sided: its outsides face nothing either.
+  EXPECT_EQ(load_scene("furnace", {.two_sided = true}).triangles.size(), builtin_furnace().triangles.size());
 
   try {
     parse_obj("mem", obj, {{"lib.mtl", "newmtl plain\nKd 0.5 0.5 0.5\nsirad_two_sided yes\nnewmtl glow\nKe 1 1 1\n"}});
