@@ -122,7 +122,9 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
     view.update(job.id, s);
   };
   rc.status_every_s = 0.25;
-  const ResultOptions shown = result_options(plan.output);
+  OutputFlags output = plan.output;
+  settle_image_size(output, rc.scene);
+  const ResultOptions shown = result_options(output);
   rc.final_gather = final_gather_of(shown);  // the image's tiles rendered by the job's nodes
   const int preview_w = std::min(kPreviewWidth, shown.width);
   const int preview_h = std::max(1, static_cast<int>(std::lround(double(shown.height) * preview_w / shown.width)));

@@ -84,6 +84,16 @@ int submit_job(const FarmAddress& at, const std::string& scene, const std::vecto
     spec["scene"] = scene;
   } else {
     Scene s = load_scene(scene, {.skip_degenerate = plan.output.skip_degenerate, .two_sided = plan.output.two_sided});
+    // The uploaded scene carries no camera aspect: the image size the scene's camera gives is
+    // settled here and sent as flags.
+    if (plan.output.width == 0 || plan.output.height == 0) {
+      OutputFlags output = plan.output;
+      settle_image_size(output, s);
+      spec["args"].push_back("--width");
+      spec["args"].push_back(std::to_string(output.width));
+      spec["args"].push_back("--height");
+      spec["args"].push_back(std::to_string(output.height));
+    }
     items.push_back({"scene_data", encode_scene(s), "scene.bin", "application/octet-stream"});
   }
   items.push_back({"job", spec.dump(), "job.json", "application/json"});

@@ -107,8 +107,8 @@ const std::vector<std::string>& cluster_flag_names() {
 std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
   const std::vector<CLI::Option*> options = {
       cmd->add_option("--out", o.out, "Output name: writes NAME.exr, NAME.png, NAME.ply, NAME.glb (default: scene name)"),
-      cmd->add_option("--width", o.width, "Image width")->check(CLI::Range(1, kMaxImageSide))->capture_default_str(),
-      cmd->add_option("--height", o.height, "Image height")->check(CLI::Range(1, kMaxImageSide))->capture_default_str(),
+      cmd->add_option("--width", o.width, "Image width (default: the camera's aspect times the height)")->check(CLI::Range(1, kMaxImageSide)),
+      cmd->add_option("--height", o.height, "Image height (default: 512, or the width over the camera's aspect)")->check(CLI::Range(1, kMaxImageSide)),
       cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(finite_in(-64.0, 64.0)),
       cmd->add_flag("--flat", o.flat, "Flat-shaded image (one value per patch) instead of Gouraud"),
       cmd->add_option("--final-gather", o.final_gather,
@@ -187,7 +187,20 @@ std::optional<Camera> camera_flag(const std::string& camera) {
   }
 }
 
+void settle_image_size(int& width, int& height, const std::optional<double>& aspect) {
+  const double a = aspect.value_or(1.0);
+  auto side = [](double x) { return static_cast<int>(std::clamp(std::lround(x), 1L, static_cast<long>(kMaxImageSide))); };
+  if (width == 0 && height == 0) height = kDefaultImageHeight;
+  if (width == 0) width = side(height * a);
+  if (height == 0) height = side(width / a);
+}
+
+void settle_image_size(OutputFlags& flags, const Scene& scene) {
+  settle_image_size(flags.width, flags.height, flags.camera.empty() ? scene.camera_aspect : std::nullopt);
+}
+
 ResultOptions result_options(const OutputFlags& flags) {
+  if (flags.width < 1 || flags.height < 1) fail("image size {}x{} not settled (settle_image_size)", flags.width, flags.height);
   ResultOptions ro;
   ro.width = flags.width;
   ro.height = flags.height;

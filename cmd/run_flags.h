@@ -46,7 +46,7 @@ struct RunFlags {
 
 struct OutputFlags {
   std::string out;
-  int width = 512, height = 512;
+  int width = 0, height = 0;  // 0: settle_image_size gives them from the camera's aspect
   float exposure = 0.0f;
   bool flat = false;
   int final_gather = 0;  // samples per pixel of a final gather image (0: the patches drawn)
@@ -87,5 +87,11 @@ std::optional<Camera> camera_flag(const std::string& camera);
 
 // The images the output flags ask for: size, exposure, flat or Gouraud shading.
 ResultOptions result_options(const OutputFlags& flags);
+// The image size a run writes, once its scene is known: --width and --height as given; else the
+// scene camera's aspect (glTF aspectRatio; 1 for other scenes, or with --camera) with a height
+// of kDefaultImageHeight, or the side not given from the one given.
+inline constexpr int kDefaultImageHeight = 512;
+void settle_image_size(int& width, int& height, const std::optional<double>& aspect);
+void settle_image_size(OutputFlags& flags, const Scene& scene);
 
 }  // namespace sirad::cli

@@ -235,6 +235,7 @@ int render(RenderArgs a) {
   std::string out = output_name(a.output.out, a.scene);
   Meshed m = load_meshed(a.scene, settings.mesh_options,
                          {.skip_degenerate = a.output.skip_degenerate, .two_sided = a.output.two_sided}, a.output.camera);
+  cli::settle_image_size(a.output, m.scene);
   const PatchMesh& mesh = m.mesh;
   install_interrupt();
 
@@ -309,6 +310,7 @@ int emulate(EmulateArgs& e) {
   std::string out = output_name(a.output.out, a.scene);
   Meshed m = load_meshed(a.scene, settings.mesh_options,
                          {.skip_degenerate = a.output.skip_degenerate, .two_sided = a.output.two_sided}, a.output.camera);
+  cli::settle_image_size(a.output, m.scene);
   const PatchMesh& mesh = m.mesh;
 
   cluster::EmulateConfig ec;
@@ -571,6 +573,8 @@ int reference(const ReferenceArgs& r) {
   std::string out = output_name(r.output.out, r.scene, {".exr", ".png", ".ply", ".glb", ".ref.csv"});
   auto [scene, mesh, camera_from] = load_meshed(
       r.scene, mesh_options, {.skip_degenerate = r.output.skip_degenerate, .two_sided = r.output.two_sided}, r.output.camera);
+  cli::OutputFlags output = r.output;
+  cli::settle_image_size(output, scene);
   if (!r.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, reference with %d rays and %d light samples per patch, %d batches\n",
                  r.scene.c_str(), mesh.size(), r.options.rays_per_patch, r.options.light_samples, r.options.batches);
@@ -588,7 +592,7 @@ int reference(const ReferenceArgs& r) {
       {"sirad.batches", static_cast<int64_t>(r.options.batches)},
       {"sirad.seed", std::to_string(r.options.seed)},
   };
-  write_outputs(r.output, out, mesh, radiosity, attrs, camera_from);
+  write_outputs(output, out, mesh, radiosity, attrs, camera_from);
   const std::string csv = out + ".ref.csv";
   write_reference(csv, mesh, s, r.options);
   std::printf("wrote %s\n", std::filesystem::absolute(csv).c_str());
@@ -616,8 +620,10 @@ CLI::App* add_image_command(CLI::App& app, ImageArgs& a) {
   cmd->add_option("--cameras", a.cameras,
                   "A walkthrough: one view per line (as --camera; blank lines and # comments skipped), written NAME-0001 ...")
       ->excludes(camera);
-  cmd->add_option("--width", a.gather.width, "Image width")->check(CLI::Range(1, kMaxImageSide))->capture_default_str();
-  cmd->add_option("--height", a.gather.height, "Image height")->check(CLI::Range(1, kMaxImageSide))->capture_default_str();
+  a.gather.width = a.gather.height = 0;  // settled from the solution's camera (cli::settle_image_size)
+  cmd->add_option("--width", a.gather.width, "Image width (default: the camera's aspect times the height)")->check(CLI::Range(1, kMaxImageSide));
+  cmd->add_option("--height", a.gather.height, "Image height (default: 512, or the width over the camera's aspect)")
+      ->check(CLI::Range(1, kMaxImageSide));
   cmd->add_option("--spp", a.gather.spp, "Samples per pixel (each: a primary ray, an emitter sample, a gather ray)")
       ->check(CLI::Range(1, 65536))->capture_default_str();
   cmd->add_option("--seed", a.gather.seed, "Seed")->capture_default_str();
@@ -656,6 +662,7 @@ int image(ImageArgs& a) {
   const std::string name = a.out.empty() ? fs::path(a.solution).stem().string() + "-image" : a.out;
   check_output_name(name, "--out");
   Solution s = read_solution(a.solution);
+  cli::settle_image_size(a.gather.width, a.gather.height, a.camera.empty() && a.cameras.empty() ? s.camera_aspect : std::nullopt);
   const FinalGather gather(s.mesh, std::move(s.corners), a.gather);  // the scene's rays made once, for every view
   std::vector<Camera> views;
   if (!a.cameras.empty()) views = read_cameras(a.cameras);

@@ -218,6 +218,7 @@ int main(int argc, char** argv) {
       if (std::string why = cluster::target_error_problem(rc); !why.empty()) fail("{}", why);
     }
     rc.scene = load_scene(scene_spec, {.skip_degenerate = output.skip_degenerate, .two_sided = output.two_sided});
+    cli::settle_image_size(output, rc.scene);
     rc.min_nodes = static_cast<uint32_t>(min_nodes);
     rc.timeout_s = timeout;
     rc.heartbeat_ms = static_cast<uint32_t>(heartbeat_ms);

@@ -98,11 +98,18 @@ inline double ray_offset(const PatchMesh& mesh) {
 // when it faces the ray: any other face within the tie of it meets it along a line (an edge, a
 // contact, a thin wall's other side, which faces away), where either face is the place. There
 // the first face met, facing the ray, is seen without a second look along the ray.
+inline constexpr double kMaxRayReach = 1e15;
+
 class RayScene {
  public:
   // `fast`: a quicker build of a slower tree, for a few rays (the scene checks); every hit then
   // takes the coincident-face rule's second look.
   RayScene(const PatchMesh& mesh, double tie, bool fast = false) : mesh_(mesh), tie_(tie) {
+    // Embree takes ray origins within about 1.8e18 of the origin (it asserts, and aborts, past
+    // that); a scene far beyond any real one is refused before a ray is cast.
+    const double reach = static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center));
+    if (!(reach <= kMaxRayReach))
+      fail("the scene reaches {:.3g} from the origin: too far to trace rays in (at most {:.0e})", reach, kMaxRayReach);
     device_ = rtcNewDevice(nullptr);
     if (!device_) fail("reference: cannot create an Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
     scene_ = rtcNewScene(device_);

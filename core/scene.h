@@ -46,6 +46,8 @@ struct Scene {
   std::vector<Material> materials;
   std::vector<Triangle> triangles;
   std::optional<Camera> camera;     // from the file's `# sirad camera` line or built-in
+  // The camera's width / height where the file says (glTF aspectRatio): the default image shape.
+  std::optional<double> camera_aspect;
   glm::vec3 background{0.0f};       // radiance seen by a line that leaves the scene
   // Object names (OBJ `o` or `g`; "(unnamed)" before any), for messages about parts of a scene.
   std::vector<std::string> objects{"(unnamed)"};

@@ -374,6 +374,10 @@ class GltfReader {
     cam.up = glm::vec3(glm::normalize(up));
     cam.vfov_deg = static_cast<float>(fov);
     scene_.camera = cam;
+    if (const double a = c.perspective.aspectRatio; a > 0.0) {
+      if (!(a >= 1e-3 && a <= 1e3)) fail("{}: {}: camera aspectRatio {} outside [0.001, 1000]", path_, where(node), a);
+      scene_.camera_aspect = a;
+    }
   }
 
   std::string path_;

@@ -20,6 +20,7 @@ Solution read_solution(const std::string& path) {
     std::vector<std::array<glm::vec3, 3>> per_triangle;
     Scene scene = import_gltf(path, {}, &per_triangle);
     s.mesh = mesh_scene(scene, MeshOptions{});  // one patch per triangle, its corners in order
+    s.camera_aspect = scene.camera_aspect;
     s.corners.resize(s.mesh.size());
     for (std::size_t j = 0; j < s.mesh.size(); ++j) {
       const uint32_t t = s.mesh.source_triangle[j];

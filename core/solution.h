@@ -7,6 +7,8 @@
 
 #include <glm/vec3.hpp>
 
+#include <optional>
+
 #include "core/mesh.h"
 
 namespace sirad {
@@ -18,6 +20,8 @@ struct Solution {
   std::vector<std::array<glm::vec3, 3>> corners;
   // Per patch: a PLY's faces as written; from a glTF, which holds only the corners, their mean.
   std::vector<glm::vec3> radiosity;
+  // The camera's width / height, where the file says (a glb sirad wrote: the run's image shape).
+  std::optional<double> camera_aspect;
 };
 
 // A solution sirad wrote, by the file's extension:

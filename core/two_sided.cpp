@@ -17,9 +17,9 @@
 namespace sirad {
 namespace {
 
-// Rays cast from all twins together, and from each at least and at most.
-constexpr std::size_t kTwinRayBudget = std::size_t{1} << 20;
-constexpr int kMinTwinRays = 8, kMaxTwinRays = 32;
+// Random walks from all twins together, from each at least and at most, and their bounces.
+constexpr std::size_t kWalkBudget = std::size_t{1} << 18;
+constexpr int kMinWalks = 8, kMaxWalks = 64, kWalkBounces = 8;
 
 }  // namespace
 
@@ -42,53 +42,48 @@ void add_back_faces(Scene& scene) {
   all.triangles = twins;
   all.triangles.insert(all.triangles.end(), scene.triangles.begin(), scene.triangles.end());
 
-  // A twin takes part where its side sees light: one of its cosine rays meets the front of an
-  // original face or of an emitter, or of a twin that does (found by a flood over the twins seen).
-  // The back of a wall box (inside the solid) sees only other such twins and is dropped, as is
-  // one that faces out into nothing (a sky plane's back); the inside of a room made from a cube
-  // with its normals out sees its lamp and furniture, or walls that see them, and is kept. So is
-  // none of a twin covered everywhere by an original at its place.
+  // A twin takes part where its side can receive light: one of up to kMaxWalks cosine random
+  // walks from it (kWalkBounces bounces each, over fronts only; a back or nothing ends a walk)
+  // meets an emitter's front; an emitter's twin, where it lights some front. The inside of a wall, slab or furniture box (and the floor under the bed, seen
+  // from inside it) never leads out, and a sky plane's back faces nothing: no twin; the inside of a
+  // room made from a cube with its normals out meets its lamp, or, through a door, another room's.
+  // A closed box that emits inside (a box lamp) keeps its inner twins: they light each other.
+  // Walks from under an original at the twin's place (the twin of one plane of a zero-thickness
+  // wall lies under the other plane) count for nothing.
   const PatchMesh mesh = mesh_scene(all, MeshOptions{});
   if (mesh.size() != all.triangles.size()) fail("{}: two-sided faces: the mesh does not keep one patch per triangle", scene.name);
   const RayScene rays(mesh, ray_offset(mesh), /*fast=*/true);
   const double eps = ray_offset(mesh);
-  const int per_twin = static_cast<int>(std::clamp<std::size_t>(kTwinRayBudget / twins.size(), kMinTwinRays, kMaxTwinRays));
+  const int walks = static_cast<int>(std::clamp<std::size_t>(kWalkBudget / twins.size(), kMinWalks, kMaxWalks));
   std::vector<std::array<double, 2>> pts, dirs;
   std::vector<uint8_t> lit(twins.size(), 0);
-  std::vector<std::vector<uint32_t>> seen_by(twins.size());  // twin -> the twins that see its front
   for (std::size_t i = 0; i < twins.size(); ++i) {
     const auto& tri = mesh.patches[i];
-    const glm::dvec3 a(mesh.vertices[tri[0]]), b(mesh.vertices[tri[1]]), c(mesh.vertices[tri[2]]), n(mesh.normal[i]);
+    const glm::dvec3 a(mesh.vertices[tri[0]]), b(mesh.vertices[tri[1]]), c(mesh.vertices[tri[2]]);
+    const bool emitter = mesh.emits(i);
     Rng rng(0x7317, i, 0, 6);
-    stratified_square(per_twin, rng, pts);
-    stratified_square(per_twin, rng, dirs);
-    for (int k = 0; k < per_twin && !lit[i]; ++k) {
+    stratified_square(walks, rng, pts);
+    stratified_square(walks, rng, dirs);
+    for (int k = 0; k < walks && !lit[i]; ++k) {
       const auto s = static_cast<std::size_t>(k);
-      const glm::dvec3 x = on_triangle(a, b, c, pts[s][0], pts[s][1]);
+      glm::dvec3 x = on_triangle(a, b, c, pts[s][0], pts[s][1]);
       if (rays.covered(static_cast<uint32_t>(i), x)) continue;
-      const glm::dvec3 d = cosine_direction(n, dirs[s][0], dirs[s][1]);
-      const int64_t seen = rays.seen(x + n * eps, d);
-      if (seen < 0) continue;
-      const auto j = static_cast<std::size_t>(seen);
-      if (!(glm::dot(glm::dvec3(mesh.normal[j]), d) < 0.0)) continue;  // a back: no light from it
-      if (j >= twins.size() || mesh.emits(j)) {
-        lit[i] = 1;
-      } else if (j != i && (seen_by[j].empty() || seen_by[j].back() != i)) {
-        seen_by[j].push_back(static_cast<uint32_t>(i));
+      glm::dvec3 n(mesh.normal[i]);
+      glm::dvec3 d = cosine_direction(n, dirs[s][0], dirs[s][1]);
+      for (int bounce = 0; bounce < kWalkBounces; ++bounce) {
+        const auto [seen, t] = rays.seen_at(x + n * eps, d);
+        if (seen < 0) break;
+        const auto j = static_cast<std::size_t>(seen);
+        n = glm::dvec3(mesh.normal[j]);
+        if (!(glm::dot(n, d) < 0.0)) break;  // a back: no light from it
+        if (mesh.emits(j) || emitter) {  // an emitter's twin counts if it lights some front
+          lit[i] = 1;
+          break;
+        }
+        x += d * t;
+        d = cosine_direction(n, rng.uniform(), rng.uniform());
       }
     }
-  }
-  std::vector<uint32_t> queue;
-  for (std::size_t i = 0; i < twins.size(); ++i)
-    if (lit[i]) queue.push_back(static_cast<uint32_t>(i));
-  while (!queue.empty()) {
-    const uint32_t j = queue.back();
-    queue.pop_back();
-    for (uint32_t i : seen_by[j])
-      if (!lit[i]) {
-        lit[i] = 1;
-        queue.push_back(i);
-      }
   }
   std::vector<Triangle> out;
   out.reserve(all.triangles.size());
