@@ -501,6 +501,7 @@ Scene with_options(Scene scene, const ImportOptions& options) {
   if (options.two_sided)
     for (Material& m : scene.materials) m.two_sided = true;
   add_back_faces(scene);
+  cut_near_emitters(scene);
   return scene;
 }
 

@@ -82,6 +82,16 @@ Scene parse_obj(const std::string& name, const std::string& obj_text,
 // twin at one place (core/two_sided.cpp; DESIGN.md section 1, "Two-sided surfaces").
 void add_back_faces(Scene& scene);
 
+// Cuts every face that faces an emitter across a gap of at most kGapCut times the emitter's
+// longest edge (a ceiling 1-2 cm above a lamp's upper side) along the emitter's outline, so that
+// no patch averages the light trapped in the gap with the light outside it (core/gap_cuts.cpp;
+// DESIGN.md section 1, "Light in gaps"). Faces are cut per emitter triangle; the pieces keep the
+// face's material, object and line. Scenes with more than kMaxGapCutPairs (emitter, face) pairs
+// are left as they are.
+inline constexpr double kGapCut = 0.25;
+inline constexpr double kMaxGapCutPairs = 4e8;
+void cut_near_emitters(Scene& scene);
+
 // The built-in scenes. `furnace`: a closed cube (side 1, inward normals), every face E = 1,
 // rho = 0.5, so B = 2 exactly everywhere.
 // True for the name of a built-in scene (load_scene's names that are no file).

@@ -416,5 +416,34 @@ TEST(FirstShot, LightsThatLightANearSurfaceAreLeftToTheBundles) {
   EXPECT_EQ(shot.cdf, all.cdf);
 }
 
+
+// A lamp 1.5 cm under a ceiling, two-sided: the ceiling is cut along the lamp's outline (core/scene.h
+// cut_near_emitters), so that no ceiling triangle, and so no patch, lies partly over the lamp
+// (where the gap's light is trapped) and partly beside it. The ceiling keeps its area.
+TEST(GapCuts, ACeilingOverALampIsCutAlongItsOutline) {
+  const Scene s = test::lamp_under_ceiling(0.015);
+  double over = 0.0, beside = 0.0;
+  std::size_t ceiling = 0;
+  for (const Triangle& t : s.triangles) {
+    const glm::dvec3 n = glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]));
+    if (!(std::abs(t.p[0].y - 3.0f) < 1e-6f && n.y < 0.0)) continue;  // the ceiling faces down
+    ++ceiling;
+    int in = 0;
+    for (const glm::vec3& p : t.p) in += p.x >= 1.4f - 1e-5f && p.x <= 2.6f + 1e-5f && p.z >= 1.7f - 1e-5f && p.z <= 2.3f + 1e-5f;
+    const glm::vec3 c = (t.p[0] + t.p[1] + t.p[2]) / 3.0f;
+    const bool centre_in = c.x > 1.4f && c.x < 2.6f && c.z > 1.7f && c.z < 2.3f;
+    EXPECT_EQ(in == 3, centre_in) << c.x << " " << c.z;
+    (centre_in ? over : beside) += 0.5 * glm::length(n);
+  }
+  EXPECT_GT(ceiling, 2u);
+  EXPECT_NEAR(over, 1.2 * 0.6, 1e-5);
+  EXPECT_NEAR(over + beside, 4.0 * 4.0, 1e-4);
+  // 40 cm below the ceiling (more than a quarter of the lamp's diagonal) nothing is cut.
+  const Scene far = test::lamp_under_ceiling(0.4);
+  std::size_t far_ceiling = 0;
+  for (const Triangle& t : far.triangles) far_ceiling += std::abs(t.p[0].y - 3.0f) < 1e-6f && std::abs(t.p[1].y - 3.0f) < 1e-6f;
+  EXPECT_EQ(far_ceiling, 2u);
+}
+
 }  // namespace
 }  // namespace sirad

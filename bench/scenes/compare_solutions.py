@@ -2,6 +2,7 @@
 """Compares sirad solutions of one mesh patch by patch and room by room.
 
     bench/scenes/compare_solutions.py REFERENCE.ply CANDIDATE.ply [CANDIDATE.ply ...] [--rooms apartment]
+    bench/scenes/compare_solutions.py --surfaces apartment SOLUTION.ply [SOLUTION.ply ...]
 
 Both are sirad's own binary PLY of the same scene and --patches (one face per patch, in the same
 order). Prints, per candidate, the relative RMS error per patch over the patches that do not emit
@@ -9,6 +10,9 @@ order). Prints, per candidate, the relative RMS error per patch over the patches
 core/metrics.h) and, with --rooms apartment, each room's mean radiosity over the reference's
 (the patches whose centre, moved 1 cm along the face's normal, lies in the room: walls count for
 the room they face). The rooms are those of bench/scenes/make_apartment.py in glTF's Y-up frame.
+With --surfaces, each solution alone (any meshing): per room, the area-weighted mean radiosity
+(r + g + b) of its floor (faces up within 1 cm of y = 0) and of its walls (vertical faces),
+what the camera sees of a room, leaving out the ceiling, whose part over a lamp lies in the gap.
 """
 import sys
 
@@ -55,7 +59,25 @@ def read_ply(path):
     return dict(area=area, centre=tri.mean(1), normal=normal, b=b, emits=(e > 0).any(1))
 
 
+def surfaces(rooms, paths):
+    for path in paths:
+        c = read_ply(path)
+        p = c["centre"] + 0.01 * c["normal"]
+        keep = ~c["emits"]
+        line = f"{path} ({len(c['area'])} patches):"
+        for name, (x0, x1, z0, z1) in rooms.items():
+            m = keep & (p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 2] > z0) & (p[:, 2] < z1) & (p[:, 1] > 0) & (p[:, 1] < 2.6)
+            for part, sel in (("floor", (c["normal"][:, 1] > 0.999) & (c["centre"][:, 1] < 0.01)),
+                              ("walls", np.abs(c["normal"][:, 1]) < 1e-3)):
+                w = c["area"][m & sel]
+                line += f" {name}-{part} {(w * c['b'][m & sel].sum(1)).sum() / w.sum():.4f}"
+        print(line)
+
+
 def main(argv):
+    if argv and argv[0] == "--surfaces":
+        surfaces(ROOMS[argv[1]], argv[2:])
+        return
     rooms = None
     if "--rooms" in argv:
         i = argv.index("--rooms")
