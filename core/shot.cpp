@@ -67,36 +67,50 @@ EmitterTable emitter_table(const PatchMesh& mesh) {
   return table_of(mesh, [](std::size_t) { return true; });
 }
 
-EmitterTable shot_emitter_table(const PatchMesh& mesh, std::vector<double>* near_power) {
+EmitterTable shot_emitter_table(const PatchMesh& mesh, std::vector<double>* incoherence) {
   std::vector<int32_t> light_of;
   const std::vector<Light> lights = find_lights(mesh, &light_of);
-  if (near_power) near_power->assign(lights.size(), 0.0);
+  if (incoherence) incoherence->assign(lights.size(), 1.0);
   if (lights.empty()) return {};
   const RayScene rays(mesh, ray_offset(mesh), /*fast=*/true);
   const double eps = ray_offset(mesh);
-  const int per_light = std::max(16, std::min(kNearRays, static_cast<int>(65536 / lights.size())));
+  const int per_light = std::max(16, std::min(kIncoherenceRays, static_cast<int>(65536 / lights.size())));
   std::vector<uint8_t> shot(lights.size(), 0);
-  std::vector<std::array<double, 2>> pts, dirs;
+  std::vector<std::array<double, 2>> pts, others, dirs;
   for (std::size_t l = 0; l < lights.size(); ++l) {
     const Light& light = lights[l];
-    double diameter = 0.0;
-    for (int a = 0; a < light.corners; ++a)
-      for (int b = a + 1; b < light.corners; ++b) diameter = std::max(diameter, glm::length(light.p[a] - light.p[b]));
-    if (light.corners == 4) diameter = std::max(diameter, glm::length(light.p[0] - light.p[2]));
+    const glm::dvec3 n = light.normal;
     Rng rng(0x5407, l, 0, 5);
     stratified_square(per_light, rng, pts);
+    stratified_square(per_light, rng, others);
     stratified_square(per_light, rng, dirs);
-    int near = 0;
+    double sum = 0.0;
+    int count = 0;
     for (int k = 0; k < per_light; ++k) {
       const auto i = static_cast<std::size_t>(k);
-      const glm::dvec3 x = light.at(pts[i][0], pts[i][1]);
-      const glm::dvec3 d = cosine_direction(light.normal, dirs[i][0], dirs[i][1]);
-      const auto [hit, t] = rays.seen_at(x + light.normal * eps, d);
-      near += hit >= 0 && t < diameter;
+      const glm::dvec3 y1 = light.at(pts[i][0], pts[i][1]);
+      const glm::dvec3 d = cosine_direction(n, dirs[i][0], dirs[i][1]);
+      const auto [hit, t] = rays.seen_at(y1 + n * eps, d);
+      if (hit < 0) continue;
+      const glm::dvec3 x = y1 + d * t, nx(mesh.normal[static_cast<std::size_t>(hit)]);
+      // The point-to-point kernel K(y, x) = cos_y cos_x V / r^2 from the shot's point y1 and from
+      // another point y2 of the light.
+      const double k1 = glm::dot(n, d) * std::max(0.0, -glm::dot(nx, d)) / (t * t);
+      const glm::dvec3 y2 = light.at(others[i][0], others[i][1]);
+      const glm::dvec3 r = x - y2;
+      const double r2 = glm::dot(r, r);
+      double k2 = 0.0;
+      if (r2 > 0.0) {
+        const double c2 = glm::dot(n, r), cx = -glm::dot(nx, r);
+        if (c2 > 0.0 && cx > 0.0 && !rays.blocked(y2 + n * eps, x + nx * eps)) k2 = c2 * cx / (r2 * r2);
+      }
+      if (!(k1 > 0.0) && !(k2 > 0.0)) continue;
+      sum += (k2 - k1) * (k2 - k1) / (k1 * k1 + k2 * k2);
+      ++count;
     }
-    const double fraction = static_cast<double>(near) / per_light;
-    if (near_power) (*near_power)[l] = fraction;
-    shot[l] = fraction <= kNearPowerShot;
+    const double value = count > 0 ? sum / count : 1.0;
+    if (incoherence) (*incoherence)[l] = value;
+    shot[l] = value <= kShotIncoherence;
   }
   return table_of(mesh, [&](std::size_t j) { return light_of[j] >= 0 && shot[static_cast<std::size_t>(light_of[j])]; });
 }

@@ -38,17 +38,20 @@ struct EmitterTable {
 };
 EmitterTable emitter_table(const PatchMesh& mesh);
 // The emitters a run shoots from (DESIGN.md section 1, "Which emitters the shot takes"): the
-// emitting patches of the lights (core/emitters.h) that send at most kNearPowerShot of their
-// power to surfaces nearer than the light's diameter, found with kNearRays cosine rays per light
-// (fewer, but at least 16, past 256 lights); deterministic. A shot's one point y estimates a
-// near receiver badly (the ceiling 1.5 cm above a lamp's upper side is lit almost only from the
-// point under it), where the bundles' lines estimate it like any other exchange; the emission of
-// the lights left out stays in what the bundles carry, which keeps the estimate unbiased for any
-// split (core/solver.cpp). `near_power`, if given, gets each light's fraction, in find_lights'
-// order.
-inline constexpr double kNearPowerShot = 0.02;
-inline constexpr int kNearRays = 256;
-EmitterTable shot_emitter_table(const PatchMesh& mesh, std::vector<double>* near_power = nullptr);
+// emitting patches of the lights (core/emitters.h) that their receivers see coherently. A shot
+// estimates every receiver x from one point y of the light, so it is as good as the kernel
+// K(y, x) = cos_y cos_x V(y, x) / r^2 is flat over y. Per light, kIncoherenceRays cosine rays
+// from points y1 find receivers x as the light's power reaches them, a second point y2 is drawn,
+// and the incoherence is the mean of (K2 - K1)^2 / (K1^2 + K2^2): 0 where x sees the whole light
+// alike (a far, unoccluded receiver), near 1 where it sees only part of it (the ceiling 1.5 cm
+// above a lamp's upper side, lit almost only from the point under it; a room seen from a sky
+// plane through a window). Lights above kShotIncoherence are left to the bundles' lines, which
+// sample (x, y) pairs independently; their emission stays in what the bundles carry, which keeps
+// the estimate unbiased for any split (core/solver.cpp). Deterministic. `incoherence`, if given,
+// gets each light's value, in find_lights' order (1 for a light that lights nothing).
+inline constexpr double kShotIncoherence = 0.25;
+inline constexpr int kIncoherenceRays = 512;
+EmitterTable shot_emitter_table(const PatchMesh& mesh, std::vector<double>* incoherence = nullptr);
 
 // One shot's draw (double precision) and its view as engines render it.
 struct ShotDraw {

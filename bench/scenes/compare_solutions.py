@@ -3,6 +3,7 @@
 
     bench/scenes/compare_solutions.py REFERENCE.ply CANDIDATE.ply [CANDIDATE.ply ...] [--rooms apartment]
     bench/scenes/compare_solutions.py --surfaces apartment SOLUTION.ply [SOLUTION.ply ...]
+    bench/scenes/compare_solutions.py --planes A.ply B.ply
 
 Both are sirad's own binary PLY of the same scene and --patches (one face per patch, in the same
 order). Prints, per candidate, the relative RMS error per patch over the patches that do not emit
@@ -13,6 +14,10 @@ the room they face). The rooms are those of bench/scenes/make_apartment.py in gl
 With --surfaces, each solution alone (any meshing): per room, the area-weighted mean radiosity
 (r + g + b) of its floor (faces up within 1 cm of y = 0) and of its walls (vertical faces),
 what the camera sees of a room, leaving out the ceiling, whose part over a lamp lies in the gap.
+With --planes, two solutions of one scene meshed alike or not (a glb and an OBJ export): per plane
+(patches grouped by normal to 1e-3 and offset to 1 mm, facing apart kept apart), the area-weighted
+mean radiosity of each; prints the area-weighted mean and the largest relative difference over the
+planes of at least 0.05 m^2 in both.
 """
 import sys
 
@@ -74,7 +79,38 @@ def surfaces(rooms, paths):
         print(line)
 
 
+def planes(a_path, b_path):
+    def per_plane(path):
+        c = read_ply(path)
+        keep = ~c["emits"]
+        out = {}
+        for j in np.nonzero(keep)[0]:
+            n = c["normal"][j]
+            key = (*np.round(n, 3), round(float(np.dot(n, c["centre"][j])), 3))
+            a, b = out.get(key, (0.0, 0.0))
+            out[key] = (a + c["area"][j], b + c["area"][j] * c["b"][j].sum())
+        return out
+    pa, pb = per_plane(a_path), per_plane(b_path)
+    total, weighted, worst, worst_key = 0.0, 0.0, 0.0, None
+    for key, (aa, ba) in pa.items():
+        if key not in pb or aa < 0.05 or pb[key][0] < 0.05:
+            continue
+        ma, mb = ba / aa, pb[key][1] / pb[key][0]
+        if max(ma, mb) <= 0:
+            continue
+        d = abs(mb - ma) / max(ma, 1e-12)
+        total += aa
+        weighted += aa * d
+        if d > worst:
+            worst, worst_key = d, key
+    print(f"{a_path} vs {b_path}: {len(pa)} / {len(pb)} planes, mean relative difference {100 * weighted / total:.2f} % "
+          f"(area {total:.1f} m^2), largest {100 * worst:.2f} % (plane {worst_key})")
+
+
 def main(argv):
+    if argv and argv[0] == "--planes":
+        planes(argv[1], argv[2])
+        return
     if argv and argv[0] == "--surfaces":
         surfaces(ROOMS[argv[1]], argv[2:])
         return
