@@ -17,6 +17,9 @@ namespace {
 
 using Poly = std::vector<glm::dvec3>;
 
+// A face is cut into at most about this many pieces, whatever the emitters over it.
+constexpr std::size_t kMaxPiecesPerFace = 1024;
+
 double area_of(const Poly& p) {
   glm::dvec3 s(0.0);
   for (std::size_t i = 1; i + 1 < p.size(); ++i) s += glm::cross(p[i] - p[0], p[i + 1] - p[0]);
@@ -87,6 +90,7 @@ void cut_near_emitters(Scene& scene) {
     const double tiny = 1e-9 * glm::length(cr);
     pieces.assign(1, Poly{a, b, c});
     for (const Emitter& em : emitters) {
+      if (pieces.size() > kMaxPiecesPerFace) break;  // many emitters over one face: cut no further
       if (glm::any(glm::lessThan(hi, em.lo)) || glm::any(glm::greaterThan(lo, em.hi))) continue;
       if (!(glm::dot(n, em.n) < -0.9999)) continue;  // facing the emitter, parallel
       const double gap = glm::dot(a - em.p[0], em.n);

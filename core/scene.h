@@ -86,10 +86,11 @@ void add_back_faces(Scene& scene);
 // longest edge (a ceiling 1-2 cm above a lamp's upper side) along the emitter's outline, so that
 // no patch averages the light trapped in the gap with the light outside it (core/gap_cuts.cpp;
 // DESIGN.md section 1, "Light in gaps"). Faces are cut per emitter triangle; the pieces keep the
-// face's material, object and line. Scenes with more than kMaxGapCutPairs (emitter, face) pairs
+// face's material, object and line (at most about 1024 pieces a face). Scenes with more than
+// kMaxGapCutPairs (emitter, face) pairs
 // are left as they are.
 inline constexpr double kGapCut = 0.25;
-inline constexpr double kMaxGapCutPairs = 4e8;
+inline constexpr double kMaxGapCutPairs = 1e8;
 void cut_near_emitters(Scene& scene);
 
 // The built-in scenes. `furnace`: a closed cube (side 1, inward normals), every face E = 1,
