@@ -75,6 +75,7 @@ void cut_near_emitters(Scene& scene) {
   std::vector<Triangle> out;
   out.reserve(scene.triangles.size());
   std::vector<Poly> pending, pieces;
+  std::vector<Triangle> cut;
   Poly inside, part_in, part_out;
   for (const Triangle& t : scene.triangles) {
     const glm::vec3 e = scene.materials[t.material].emission;
@@ -127,15 +128,29 @@ void cut_near_emitters(Scene& scene) {
       out.push_back(t);
       continue;
     }
+    cut.clear();
+    bool whole = false;  // a piece that rounding left not quite convex: the face stays uncut
     for (const Poly& piece : pieces) {
       std::vector<glm::vec3> corners(piece.begin(), piece.end());
-      for (const auto& k : triangulate_polygon(corners)) {
+      std::vector<std::array<uint32_t, 3>> tris;
+      try {
+        tris = triangulate_polygon(corners);
+      } catch (const Error&) {
+        whole = true;
+        break;
+      }
+      for (const auto& k : tris) {
         Triangle u = t;
         u.p = {corners[k[0]], corners[k[1]], corners[k[2]]};
         const glm::dvec3 uc = glm::cross(glm::dvec3(u.p[1] - u.p[0]), glm::dvec3(u.p[2] - u.p[0]));
         if (!(glm::length(uc) > tiny) || !(glm::dot(uc, n) > 0.0)) continue;  // a sliver of rounding
-        out.push_back(u);
+        cut.push_back(u);
       }
+    }
+    if (whole) {
+      out.push_back(t);
+    } else {
+      out.insert(out.end(), cut.begin(), cut.end());
     }
     if (out.size() > import::kMaxTriangles) fail("{}: more than {} triangles once cut along emitters", scene.name, import::kMaxTriangles);
   }

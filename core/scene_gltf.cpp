@@ -353,6 +353,10 @@ class GltfReader {
       scene_.warnings.push_back(fmt::format("{}: {}: camera '{}' is {}, not perspective: not used", path_, where(node), clean(c.name), clean(c.type)));
       return;
     }
+    if (const double a = c.perspective.aspectRatio; a > 0.0) {  // the default image shape
+      if (!(a >= 1e-3 && a <= 1e3)) fail("{}: {}: camera aspectRatio {} outside [0.001, 1000]", path_, where(node), a);
+      scene_.camera_aspect = a;
+    }
     if (n.extras.Has("sirad_camera")) {  // the view sirad's images showed, exactly
       const tinygltf::Value& spec = n.extras.Get("sirad_camera");
       if (!spec.IsString()) fail("{}: {}: sirad_camera is not a string", path_, where(node));
@@ -374,10 +378,6 @@ class GltfReader {
     cam.up = glm::vec3(glm::normalize(up));
     cam.vfov_deg = static_cast<float>(fov);
     scene_.camera = cam;
-    if (const double a = c.perspective.aspectRatio; a > 0.0) {
-      if (!(a >= 1e-3 && a <= 1e3)) fail("{}: {}: camera aspectRatio {} outside [0.001, 1000]", path_, where(node), a);
-      scene_.camera_aspect = a;
-    }
   }
 
   std::string path_;

@@ -44,14 +44,18 @@ void add_back_faces(Scene& scene) {
 
   // A twin takes part where its side can receive light: one of up to kMaxWalks cosine random
   // walks from it (kWalkBounces bounces each, over fronts only; a back or nothing ends a walk)
-  // meets an emitter's front; an emitter's twin, where it lights some front. The inside of a wall, slab or furniture box (and the floor under the bed, seen
-  // from inside it) never leads out, and a sky plane's back faces nothing: no twin; the inside of a
-  // room made from a cube with its normals out meets its lamp, or, through a door, another room's.
+  // meets an emitter's front; an emitter's twin, where it lights some front. The inside of a
+  // wall, slab or furniture box (and the floor under the bed, seen from inside it) never leads
+  // out, and a sky plane's back faces nothing: no twin; the inside of a room made from a cube
+  // with its normals out meets its lamp, or, through a door, another room's.
   // A closed box that emits inside (a box lamp) keeps its inner twins: they light each other.
   // Walks from under an original at the twin's place (the twin of one plane of a zero-thickness
   // wall lies under the other plane) count for nothing.
   const PatchMesh mesh = mesh_scene(all, MeshOptions{});
-  if (mesh.size() != all.triangles.size()) fail("{}: two-sided faces: the mesh does not keep one patch per triangle", scene.name);
+  if (mesh.size() != all.triangles.size()) {  // a triangle the mesher drops: every twin kept
+    scene.triangles = std::move(all.triangles);
+    return;
+  }
   const RayScene rays(mesh, ray_offset(mesh), /*fast=*/true);
   const double eps = ray_offset(mesh);
   const int walks = static_cast<int>(std::clamp<std::size_t>(kWalkBudget / twins.size(), kMinWalks, kMaxWalks));

@@ -23,6 +23,7 @@
 
 #include "cluster/status.h"
 #include "tests/exr_content.h"
+#include "tests/png_util.h"
 
 namespace fs = std::filesystem;
 
@@ -218,6 +219,28 @@ TEST_F(Cli, CameraFromTheFlagTheSceneOrChosen) {
   Imf::InputFile exr((dir_ / "chosen.exr").string().c_str());
   auto* camera = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.camera");
   ASSERT_NE(camera, nullptr);
+}
+
+// The images take the shape of the scene's camera (Blender's 3:2 in the apartment's glb: 768 x
+// 512), or the one side given and the camera's aspect; `sirad image` of the glb a run wrote keeps it.
+TEST_F(Cli, ImagesTakeTheCamerasShape) {
+  const std::string scene = std::string(SIRAD_SOURCE_DIR) + "/tests/data/blender/apartment.glb";
+  Outcome r = sirad("render '" + scene + "' --patches 400 --bundles 4 --out flat");
+  ASSERT_EQ(r.status, 0) << r.err;
+  int w = 0, h = 0;
+  sirad::test::read_png((dir_ / "flat.png").string(), w, h);
+  EXPECT_EQ(w, 768);
+  EXPECT_EQ(h, 512);
+  r = sirad("render '" + scene + "' --patches 400 --bundles 4 --width 300 --out narrow");
+  ASSERT_EQ(r.status, 0) << r.err;
+  sirad::test::read_png((dir_ / "narrow.png").string(), w, h);
+  EXPECT_EQ(w, 300);
+  EXPECT_EQ(h, 200);
+  r = sirad("image narrow.glb --spp 1 --height 30 --out again");
+  ASSERT_EQ(r.status, 0) << r.err;
+  sirad::test::read_png((dir_ / "again.png").string(), w, h);
+  EXPECT_EQ(w, 45);
+  EXPECT_EQ(h, 30);
 }
 
 // A flag that has no effect in a mode is refused, never ignored: cluster settings on one node,
