@@ -3,6 +3,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <httplib.h>
@@ -86,14 +87,14 @@ int submit_job(const FarmAddress& at, const std::string& scene, const std::vecto
     Scene s = load_scene(scene, {.skip_degenerate = plan.output.skip_degenerate, .two_sided = plan.output.two_sided});
     // The uploaded scene carries no camera aspect: the image size the scene's camera gives is
     // settled here and sent as flags.
-    if (plan.output.width == 0 || plan.output.height == 0) {
-      OutputFlags output = plan.output;
-      settle_image_size(output, s);
-      spec["args"].push_back("--width");
-      spec["args"].push_back(std::to_string(output.width));
-      spec["args"].push_back("--height");
-      spec["args"].push_back(std::to_string(output.height));
-    }
+    OutputFlags output = plan.output;
+    settle_image_size(output, s);
+    for (const auto& [flag, given, settled] : {std::tuple{"--width", plan.output.width, output.width},
+                                               std::tuple{"--height", plan.output.height, output.height}})
+      if (given == 0) {
+        spec["args"].push_back(flag);
+        spec["args"].push_back(std::to_string(settled));
+      }
     items.push_back({"scene_data", encode_scene(s), "scene.bin", "application/octet-stream"});
   }
   items.push_back({"job", spec.dump(), "job.json", "application/json"});

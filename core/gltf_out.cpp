@@ -4,6 +4,7 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -14,6 +15,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/rays.h"
 #include "core/scene.h"
 
 namespace sirad {
@@ -49,6 +51,20 @@ tinygltf::Value triple(const glm::vec3& v) {
                                                 tinygltf::Value(static_cast<double>(v.z))});
 }
 
+// Which patches have a face back to back with them at their centre (a two-sided face and its
+// twin, the two planes of a zero-thickness wall, however each is cut into triangles).
+std::vector<uint8_t> back_to_back(const PatchMesh& mesh) {
+  std::vector<uint8_t> paired(mesh.size(), 0);
+  if (mesh.size() == 0) return paired;
+  const RayScene rays(mesh, ray_offset(mesh), /*fast=*/true);
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const auto& t = mesh.patches[j];
+    const glm::dvec3 centre = (glm::dvec3(mesh.vertices[t[0]]) + glm::dvec3(mesh.vertices[t[1]]) + glm::dvec3(mesh.vertices[t[2]])) / 3.0;
+    paired[j] = rays.back_to_back(static_cast<uint32_t>(j), centre);
+  }
+  return paired;
+}
+
 }  // namespace
 
 void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity, float exposure,
@@ -80,6 +96,11 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
     uint32_t object = mesh.source_triangle[j] < mesh.triangle_object.size() ? mesh.triangle_object[mesh.source_triangle[j]] : 0;
     parts[object][mesh.material[j]].push_back(static_cast<uint32_t>(j));
   }
+  // Cycles ignores back-face culling: of two faces back to back at one place it shows either,
+  // speckled. Each is pulled kSidesApart of the scene's radius along its own normal, so that
+  // every viewer (Cycles, Eevee, three.js) meets the side that faces it first.
+  const std::vector<uint8_t> paired = back_to_back(mesh);
+  const double apart = kSidesApart * static_cast<double>(mesh.bound_radius);
   tinygltf::Scene scene;
   for (const auto& [object, by_material] : parts) {
     tinygltf::Mesh gm;
@@ -89,11 +110,17 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
       std::vector<uint32_t> welded;
       std::vector<glm::vec3> value;
       const std::vector<uint32_t> indices = split_corners(mesh, corners, patches, welded, value);
+      std::vector<glm::dvec3> pull(welded.size(), glm::dvec3(0.0));  // summed normals of paired patches
+      for (std::size_t k = 0; k < patches.size(); ++k)
+        if (paired[patches[k]])
+          for (int c = 0; c < 3; ++c) pull[indices[3 * k + static_cast<std::size_t>(c)]] += glm::dvec3(mesh.normal[patches[k]]);
       std::vector<float> position, colour, radiance;
       std::vector<double> lo(3, 1e300), hi(3, -1e300);
       for (std::size_t v = 0; v < welded.size(); ++v)
         for (int a = 0; a < 3; ++a) {
-          const float p = mesh.vertices[welded[v]][a];
+          const double length = glm::length(pull[v]);
+          const float p = static_cast<float>(static_cast<double>(mesh.vertices[welded[v]][a]) +
+                                             (length > 0.0 ? apart * pull[v][a] / length : 0.0));
           position.push_back(p);
           lo[static_cast<std::size_t>(a)] = std::min(lo[static_cast<std::size_t>(a)], static_cast<double>(p));
           hi[static_cast<std::size_t>(a)] = std::max(hi[static_cast<std::size_t>(a)], static_cast<double>(p));

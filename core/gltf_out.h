@@ -5,7 +5,8 @@
 // corner_radiosity gives one value (one smooth surface of one material), so creases and material
 // borders stay sharp. Materials are KHR_materials_unlit with a white base colour: viewers show
 // the lighting as solved. Back faces stay one-sided (doubleSided false), as the solution is; a
-// two-sided surface carries both sides as two faces. The camera of the images is a camera node.
+// two-sided surface carries both sides as two faces, pulled kSidesApart of the scene's radius
+// apart along their normals (Cycles ignores back-face culling: at one place it would show either). The camera of the images is a camera node.
 // What a viewer has no use for, but rendering from the file again needs (core/solution.h), is
 // in `extras`: each material's sirad_reflectance and sirad_emission, the camera node's
 // sirad_camera (camera_spec: the view exactly, not rebuilt from the node's matrix) and the
@@ -20,6 +21,8 @@
 #include "core/output.h"
 
 namespace sirad {
+
+inline constexpr double kSidesApart = 1e-4;
 
 // Writes `path` atomically. `aspect`: the images' width / height (the camera's aspect ratio).
 void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector<glm::vec3>& radiosity,

@@ -158,6 +158,15 @@ class RayScene {
   // Whether patch j shares a place with another patch facing the same way over more than a line
   // (true for every patch of a `fast` scene: not looked for there).
   bool overlapped(uint32_t j) const { return overlapped_.empty() || overlapped_[j] != 0; }
+  // Whether the point x of patch i has a face back to back with it at the same place (facing the
+  // other way within the tie: a two-sided face's twin, the other plane of a zero-thickness wall).
+  bool back_to_back(uint32_t i, const glm::dvec3& x) const {
+    const glm::dvec3 n(mesh_.normal[i]);
+    Hits h = hits_on(x - n * tie_, n, 0.0, 2.0 * tie_);
+    for (uint32_t k = 0; k < h.n; ++k)
+      if (h.prim[k] != i && glm::dot(glm::dvec3(mesh_.normal[h.prim[k]]), n) < -0.5) return true;
+    return false;
+  }
   // Whether the point x of patch i lies under a later patch at the same place facing the same
   // way (it then sees that patch's back, and no light reaches it).
   bool covered(uint32_t i, const glm::dvec3& x) const {

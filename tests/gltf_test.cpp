@@ -30,6 +30,7 @@
 #include "core/reference.h"
 #include "core/scene.h"
 #include "core/solution.h"
+#include "tests/coincident_scenes.h"
 
 namespace sirad {
 namespace {
@@ -287,6 +288,40 @@ TEST_F(GltfFiles, HostileFilesGiveOneLineErrors) {
     const std::string path = write("bad.glb", garbage);
     EXPECT_THROW(load_scene(path), Error);
   }
+}
+
+// The two sides of a two-sided face come back from the glb apart, each pulled kSidesApart of the
+// scene's radius along its own normal (core/gltf_out.h): Cycles, which ignores back-face
+// culling, then shows the side that faces the camera instead of either at random. Here the lamp
+// 1.5 cm under a ceiling, its lower side lit by itself and its upper side by the gap.
+TEST_F(GltfFiles, TheTwoSidesOfAFaceComeBackApart) {
+  const PatchMesh mesh = mesh_scene(test::lamp_under_ceiling(0.015), {.target_patches = 600});
+  std::vector<glm::vec3> radiosity(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) radiosity[j] = mesh.emission(j) + glm::vec3(mesh.normal[j].y > 0 ? 2.0f : 0.1f);
+  const std::string path = (dir_ / "lamp.glb").string();
+  write_glb(path, mesh, radiosity, 0.0f, 1.0);
+  const Solution back = read_solution(path);
+  const double apart = kSidesApart * mesh.bound_radius;
+  std::size_t up = 0, down = 0;
+  for (std::size_t j = 0; j < back.mesh.size(); ++j) {
+    if (!back.mesh.emits(j)) continue;
+    for (uint32_t v : back.mesh.patches[j]) {
+      const double y = back.mesh.vertices[v].y;
+      if (back.mesh.normal[j].y > 0.5f) {
+        EXPECT_NEAR(y, 2.985 + apart, 1e-6);
+        ++up;
+      } else {
+        EXPECT_NEAR(y, 2.985 - apart, 1e-6);
+        ++down;
+      }
+    }
+  }
+  EXPECT_GT(up, 0u);
+  EXPECT_EQ(up, down);
+  // The ceiling, a face of one side only, stays where it is.
+  for (std::size_t j = 0; j < back.mesh.size(); ++j)
+    if (back.mesh.normal[j].y < -0.5f && !back.mesh.emits(j))
+      for (uint32_t v : back.mesh.patches[j]) EXPECT_EQ(back.mesh.vertices[v].y, 3.0f);
 }
 
 // A solution read back from the .glb sirad wrote renders as from its PLY (core/solution.h): the
