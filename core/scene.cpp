@@ -393,35 +393,35 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
       error("{}", e.what());
     }
     for (const auto& c : cut) {
-    Triangle t;
-    for (int k = 0; k < 3; ++k) t.p[k] = corners[c[k]];
-    if (is_degenerate(t.p)) {
-      if (!options.skip_degenerate)
-        error("degenerate triangle (zero area) with vertices {}, {}, {}", v[c[0]] + 1, v[c[1]] + 1, v[c[2]] + 1);
-      ++skipped;
-      continue;
-    }
-    if (raw.slot == kNone && without_material++ == 0) first_without_material = raw.line;
-    uint32_t& index = raw.slot == kNone ? default_index : index_of_slot[raw.slot];
-    if (index == kNone) {
-      index = static_cast<uint32_t>(scene.materials.size());
-      if (raw.slot == kNone) {
-        scene.materials.push_back({"default", glm::vec3(kDefaultReflectance), glm::vec3(0.0f)});
-      } else {
-        const auto it = defined.find(slots_[raw.slot]);
-        if (it == defined.end())
-          error("unknown material '{}' (not defined in any material library)",
-                printable(slots_[raw.slot]));
-        validate_material(it->second.material, it->second.file);
-        scene.materials.push_back(it->second.material);
-        if (auto note = texture_notes.find(slots_[raw.slot]); note != texture_notes.end())
-          scene.warnings.push_back(note->second);
+      Triangle t;
+      for (int k = 0; k < 3; ++k) t.p[k] = corners[c[k]];
+      if (is_degenerate(t.p)) {
+        if (!options.skip_degenerate)
+          error("degenerate triangle (zero area) with vertices {}, {}, {}", v[c[0]] + 1, v[c[1]] + 1, v[c[2]] + 1);
+        ++skipped;
+        continue;
       }
-    }
-    t.material = index;
-    t.source_line = raw.line;
-    t.object = raw.object;
-    scene.triangles.push_back(t);
+      if (raw.slot == kNone && without_material++ == 0) first_without_material = raw.line;
+      uint32_t& index = raw.slot == kNone ? default_index : index_of_slot[raw.slot];
+      if (index == kNone) {
+        index = static_cast<uint32_t>(scene.materials.size());
+        if (raw.slot == kNone) {
+          scene.materials.push_back({"default", glm::vec3(kDefaultReflectance), glm::vec3(0.0f)});
+        } else {
+          const auto it = defined.find(slots_[raw.slot]);
+          if (it == defined.end())
+            error("unknown material '{}' (not defined in any material library)",
+                  printable(slots_[raw.slot]));
+          validate_material(it->second.material, it->second.file);
+          scene.materials.push_back(it->second.material);
+          if (auto note = texture_notes.find(slots_[raw.slot]); note != texture_notes.end())
+            scene.warnings.push_back(note->second);
+        }
+      }
+      t.material = index;
+      t.source_line = raw.line;
+      t.object = raw.object;
+      scene.triangles.push_back(t);
     }
   }
   if (without_material > 0)
