@@ -20,6 +20,8 @@ using Poly = std::vector<glm::dvec3>;
 // A face is cut into at most about this many pieces, whatever the emitters over it.
 constexpr std::size_t kMaxPiecesPerFace = 1024;
 
+bool emits(const Material& m) { return m.emission.x > 0.0f || m.emission.y > 0.0f || m.emission.z > 0.0f; }
+
 double area_of(const Poly& p) {
   glm::dvec3 s(0.0);
   for (std::size_t i = 1; i + 1 < p.size(); ++i) s += glm::cross(p[i] - p[0], p[i + 1] - p[0]);
@@ -55,8 +57,7 @@ void cut_near_emitters(Scene& scene) {
   };
   std::vector<Emitter> emitters;
   for (const Triangle& t : scene.triangles) {
-    const glm::vec3 e = scene.materials[t.material].emission;
-    if (!(e.x > 0.0f || e.y > 0.0f || e.z > 0.0f)) continue;
+    if (!emits(scene.materials[t.material])) continue;
     Emitter em{{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, {}, 0.0, {}, {}};
     const glm::dvec3 c = glm::cross(em.p[1] - em.p[0], em.p[2] - em.p[0]);
     if (!(glm::length(c) > 0.0)) continue;
@@ -78,11 +79,9 @@ void cut_near_emitters(Scene& scene) {
   std::vector<Triangle> cut;
   Poly inside, part_in, part_out;
   for (const Triangle& t : scene.triangles) {
-    const glm::vec3 e = scene.materials[t.material].emission;
     const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
     const glm::dvec3 cr = glm::cross(b - a, c - a);
-    const bool emits = e.x > 0.0f || e.y > 0.0f || e.z > 0.0f;
-    if (emits || !(glm::length(cr) > 0.0)) {
+    if (emits(scene.materials[t.material]) || !(glm::length(cr) > 0.0)) {
       out.push_back(t);
       continue;
     }

@@ -72,8 +72,8 @@ EmitterTable shot_emitter_table(const PatchMesh& mesh, std::vector<double>* inco
   const std::vector<Light> lights = find_lights(mesh, &light_of);
   if (incoherence) incoherence->assign(lights.size(), 1.0);
   if (lights.empty()) return {};
-  const RayScene rays(mesh, ray_offset(mesh), /*fast=*/true);
   const double eps = ray_offset(mesh);
+  const RayScene rays(mesh, eps, /*fast=*/true);
   const int per_light = std::max(16, std::min(kIncoherenceRays, static_cast<int>(65536 / lights.size())));
   std::vector<uint8_t> shot(lights.size(), 0);
   std::vector<std::array<double, 2>> pts, others, dirs;

@@ -1,6 +1,7 @@
 // sirad: two-sided materials as one-sided faces (DESIGN.md section 1, "Two-sided surfaces"): each
 // triangle of a two-sided material gets a reversed twin, kept only where that side can exchange
 // light.
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <vector>
@@ -10,7 +11,6 @@
 #include "core/error.h"
 #include "core/mesh.h"
 #include "core/rays.h"
-#include "core/resources.h"
 #include "core/scene.h"
 #include "core/scene_import.h"
 
@@ -24,23 +24,22 @@ constexpr int kMinWalks = 8, kMaxWalks = 64, kWalkBounces = 8;
 }  // namespace
 
 void add_back_faces(Scene& scene) {
-  std::vector<Triangle> twins;
+  // Every twin, then every original: where a twin and an original face the same way at one place
+  // (the twin of one side of a zero-thickness wall on the other side's own face), the original
+  // is the later patch, so it is on top (DESIGN.md, "Coincident faces").
+  std::vector<Triangle> all;
   for (const Triangle& t : scene.triangles) {
     if (!scene.materials[t.material].two_sided) continue;
     Triangle back = t;
     std::swap(back.p[1], back.p[2]);
-    twins.push_back(back);
+    all.push_back(back);
   }
-  if (twins.empty()) return;
-  if (twins.size() + scene.triangles.size() > import::kMaxTriangles)
+  const std::size_t twins = all.size();
+  if (twins == 0) return;
+  if (twins + scene.triangles.size() > import::kMaxTriangles)
     fail("{}: more than {} triangles with the back faces of two-sided materials", scene.name, import::kMaxTriangles);
-
-  // Every twin, then every original: where a twin and an original face the same way at one place
-  // (the twin of one side of a zero-thickness wall on the other side's own face), the original
-  // is the later patch, so it is on top (DESIGN.md, "Coincident faces").
-  Scene all = scene;
-  all.triangles = twins;
-  all.triangles.insert(all.triangles.end(), scene.triangles.begin(), scene.triangles.end());
+  all.insert(all.end(), scene.triangles.begin(), scene.triangles.end());
+  scene.triangles = std::move(all);
 
   // A twin takes part where its side can receive light: one of up to kMaxWalks cosine random
   // walks from it (kWalkBounces bounces each, over fronts only; a back or nothing ends a walk)
@@ -51,17 +50,14 @@ void add_back_faces(Scene& scene) {
   // A closed box that emits inside (a box lamp) keeps its inner twins: they light each other.
   // Walks from under an original at the twin's place (the twin of one plane of a zero-thickness
   // wall lies under the other plane) count for nothing.
-  const PatchMesh mesh = mesh_scene(all, MeshOptions{});
-  if (mesh.size() != all.triangles.size()) {  // a triangle the mesher drops: every twin kept
-    scene.triangles = std::move(all.triangles);
-    return;
-  }
-  const RayScene rays(mesh, ray_offset(mesh), /*fast=*/true);
+  const PatchMesh mesh = mesh_scene(scene, MeshOptions{});
+  if (mesh.size() != scene.triangles.size()) return;  // a triangle the mesher drops: every twin kept
   const double eps = ray_offset(mesh);
-  const int walks = static_cast<int>(std::clamp<std::size_t>(kWalkBudget / twins.size(), kMinWalks, kMaxWalks));
+  const RayScene rays(mesh, eps, /*fast=*/true);
+  const int walks = static_cast<int>(std::clamp<std::size_t>(kWalkBudget / twins, kMinWalks, kMaxWalks));
   std::vector<std::array<double, 2>> pts, dirs;
-  std::vector<uint8_t> lit(twins.size(), 0);
-  for (std::size_t i = 0; i < twins.size(); ++i) {
+  std::vector<uint8_t> lit(twins, 0);
+  for (std::size_t i = 0; i < twins; ++i) {
     const auto& tri = mesh.patches[i];
     const glm::dvec3 a(mesh.vertices[tri[0]]), b(mesh.vertices[tri[1]]), c(mesh.vertices[tri[2]]);
     const bool emitter = mesh.emits(i);
@@ -89,12 +85,11 @@ void add_back_faces(Scene& scene) {
       }
     }
   }
-  std::vector<Triangle> out;
-  out.reserve(all.triangles.size());
-  for (std::size_t i = 0; i < twins.size(); ++i)
-    if (lit[i]) out.push_back(twins[i]);
-  out.insert(out.end(), scene.triangles.begin(), scene.triangles.end());
-  scene.triangles = std::move(out);
+  std::size_t kept = 0;  // the lit twins, in order, then every original
+  for (std::size_t i = 0; i < twins; ++i)
+    if (lit[i]) scene.triangles[kept++] = scene.triangles[i];
+  scene.triangles.erase(scene.triangles.begin() + static_cast<std::ptrdiff_t>(kept),
+                        scene.triangles.begin() + static_cast<std::ptrdiff_t>(twins));
 }
 
 }  // namespace sirad

@@ -100,7 +100,7 @@ TEST(Gltf, BlenderExportReadsObjectsMaterialsCameraAndTransforms) {
 // meshes to the same areas per object and solves to the same radiosity per object: the
 // reference solver on each, compared within 3 SE (SE of an object's mean at most the mean of its
 // patches' SEs: full correlation), and within 0.5 % where that is the larger.
-// The apartment of the Blender corpus (bench/scenes/make_apartment.py: Boolean-cut walls, lamps
+// The apartment of the Blender corpus (tests/data/blender/make_apartment.py: Boolean-cut walls, lamps
 // just under the ceilings, zero-thickness walls, a sky plane, Blender's export defaults). Its OBJ
 // has concave n-gons and an empty `usemtl`; its glb says doubleSided for every material. Object
 // by object, the OBJ made two-sided and the glb cover the same area (the n-gons cut inside their

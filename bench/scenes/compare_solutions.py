@@ -10,14 +10,15 @@ order). Prints, per candidate, the relative RMS error per patch over the patches
 (area-weighted, all three channels: sqrt(sum A |B - B_ref|^2 / sum A |B_ref|^2), the measure of
 core/metrics.h) and, with --rooms apartment, each room's mean radiosity over the reference's
 (the patches whose centre, moved 1 cm along the face's normal, lies in the room: walls count for
-the room they face). The rooms are those of bench/scenes/make_apartment.py in glTF's Y-up frame.
+the room they face). The rooms are those of tests/data/blender/make_apartment.py in glTF's Y-up frame.
 With --surfaces, each solution alone (any meshing): per room, the area-weighted mean radiosity
 (r + g + b) of its floor (faces up within 1 cm of y = 0) and of its walls (vertical faces),
 what the camera sees of a room, leaving out the ceiling, whose part over a lamp lies in the gap.
 With --planes, two solutions of one scene meshed alike or not (a glb and an OBJ export): per plane
 (patches grouped by normal to 1e-3 and offset to 1 mm, facing apart kept apart), the area-weighted
 mean radiosity of each; prints the area-weighted mean and the largest relative difference over the
-planes of at least 0.05 m^2 in both.
+planes of at least 0.05 m^2 in both that the light reaches (above 1e-3 of the mean radiosity),
+each difference over the larger of the two means.
 """
 import sys
 
@@ -64,14 +65,21 @@ def read_ply(path):
     return dict(area=area, centre=tri.mean(1), normal=normal, b=b, emits=(e > 0).any(1))
 
 
+def in_rooms(c, rooms):
+    """Per room, which patches of solution `c` it holds: their centre, moved 1 cm along the face's
+    normal (a wall counts for the room it faces), inside the room's box."""
+    p = c["centre"] + 0.01 * c["normal"]
+    return {name: (p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 2] > z0) & (p[:, 2] < z1) & (p[:, 1] > 0) & (p[:, 1] < 2.6)
+            for name, (x0, x1, z0, z1) in rooms.items()}
+
+
 def surfaces(rooms, paths):
     for path in paths:
         c = read_ply(path)
-        p = c["centre"] + 0.01 * c["normal"]
         keep = ~c["emits"]
         line = f"{path} ({len(c['area'])} patches):"
-        for name, (x0, x1, z0, z1) in rooms.items():
-            m = keep & (p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 2] > z0) & (p[:, 2] < z1) & (p[:, 1] > 0) & (p[:, 1] < 2.6)
+        for name, room in in_rooms(c, rooms).items():
+            m = keep & room
             for part, sel in (("floor", (c["normal"][:, 1] > 0.999) & (c["centre"][:, 1] < 0.01)),
                               ("walls", np.abs(c["normal"][:, 1]) < 1e-3)):
                 w = c["area"][m & sel]
@@ -91,14 +99,17 @@ def planes(a_path, b_path):
             out[key] = (a + c["area"][j], b + c["area"][j] * c["b"][j].sum())
         return out
     pa, pb = per_plane(a_path), per_plane(b_path)
+    # Planes that the whole scene's light hardly reaches (below 1e-3 of the mean radiosity: the
+    # outer faces that face nothing) are left out: there a relative difference is noise over 0.
+    floor = 1e-3 * sum(b for _, b in pa.values()) / sum(a for a, _ in pa.values())
     total, weighted, worst, worst_key = 0.0, 0.0, 0.0, None
     for key, (aa, ba) in pa.items():
         if key not in pb or aa < 0.05 or pb[key][0] < 0.05:
             continue
         ma, mb = ba / aa, pb[key][1] / pb[key][0]
-        if max(ma, mb) <= 0:
+        if max(ma, mb) <= floor:
             continue
-        d = abs(mb - ma) / max(ma, 1e-12)
+        d = abs(mb - ma) / max(ma, mb)  # at most 1: a plane black in one and lit in the other
         total += aa
         weighted += aa * d
         if d > worst:
@@ -129,9 +140,8 @@ def main(argv):
         err = np.sqrt((a * ((c["b"][keep] - ref["b"][keep]) ** 2).sum(1)).sum() / denom)
         line = f"{path}: relative RMS per patch {100 * err:.2f} %"
         if rooms:
-            p = ref["centre"] + 0.01 * ref["normal"]
-            for name, (x0, x1, z0, z1) in rooms.items():
-                m = keep & (p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 2] > z0) & (p[:, 2] < z1) & (p[:, 1] > 0) & (p[:, 1] < 2.6)
+            for name, room in in_rooms(ref, rooms).items():
+                m = keep & room
                 w = ref["area"][m]
                 ratio = (w * c["b"][m].sum(1)).sum() / (w * ref["b"][m].sum(1)).sum()
                 line += f", {name} {ratio:.4f}"

@@ -7,24 +7,11 @@
 import sys, math, os
 import bpy
 
-out = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else os.path.dirname(os.path.abspath(__file__))
-bpy.ops.object.select_all(action="SELECT")
-bpy.ops.object.delete()
-for block in (bpy.data.meshes, bpy.data.materials, bpy.data.cameras, bpy.data.lights):
-    for item in list(block):
-        block.remove(item)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from blender_scene import clear_scene, material  # noqa: E402
 
-def material(name, colour, emission=None, strength=0.0):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    bsdf = m.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
-    bsdf.inputs["Specular"].default_value = 0.0
-    if emission is not None:
-        bsdf.inputs["Emission"].default_value = (*emission, 1.0)
-        bsdf.inputs["Emission Strength"].default_value = strength
-    return m
+out = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else os.path.dirname(os.path.abspath(__file__))
+clear_scene()
 
 # Blender is Z-up; both exporters write Y-up.
 bpy.ops.mesh.primitive_cube_add(size=2.0, location=(0.0, 0.0, 1.5))

@@ -1,5 +1,5 @@
 # Builds the apartment of the Blender corpus (issue 34), headless, the way an architect models:
-#   blender -b --factory-startup --python bench/scenes/make_apartment.py -- OUTDIR
+#   blender -b --factory-startup --python tests/data/blender/make_apartment.py -- OUTDIR
 # writes OUTDIR/apartment.glb (Blender's glTF exporter, its defaults and the camera) and
 # OUTDIR/apartment.obj + .mtl (Blender's OBJ exporter, its defaults: n-gons, no triangulation).
 #
@@ -23,28 +23,13 @@ import sys
 import bmesh
 import bpy
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from blender_scene import clear_scene, material  # noqa: E402
+
 out = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else os.getcwd()
-bpy.ops.object.select_all(action="SELECT")
-bpy.ops.object.delete()
-for block in (bpy.data.meshes, bpy.data.materials, bpy.data.cameras, bpy.data.lights):
-    for item in list(block):
-        block.remove(item)
+clear_scene()
 
 H = 2.6  # storey height (floor top to ceiling underside)
-
-
-def material(name, colour, emission=None, strength=0.0):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    bsdf = m.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
-    bsdf.inputs["Specular"].default_value = 0.0
-    if emission is not None:
-        bsdf.inputs["Emission"].default_value = (*emission, 1.0)
-        bsdf.inputs["Emission Strength"].default_value = strength
-    return m
-
 
 plaster = material("Plaster", (0.8, 0.8, 0.78))
 ceiling_white = material("Ceiling", (0.85, 0.85, 0.85))
