@@ -1,8 +1,8 @@
 // sirad: an independent reference solver for the radiosity model of DESIGN.md section 1.
 // It shares no estimator and no rasterisation with the bundle solver: rays are
 // cast with Embree 3 from points on each patch, the direct light comes from the exact
-// point-to-polygon form factor (Lambert's contour formula) with visibility as a control variate,
-// and the linear system is solved by Gauss-Seidel. Only the mesh, scene loading and outputs are
+// point-to-polygon form factor (Lambert's contour formula) with visibility as a control variate
+// (from an emitter a patch mostly does not see, the visible part sampled alone), and the linear system is solved by Gauss-Seidel. Only the mesh, scene loading and outputs are
 // shared with the rest of sirad.
 //
 // The model (the bundle solver's, radiance units, per RGB channel):
@@ -34,7 +34,8 @@ struct ReferenceOptions {
   int rays_per_patch = 2048;  // cosine-distributed rays per patch, all batches together
   // Points per patch (all batches together) for the direct light: each point takes the exact
   // form factor of every emitting input triangle in front of it and one shadow ray to a stratified
-  // point on each of them (the visibility control variate).
+  // point on each of them (the visibility control variate; for a triangle that 8 pilot segments
+  // find mostly hidden from the patch, the visible part sampled alone).
   int light_samples = 64;
   int batches = 8;            // independent batches (>= 2 for a standard error)
   uint64_t seed = 1;

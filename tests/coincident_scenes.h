@@ -130,6 +130,24 @@ inline Scene lamp_under_ceiling(double gap) {
                  std::string(kMtl) + "newmtl two_sided_lamp\nKd 0.5 0.5 0.5\nKe 5 5 5\nsirad_two_sided 1\n");
 }
 
+// A closed room 4 x 3 x 4 m (room_shell) with a box lamp 0.6 x 0.6 x 0.03 m whose lid is `gap`
+// below the ceiling, its faces out; `two_sided` as Blender exports an emitting box: its inside
+// emits too, a closed cavity the lid hides from the ceiling.
+inline Scene box_lamp_under_ceiling(double gap, bool two_sided) {
+  ObjBuilder o;
+  room_shell(o);
+  o.material("box_lamp");
+  const double x0 = 1.7, x1 = 2.3, z0 = 1.7, z1 = 2.3, y1 = 3.0 - gap, y0 = y1 - 0.03;
+  o.quad({x0, y1, z0}, {x0, y1, z1}, {x1, y1, z1}, {x1, y1, z0});  // lid, up
+  o.quad({x0, y0, z0}, {x1, y0, z0}, {x1, y0, z1}, {x0, y0, z1});  // bottom, down
+  o.wall_x(x0, y0, y1, z0, z1, false);
+  o.wall_x(x1, y0, y1, z0, z1, true);
+  o.quad({x0, y0, z0}, {x0, y1, z0}, {x1, y1, z0}, {x1, y0, z0});  // towards -z
+  o.quad({x0, y0, z1}, {x1, y0, z1}, {x1, y1, z1}, {x0, y1, z1});  // towards +z
+  return o.scene(fmt::format("box lamp {} m under the ceiling", gap),
+                 std::string(kMtl) + "newmtl box_lamp\nKd 0.8 0.8 0.8\nKe 8 8 8\n" + (two_sided ? "sirad_two_sided 1\n" : ""));
+}
+
 // A closed room 4 x 3 x 4 m with a large ceiling lamp and a free-standing zero-thickness panel
 // (2 x 1.6 m of material `panel`, turned 30 degrees about y, its front tilted 50 degrees up towards
 // the lamp): its front as a 2 x 2 grid of rectangles, its back as one rectangle split along the

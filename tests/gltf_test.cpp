@@ -319,9 +319,11 @@ TEST_F(GltfFiles, TheTwoSidesOfAFaceComeBackApart) {
   EXPECT_GT(up, 0u);
   EXPECT_EQ(up, down);
   // The ceiling, a face of one side only, stays where it is.
-  for (std::size_t j = 0; j < back.mesh.size(); ++j)
-    if (back.mesh.normal[j].y < -0.5f && !back.mesh.emits(j))
+  for (std::size_t j = 0; j < back.mesh.size(); ++j) {
+    if (back.mesh.normal[j].y < -0.5f && !back.mesh.emits(j)) {
       for (uint32_t v : back.mesh.patches[j]) EXPECT_EQ(back.mesh.vertices[v].y, 3.0f);
+    }
+  }
 }
 
 // A solution read back from the .glb sirad wrote renders as from its PLY (core/solution.h): the
