@@ -49,6 +49,7 @@ uint64_t patch_count(const std::vector<double>& longest, double max_edge) {
 // bisection over the bit patterns of positive doubles (ordered like their values).
 double max_edge_for_target(const std::vector<double>& longest, uint64_t target) {
   const double top = *std::max_element(longest.begin(), longest.end());
+  if (!(top > 0.0)) return 0.0;  // every triangle stays whole
   // count(hi) = number of triangles <= target; count(lo) > target since its n for the
   // longest triangle exceeds sqrt(target).
   double hi = top;
@@ -307,7 +308,7 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
     if (t.material >= scene.materials.size())
       fail("{}: triangle {} has material {} of {}", scene.name, i, t.material,
            scene.materials.size());
-    longest.push_back(longest_edge(t));
+    longest.push_back(t.unlit ? 0.0 : longest_edge(t));  // a face no light reaches stays one patch
   }
 
   // Step 2: the edge length, and the patch count checked before anything is allocated.

@@ -1,6 +1,7 @@
 // sirad: meshing a scene into patches, the unit of the radiosity solution.
 // Each input triangle is split regularly into n x n sub-triangles (n from the longest edge and
-// the maximum edge length); vertices are welded so that shared corners carry one value
+// the maximum edge length; a face no light reaches, Triangle::unlit, stays one patch and counts
+// as one towards a target); vertices are welded so that shared corners carry one value
 // (Gouraud shading, PLY connectivity). Patch order is stable: input triangle order, then
 // sub-triangle order. The content hash names the meshed scene across processes.
 #pragma once

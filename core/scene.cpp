@@ -502,6 +502,7 @@ Scene with_options(Scene scene, const ImportOptions& options) {
     for (Material& m : scene.materials) m.two_sided = true;
   add_back_faces(scene);
   cut_near_emitters(scene);
+  mark_unlit_faces(scene);
   return scene;
 }
 

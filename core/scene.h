@@ -39,6 +39,9 @@ struct Triangle {
   uint32_t material = 0;  // index into Scene::materials
   uint32_t source_line = 0;  // 1-based line of the face in its file (0 if not from a file)
   uint32_t object = 0;       // index into Scene::objects
+  // No light reaches its front (mark_unlit_faces): the mesher leaves it one patch, so that the
+  // patch budget goes to the surfaces light reaches. Only the meshing depends on it.
+  bool unlit = false;
 };
 
 struct Scene {
@@ -92,6 +95,11 @@ void add_back_faces(Scene& scene);
 inline constexpr double kGapCut = 0.25;
 inline constexpr double kMaxGapCutPairs = 1e8;
 void cut_near_emitters(Scene& scene);
+// Marks the faces no light reaches (Triangle::unlit): no random walk from a face's front
+// (core/light_walks.h) meets or sees an emitter's front: the outer faces of a building's walls
+// and slabs that face away from every light. Emitting faces are never marked. The mesher leaves
+// them whole; a face marked wrongly (light that the walks missed) is only meshed coarsely.
+void mark_unlit_faces(Scene& scene);
 
 // The built-in scenes. `furnace`: a closed cube (side 1, inward normals), every face E = 1,
 // rho = 0.5, so B = 2 exactly everywhere.

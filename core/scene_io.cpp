@@ -1,6 +1,7 @@
 // sirad: scene encoding for the wire, with every field checked on the way in.
 #include "core/scene_io.h"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -14,7 +15,11 @@ namespace sirad {
 
 namespace {
 
-constexpr std::string_view kTag = "sirad-scene-v1";
+// v2 adds a flags word per triangle (bit 0: Triangle::unlit); a scene without flags is written
+// as v1, which nodes of every version read.
+constexpr std::string_view kTag = "sirad-scene-v1", kTagFlags = "sirad-scene-v2";
+static_assert(kTag.size() == kTagFlags.size());
+constexpr uint32_t kUnlit = 1;
 constexpr uint32_t kMaxCount = 1u << 26;  // the OBJ reader's own limits
 static_assert(std::endian::native == std::endian::little, "the scene encoding is little-endian");
 
@@ -82,7 +87,9 @@ bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y
 
 std::string encode_scene(const Scene& scene) {
   Writer w;
-  w.raw(kTag.data(), kTag.size());
+  const bool flags = std::any_of(scene.triangles.begin(), scene.triangles.end(), [](const Triangle& t) { return t.unlit; });
+  const std::string_view tag = flags ? kTagFlags : kTag;
+  w.raw(tag.data(), tag.size());
   w.str(scene.name);
   w.u32(static_cast<uint32_t>(scene.materials.size()));
   for (const Material& m : scene.materials) {
@@ -95,6 +102,7 @@ std::string encode_scene(const Scene& scene) {
     for (const auto& p : t.p) w.vec(p);
     w.u32(t.material);
     w.u32(t.source_line);
+    if (flags) w.u32(t.unlit ? kUnlit : 0u);
   }
   w.vec(scene.background);
   w.u32(scene.camera ? 1u : 0u);
@@ -108,7 +116,8 @@ std::string encode_scene(const Scene& scene) {
 }
 
 Scene decode_scene(std::string_view bytes, const std::string& label) {
-  if (bytes.substr(0, kTag.size()) != kTag) fail("{}: not a sirad scene (no {} tag)", label, kTag);
+  const bool flags = bytes.substr(0, kTagFlags.size()) == kTagFlags;
+  if (!flags && bytes.substr(0, kTag.size()) != kTag) fail("{}: not a sirad scene (no {} or {} tag)", label, kTag, kTagFlags);
   Reader r(bytes.substr(kTag.size()), label);
   Scene scene;
   scene.name = r.str("scene name");
@@ -131,7 +140,7 @@ Scene decode_scene(std::string_view bytes, const std::string& label) {
   }
   uint32_t triangles = r.u32("triangle count");
   if (triangles == 0 || triangles > kMaxCount) fail("{}: {} triangles", label, triangles);
-  if (static_cast<uint64_t>(triangles) * 44 > bytes.size()) fail("{}: truncated: {} triangles announced", label, triangles);
+  if (static_cast<uint64_t>(triangles) * (flags ? 48 : 44) > bytes.size()) fail("{}: truncated: {} triangles announced", label, triangles);
   scene.triangles.resize(triangles);
   for (uint32_t i = 0; i < triangles; ++i) {
     Triangle& t = scene.triangles[i];
@@ -142,6 +151,11 @@ Scene decode_scene(std::string_view bytes, const std::string& label) {
     t.material = r.u32("material index");
     t.source_line = r.u32("source line");
     if (t.material >= materials) fail("{}: triangle {} uses material {} of {}", label, i, t.material, materials);
+    if (flags) {
+      const uint32_t f = r.u32("triangle flags");
+      if (f & ~kUnlit) fail("{}: triangle {} has unknown flags {:#x}", label, i, f);
+      t.unlit = (f & kUnlit) != 0;
+    }
   }
   if (!emitter) fail("{}: scene has no emitter", label);
   scene.background = r.vec("background");

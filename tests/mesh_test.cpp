@@ -149,6 +149,34 @@ TEST(MeshTarget, ClosestAchievableCount) {
   EXPECT_EQ(mesh_scene(scene, few).size(), scene.triangles.size());
 }
 
+// A face no light reaches (Triangle::unlit) stays one patch, and the target's patches go to the
+// others; a scene of such faces only is meshed one patch a face.
+TEST(MeshTarget, FacesNoLightReachesStayWhole) {
+  Scene scene = builtin_cornell();
+  auto per_triangle = [&] {
+    std::vector<std::size_t> per(scene.triangles.size(), 0);
+    for (uint32_t t : mesh_scene(scene, {.target_patches = 3000}).source_triangle) ++per[t];
+    return per;
+  };
+  const std::vector<std::size_t> before = per_triangle();
+  const std::size_t marked[] = {0, 1, 7};
+  for (std::size_t i : marked) scene.triangles[i].unlit = true;
+  const PatchMesh mesh = mesh_scene(scene, {.target_patches = 3000});
+  const std::vector<std::size_t> per = per_triangle();
+  for (std::size_t i = 0; i < per.size(); ++i) {
+    if (scene.triangles[i].unlit) {
+      EXPECT_EQ(per[i], 1u) << i;
+    } else {
+      EXPECT_GE(per[i], before[i]) << i;
+      EXPECT_GT(per[i], 1u) << i;
+    }
+  }
+  EXPECT_NEAR(static_cast<double>(mesh.size()), 3000.0, 150.0);
+  for (Triangle& t : scene.triangles) t.unlit = true;
+  EXPECT_EQ(mesh_scene(scene, {.target_patches = 3000}).size(), scene.triangles.size());
+  EXPECT_EQ(mesh_scene(scene, {.max_edge = 1.0}).size(), scene.triangles.size());
+}
+
 TEST(MeshTarget, BadOptionsAreErrors) {
   const Scene scene = builtin_cornell();
   const auto message = [&](const MeshOptions& o) {

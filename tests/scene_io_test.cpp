@@ -21,6 +21,24 @@ TEST(SceneIo, RoundTripMeshesToTheSameHash) {
   }
 }
 
+// Faces no light reaches (Triangle::unlit) travel with the scene, so that a node meshes them
+// whole as the coordinator does: the v2 encoding, written only when a face is marked (a scene
+// without marks stays v1, which every node reads).
+TEST(SceneIo, FacesNoLightReachesTravelWithTheScene) {
+  Scene scene = builtin_cornell();
+  EXPECT_EQ(encode_scene(scene).substr(0, 14), "sirad-scene-v1");
+  scene.triangles[0].unlit = scene.triangles[5].unlit = true;
+  const std::string bytes = encode_scene(scene);
+  EXPECT_EQ(bytes.substr(0, 14), "sirad-scene-v2");
+  Scene back = decode_scene(bytes, "wire");
+  ASSERT_EQ(back.triangles.size(), scene.triangles.size());
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) EXPECT_EQ(back.triangles[i].unlit, i == 0 || i == 5) << i;
+  const PatchMesh here = mesh_scene(scene, {.target_patches = 2000}), there = mesh_scene(back, {.target_patches = 2000});
+  EXPECT_EQ(here.hash, there.hash);
+  EXPECT_NE(here.hash, mesh_scene(builtin_cornell(), {.target_patches = 2000}).hash);
+  EXPECT_EQ(encode_scene(back), bytes);
+}
+
 void expect_refused(const std::string& bytes, const std::string& reason) {
   try {
     decode_scene(bytes, "wire");
@@ -50,6 +68,17 @@ TEST(SceneIo, MalformedBytesAreRefused) {
   s = builtin_cornell();
   for (auto& m : s.materials) m.emission = glm::vec3(0.0f);
   expect_refused(encode_scene(s), "no emitter");
+  // Flags: only bit 0 (unlit) is known. The first triangle's flags word follows its 3 vertices,
+  // material and line, after the tag, the name and the materials.
+  s = builtin_cornell();
+  s.triangles[0].unlit = true;
+  std::string flagged = encode_scene(s);
+  std::size_t at = 14 + 4 + s.name.size() + 4;
+  for (const Material& m : s.materials) at += 4 + m.name.size() + 24;
+  at += 4 + 36 + 8;
+  ASSERT_EQ(flagged[at], 1);
+  flagged[at] = 3;
+  expect_refused(flagged, "unknown flags 0x3");
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 
 #include "core/error.h"
 #include "core/resources.h"
+#include "tests/coincident_scenes.h"
 
 namespace sirad {
 namespace {
@@ -297,6 +298,29 @@ TEST(SceneFile, ObjectsTwoSidedMaterialsAndTextureNotes) {
   }
 }
 
+
+// Faces no light reaches are marked unlit (the mesher leaves them whole): in a closed room with a
+// lamp, a roof over the ceiling facing up into nothing and a board outside facing the back of a
+// wall; not a tile on the floor under a table, which no lamp lights directly but which sees the
+// table's underside, lit by the floor.
+TEST(SceneFile, FacesNoLightReachesAreMarked) {
+  test::ObjBuilder o;
+  test::room_shell(o);
+  o.material("lamp");
+  o.quad({1.5, 2.95, 1.5}, {2.5, 2.95, 1.5}, {2.5, 2.95, 2.5}, {1.5, 2.95, 2.5});
+  o.material("panel");
+  o.quad({1.0, 0.6, 1.0}, {1.0, 0.6, 3.0}, {3.0, 0.6, 3.0}, {3.0, 0.6, 1.0});  // the table's top, up
+  o.quad({1.0, 0.58, 1.0}, {3.0, 0.58, 1.0}, {3.0, 0.58, 3.0}, {1.0, 0.58, 3.0});  // its underside, down
+  o.material("rug");
+  o.quad({1.8, 0.001, 1.8}, {1.8, 0.001, 2.2}, {2.2, 0.001, 2.2}, {2.2, 0.001, 1.8});  // the tile under it, up
+  o.material("wall");
+  o.quad({0, 3.2, 0}, {0, 3.2, 4}, {4, 3.2, 4}, {4, 3.2, 0});  // the roof, up
+  o.wall_x(-1.0, 0, 3, 0, 4, true);                            // the board outside, towards the wall
+  const Scene s = o.scene("marks", test::kMtl);
+  const std::size_t n = s.triangles.size();
+  ASSERT_EQ(n, 12u + 2u + 4u + 2u + 4u);
+  for (std::size_t i = 0; i < n; ++i) EXPECT_EQ(s.triangles[i].unlit, i >= n - 4) << "triangle " << i;
+}
 
 TEST(SceneErrors, FilesThatAreNotScenes) {
   TempDir dir;
