@@ -67,8 +67,12 @@ std::vector<double> luminance(const Image& image) {
 }
 
 // The R, G, B channels of an EXR, or of one layer's (LAYER.R, ...) of a multilayer one.
-Image read_rgb(const std::string& path, const std::string& layer = "") {
+// The RGB of `layer`; with no layer, the plain R, G, B or else a multilayer EXR's combined image
+// (render_obj.py ... passes writes ViewLayer.Combined.R, ...).
+Image read_rgb(const std::string& path, std::string layer = "") {
   Imf::InputFile in(path.c_str());
+  if (layer.empty() && !in.header().channels().findChannel("R") && in.header().channels().findChannel("ViewLayer.Combined.R"))
+    layer = "ViewLayer.Combined";
   const Imath::Box2i dw = in.header().dataWindow();
   Image image;
   image.width = dw.max.x - dw.min.x + 1;

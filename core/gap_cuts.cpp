@@ -76,6 +76,7 @@ void cut_near_emitters(Scene& scene) {
   std::vector<Triangle> out;
   out.reserve(scene.triangles.size());
   std::vector<Poly> pending, pieces;
+  std::vector<uint8_t> pending_over, over;
   std::vector<Triangle> cut;
   Poly inside, part_in, part_out;
   for (const Triangle& t : scene.triangles) {
@@ -89,6 +90,7 @@ void cut_near_emitters(Scene& scene) {
     const glm::dvec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
     const double tiny = 1e-9 * glm::length(cr);
     pieces.assign(1, Poly{a, b, c});
+    over.assign(1, t.in_gap ? 1 : 0);  // whether each piece lies over an emitter's outline
     for (const Emitter& em : emitters) {
       if (pieces.size() > kMaxPiecesPerFace) break;  // many emitters over one face: cut no further
       if (glm::any(glm::lessThan(hi, em.lo)) || glm::any(glm::greaterThan(lo, em.hi))) continue;
@@ -98,8 +100,11 @@ void cut_near_emitters(Scene& scene) {
       // The emitter's outline on this face's plane (moved along its normal), and its edges'
       // inward planes (through the edge, containing the normal).
       std::swap(pending, pieces);
+      std::swap(pending_over, over);
       pieces.clear();
-      for (const Poly& piece : pending) {
+      over.clear();
+      for (std::size_t p = 0; p < pending.size(); ++p) {
+        const Poly& piece = pending[p];
         inside = piece;
         std::vector<Poly> outside;
         for (int k = 0; k < 3 && !inside.empty(); ++k) {
@@ -115,21 +120,29 @@ void cut_near_emitters(Scene& scene) {
           outside.push_back(part_out);
           inside = part_in;
         }
-        if (inside.empty() || outside.empty()) {
-          pieces.push_back(piece);  // not under the emitter, or wholly under it
+        if (inside.empty() || outside.empty()) {  // not under the emitter, or wholly under it
+          pieces.push_back(piece);
+          over.push_back(inside.empty() ? pending_over[p] : 1);
           continue;
         }
         pieces.push_back(inside);
-        for (Poly& o : outside) pieces.push_back(std::move(o));
+        over.push_back(1);
+        for (Poly& o : outside) {
+          pieces.push_back(std::move(o));
+          over.push_back(pending_over[p]);
+        }
       }
     }
     if (pieces.size() == 1) {
-      out.push_back(t);
+      Triangle u = t;
+      u.in_gap = over[0] != 0;
+      out.push_back(u);
       continue;
     }
     cut.clear();
     bool whole = false;  // a piece that rounding left not quite convex: the face stays uncut
-    for (const Poly& piece : pieces) {
+    for (std::size_t p = 0; p < pieces.size(); ++p) {
+      const Poly& piece = pieces[p];
       std::vector<glm::vec3> corners(piece.begin(), piece.end());
       std::vector<std::array<uint32_t, 3>> tris;
       try {
@@ -141,6 +154,7 @@ void cut_near_emitters(Scene& scene) {
       for (const auto& k : tris) {
         Triangle u = t;
         u.p = {corners[k[0]], corners[k[1]], corners[k[2]]};
+        u.in_gap = over[p] != 0;
         const glm::dvec3 uc = glm::cross(glm::dvec3(u.p[1] - u.p[0]), glm::dvec3(u.p[2] - u.p[0]));
         if (!(glm::length(uc) > tiny) || !(glm::dot(uc, n) > 0.0)) continue;  // a sliver of rounding
         cut.push_back(u);

@@ -49,8 +49,11 @@ constexpr double kNear = 4.0;
 // edge), the corners on the sample's own; where there are none, it traces its own gather ray.
 // Where a block's records met emitters with more than kCacheMis of their rays, its samples keep
 // a gather ray for the direct light's MIS.
+// Nor is a block whose corners' indirect light differs by more than kCacheContrast times, at any
+// size: beside a lamp hung just under a ceiling, the light that leaves the gap falls off within
+// a few centimetres, and a corner at the lamp's edge would spread it over the block.
 constexpr int kCacheSpacing = 16, kCacheAny = 4, kCacheLeast = 2;
-constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.02;
+constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.02, kCacheContrast = 2.0;
 
 // From kEdgeSpp samples per pixel on, an edge's pixels (a block of kCacheLeast pixels whose
 // corners are not one surface) take nothing from the cache: their samples gather for themselves,
@@ -390,6 +393,17 @@ struct FinalGather::Impl {
     return std::abs(glm::dot(n1, d)) <= kCachePlane * len && std::abs(glm::dot(n2, d)) <= kCachePlane * len;
   }
 
+  // Whether the indirect light at corner records c differs by more than kCacheContrast times.
+  static bool steep(const std::array<const CacheRecord*, 4>& c) {
+    double dim = std::numeric_limits<double>::infinity(), bright = 0.0;
+    for (const CacheRecord* a : c) {
+      const double y = a->e.x + a->e.y + a->e.z;
+      dim = std::min(dim, y);
+      bright = std::max(bright, y);
+    }
+    return bright > kCacheContrast * dim;
+  }
+
   // Whether corner records c make a block of `side` pixels the indirect light can be
   // interpolated over (the criteria at kCacheSpacing; r is each record's least distance).
   static bool fits(const std::array<const CacheRecord*, 4>& c, int side) {
@@ -398,6 +412,7 @@ struct FinalGather::Impl {
       if (!a->valid) return false;
       r = std::min(r, a->r);
     }
+    if (steep(c)) return false;
     for (std::size_t a = 0; a < 4; ++a)
       for (std::size_t b = a + 1; b < 4; ++b) {
         if (!one_surface(c[a]->x, c[a]->n, c[b]->x, c[b]->n)) return false;

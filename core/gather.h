@@ -19,7 +19,8 @@
 // The indirect light comes from an irradiance cache of the view (Ward's, on a grid of the image;
 // GatherOptions::cache): records of the indirect light at raster points of a grid 16 pixels
 // apart, each from 4 x spp gather rays (256 to 16,384), the grid refined down to 2 pixels where
-// the corners of a block are not one surface, and down to 4 where they lie further apart than a
+// the corners of a block are not one surface or their indirect light differs more than twofold
+// (beside a lamp just under a ceiling), and down to 4 where they lie further apart than a
 // quarter of the distance to what reflects light to them; a block of 4 pixels or fewer is taken
 // only if its corners of one surface see each other (a thin wall between two corners on one
 // floor: no light carried through it); a sample takes its block's corners bilinearly, and

@@ -341,6 +341,10 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
   }
 
   // Step 4: scene data, bounds and the content hash.
+  if (std::any_of(scene.triangles.begin(), scene.triangles.end(), [](const Triangle& t) { return t.in_gap; })) {
+    mesh.in_gap.resize(mesh.size());
+    for (std::size_t j = 0; j < mesh.size(); ++j) mesh.in_gap[j] = scene.triangles[mesh.source_triangle[j]].in_gap ? 1 : 0;
+  }
   mesh.materials = scene.materials;
   mesh.objects = scene.objects;
   mesh.triangle_object.resize(scene.triangles.size());

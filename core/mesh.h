@@ -32,6 +32,9 @@ struct PatchMesh {
   std::vector<float> area;                        // per patch, > 0
   std::vector<uint32_t> material;                 // per patch, index into materials
   std::vector<uint32_t> source_triangle;          // per patch, index of the input triangle
+  // Per patch, whether its triangle lies over an emitter across a gap (Triangle::in_gap); empty
+  // when none does. Not in the content hash: only outputs depend on it (corner_radiosity).
+  std::vector<uint8_t> in_gap;
   std::vector<uint32_t> triangle_object;          // per input triangle, index into objects
   std::vector<std::string> objects;               // object names (Scene::objects), for outputs
   std::vector<Material> materials;

@@ -381,6 +381,8 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
   for (const char* quantity : {"radiosity", "reflectance", "emission"})
     for (const char* channel : {"r", "g", "b"})
       header += fmt::format("property float {}_{}\n", quantity, channel);
+  const bool gaps = mesh.in_gap.size() == mesh.size();
+  if (gaps) header += "property uchar sirad_in_gap\n";  // PatchMesh::in_gap, for corner_radiosity on reading
   header += "end_header\n";
 
   // Step 4: the body, in chunks: vertices, then one face per patch in patch order.
@@ -404,6 +406,7 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
     put_le(chunk, radiosity[j]);
     put_le(chunk, mesh.reflectance(j));
     put_le(chunk, mesh.emission(j));
+    if (gaps) chunk.push_back(mesh.in_gap[j]);
     flush_chunk(chunk_bytes);
   }
   flush_chunk(0);

@@ -33,7 +33,9 @@ enum class Shading { gouraud, flat };
 
 // Per-patch-corner radiosity for Gouraud shading: the area-weighted mean of the patches that
 // share the welded vertex, restricted to those with the same material and a normal within
-// 30 degrees (so creases and material borders stay sharp). Result: 3 values per patch.
+// 30 degrees (so creases and material borders stay sharp), and on the same side of an emitter's
+// outline (PatchMesh::in_gap: the light trapped over a lamp never blends into the ceiling beside
+// it). Result: 3 values per patch.
 std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
                                                        const std::vector<glm::vec3>& radiosity);
 
@@ -63,7 +65,8 @@ void write_exr_layers(const std::string& path, const std::vector<std::pair<std::
 // Tone map: pixel * 2^exposure, clamped to [0, 1], sRGB-encoded, 8 bits.
 void write_png(const std::string& path, const Image& image, float exposure = 0.0f);
 // The PLY of DESIGN.md section 4: one face per patch in patch order with its radiosity,
-// reflectance and emission; a vertex per welded position and corner value (corner_radiosity:
+// reflectance and emission (and sirad_in_gap, 0 or 1, where some patch lies over an emitter:
+// PatchMesh::in_gap); a vertex per welded position and corner value (corner_radiosity:
 // shared within one smooth surface of one material, split at creases and material borders)
 // with red green blue = the tone map of the PNG (times 2^exposure, clamped, sRGB bytes), the
 // vertex colours Blender's PLY importer shows.

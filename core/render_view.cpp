@@ -150,6 +150,7 @@ std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
     for (uint32_t v : mesh.patches[j]) adjacent[fill[v]++] = static_cast<uint32_t>(j);
 
   // Step 2: per corner, the area-weighted mean over the compatible patches at that vertex.
+  const bool gaps = mesh.in_gap.size() == n;
   const float cos_limit = static_cast<float>(std::cos(30.0 * std::numbers::pi / 180.0));
   std::vector<std::array<glm::vec3, 3>> corners(n);
   for (std::size_t j = 0; j < n; ++j) {
@@ -160,7 +161,7 @@ std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
       for (uint32_t a = offset[v]; a < offset[v + 1]; ++a) {
         const uint32_t i = adjacent[a];
         if (i == j || mesh.material[i] != mesh.material[j] ||
-            !(glm::dot(mesh.normal[i], mesh.normal[j]) >= cos_limit))
+            !(glm::dot(mesh.normal[i], mesh.normal[j]) >= cos_limit) || (gaps && mesh.in_gap[i] != mesh.in_gap[j]))
           continue;
         sum += glm::dvec3(radiosity[i]) * static_cast<double>(mesh.area[i]);
         weight += mesh.area[i];

@@ -42,6 +42,10 @@ struct Triangle {
   // No light reaches its front (mark_unlit_faces): the mesher leaves it one patch, so that the
   // patch budget goes to the surfaces light reaches. Only the meshing depends on it.
   bool unlit = false;
+  // A piece of a face over an emitter across a small gap (cut_near_emitters): the light trapped in
+  // the gap. Outputs and the final gather do not blend its values with the face's beyond the
+  // emitter's outline (corner_radiosity); the solve does not depend on it.
+  bool in_gap = false;
 };
 
 struct Scene {

@@ -11,8 +11,8 @@ namespace sirad {
 
 // "sirad-scene-v1", then little-endian counts and arrays: materials (name, reflectance,
 // emission), triangles (3 vertices, material, source line), background, optional camera; or
-// "sirad-scene-v2", the same with a flags word after each triangle (bit 0: Triangle::unlit),
-// written only for a scene that has a flag set.
+// "sirad-scene-v2", the same with a flags word after each triangle (bit 0: Triangle::unlit,
+// bit 1: Triangle::in_gap), written only for a scene that has a flag set.
 std::string encode_scene(const Scene& scene);
 
 // The inverse; every count, index and value is checked (finite coordinates, reflectance in

@@ -216,6 +216,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
   struct Face {
     std::vector<uint32_t> v;
     glm::vec3 reflectance{-1.0f}, emission{0.0f}, radiosity{0.0f};
+    bool in_gap = false;
   };
   std::vector<Face> faces;
   std::size_t triangles = 0;
@@ -227,6 +228,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
     int refl[3] = {e.find("reflectance_r"), e.find("reflectance_g"), e.find("reflectance_b")};
     int emis[3] = {e.find("emission_r"), e.find("emission_g"), e.find("emission_b")};
     int rad[3] = {e.find("radiosity_r"), e.find("radiosity_g"), e.find("radiosity_b")};
+    const int gap = e.find("sirad_in_gap");
     if (is_vertex) {
       if (x < 0 || y < 0 || z < 0) fail("{}: the vertex element has no x, y and z", path);
       if (e.count > kMaxVertices) fail("{}: more than {} vertices", path, kMaxVertices);
@@ -266,6 +268,10 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
         if (ki == r) colour.x = c;
         if (ki == g) colour.y = c;
         if (ki == b) colour.z = c;
+        if (ki == gap) {
+          if (v != 0 && v != 1) fail("{}: {}: {} is neither 0 nor 1", path, what, v);
+          f.in_gap = v == 1;
+        }
         for (int c3 = 0; c3 < 3; ++c3) {
           if (ki == refl[c3]) rho[c3] = v;
           if (ki == emis[c3]) em[c3] = v;
@@ -328,6 +334,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
       Triangle t;
       t.p = {corners[c[0]], corners[c[1]], corners[c[2]]};
       t.material = it->second;
+      t.in_gap = f.in_gap;
       if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) {
         if (!options.skip_degenerate) fail("{}: face {}: degenerate triangle (zero area) (skipping degenerate triangles drops them)", path, i);
         ++skipped;

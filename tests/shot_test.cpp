@@ -1,14 +1,18 @@
 // sirad tests: the first shot (core/shot.h, kernels/shot.cl): the kernel against the C++
 // reference pixel for pixel, watertightness, the hemicube's weights, and the estimator
 // against a closed-form form factor.
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <numbers>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include "core/output.h"
 #include "core/reference.h"
 #include "core/shot.h"
+#include "core/solution.h"
 #include "test_util.h"
 #include "tests/coincident_scenes.h"
 
@@ -433,6 +437,7 @@ TEST(GapCuts, ACeilingOverALampIsCutAlongItsOutline) {
     const glm::vec3 c = (t.p[0] + t.p[1] + t.p[2]) / 3.0f;
     const bool centre_in = c.x > 1.4f && c.x < 2.6f && c.z > 1.7f && c.z < 2.3f;
     EXPECT_EQ(in == 3, centre_in) << c.x << " " << c.z;
+    EXPECT_EQ(t.in_gap, centre_in) << c.x << " " << c.z;  // the pieces over the lamp are marked
     (centre_in ? over : beside) += 0.5 * glm::length(n);
   }
   EXPECT_GT(ceiling, 2u);
@@ -443,6 +448,36 @@ TEST(GapCuts, ACeilingOverALampIsCutAlongItsOutline) {
   std::size_t far_ceiling = 0;
   for (const Triangle& t : far.triangles) far_ceiling += std::abs(t.p[0].y - 3.0f) < 1e-6f && std::abs(t.p[1].y - 3.0f) < 1e-6f;
   EXPECT_EQ(far_ceiling, 2u);
+}
+
+// The corner values that images, outputs and the final gather interpolate never blend the light
+// over a lamp into the ceiling beside it (PatchMesh::in_gap), also once the solution is read back
+// from its PLY: with 100 over the lamp and 1 elsewhere, every corner of a patch beside it is 1,
+// where a corner on the outline would otherwise take a mean of the two.
+TEST(GapCuts, CornerValuesDoNotBlendAcrossALampsOutline) {
+  const PatchMesh mesh = mesh_scene(test::lamp_under_ceiling(0.015), {.target_patches = 3000});
+  ASSERT_EQ(mesh.in_gap.size(), mesh.size());
+  std::vector<glm::vec3> b(mesh.size(), glm::vec3(1.0f));
+  std::size_t over = 0, beside_at_outline = 0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) over += mesh.in_gap[j], b[j] = mesh.in_gap[j] ? glm::vec3(100.0f) : b[j];
+  ASSERT_GT(over, 10u);
+  const std::string ply = ::testing::TempDir() + "gap_corners.ply";
+  write_ply(ply, mesh, b);
+  const Solution back = read_solution(ply);
+  ASSERT_EQ(back.mesh.size(), mesh.size());
+  for (const auto& corners : {corner_radiosity(mesh, b), back.corners}) {
+    for (std::size_t j = 0; j < mesh.size(); ++j) {
+      const bool on_outline = std::any_of(mesh.patches[j].begin(), mesh.patches[j].end(), [&](uint32_t v) {
+        const glm::vec3 p = mesh.vertices[v];
+        return std::abs(p.y - 3.0f) < 1e-6f && p.x >= 1.4f - 1e-5f && p.x <= 2.6f + 1e-5f && p.z >= 1.7f - 1e-5f && p.z <= 2.3f + 1e-5f;
+      });
+      if (mesh.in_gap[j] || mesh.emits(j) || !on_outline) continue;
+      ++beside_at_outline;
+      for (const glm::vec3& c : corners[j]) EXPECT_EQ(c, glm::vec3(1.0f)) << "patch " << j;
+    }
+  }
+  EXPECT_GT(beside_at_outline, 20u);
+  std::filesystem::remove(ply);
 }
 
 }  // namespace
