@@ -22,19 +22,25 @@ TEST(SceneIo, RoundTripMeshesToTheSameHash) {
 }
 
 // Faces no light reaches (Triangle::unlit) travel with the scene, so that a node meshes them
-// whole as the coordinator does: the v2 encoding, written only when a face is marked (a scene
-// without marks stays v1, which every node reads).
+// whole as the coordinator does, and so do the pieces over a lamp (Triangle::in_gap): the v2
+// encoding, written only when a face is marked (a scene without marks stays v1, which every node
+// reads).
 TEST(SceneIo, FacesNoLightReachesTravelWithTheScene) {
   Scene scene = builtin_cornell();
   EXPECT_EQ(encode_scene(scene).substr(0, 14), "sirad-scene-v1");
   scene.triangles[0].unlit = scene.triangles[5].unlit = true;
+  scene.triangles[5].in_gap = scene.triangles[6].in_gap = true;
   const std::string bytes = encode_scene(scene);
   EXPECT_EQ(bytes.substr(0, 14), "sirad-scene-v2");
   Scene back = decode_scene(bytes, "wire");
   ASSERT_EQ(back.triangles.size(), scene.triangles.size());
-  for (std::size_t i = 0; i < scene.triangles.size(); ++i) EXPECT_EQ(back.triangles[i].unlit, i == 0 || i == 5) << i;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    EXPECT_EQ(back.triangles[i].unlit, i == 0 || i == 5) << i;
+    EXPECT_EQ(back.triangles[i].in_gap, i == 5 || i == 6) << i;
+  }
   const PatchMesh here = mesh_scene(scene, {.target_patches = 2000}), there = mesh_scene(back, {.target_patches = 2000});
   EXPECT_EQ(here.hash, there.hash);
+  EXPECT_EQ(here.in_gap, there.in_gap);
   EXPECT_NE(here.hash, mesh_scene(builtin_cornell(), {.target_patches = 2000}).hash);
   EXPECT_EQ(encode_scene(back), bytes);
 }
@@ -68,7 +74,7 @@ TEST(SceneIo, MalformedBytesAreRefused) {
   s = builtin_cornell();
   for (auto& m : s.materials) m.emission = glm::vec3(0.0f);
   expect_refused(encode_scene(s), "no emitter");
-  // Flags: only bit 0 (unlit) is known. The first triangle's flags word follows its 3 vertices,
+  // Flags: only bits 0 (unlit) and 1 (in a gap) are known. The first triangle's flags word follows its 3 vertices,
   // material and line, after the tag, the name and the materials.
   s = builtin_cornell();
   s.triangles[0].unlit = true;
@@ -77,8 +83,8 @@ TEST(SceneIo, MalformedBytesAreRefused) {
   for (const Material& m : s.materials) at += 4 + m.name.size() + 24;
   at += 4 + 36 + 8;
   ASSERT_EQ(flagged[at], 1);
-  flagged[at] = 3;
-  expect_refused(flagged, "unknown flags 0x3");
+  flagged[at] = 5;
+  expect_refused(flagged, "unknown flags 0x5");
 }
 
 }  // namespace
