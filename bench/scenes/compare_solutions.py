@@ -10,7 +10,8 @@ order). Prints, per candidate, the relative RMS error per patch over the patches
 (area-weighted, all three channels: sqrt(sum A |B - B_ref|^2 / sum A |B_ref|^2), the measure of
 core/metrics.h) and, with --rooms apartment, each room's mean radiosity over the reference's
 (the patches whose centre, moved 1 cm along the face's normal, lies in the room: walls count for
-the room they face). The rooms are those of tests/data/blender/make_apartment.py in glTF's Y-up frame.
+the room they face). The rooms are those of tests/data/blender/make_apartment.py (`apartment`) or make_studio.py
+(`studio`).
 With --surfaces, each solution alone (any meshing): per room, the area-weighted mean radiosity
 (r + g + b) of its floor (faces up within 1 cm of y = 0) and of its walls (vertical faces),
 what the camera sees of a room, leaving out the ceiling, whose part over a lamp lies in the gap.
@@ -24,8 +25,14 @@ import sys
 
 import numpy as np
 
-ROOMS = {  # x range, z range (glTF: Blender's y is -z), y (height) 0..2.6
-    "apartment": {"living": (0, 5, -4, 0), "hall": (0, 5, -6, -4), "bedroom": (5, 8, -3.5, 0), "bath": (5, 8, -6, -3.5)},
+# The rooms of the corpus scenes (tests/data/blender/make_*.py) in Blender's frame before the
+# building's turn: x range, y range, 0 < z < height; `turn` (degrees about z) and `offset` place
+# the building (glTF's frame: Blender's x, z, -y).
+ROOMS = {
+    "apartment": {"turn": 0.0, "offset": (0.0, 0.0), "height": 2.6,
+                  "rooms": {"living": (0, 5, 0, 4), "hall": (0, 5, 4, 6), "bedroom": (5, 8, 0, 3.5), "bath": (5, 8, 3.5, 6)}},
+    "studio": {"turn": 30.0, "offset": (1.0, -0.5), "height": 2.7,
+               "rooms": {"west": (0, 4.45, 0, 4), "east": (4.55, 6, 0, 2.45), "closet": (4.55, 6, 2.55, 4)}},
 }
 
 
@@ -65,12 +72,16 @@ def read_ply(path):
     return dict(area=area, centre=tri.mean(1), normal=normal, b=b, emits=(e > 0).any(1))
 
 
-def in_rooms(c, rooms):
-    """Per room, which patches of solution `c` it holds: their centre, moved 1 cm along the face's
-    normal (a wall counts for the room it faces), inside the room's box."""
+def in_rooms(c, plan):
+    """Per room of `plan` (an entry of ROOMS), which patches of solution `c` it holds: their
+    centre, moved 1 cm along the face's normal (a wall counts for the room it faces), inside the
+    room's box."""
     p = c["centre"] + 0.01 * c["normal"]
-    return {name: (p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 2] > z0) & (p[:, 2] < z1) & (p[:, 1] > 0) & (p[:, 1] < 2.6)
-            for name, (x0, x1, z0, z1) in rooms.items()}
+    t = np.radians(plan["turn"])
+    xs, ys = p[:, 0] - plan["offset"][0], -p[:, 2] - plan["offset"][1]
+    x, y, z = xs * np.cos(t) + ys * np.sin(t), -xs * np.sin(t) + ys * np.cos(t), p[:, 1]
+    return {name: (x > x0) & (x < x1) & (y > y0) & (y < y1) & (z > 0) & (z < plan["height"])
+            for name, (x0, x1, y0, y1) in plan["rooms"].items()}
 
 
 def surfaces(rooms, paths):
