@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
+#include <map>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -46,28 +48,129 @@ void split(const Poly& p, const glm::dvec3& o, const glm::dvec3& m, Poly& in, Po
   }
 }
 
+// The convex outline (counter-clockwise seen from the front of normal n) of the triangles
+// `members`, if they fill it to kSameArea: a lamp's cap that the exporter cut into a fan of
+// slivers is cut along its rim only. Empty if they do not (a concave or broken group).
+Poly convex_outline(const std::vector<Triangle>& triangles, const std::vector<std::size_t>& members, const glm::dvec3& n) {
+  constexpr double kSameArea = 1e-6;
+  std::vector<glm::dvec3> pts;
+  double area = 0.0;
+  for (std::size_t i : members) {
+    const Triangle& t = triangles[i];
+    for (const glm::vec3& q : t.p) pts.push_back(glm::dvec3(q));
+    area += 0.5 * glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0])));
+  }
+  const glm::dvec3 o = pts[0];
+  const glm::dvec3 u = glm::normalize(std::abs(n.x) < 0.9 ? glm::cross(n, glm::dvec3(1, 0, 0)) : glm::cross(n, glm::dvec3(0, 1, 0)));
+  const glm::dvec3 w = glm::cross(n, u);  // (u, w, n) right-handed: counter-clockwise in (u, w) is seen from the front
+  std::vector<std::pair<double, double>> q(pts.size());
+  for (std::size_t k = 0; k < pts.size(); ++k) q[k] = {glm::dot(pts[k] - o, u), glm::dot(pts[k] - o, w)};
+  std::vector<std::size_t> order(pts.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return q[a] < q[b]; });
+  auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
+    return (q[b].first - q[a].first) * (q[c].second - q[a].second) - (q[b].second - q[a].second) * (q[c].first - q[a].first);
+  };
+  double extent = 0.0;
+  for (const auto& [x, y] : q) extent = std::max(extent, std::hypot(x, y));
+  const double flat = 1e-9 * extent * extent;
+  std::vector<std::size_t> hull(2 * order.size() + 1);
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < order.size(); ++i) {  // Andrew's monotone chain: the lower chain
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], order[i]) <= flat) --k;
+    hull[k++] = order[i];
+  }
+  for (std::size_t i = order.size() - 1, lower = k + 1; i-- > 0;) {  // the upper chain
+    while (k >= lower && cross(hull[k - 2], hull[k - 1], order[i]) <= flat) --k;
+    hull[k++] = order[i];
+  }
+  if (k < 4) return {};
+  hull.resize(k - 1);
+  Poly out;
+  double hull_area = 0.0;
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    out.push_back(pts[hull[i]]);
+    const auto& a = q[hull[i]];
+    const auto& b = q[hull[(i + 1) % hull.size()]];
+    hull_area += 0.5 * (a.first * b.second - b.first * a.second);
+  }
+  if (!(std::abs(hull_area - area) <= kSameArea * area)) return {};
+  return out;
+}
+
 }  // namespace
 
 void cut_near_emitters(Scene& scene) {
   struct Emitter {
-    std::array<glm::dvec3, 3> p;
+    Poly p;  // a convex outline, counter-clockwise seen from the front
     glm::dvec3 n;
-    double reach;  // the largest gap cut for: kGapCut x its longest edge
+    double reach;  // the largest gap cut for: kGapCut x its longest extent
     glm::dvec3 lo, hi;
   };
-  std::vector<Emitter> emitters;
-  for (const Triangle& t : scene.triangles) {
+  // Emitting triangles grouped: one material, one plane (normals within 1e-4 rad, offsets within
+  // 1e-6 of their extent), joined where they share a corner. A group that fills its convex hull
+  // (a panel of two triangles, a disc cut into a fan) is one outline; else each triangle is one.
+  std::vector<std::size_t> lights;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    const Triangle& t = scene.triangles[i];
     if (!emits(scene.materials[t.material])) continue;
-    Emitter em{{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, {}, 0.0, {}, {}};
-    const glm::dvec3 c = glm::cross(em.p[1] - em.p[0], em.p[2] - em.p[0]);
-    if (!(glm::length(c) > 0.0)) continue;
-    em.n = glm::normalize(c);
-    double edge = 0.0;
-    for (int k = 0; k < 3; ++k) edge = std::max(edge, glm::length(em.p[(k + 1) % 3] - em.p[k]));
-    em.reach = kGapCut * edge;
-    em.lo = glm::min(em.p[0], glm::min(em.p[1], em.p[2])) - glm::dvec3(em.reach);
-    em.hi = glm::max(em.p[0], glm::max(em.p[1], em.p[2])) + glm::dvec3(em.reach);
-    emitters.push_back(em);
+    if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) continue;
+    lights.push_back(i);
+  }
+  if (lights.empty()) return;
+  if (static_cast<double>(lights.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return;
+  auto normal_of = [&](std::size_t i) {
+    const Triangle& t = scene.triangles[i];
+    return glm::normalize(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0])));
+  };
+  std::vector<std::size_t> parent(lights.size());
+  for (std::size_t a = 0; a < parent.size(); ++a) parent[a] = a;
+  auto find = [&](std::size_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  {
+    std::map<std::array<float, 3>, std::vector<std::size_t>> at;  // corner -> lights there (a few each)
+    for (std::size_t a = 0; a < lights.size(); ++a)
+      for (const glm::vec3& q : scene.triangles[lights[a]].p) {
+        std::vector<std::size_t>& here = at[{q.x, q.y, q.z}];
+        const glm::dvec3 na = normal_of(lights[a]);
+        for (std::size_t b : here) {
+          const Triangle &ta = scene.triangles[lights[a]], &tb = scene.triangles[lights[b]];
+          if (ta.material != tb.material || !(glm::dot(na, normal_of(lights[b])) > 1.0 - 5e-9)) continue;
+          const double extent = glm::length(glm::dvec3(tb.p[0] - ta.p[0])) + 1e-30;
+          bool plane = true;
+          for (const glm::vec3& r : tb.p) plane = plane && std::abs(glm::dot(na, glm::dvec3(r - ta.p[0]))) <= 1e-6 * extent + 1e-12;
+          if (plane) parent[find(a)] = find(b);
+        }
+        if (here.size() < 16) here.push_back(a);
+      }
+  }
+  std::map<std::size_t, std::vector<std::size_t>> groups;
+  for (std::size_t a = 0; a < lights.size(); ++a) groups[find(a)].push_back(lights[a]);
+  std::vector<Emitter> emitters;
+  auto add = [&](Poly outline, const glm::dvec3& n) {
+    Emitter em{std::move(outline), n, 0.0, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
+    double extent = 0.0;
+    for (const glm::dvec3& a : em.p)
+      for (const glm::dvec3& b : em.p) extent = std::max(extent, glm::length(b - a));
+    em.reach = kGapCut * extent;
+    for (const glm::dvec3& a : em.p) em.lo = glm::min(em.lo, a), em.hi = glm::max(em.hi, a);
+    em.lo -= glm::dvec3(em.reach);
+    em.hi += glm::dvec3(em.reach);
+    emitters.push_back(std::move(em));
+  };
+  for (const auto& [root, members] : groups) {
+    const glm::dvec3 n = normal_of(members[0]);
+    Poly outline = members.size() > 1 ? convex_outline(scene.triangles, members, n) : Poly{};
+    if (!outline.empty() && outline.size() <= 256) {
+      add(std::move(outline), n);
+      continue;
+    }
+    for (std::size_t i : members) {
+      const Triangle& t = scene.triangles[i];
+      add(Poly{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, normal_of(i));
+    }
   }
   if (emitters.empty()) return;
   // Pairs looked at are bounded: a scene of very many emitters and faces is left uncut.
@@ -107,8 +210,8 @@ void cut_near_emitters(Scene& scene) {
         const Poly& piece = pending[p];
         inside = piece;
         std::vector<Poly> outside;
-        for (int k = 0; k < 3 && !inside.empty(); ++k) {
-          const glm::dvec3 q0 = em.p[k] + em.n * gap, q1 = em.p[(k + 1) % 3] + em.n * gap;
+        for (std::size_t k = 0; k < em.p.size() && !inside.empty(); ++k) {
+          const glm::dvec3 q0 = em.p[k] + em.n * gap, q1 = em.p[(k + 1) % em.p.size()] + em.n * gap;
           const glm::dvec3 m = glm::cross(em.n, q1 - q0);  // points into the emitter's outline
           split(inside, q0, m, part_in, part_out);
           const double ai = part_in.size() >= 3 ? area_of(part_in) : 0.0, ao = part_out.size() >= 3 ? area_of(part_out) : 0.0;

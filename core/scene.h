@@ -90,7 +90,8 @@ Scene parse_obj(const std::string& name, const std::string& obj_text,
 void add_back_faces(Scene& scene);
 
 // Cuts every face that faces an emitter across a gap of at most kGapCut times the emitter's
-// longest edge (a ceiling 1-2 cm above a lamp's upper side) along the emitter's outline, so that
+// extent (a ceiling 1-2 cm above a lamp's upper side) along the emitter's outline (a convex
+// lamp surface's rim, else each emitting triangle's edges), so that
 // no patch averages the light trapped in the gap with the light outside it (core/gap_cuts.cpp;
 // DESIGN.md section 1, "Light in gaps"). Faces are cut per emitter triangle; the pieces keep the
 // face's material, object and line (at most about 1024 pieces a face). Scenes with more than
