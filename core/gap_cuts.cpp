@@ -138,7 +138,8 @@ void cut_near_emitters(Scene& scene) {
         for (std::size_t b : here) {
           const Triangle &ta = scene.triangles[lights[a]], &tb = scene.triangles[lights[b]];
           if (ta.material != tb.material || !(glm::dot(na, normal_of(lights[b])) > 1.0 - 5e-9)) continue;
-          const double extent = glm::length(glm::dvec3(tb.p[0] - ta.p[0])) + 1e-30;
+          double extent = 0.0;
+          for (const glm::vec3& r : tb.p) extent = std::max(extent, glm::length(glm::dvec3(r - ta.p[0])));
           bool plane = true;
           for (const glm::vec3& r : tb.p) plane = plane && std::abs(glm::dot(na, glm::dvec3(r - ta.p[0]))) <= 1e-6 * extent + 1e-12;
           if (plane) parent[find(a)] = find(b);

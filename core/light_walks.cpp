@@ -83,7 +83,10 @@ std::vector<uint8_t> light_reaches(const PatchMesh& mesh, const RayScene& rays, 
 }
 
 void mark_unlit_faces(Scene& scene) {
-  if (scene.triangles.empty()) return;
+  // Each face takes at least kMinWalks walks of up to kLightsTried + 2 kWalkBounces rays: past
+  // kMaxMarkedFaces faces the load would take minutes, and nothing is marked (only the patch
+  // budget is then spent as before).
+  if (scene.triangles.empty() || scene.triangles.size() > kMaxMarkedFaces) return;
   const PatchMesh mesh = mesh_scene(scene, MeshOptions{});
   if (mesh.size() != scene.triangles.size()) return;  // a triangle the mesher drops: none marked
   const RayScene rays(mesh, ray_offset(mesh), /*fast=*/true);

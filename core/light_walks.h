@@ -25,5 +25,6 @@ std::vector<uint8_t> light_reaches(const PatchMesh& mesh, const RayScene& rays, 
 inline constexpr std::size_t kWalkBudget = std::size_t{1} << 18;
 inline constexpr int kMinWalks = 8, kMaxWalks = 64, kWalkBounces = 8;
 inline constexpr std::size_t kLightsTried = 64;  // shadow rays from a walk's start, at most
+inline constexpr std::size_t kMaxMarkedFaces = std::size_t{1} << 18;  // scene.h mark_unlit_faces looks at no more
 
 }  // namespace sirad

@@ -104,6 +104,7 @@ void cut_near_emitters(Scene& scene);
 // (core/light_walks.h) meets or sees an emitter's front: the outer faces of a building's walls
 // and slabs that face away from every light. Emitting faces are never marked. The mesher leaves
 // them whole; a face marked wrongly (light that the walks missed) is only meshed coarsely.
+// Scenes of more than kMaxMarkedFaces (core/light_walks.h) triangles are left unmarked.
 void mark_unlit_faces(Scene& scene);
 
 // The built-in scenes. `furnace`: a closed cube (side 1, inward normals), every face E = 1,
