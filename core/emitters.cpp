@@ -10,6 +10,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 
+#include "core/polygon.h"
 #include "core/rays.h"
 
 namespace sirad {
@@ -51,10 +52,6 @@ Light patch_light(const PatchMesh& mesh, uint32_t j) {
   return l;
 }
 
-double cross2(const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
-  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
-}
-
 // The triangle or parallelogram the patches `members` (one material, one plane of normal n)
 // fill, if they do.
 bool as_one_shape(const PatchMesh& mesh, const std::vector<uint32_t>& members, const dvec3& n, Light& out) {
@@ -75,25 +72,11 @@ bool as_one_shape(const PatchMesh& mesh, const std::vector<uint32_t>& members, c
   if (!(extent > 0.0)) return false;
   for (const dvec3& p : pts)
     if (std::abs(glm::dot(n, p - o)) > kSamePlane * extent) return false;
-  // The convex hull in the plane (Andrew's monotone chain), counter-clockwise seen from the
-  // front; points on its edges (within rounding) left out.
+  // The convex hull in the plane, counter-clockwise seen from the front; points on its edges
+  // (within rounding) left out.
   std::vector<glm::dvec2> q(pts.size());
   for (std::size_t k = 0; k < pts.size(); ++k) q[k] = {glm::dot(pts[k] - o, u), glm::dot(pts[k] - o, w)};
-  std::vector<std::size_t> order(pts.size());
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return q[a].x < q[b].x || (q[a].x == q[b].x && q[a].y < q[b].y); });
-  const double flat = 1e-7 * extent * extent;
-  std::vector<std::size_t> hull(2 * order.size() + 1);
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < order.size(); ++i) {  // the lower chain
-    while (k >= 2 && cross2(q[hull[k - 2]], q[hull[k - 1]], q[order[i]]) <= flat) --k;
-    hull[k++] = order[i];
-  }
-  for (std::size_t i = order.size() - 1, lower = k + 1; i-- > 0;) {  // the upper chain
-    while (k >= lower && cross2(q[hull[k - 2]], q[hull[k - 1]], q[order[i]]) <= flat) --k;
-    hull[k++] = order[i];
-  }
-  hull.resize(k - 1);  // the last point is the first
+  const std::vector<std::size_t> hull = convex_hull(q, 1e-7 * extent * extent);
   if (hull.size() != 3 && hull.size() != 4) return false;
   out.corners = static_cast<int>(hull.size());
   for (std::size_t i = 0; i < hull.size(); ++i) out.p[i] = pts[hull[i]];

@@ -63,36 +63,20 @@ Poly convex_outline(const std::vector<Triangle>& triangles, const std::vector<st
   const glm::dvec3 o = pts[0];
   const glm::dvec3 u = glm::normalize(std::abs(n.x) < 0.9 ? glm::cross(n, glm::dvec3(1, 0, 0)) : glm::cross(n, glm::dvec3(0, 1, 0)));
   const glm::dvec3 w = glm::cross(n, u);  // (u, w, n) right-handed: counter-clockwise in (u, w) is seen from the front
-  std::vector<std::pair<double, double>> q(pts.size());
-  for (std::size_t k = 0; k < pts.size(); ++k) q[k] = {glm::dot(pts[k] - o, u), glm::dot(pts[k] - o, w)};
-  std::vector<std::size_t> order(pts.size());
-  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return q[a] < q[b]; });
-  auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
-    return (q[b].first - q[a].first) * (q[c].second - q[a].second) - (q[b].second - q[a].second) * (q[c].first - q[a].first);
-  };
+  std::vector<glm::dvec2> q(pts.size());
   double extent = 0.0;
-  for (const auto& [x, y] : q) extent = std::max(extent, std::hypot(x, y));
-  const double flat = 1e-9 * extent * extent;
-  std::vector<std::size_t> hull(2 * order.size() + 1);
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < order.size(); ++i) {  // Andrew's monotone chain: the lower chain
-    while (k >= 2 && cross(hull[k - 2], hull[k - 1], order[i]) <= flat) --k;
-    hull[k++] = order[i];
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    q[k] = {glm::dot(pts[k] - o, u), glm::dot(pts[k] - o, w)};
+    extent = std::max(extent, glm::length(q[k]));
   }
-  for (std::size_t i = order.size() - 1, lower = k + 1; i-- > 0;) {  // the upper chain
-    while (k >= lower && cross(hull[k - 2], hull[k - 1], order[i]) <= flat) --k;
-    hull[k++] = order[i];
-  }
-  if (k < 4) return {};
-  hull.resize(k - 1);
+  const std::vector<std::size_t> hull = convex_hull(q, 1e-9 * extent * extent);
+  if (hull.size() < 3) return {};
   Poly out;
   double hull_area = 0.0;
   for (std::size_t i = 0; i < hull.size(); ++i) {
     out.push_back(pts[hull[i]]);
-    const auto& a = q[hull[i]];
-    const auto& b = q[hull[(i + 1) % hull.size()]];
-    hull_area += 0.5 * (a.first * b.second - b.first * a.second);
+    const glm::dvec2 &a = q[hull[i]], &b = q[hull[(i + 1) % hull.size()]];
+    hull_area += 0.5 * (a.x * b.y - b.x * a.y);
   }
   if (!(std::abs(hull_area - area) <= kSameArea * area)) return {};
   return out;

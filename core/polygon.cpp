@@ -129,4 +129,26 @@ std::vector<std::array<uint32_t, 3>> triangulate_polygon(std::span<const glm::ve
   return out;
 }
 
+std::vector<std::size_t> convex_hull(std::span<const glm::dvec2> q, double flat) {
+  if (q.empty()) return {};
+  auto turn = [&](std::size_t o, std::size_t a, std::size_t b) {
+    return (q[a].x - q[o].x) * (q[b].y - q[o].y) - (q[a].y - q[o].y) * (q[b].x - q[o].x);
+  };
+  std::vector<std::size_t> order(q.size());
+  for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return q[a].x < q[b].x || (q[a].x == q[b].x && q[a].y < q[b].y); });
+  std::vector<std::size_t> hull(2 * order.size() + 1);
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < order.size(); ++i) {  // the lower chain
+    while (k >= 2 && turn(hull[k - 2], hull[k - 1], order[i]) <= flat) --k;
+    hull[k++] = order[i];
+  }
+  for (std::size_t i = order.size() - 1, lower = k + 1; i-- > 0;) {  // the upper chain
+    while (k >= lower && turn(hull[k - 2], hull[k - 1], order[i]) <= flat) --k;
+    hull[k++] = order[i];
+  }
+  hull.resize(k - 1);  // the last point is the first
+  return hull;
+}
+
 }  // namespace sirad

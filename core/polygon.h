@@ -7,6 +7,7 @@
 #include <span>
 #include <vector>
 
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 namespace sirad {
@@ -22,5 +23,11 @@ inline constexpr std::size_t kMaxConcaveCorners = 1024;
 // caller's degenerate-triangle rule. Throws sirad::Error, without naming the face (the caller
 // does), for a polygon that crosses itself or a concave one of more than kMaxConcaveCorners.
 std::vector<std::array<uint32_t, 3>> triangulate_polygon(std::span<const glm::vec3> corners);
+
+// The convex hull of the points `q` (Andrew's monotone chain), counter-clockwise, as indices into
+// `q`, each corner once; a point whose turn against a hull edge is at most `flat` (twice the area
+// of the triangle they make) is left out, so points on its edges within rounding are not
+// corners. Collinear or too few points give fewer than 3 indices.
+std::vector<std::size_t> convex_hull(std::span<const glm::dvec2> q, double flat);
 
 }  // namespace sirad
