@@ -600,6 +600,59 @@ TEST(Gather, TheCacheDoesNotCarryLightThroughAThinWall) {
   }
 }
 
+// For the straight-down views of the two tests below (W = H = 32, up +x): where the ray through
+// the middle of raster row y meets the floor z = 0, along x.
+constexpr int kFloorW = 32, kFloorH = 32;
+double camera_ray_floor_x(const Camera& camera, double y) {
+  const CameraFrame f = camera_frame(camera, kFloorW, kFloorH);
+  return f.eye.x + f.direction(16, y).x * (-f.eye.z / f.direction(16, y).z);
+}
+
+// Rows first .. first + rows - 1 of that view of a floor (z = 0, rho 0.5, facing +z) whose only
+// light is the solution's B = 1 on the polygon `face` (which reflects nothing), where the floor
+// lies at x > 0 (elsewhere the view sees nothing lit). A floor point's radiance is rho F, F its
+// form factor to `face` (Lambert's formula), and each row's exact mean comes from 8 x 8 points of
+// each pixel. Each row's mean over R = 8 renders of independent seeds (seed0, ...) at 256 spp
+// must lie within 6 standard errors of it (Student's t with 7 degrees of freedom exceeds 6 with
+// probability 5e-4 per row), with and without the cache (which casts record rays only when on).
+void expect_rows_match_lambert(const PatchMesh& mesh, const std::vector<glm::vec3>& solution, const Camera& camera,
+                               const std::vector<glm::dvec3>& face, int first, int rows, uint64_t seed0, const char* what) {
+  constexpr int R = 8, spp = 256;
+  const CameraFrame f = camera_frame(camera, kFloorW, kFloorH);
+  auto radiance = [&](const glm::dvec3& d) {
+    const glm::dvec3 at = f.eye + d * (-f.eye.z / d.z);
+    return at.x > 0.0 ? 0.5 * polygon_form_factor(at, {0, 0, 1}, face) : 0.0;
+  };
+  std::vector<double> want(static_cast<std::size_t>(rows), 0.0);
+  for (int r = 0; r < rows; ++r)
+    for (int x = 0; x < kFloorW; ++x)
+      for (int j = 0; j < 8; ++j)
+        for (int i = 0; i < 8; ++i)
+          want[static_cast<std::size_t>(r)] += radiance(f.direction(x + (i + 0.5) / 8, first + r + (j + 0.5) / 8)) / (64.0 * kFloorW);
+  for (const bool cache : {true, false}) {
+    std::vector<double> sum(want.size(), 0.0), sq(want.size(), 0.0);
+    uint64_t record_rays = 0;
+    for (int k = 0; k < R; ++k) {
+      const GatherPasses p = FinalGather(mesh, solution,
+                                         GatherOptions{.width = kFloorW, .height = kFloorH, .spp = spp, .seed = seed0 + static_cast<uint64_t>(k), .cache = cache})
+                                 .render(camera);
+      record_rays += p.record_rays;
+      for (int r = 0; r < rows; ++r) {
+        double row = 0.0;
+        for (int x = 0; x < kFloorW; ++x) row += p.combined.at(x, first + r).x / kFloorW;
+        sum[static_cast<std::size_t>(r)] += row, sq[static_cast<std::size_t>(r)] += row * row;
+      }
+    }
+    EXPECT_EQ(record_rays > 0, cache);
+    for (std::size_t r = 0; r < want.size(); ++r) {
+      const double mean = sum[r] / R, se = std::sqrt(std::max(0.0, (sq[r] - R * mean * mean) / (R - 1)) / R);
+      EXPECT_NEAR(mean, want[r], 6.0 * se) << what << ", row " << first + static_cast<int>(r) << (cache ? ", cache" : ", no cache");
+      std::printf("%s, %s, row %zu: %.6f, closed form %.6f (%+.2f %%), standard error %.3f %%\n", what, cache ? "cache" : "no cache",
+                  first + r, mean, want[r], 100.0 * (mean / want[r] - 1.0), 100.0 * se / want[r]);
+    }
+  }
+}
+
 // The indirect light beside a concave edge, where the cache's grid would extrapolate: a floor
 // (rho 0.5, z = 0, x > 0) meeting a low wall (x = 0, facing +x, height 0.1) that reflects nothing
 // but whose solution is B = 1. A floor point's radiance is all indirect, rho B F with F its form
@@ -628,42 +681,8 @@ TEST(Gather, TheIndirectLightBesideAConcaveEdgeMatchesItsClosedForm) {
   // W = H = 32 (up is +x), so the edge x = 0 lies at y = 23.5 for eye x = 0.46875.
   const float eye_x = 0.46875f;
   const Camera camera{{eye_x, 0, 1}, {eye_x, 0, 0}, {1, 0, 0}, 90.0f};
-  constexpr int W = 32, H = 32, R = 8, spp = 256;
-  const CameraFrame f = camera_frame(camera, W, H);
-  const std::vector<glm::dvec3> face{{0, -3, 0}, {0, 3, 0}, {0, 3, height}, {0, -3, height}};
-  // What a view direction sees: the floor's radiance, or 0 (the wall, or past it).
-  auto radiance = [&](const glm::dvec3& d) {
-    const glm::dvec3 at = f.eye + d * (-f.eye.z / d.z);
-    return at.x > 0.0 ? 0.5 * polygon_form_factor(at, {0, 0, 1}, face) : 0.0;
-  };
-  ASSERT_NEAR(f.eye.x + f.direction(16, 23.5).x * (-f.eye.z / f.direction(16, 23.5).z), 0.0, 1e-9) << "the edge lies mid-row";
-  std::array<double, 2> want{};  // rows 22 and 23, from 8 x 8 points of each pixel
-  for (int r = 0; r < 2; ++r)
-    for (int x = 0; x < W; ++x)
-      for (int j = 0; j < 8; ++j)
-        for (int i = 0; i < 8; ++i) want[static_cast<std::size_t>(r)] += radiance(f.direction(x + (i + 0.5) / 8, 22 + r + (j + 0.5) / 8)) / (64.0 * W);
-  for (const bool cache : {true, false}) {
-    std::array<double, 2> sum{}, sq{};
-    uint64_t record_rays = 0;
-    for (int k = 0; k < R; ++k) {
-      const GatherPasses p =
-          FinalGather(mesh, solution, GatherOptions{.width = W, .height = H, .spp = spp, .seed = static_cast<uint64_t>(71 + k), .cache = cache})
-              .render(camera);
-      record_rays += p.record_rays;
-      for (int r = 0; r < 2; ++r) {
-        double row = 0.0;
-        for (int x = 0; x < W; ++x) row += p.combined.at(x, 22 + r).x / W;
-        sum[static_cast<std::size_t>(r)] += row, sq[static_cast<std::size_t>(r)] += row * row;
-      }
-    }
-    EXPECT_EQ(record_rays > 0, cache);
-    for (std::size_t r = 0; r < 2; ++r) {
-      const double mean = sum[r] / R, se = std::sqrt(std::max(0.0, (sq[r] - R * mean * mean) / (R - 1)) / R);
-      EXPECT_NEAR(mean, want[r], 6.0 * se) << "row " << 22 + r << (cache ? ", cache" : ", no cache");
-      std::printf("beside an edge, %s, row %zu: %.5f, closed form %.5f (%+.2f %%), standard error %.3f %%\n", cache ? "cache" : "no cache", 22 + r,
-                  mean, want[r], 100.0 * (mean / want[r] - 1.0), 100.0 * se / want[r]);
-    }
-  }
+  ASSERT_NEAR(camera_ray_floor_x(camera, 23.5), 0.0, 1e-9) << "the edge lies mid-row";
+  expect_rows_match_lambert(mesh, solution, camera, {{0, -3, 0}, {0, 3, 0}, {0, 3, height}, {0, -3, height}}, 22, 2, 71, "beside an edge");
 }
 
 // The indirect light beside a lamp hung 1.5 cm under a ceiling, where the light that leaves the gap
@@ -691,39 +710,8 @@ TEST(Gather, TheIndirectLightBesideALampUnderACeilingMatchesItsClosedForm) {
   // so the edge x = 0 lies at y = 16.25 for eye x = 1 / 64.
   const float eye_x = 0.015625f;
   const Camera camera{{eye_x, 0, 1}, {eye_x, 0, 0}, {1, 0, 0}, 90.0f};
-  constexpr int W = 32, H = 32, R = 8, spp = 256;
-  const CameraFrame f = camera_frame(camera, W, H);
-  const std::vector<glm::dvec3> face{{-3, -3, h}, {-3, 3, h}, {0, 3, h}, {0, -3, h}};
-  auto radiance = [&](const glm::dvec3& d) {
-    const glm::dvec3 at = f.eye + d * (-f.eye.z / d.z);
-    return at.x > 0.0 ? 0.5 * polygon_form_factor(at, {0, 0, 1}, face) : 0.0;
-  };
-  ASSERT_NEAR(f.eye.x + f.direction(16, 16.25).x * (-f.eye.z / f.direction(16, 16.25).z), 0.0, 1e-9) << "the edge";
-  constexpr int first = 13, rows = 3;
-  std::array<double, rows> want{};  // from 8 x 8 points of each pixel
-  for (int r = 0; r < rows; ++r)
-    for (int x = 0; x < W; ++x)
-      for (int j = 0; j < 8; ++j)
-        for (int i = 0; i < 8; ++i) want[static_cast<std::size_t>(r)] += radiance(f.direction(x + (i + 0.5) / 8, first + r + (j + 0.5) / 8)) / (64.0 * W);
-  for (const bool cache : {true, false}) {
-    std::array<double, rows> sum{}, sq{};
-    for (int k = 0; k < R; ++k) {
-      const GatherPasses p =
-          FinalGather(mesh, solution, GatherOptions{.width = W, .height = H, .spp = spp, .seed = static_cast<uint64_t>(91 + k), .cache = cache})
-              .render(camera);
-      for (int r = 0; r < rows; ++r) {
-        double row = 0.0;
-        for (int x = 0; x < W; ++x) row += p.combined.at(x, first + r).x / W;
-        sum[static_cast<std::size_t>(r)] += row, sq[static_cast<std::size_t>(r)] += row * row;
-      }
-    }
-    for (std::size_t r = 0; r < rows; ++r) {
-      const double mean = sum[r] / R, se = std::sqrt(std::max(0.0, (sq[r] - R * mean * mean) / (R - 1)) / R);
-      EXPECT_NEAR(mean, want[r], 6.0 * se) << "row " << first + static_cast<int>(r) << (cache ? ", cache" : ", no cache");
-      std::printf("beside a lamp's gap, %s, row %zu: %.6f, closed form %.6f (%+.2f %%), standard error %.3f %%\n", cache ? "cache" : "no cache",
-                  first + r, mean, want[r], 100.0 * (mean / want[r] - 1.0), 100.0 * se / want[r]);
-    }
-  }
+  ASSERT_NEAR(camera_ray_floor_x(camera, 16.25), 0.0, 1e-9) << "the edge";
+  expect_rows_match_lambert(mesh, solution, camera, {{-3, -3, h}, {-3, 3, h}, {0, 3, h}, {0, -3, h}}, 13, 3, 91, "beside a lamp's gap");
 }
 
 // Tiles: any split of the image, on any number of threads, is the same image bit for bit.
