@@ -20,11 +20,10 @@ import math
 import os
 import sys
 
-import bmesh
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from blender_scene import clear_scene, material  # noqa: E402
+from blender_scene import box, clear_scene, cut, material, plane_wall, shell  # noqa: E402
 
 out = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else os.getcwd()
 clear_scene()
@@ -43,45 +42,6 @@ lamp_warm = material("LampWarm", (0.8, 0.8, 0.8), (1.0, 0.85, 0.65), 8.0)
 sky = material("Sky", (0.0, 0.0, 0.0), (0.55, 0.7, 1.0), 2.0)
 
 
-def box(name, mat, x0, y0, z0, x1, y1, z1):
-    """An axis-aligned box as the default cube moved and scaled (the scale applied)."""
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2))
-    o = bpy.context.object
-    o.name = name
-    o.scale = (x1 - x0, y1 - y0, z1 - z0)
-    bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
-    if mat is not None:
-        o.data.materials.append(mat)
-    return o
-
-
-def cut(wall, name, x0, y0, z0, x1, y1, z1):
-    """A door or window cut by a Boolean difference, applied as an architect does before export."""
-    cutter = box(name, None, x0, y0, z0, x1, y1, z1)
-    cutter.display_type = "WIRE"
-    bpy.context.view_layer.objects.active = wall
-    mod = wall.modifiers.new(name, "BOOLEAN")
-    mod.operation = "DIFFERENCE"
-    mod.object = cutter
-    bpy.ops.object.modifier_apply(modifier=mod.name)
-    bpy.data.objects.remove(cutter, do_unlink=True)
-
-
-def plane_wall(name, mat, points, faces, flip=False):
-    """A zero-thickness wall: one mesh of quads through `points` (x, y, z)."""
-    mesh = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    verts = [bm.verts.new(p) for p in points]
-    for f in faces:
-        bm.faces.new([verts[i] for i in (reversed(f) if flip else f)])
-    bm.to_mesh(mesh)
-    bm.free()
-    o = bpy.data.objects.new(name, mesh)
-    bpy.context.collection.objects.link(o)
-    o.data.materials.append(mat)
-    return o
-
-
 def panel(name, mat, cx, cy, sx, sy, z):
     """A rectangular plane lamp facing down at height z."""
     bpy.ops.mesh.primitive_plane_add(size=1.0, location=(cx, cy, z))
@@ -94,12 +54,7 @@ def panel(name, mat, cx, cy, sx, sy, z):
 
 
 # Slabs and outer walls (20 cm).
-box("Floor", wood, -0.2, -0.2, -0.2, 8.2, 6.2, 0.0)
-box("CeilingSlab", ceiling_white, -0.2, -0.2, H, 8.2, 6.2, H + 0.2)
-south = box("WallSouth", plaster, -0.2, -0.2, 0.0, 8.2, 0.0, H)
-box("WallNorth", plaster, -0.2, 6.0, 0.0, 8.2, 6.2, H)
-box("WallWest", plaster, -0.2, 0.0, 0.0, 0.0, 6.0, H)
-box("WallEast", plaster, 8.0, 0.0, 0.0, 8.2, 6.0, H)
+south = shell(8.0, 6.0, H, 0.2, wood, ceiling_white, plaster)
 cut(south, "Window", 1.5, -0.3, 0.9, 3.5, 0.1, 2.1)
 
 # The living/bedroom wall (10 cm) with two doors: living -> bedroom and hall -> bath.

@@ -15,11 +15,10 @@ import math
 import os
 import sys
 
-import bmesh
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from blender_scene import clear_scene, material  # noqa: E402
+from blender_scene import box, clear_scene, cut, material, plane_wall, shell  # noqa: E402
 
 out = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv else os.getcwd()
 clear_scene()
@@ -40,74 +39,25 @@ building.rotation_euler = (0.0, 0.0, math.radians(30.0))
 building.location = (1.0, -0.5, 0.0)
 
 
-def adopt(o):
-    o.parent = building
-    return o
-
-
-def box(name, mat, x0, y0, z0, x1, y1, z1):
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2))
-    o = bpy.context.object
-    o.name = name
-    o.scale = (x1 - x0, y1 - y0, z1 - z0)
-    bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
-    if mat is not None:
-        o.data.materials.append(mat)
-    return adopt(o)
-
-
-def cut(wall, name, x0, y0, z0, x1, y1, z1):
-    """A door or window cut by a Boolean difference (the cutter in the wall's own frame), applied."""
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2))
-    cutter = bpy.context.object
-    cutter.scale = (x1 - x0, y1 - y0, z1 - z0)
-    cutter.parent = building
-    bpy.context.view_layer.update()
-    bpy.context.view_layer.objects.active = wall
-    mod = wall.modifiers.new(name, "BOOLEAN")
-    mod.operation = "DIFFERENCE"
-    mod.object = cutter
-    bpy.ops.object.modifier_apply(modifier=mod.name)
-    bpy.data.objects.remove(cutter, do_unlink=True)
-
-
-def plane(name, mat, points, flip=False):
-    mesh = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    verts = [bm.verts.new(p) for p in points]
-    bm.faces.new(list(reversed(verts)) if flip else verts)
-    bm.to_mesh(mesh)
-    bm.free()
-    o = bpy.data.objects.new(name, mesh)
-    bpy.context.collection.objects.link(o)
-    o.data.materials.append(mat)
-    return adopt(o)
-
-
-box("Floor", floor_wood, -0.15, -0.15, -0.2, 6.15, 4.15, 0.0)
-box("CeilingSlab", ceiling_white, -0.15, -0.15, H, 6.15, 4.15, H + 0.2)
-south = box("WallSouth", plaster, -0.15, -0.15, 0.0, 6.15, 0.0, H)
-box("WallNorth", plaster, -0.15, 4.0, 0.0, 6.15, 4.15, H)
-box("WallWest", plaster, -0.15, 0.0, 0.0, 0.0, 4.0, H)
-box("WallEast", plaster, 6.0, 0.0, 0.0, 6.15, 4.0, H)
-cut(south, "Window", 1.0, -0.25, 0.8, 3.0, 0.1, 2.2)
-closet_x = box("ClosetWallX", plaster, 4.45, 2.45, 0.0, 4.55, 4.0, H)
-box("ClosetWallY", plaster, 4.55, 2.45, 0.0, 6.0, 2.55, H)
-cut(closet_x, "ClosetDoor", 4.4, 3.0, -0.1, 4.6, 3.8, 2.05)
+south = shell(6.0, 4.0, H, 0.15, floor_wood, ceiling_white, plaster, building)
+cut(south, "Window", 1.0, -0.25, 0.8, 3.0, 0.1, 2.2, building)
+closet_x = box("ClosetWallX", plaster, 4.45, 2.45, 0.0, 4.55, 4.0, H, building)
+box("ClosetWallY", plaster, 4.55, 2.45, 0.0, 6.0, 2.55, H, building)
+cut(closet_x, "ClosetDoor", 4.4, 3.0, -0.1, 4.6, 3.8, 2.05, building)
 
 # The divider: two coincident planes, red facing the window (-y), white facing the bed (+y).
 pts = [(1.0, 2.0, 0.0), (3.0, 2.0, 0.0), (3.0, 2.0, 1.4), (1.0, 2.0, 1.4)]
-plane("DividerRed", red, pts)              # normal -y (counter-clockwise seen from -y)
-plane("DividerWhite", white, pts, flip=True)
+plane_wall("DividerRed", red, pts, [(0, 1, 2, 3)], parent=building)  # normal -y (counter-clockwise seen from -y)
+plane_wall("DividerWhite", white, pts, [(0, 1, 2, 3)], flip=True, parent=building)
 
 # The round lamp: lid 1 cm under the ceiling.
 bpy.ops.mesh.primitive_cylinder_add(vertices=32, radius=0.3, depth=0.03, location=(2.0, 1.2, H - 0.01 - 0.015))
 disc = bpy.context.object
 disc.name = "LampDisc"
 disc.data.materials.append(lamp)
-adopt(disc)
+disc.parent = building
 
-box("Bed", linen, 1.2, 2.6, 0.0, 3.2, 3.9, 0.45)
+box("Bed", linen, 1.2, 2.6, 0.0, 3.2, 3.9, 0.45, building)
 
 bpy.ops.mesh.primitive_plane_add(size=1.0, location=(2.0, -2.0, 1.5))
 sky_plane = bpy.context.object
@@ -115,14 +65,14 @@ sky_plane.name = "Sky"
 sky_plane.scale = (6.0, 3.5, 1.0)
 sky_plane.rotation_euler = (-math.pi / 2, 0.0, 0.0)  # normal +y, towards the window
 sky_plane.data.materials.append(sky)
-adopt(sky_plane)
+sky_plane.parent = building
 
 # The camera: 24 mm, 16:9, by the east wall looking back at the divider and the window.
 bpy.ops.object.camera_add(location=(5.6, 0.4, 1.5))
 cam = bpy.context.object
 cam.name = "View"
 cam.data.lens = 24.0
-adopt(cam)
+cam.parent = building
 bpy.context.view_layer.update()
 target = building.matrix_world @ __import__("mathutils").Vector((2.0, 2.0, 1.0))
 cam_world = cam.matrix_world.translation.copy()
