@@ -48,7 +48,8 @@ void check_job_name(const std::string& name) {
 std::string job_json(const Job& j) {
   nlohmann::json o = {{"id", j.id},           {"name", j.name},         {"scene", j.scene},         {"args", j.args},
                       {"priority", j.priority}, {"state", j.state},     {"submitted", j.submitted}, {"started", j.started},
-                      {"finished", j.finished}, {"error", j.error},     {"runs", j.runs}};
+                      {"finished", j.finished}, {"error", j.error},     {"runs", j.runs},
+                      {"lost_runs", j.lost_runs}};
   return o.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
@@ -85,10 +86,11 @@ Job job_from_json(const std::string& text, const std::string& origin) {
   job.error = field<std::string>(j, "error", origin);
   if (job.error.size() > kMaxJobFileBytes / 4) job.error.resize(kMaxJobFileBytes / 4);
   job.runs = field<uint32_t>(j, "runs", origin);
+  if (j.contains("lost_runs")) job.lost_runs = field<uint32_t>(j, "lost_runs", origin);  // absent in older stores
   return job;
 }
 
-JobStore::JobStore(std::string dir) : dir_(std::move(dir)) {
+JobStore::JobStore(std::string dir, double now) : dir_(std::move(dir)) {
   std::error_code ec;
   fs::create_directories(fs::path(dir_) / "jobs", ec);
   if (ec) fail("{}: cannot make the farm's folder: {}", dir_, ec.message());
@@ -109,8 +111,16 @@ JobStore::JobStore(std::string dir) : dir_(std::move(dir)) {
     try {
       job = job_from_json(read_file_whole(path, "job", kMaxJobFileBytes), path);
       if (job.id != id) fail("{}: 'id' {} is not its folder's", path, job.id);
-      if (job.state == "running") {  // stopped mid-run: queued again, it resumes from its checkpoint
-        job.state = "queued";
+      if (job.state == "running") {  // the farm died while it ran
+        if (++job.lost_runs >= kMaxLostRuns) {
+          job.state = "failed";
+          job.error = fmt::format("the farm stopped {} times in a row while this job ran (its input may crash the farm); "
+                                  "submit it again to retry",
+                                  job.lost_runs);
+          job.finished = now;
+        } else {
+          job.state = "queued";  // it resumes from its checkpoint
+        }
         write(job);
       }
     } catch (const Error& e) {  // shown as failed; the damaged file stays as it is
@@ -199,7 +209,18 @@ void JobStore::finished(uint64_t id, const std::string& state, const std::string
   j->state = state;
   j->error = error;
   j->finished = now;
+  j->lost_runs = 0;
   std::erase(cancel_requested_, id);
+  write(*j);
+}
+
+void JobStore::stopped(uint64_t id) {
+  std::lock_guard lock(mutex_);
+  Job* j = find(id);
+  if (!j) fail("no job {}", id);
+  if (j->state != "running") return;
+  j->state = "queued";
+  j->lost_runs = 0;
   write(*j);
 }
 

@@ -25,7 +25,17 @@ struct Job {
   double submitted = 0, started = 0, finished = 0;  // Unix seconds (0: not yet)
   std::string error;               // failed: why; cancelled: by whom
   uint32_t runs = 0;               // times it was started (a restart resumes it: 2 or more)
+  // Runs in a row that the farm died in: left `running` on disk, which only a farm that stopped
+  // without ending them leaves (a stop checkpoints a job and queues it; an end records it).
+  uint32_t lost_runs = 0;
 };
+
+// After this many lost runs in a row a farm's restart fails the job instead of resuming it: a
+// job whose input crashes the farm's process (through code the farm runs for it: the scene's
+// import and checks, its preview, the coordinator's checks of tiles) would otherwise take the
+// farm down again at every start. One loss is resumed, since a farm also dies of causes that
+// are no job's (a power cut, kill -9).
+inline constexpr uint32_t kMaxLostRuns = 2;
 
 // The bounds a job must keep (what a submission or a job file may claim).
 inline constexpr std::size_t kMaxJobs = 100000;
@@ -45,8 +55,9 @@ void check_job_name(const std::string& name);
 class JobStore {
  public:
   // Opens (making it) DIR and DIR/jobs and reads every job there. A job left `running` (the
-  // coordinator stopped or died) is queued again: it resumes from its checkpoint.
-  explicit JobStore(std::string dir);
+  // farm died while it ran) counts a lost run and is queued again to resume from its checkpoint,
+  // or is failed with the reason at its kMaxLostRuns-th loss in a row (`now`: that time).
+  JobStore(std::string dir, double now);
 
   // A new queued job (its folder, scene.bin when `scene_bytes` is given, job.json). Throws
   // sirad::Error for a bad name, too many args or jobs.
@@ -60,6 +71,9 @@ class JobStore {
   // State changes, each written to job.json before it returns.
   void started(uint64_t id, double now);
   void finished(uint64_t id, const std::string& state, const std::string& error, double now);
+  // A running job the farm stopped at its checkpoint (the farm itself stopping): queued again,
+  // its lost runs forgiven.
+  void stopped(uint64_t id);
   // A queued job is cancelled at once; a running one is marked (cancel_requested) for the
   // farm to stop. False: no such job, or it has ended.
   bool cancel(uint64_t id, double now);

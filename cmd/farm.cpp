@@ -217,7 +217,7 @@ class Farm {
           fs::remove(fs::path(store_.folder(id)) / "checkpoint");
           fs::remove(fs::path(store_.folder(id)) / "preview.png");
         } else if (stopping && r.interrupt.load()) {
-          // Stays "running" on disk: queued again at the next start, from its checkpoint.
+          store_.stopped(id);  // queued: it resumes from its checkpoint at the next start
           say(logging::Level::info, fmt::format("job {} checkpointed; it resumes when the farm starts again", id),
               {{"event", "job stopped"}, {"job", id}});
           it = jobs_.erase(it);

@@ -5,7 +5,9 @@
 // (i + 0.5, j + 0.5); `vfov_deg` is the field of view across the height, centred on the view
 // direction; the frame is right-handed: right = forward x up.
 #pragma once
+#include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <numbers>
 
 #include <glm/geometric.hpp>
@@ -56,6 +58,27 @@ inline CameraFrame camera_frame(const Camera& camera, int width, int height, con
   f.width = width;
   f.height = height;
   return f;
+}
+
+// How far from a scene its camera may stand, in radii of the scene's bounding sphere. From
+// 1e4 radii a float ray's origin is still finer than 1e-3 of the scene (float's spacing there is
+// 1e4 * 6e-8 radii), and the scene fills a view of 0.01 degrees; much farther, rays lose the
+// scene to rounding, and Embree refuses (aborts on) origins beyond about 1.8e18.
+inline constexpr double kMaxEyeDistanceRadii = 1e4;
+
+// Throws sirad::Error (`what` first) for a camera with a non-finite number or whose eye is more
+// than kMaxEyeDistanceRadii radii from the scene's bounding sphere (`centre`, `radius`): a
+// camera that renders nothing a float can place, checked where a view meets its scene (the
+// scene check of every run, and each final gather).
+inline void check_camera_reach(const Camera& camera, const glm::vec3& centre, float radius, const char* what) {
+  for (const glm::vec3& v : {camera.eye, camera.look_at, camera.up})
+    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z) || !std::isfinite(camera.vfov_deg))
+      fail("{}: the camera has a number that is not finite", what);
+  const double r = std::max(static_cast<double>(radius), 1e-6);
+  const double d = glm::length(glm::dvec3(camera.eye) - glm::dvec3(centre));
+  if (!(d <= kMaxEyeDistanceRadii * r))
+    fail("{}: the camera's eye is {:.3g} from the scene's centre, over {:.0g} times the scene's radius {:.3g}", what, d,
+         kMaxEyeDistanceRadii, r);
 }
 
 }  // namespace sirad

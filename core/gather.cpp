@@ -635,6 +635,7 @@ GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, i
   const GatherOptions& o = impl_->options;
   if (x0 < 0 || y0 < 0 || x1 > o.width || y1 > o.height || x0 > x1 || y0 > y1)
     fail("final gather: region [{}, {}) x [{}, {}) is not within the {}x{} image", x0, x1, y0, y1, o.width, o.height);
+  check_camera_reach(camera, impl_->mesh.bound_center, impl_->mesh.bound_radius, "final gather");
   const CameraFrame frame = camera_frame(camera, o.width, o.height, "final gather");
   GatherPasses out = GatherPasses::of_size(x1 - x0, y1 - y0);
   // The work: the region's parts in tiles of the cache's grid (kCacheSpacing pixels a side),

@@ -154,6 +154,10 @@ SceneCheck check_scene(const Scene& scene, PatchMesh& mesh, const std::optional<
     if (!mesh.camera) mesh.camera = default_camera(scene);
     return out;
   }
+  if (mesh.camera) {
+    const std::string what = camera ? given_by : scene.name + ": its camera";
+    check_camera_reach(*mesh.camera, mesh.bound_center, mesh.bound_radius, what.c_str());
+  }
   const RayScene rays(mesh, ray_offset(mesh), true);  // one quick build for both checks
   if (!mesh.camera) {
     double seen = 0.0;

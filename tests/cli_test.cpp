@@ -705,6 +705,27 @@ TEST_F(ModelCli, ChargesTheLinksOfAProfile) {
 // radiosity, the camera and the background); combined = direct + indirect; a walkthrough file
 // images each of its views; a PLY that is a scene, not a solution, and a bad view are refused
 // with one line naming them.
+// A camera that no float ray can place (an eye 1e20 away: Embree aborts the process on such a
+// ray's origin) is refused with one line where the view meets the scene: as a flag of `image`
+// and of `render`, and as a scene file's camera line. An eye 1e3 radii away (a telephoto view)
+// still renders.
+TEST_F(Cli, ACameraBeyondTheScenesReachIsRefusedNotAborted) {
+  Outcome r = sirad("render cornell --patches 200 --bundles 8 -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* f : {"cornell.exr", "cornell.png", "cornell.glb"}) fs::remove(dir_ / f);
+  fs::create_directory(dir_ / "in");  // (out of expect_error's sight: it finds no output in dir_)
+  fs::rename(dir_ / "cornell.ply", dir_ / "in" / "solved.ply");
+  const std::string far = "--camera 'eye 1e20 0 0 look 0 0 0 up 0 1 0 fov 60' --width 16 --height 16";
+  expect_error(sirad("image in/solved.ply " + far + " --spp 1 --out far"), "the camera's eye is 1e+20 from the scene's centre");
+  expect_error(sirad("render cornell --patches 200 --bundles 8 --final-gather 1 " + far), "--camera");
+  expect_error(sirad("image in/solved.ply --camera 'eye inf 0 0 look 0 0 0 up 0 1 0 fov 60' --spp 1 --out far"), "camera");
+  write("room.mtl", kTinyMtl);
+  write("room.obj", std::string("# sirad camera eye 0.5 0.5 3e19 look 0.5 0.5 0.5 up 0 1 0 fov 40\n") + kTinyRoom);
+  expect_error(sirad("render room.obj --bundles 4 --final-gather 1 --width 8 --height 8"), "room.obj: its camera");
+  Outcome tele = sirad("image in/solved.ply --camera 'eye 278 273 -5e5 look 278 273 0 up 0 1 0 fov 0.1' --width 8 --height 8 --spp 1 --out tele -q");
+  EXPECT_EQ(tele.status, 0) << tele.err;
+}
+
 TEST_F(Cli, ImageOfAStoredSolutionIsTheRendersFinalGather) {
   Outcome r = sirad("render cornell --patches 400 --bundles 64 --width 24 --height 20 --final-gather 4 -q");
   ASSERT_EQ(r.status, 0) << r.err;

@@ -24,7 +24,7 @@ struct TempDir {
 
 TEST(JobStore, RunsTheHighestPriorityFirstThenTheOldest) {
   TempDir d;
-  JobStore store(d.path.string());
+  JobStore store(d.path.string(), 0);
   EXPECT_FALSE(store.next());
   const Job a = store.submit("a", "cornell", "", {"--bundles", "10"}, 0, 100);
   const Job b = store.submit("b", "cornell", "", {}, 5, 101);
@@ -34,11 +34,11 @@ TEST(JobStore, RunsTheHighestPriorityFirstThenTheOldest) {
   store.started(b.id, 110);
   EXPECT_EQ(store.next()->id, c.id);
   {
-    JobStore again(d.path.string());  // the farm restarted with b running: back in the queue, first again
+    JobStore again(d.path.string(), 0);  // the farm restarted with b running: back in the queue, first again
     EXPECT_EQ(again.get(b.id)->state, "queued");
     EXPECT_EQ(again.next()->id, b.id);
   }
-  JobStore s2(d.path.string());  // the restarted farm's store
+  JobStore s2(d.path.string(), 0);  // the restarted farm's store
   s2.started(b.id, 111);
   EXPECT_EQ(s2.get(b.id)->runs, 2u);
   EXPECT_EQ(s2.get(b.id)->started, 110);  // the first start is kept
@@ -53,20 +53,66 @@ TEST(JobStore, RunsTheHighestPriorityFirstThenTheOldest) {
   EXPECT_FALSE(s2.cancel(99, 132));    // no such job
 }
 
+// A job left running on disk is one the farm died in. The first loss resumes it; the second
+// in a row fails it with the reason, so a job whose input crashes the farm's process cannot
+// take the farm down at every start. A run that ends, or that the farm stops at its
+// checkpoint, forgives the losses.
+TEST(JobStore, AJobTheFarmDiesInTwiceInARowIsFailedNotResumed) {
+  TempDir d;
+  {
+    JobStore store(d.path.string(), 0);
+    store.submit("poison", "cornell", "", {}, 0, 1);
+    store.submit("fine", "cornell", "", {}, 0, 2);
+    store.started(1, 3);
+  }  // the farm dies with job 1 running
+  {
+    JobStore again(d.path.string(), 10);
+    EXPECT_EQ(again.get(1)->state, "queued");
+    EXPECT_EQ(again.get(1)->lost_runs, 1u);
+    again.started(1, 11);
+  }  // and dies again in it
+  {
+    JobStore third(d.path.string(), 20);
+    const Job j = *third.get(1);
+    EXPECT_EQ(j.state, "failed");
+    EXPECT_EQ(j.finished, 20);
+    EXPECT_NE(j.error.find("stopped 2 times in a row"), std::string::npos) << j.error;
+    EXPECT_EQ(third.next()->id, 2u);  // the farm goes on with the others
+    third.started(2, 21);
+    third.stopped(2);  // the farm stops, checkpointing job 2: not a loss
+  }
+  {
+    JobStore fourth(d.path.string(), 30);
+    EXPECT_EQ(fourth.get(2)->state, "queued");
+    EXPECT_EQ(fourth.get(2)->lost_runs, 0u);
+    fourth.started(2, 31);
+  }  // one loss
+  {
+    JobStore fifth(d.path.string(), 40);
+    EXPECT_EQ(fifth.get(2)->lost_runs, 1u);
+    fifth.started(2, 41);
+    fifth.stopped(2);  // then a clean stop: forgiven
+  }
+  JobStore sixth(d.path.string(), 50);
+  EXPECT_EQ(sixth.get(2)->state, "queued");
+  EXPECT_EQ(sixth.get(2)->lost_runs, 0u);
+  EXPECT_EQ(sixth.get(1)->state, "failed");  // stays failed
+}
+
 // Every change is on disk: a new store of the same folder sees the same jobs, a job that was
 // running is queued again (its process stopped mid-run; it resumes from its checkpoint), and
 // new ids continue after the highest.
 TEST(JobStore, SurvivesARestartAndQueuesTheJobThatWasRunning) {
   TempDir d;
   {
-    JobStore store(d.path.string());
+    JobStore store(d.path.string(), 0);
     store.submit("done-one", "cornell", "", {}, 0, 1);
     store.submit("uploaded", "", std::string("SCENEBYTES"), {"--patches", "300"}, 2, 2);
     store.started(1, 3);
     store.finished(1, "done", "", 4);
     store.started(2, 5);
   }
-  JobStore again(d.path.string());
+  JobStore again(d.path.string(), 0);
   ASSERT_EQ(again.list().size(), 2u);
   EXPECT_EQ(again.get(1)->state, "done");
   EXPECT_EQ(again.get(1)->finished, 4);
@@ -92,14 +138,14 @@ TEST(JobStore, SurvivesARestartAndQueuesTheJobThatWasRunning) {
 TEST(JobStore, HostileJobFilesAndSubmissionsAreRefused) {
   TempDir d;
   {
-    JobStore store(d.path.string());
+    JobStore store(d.path.string(), 0);
     for (int i = 0; i < 5; ++i) store.submit(fmt::format("j{}", i), "cornell", "", {}, 0, i);
   }
   const std::vector<std::string> bad = {"{not json", "[1, 2]", R"({"id": 2})",
                                         R"({"id": 3, "name": "../../etc", "scene": "", "args": [], "priority": 0, "state": "queued", "submitted": 0, "started": 0, "finished": 0, "error": "", "runs": 0})",
                                         R"({"id": 4, "name": "x", "scene": "", "args": [], "priority": 0, "state": "exploded", "submitted": 0, "started": 0, "finished": 0, "error": "", "runs": 0})"};
   for (std::size_t i = 0; i < bad.size(); ++i) std::ofstream(d.path / "jobs" / std::to_string(i + 1) / "job.json") << bad[i];
-  JobStore store(d.path.string());
+  JobStore store(d.path.string(), 0);
   ASSERT_EQ(store.list().size(), 5u);
   for (uint64_t id = 1; id <= 5; ++id) {
     EXPECT_EQ(store.get(id)->state, "failed") << id;
