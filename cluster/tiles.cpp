@@ -120,6 +120,11 @@ void TilePlan::accept(uint32_t node, uint64_t grant, const std::vector<Range>& d
 }
 
 void TilePlan::abandon(uint32_t node) {
+  if (auto held = outstanding_.find(node); held != outstanding_.end())
+    for (const TileGrant& g : held->second)
+      for (const Range& r : g.tiles)
+        for (uint64_t t = r.first; t < r.last; ++t)
+          if (++losses_[t] >= kMaxTileLosses && !poisoned_) poisoned_ = t;
   ledger_.abandon(node);
   outstanding_.erase(node);
 }

@@ -84,8 +84,13 @@ class TilePlan {
   // `check` throws).
   void accept(uint32_t node, uint64_t grant, const std::vector<Range>& done, const std::vector<std::string>& frames,
               const TileCheck& check = nullptr);
-  // `node` is gone: its outstanding tiles return to be granted again (those it sent stay).
+  // `node` is gone: its outstanding tiles return to be granted again (those it sent stay), each
+  // counting a loss.
   void abandon(uint32_t node);
+  // A tile lost with kMaxTileLosses nodes (each gone, dead or dropped, while it held the tile):
+  // one that may crash whoever renders it, which the image phase must not hand out again.
+  static constexpr uint32_t kMaxTileLosses = 3;
+  std::optional<uint64_t> poisoned() const { return poisoned_; }
   // For tiles no node is left to render: the next free tile (neither granted nor done), now
   // taken by the coordinator itself, or none; then place_here with its passes (of the tile's
   // size).
@@ -103,6 +108,8 @@ class TilePlan {
   Ledger ledger_;
   GatherPasses passes_;
   std::map<uint32_t, std::vector<TileGrant>> outstanding_;  // per node, oldest first
+  std::map<uint64_t, uint32_t> losses_;                    // per tile lost at least once
+  std::optional<uint64_t> poisoned_;
   uint64_t next_id_ = 1;
   static constexpr uint32_t kHere = 0xffffffffu;  // the ledger's node for tiles rendered here
 };

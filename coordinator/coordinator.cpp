@@ -539,6 +539,10 @@ class Coordinator {
     p.due.clear();
     log(p.id, fmt::format("dropped from the image ({}); its outstanding tiles are granted again", why));
     end_image(p);
+    if (std::optional<uint64_t> t = plan.poisoned())
+      fail("image: tile {} was lost with {} nodes, each gone while it rendered the tile: it may crash whoever renders it, so "
+           "it is not handed out again",
+           *t, TilePlan::kMaxTileLosses);
   }
 
   // The image's STOP (without image_follows): the node forgets the run.

@@ -503,6 +503,7 @@ class Node {
       im.grid.emplace(width, height, static_cast<int>(std::min(h.tile(), kMaxSide)));
       im.camera = parse_camera(h.camera());
       camera_frame(im.camera, width, height, "IMAGE");  // a camera that defines a view
+      check_camera_reach(im.camera, im.mesh.bound_center, im.mesh.bound_radius, "IMAGE");  // and that rays can start from
       const std::vector<double> values = proto::unpack(solution);
       if (values.size() != 3 * im.mesh.size()) fail("a solution of {} values for {} patches", values.size() / 3, im.mesh.size());
       std::vector<glm::vec3> radiosity(im.mesh.size());

@@ -136,6 +136,32 @@ TEST(Tiles, APlanGrantsTwoAtATimeAndPlacesWhatFits) {
   EXPECT_EQ(plan.tiles_done_by(0), 3u);
 }
 
+// A tile whose node is lost while it holds it goes back; one lost with kMaxTileLosses nodes is
+// named (the coordinator then ends the image instead of handing it to a next node to crash,
+// and never renders it itself). Tiles a node sent are not counted, nor a node dropped holding
+// nothing.
+TEST(Tiles, ATileLostWithThreeNodesIsNamed) {
+  TilePlan plan(40, 20, 8);  // 5 x 3 tiles
+  for (uint32_t node = 0; node < TilePlan::kMaxTileLosses; ++node) {
+    EXPECT_FALSE(plan.poisoned()) << node;
+    const std::vector<TileGrant> g = plan.top_up(node);
+    ASSERT_EQ(g.size(), 2u);
+    EXPECT_EQ(g[0].tiles, (std::vector<Range>{{0, 1}}));  // the lowest free tiles again
+    plan.abandon(node);
+    plan.abandon(node);  // a second drop of the node holds nothing: no loss
+  }
+  ASSERT_TRUE(plan.poisoned());
+  EXPECT_EQ(*plan.poisoned(), 0u);
+  TilePlan other(40, 20, 8);
+  for (uint32_t node = 0; node < 2 * TilePlan::kMaxTileLosses; ++node) {
+    const std::vector<TileGrant> g = other.top_up(node);
+    const TileRect r = other.grid().rect(g[0].tiles[0].first);
+    other.accept(node, g[0].id, g[0].tiles, {pack_tile(numbered(r.x1 - r.x0, r.y1 - r.y0, r.x0, r.y0))});  // sent: not lost
+    other.abandon(node);  // its second tile lost once: the next node is granted it first and sends it
+  }
+  EXPECT_FALSE(other.poisoned());
+}
+
 // A node's pixel against the same pixel rendered here: equal, or within 1 % relative per
 // channel (another machine's rounding), passes; a channel 2 % off, or off by more than the floor
 // where here's is 0, is refused with the pixel and the channel named.
