@@ -10,6 +10,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json_bounded.h"
 
 namespace sirad::cluster {
 
@@ -56,7 +57,7 @@ std::string job_json(const Job& j) {
 Job job_from_json(const std::string& text, const std::string& origin) {
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(text);
+    j = parse_json_bounded(text, origin, kMaxJobFileBytes);
   } catch (const nlohmann::json::parse_error& e) {
     fail("{}: not JSON: {}", origin, e.what());
   }

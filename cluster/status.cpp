@@ -9,6 +9,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json_bounded.h"
 
 namespace sirad::cluster {
 
@@ -77,8 +78,10 @@ constexpr std::size_t kMaxStatusBytes = std::size_t{1} << 26;
 
 Status read_status(const std::string& path) {
   Json root;
+  const std::string text = read_file_whole(path, "status file", kMaxStatusBytes);
+  check_json_depth(text, path);
   try {
-    root = Json::parse(read_file_whole(path, "status file", kMaxStatusBytes));
+    root = Json::parse(text);
   } catch (const Json::parse_error& e) {
     fail("{}: not a status file ({})", path, e.what());
   }

@@ -1,8 +1,10 @@
 // sirad: the farm's command-line client (see farm_client.h).
 #include "cmd/farm_client.h"
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <random>
 #include <tuple>
 
 #include <fmt/format.h>
@@ -12,6 +14,7 @@
 #include "cmd/farm.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json_bounded.h"
 #include "core/scene.h"
 #include "core/scene_io.h"
 
@@ -59,17 +62,67 @@ httplib::Client client(const Endpoint& e) {
   return c;
 }
 
-// The body of a 2xx answer as JSON; else one line saying what the farm said.
-json answer(const httplib::Result& r, const Endpoint& e, const std::string& what) {
+// The largest answer read from a farm: its list of kMaxJobs jobs is well under it. A farm that
+// sends more is cut off while it sends, not held in memory.
+constexpr std::size_t kMaxAnswerBytes = std::size_t{64} << 20;
+
+// `req` sent to the farm; the body of a 2xx answer as JSON (its size and nesting bounded); else
+// one line saying what the farm said.
+json exchange(httplib::Client& c, httplib::Request req, const Endpoint& e, const std::string& what) {
+  std::string text;
+  bool too_large = false;
+  req.content_receiver = [&](const char* data, std::size_t n, uint64_t, uint64_t) {
+    if (text.size() + n > kMaxAnswerBytes) {
+      too_large = true;
+      return false;
+    }
+    text.append(data, n);
+    return true;
+  };
+  const httplib::Result r = c.send(req);
+  if (too_large) fail("{}: the farm at {} answered with more than {} MiB", what, e.url, kMaxAnswerBytes >> 20);
   if (!r) fail("{}: no answer from the farm at {} ({})", what, e.url, httplib::to_string(r.error()));
   json body;
   try {
-    body = json::parse(r->body);
+    body = parse_json_bounded(text, fmt::format("{}: the answer of the farm at {}", what, e.url), kMaxAnswerBytes);
   } catch (const json::exception&) {
     fail("{}: the farm at {} answered {} with no JSON", what, e.url, r->status);
   }
-  if (r->status / 100 != 2) fail("{}: {}", what, body.is_object() ? body.value("error", r->body) : r->body);
+  if (r->status / 100 != 2) fail("{}: {}", what, body.is_object() ? body.value("error", text) : text);
   return body;
+}
+
+httplib::Request request(const std::string& method, const std::string& path) {
+  httplib::Request req;
+  req.method = method;
+  req.path = path;
+  return req;
+}
+
+// A POST of `items` as multipart/form-data (RFC 7578), with a boundary none of them contains.
+httplib::Request multipart_post(const std::string& path, const httplib::MultipartFormDataItems& items) {
+  static constexpr char kAlphabet[] = "0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz";
+  std::random_device seed;
+  std::mt19937_64 random(seed());
+  std::string boundary;
+  auto in_an_item = [&] {
+    return std::any_of(items.begin(), items.end(), [&](const auto& item) { return item.content.find(boundary) != std::string::npos; });
+  };
+  do {
+    boundary = "sirad-";
+    for (int k = 0; k < 32; ++k) boundary += kAlphabet[random() % (sizeof kAlphabet - 1)];
+  } while (in_an_item());
+  httplib::Request req = request("POST", path);
+  for (const auto& item : items) {
+    req.body += "--" + boundary + "\r\nContent-Disposition: form-data; name=\"" + item.name + "\"";
+    if (!item.filename.empty()) req.body += "; filename=\"" + item.filename + "\"";
+    req.body += "\r\n";
+    if (!item.content_type.empty()) req.body += "Content-Type: " + item.content_type + "\r\n";
+    req.body += "\r\n" + item.content + "\r\n";
+  }
+  req.body += "--" + boundary + "--\r\n";
+  req.set_header("Content-Type", "multipart/form-data; boundary=" + boundary);
+  return req;
 }
 
 }  // namespace
@@ -99,7 +152,7 @@ int submit_job(const FarmAddress& at, const std::string& scene, const std::vecto
   }
   items.push_back({"job", spec.dump(), "job.json", "application/json"});
   httplib::Client c = client(e);
-  json job = answer(c.Post("/api/jobs", items), e, "submit");
+  json job = exchange(c, multipart_post("/api/jobs", items), e, "submit");
   std::printf("submitted job %llu (%s) to %s\n", static_cast<unsigned long long>(job.value("id", uint64_t{0})),
               job.value("name", "").c_str(), e.url.c_str());
   return 0;
@@ -108,7 +161,7 @@ int submit_job(const FarmAddress& at, const std::string& scene, const std::vecto
 int list_jobs(const FarmAddress& at) {
   const Endpoint e = resolve(at, false);
   httplib::Client c = client(e);
-  json body = answer(c.Get("/api/jobs"), e, "jobs");
+  json body = exchange(c, request("GET", "/api/jobs"), e, "jobs");
   std::printf("%-6s %-10s %8s  %-24s %s\n", "id", "state", "priority", "name", "progress");
   for (const json& j : body.value("jobs", json::array())) {
     std::string progress;
@@ -126,7 +179,7 @@ int list_jobs(const FarmAddress& at) {
 int cancel_job(const FarmAddress& at, uint64_t id) {
   const Endpoint e = resolve(at, true);
   httplib::Client c = client(e);
-  json job = answer(c.Post(fmt::format("/api/jobs/{}/cancel", id)), e, fmt::format("cancel {}", id));
+  json job = exchange(c, request("POST", fmt::format("/api/jobs/{}/cancel", id)), e, fmt::format("cancel {}", id));
   std::printf("job %llu: %s\n", static_cast<unsigned long long>(id),
               job.value("state", "") == "cancelled" ? "cancelled" : "cancelling (it stops at its next checkpoint)");
   return 0;

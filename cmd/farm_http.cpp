@@ -15,6 +15,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json_bounded.h"
 #include "core/log.h"
 #include "core/resources.h"
 #include "core/scene.h"
@@ -174,7 +175,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
       if (!req.has_file("job")) fail("the request needs a 'job' part (JSON: name, scene, args, priority)");
       json spec;
       try {
-        spec = json::parse(req.get_file_value("job").content);
+        spec = parse_json_bounded(req.get_file_value("job").content, "job", cluster::kMaxJobFileBytes);
       } catch (const json::exception& e) {
         fail("job: not JSON: {}", e.what());
       }

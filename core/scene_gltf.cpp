@@ -11,6 +11,15 @@
 // renders it); the first perspective camera in the tree as the scene's camera. Punctual lights
 // (KHR_lights_punctual) are refused: sirad's light comes from emitting surfaces. Everything is
 // validated as the OBJ reader validates: one line naming the file and the element.
+//
+// Bounded whatever the file says: its JSON's nesting is checked before tinygltf parses it
+// (tinygltf converts `extras` recursively); external buffers and images are regular files in
+// the scene's folder (relative URIs that stay there after symlinks are resolved; no absolute
+// paths, no schemes but data:), checked before anything opens them; the node tree's triangles
+// are counted before any is made (a mesh instanced by many nodes); an image's size is read from
+// its header before it is decoded.
+#include <sys/stat.h>
+
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -22,6 +31,9 @@
 #include <map>
 #include <numbers>
 #include <string>
+#include <string_view>
+#include <system_error>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -31,6 +43,7 @@
 #include <glm/gtc/quaternion.hpp>
 
 #include "core/error.h"
+#include "core/json_bounded.h"
 #include "core/scene.h"
 #include "core/scene_gltf.h"
 #include "core/scene_import.h"
@@ -43,6 +56,9 @@ using import::kDefaultReflectance;
 using import::kMaxTriangles;
 using import::srgb_to_linear;
 constexpr std::size_t kMaxNodes = std::size_t{1} << 20;
+// The most pixels of an image decoded (8192 x 8192: 512 MiB at 16 bits RGBA). A texture is
+// reduced to its mean colour, which a smaller copy of it gives as well.
+constexpr std::size_t kMaxImagePixels = std::size_t{1} << 26;
 
 // A name from the file as it may appear in messages and outputs.
 std::string clean(const std::string& name) { return import::without_controls(name, 200); }
@@ -76,6 +92,7 @@ class GltfReader {
     };
     std::vector<Item> stack;
     const auto& roots = m_.scenes[static_cast<std::size_t>(which)].nodes;
+    count_triangles(roots);
     for (auto it = roots.rbegin(); it != roots.rend(); ++it) stack.push_back({*it, glm::dmat4(1.0)});
     std::size_t visited = 0;
     while (!stack.empty()) {
@@ -103,6 +120,41 @@ class GltfReader {
   }
 
  private:
+  // The triangles the node tree under `roots` makes, each mesh once per node that uses it, counted
+  // from the accessors' counts before any is made: refused past kMaxTriangles. The walk refuses
+  // what the tree's expansion refuses (a missing node, a node reached twice, too many nodes).
+  void count_triangles(const std::vector<int>& roots) const {
+    constexpr uint64_t kMeshCap = uint64_t{1} << 40;  // times kMaxNodes, still far from overflowing
+    std::vector<uint64_t> of_mesh(m_.meshes.size(), 0);
+    for (std::size_t k = 0; k < m_.meshes.size(); ++k)
+      for (const tinygltf::Primitive& prim : m_.meshes[k].primitives) {
+        auto pos = prim.attributes.find("POSITION");
+        const int accessor = prim.indices >= 0 ? prim.indices : pos != prim.attributes.end() ? pos->second : -1;
+        if (accessor < 0 || accessor >= static_cast<int>(m_.accessors.size())) continue;  // refused when it is read
+        const uint64_t n = std::min<uint64_t>(m_.accessors[static_cast<std::size_t>(accessor)].count, kMeshCap);
+        const bool strip_or_fan = prim.mode == TINYGLTF_MODE_TRIANGLE_STRIP || prim.mode == TINYGLTF_MODE_TRIANGLE_FAN;
+        const uint64_t made = prim.mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : strip_or_fan && n >= 3 ? n - 2 : 0;
+        of_mesh[k] = std::min(of_mesh[k] + made, kMeshCap);
+      }
+    std::vector<char> seen(m_.nodes.size(), 0);
+    std::vector<int> stack(roots.rbegin(), roots.rend());
+    std::size_t visited = 0;
+    uint64_t total = 0;
+    while (!stack.empty()) {
+      const int node = stack.back();
+      stack.pop_back();
+      if (node < 0 || node >= static_cast<int>(m_.nodes.size())) fail("{}: node {} does not exist", path_, node);
+      if (seen[static_cast<std::size_t>(node)]) fail("{}: node {} is reached twice (a cycle or a shared child)", path_, node);
+      seen[static_cast<std::size_t>(node)] = 1;
+      if (++visited > kMaxNodes) fail("{}: more than {} nodes", path_, kMaxNodes);
+      const tinygltf::Node& n = m_.nodes[static_cast<std::size_t>(node)];
+      if (n.mesh >= 0 && n.mesh < static_cast<int>(of_mesh.size())) total += of_mesh[static_cast<std::size_t>(n.mesh)];
+      stack.insert(stack.end(), n.children.rbegin(), n.children.rend());
+    }
+    if (total > kMaxTriangles)
+      fail("{}: its node tree makes {} triangles (each mesh once per node that uses it), more than {}", path_, total, kMaxTriangles);
+  }
+
   std::string where(int node) const {
     const auto& n = m_.nodes[static_cast<std::size_t>(node)];
     return n.name.empty() ? fmt::format("node {}", node) : fmt::format("node {} '{}'", node, clean(n.name));
@@ -401,12 +453,55 @@ class GltfReader {
   }
 };
 
-// Every file tinygltf reads beside the scene (external buffers and images) is read as the scene
-// is (import::read_file: a regular file of at most 2 GiB), whatever a hostile file's URIs name
-// (a device, a FIFO, a huge file).
-bool read_bounded(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+// What tinygltf may read beside the scene: regular files under the scene's folder. tinygltf
+// looks a relative URI up as FOLDER/URI (then ./URI) with FileExists and reads it with
+// ReadWholeFile; both are checked here, before anything is opened (its own FileExists opens the
+// file, and a FIFO blocks that open). A refusal is kept to be the load's one error: tinygltf
+// turns a missing image into a warning.
+struct Confinement {
+  std::string folder;        // as tinygltf joins it with a URI
+  std::filesystem::path canonical_folder;
+  std::string refused;       // the first refusal, or ""
+};
+
+// `joined` (FOLDER/URI) if it is a regular file under the folder once symlinks are resolved;
+// "" (and a refusal kept) if not.
+std::filesystem::path confined(Confinement& c, const std::string& joined) {
+  namespace fs = std::filesystem;
+  auto refuse = [&](const std::string& uri, const char* why) {
+    if (c.refused.empty()) c.refused = fmt::format("URI '{}' {}", import::printable(uri), why);
+    return fs::path();
+  };
+  const std::string prefix = c.folder.ends_with('/') ? c.folder : c.folder + '/';
+  if (joined.size() <= prefix.size() || !joined.starts_with(prefix))
+    return {};  // tinygltf's second try, ./URI: nothing is read from the working folder
+  const std::string uri = joined.substr(prefix.size());
+  if (uri.front() == '/') return refuse(uri, "is an absolute path: external buffers and images are read from the scene's folder");
+  const std::size_t colon = uri.find(':');
+  if (colon != std::string::npos && uri.find('/') > colon)
+    return refuse(uri, "has a scheme: only data: URIs and paths relative to the scene's folder are read");
+  std::error_code ec;
+  const fs::path file = fs::canonical(joined, ec);
+  if (ec) return {};  // no such file: tinygltf says so
+  const fs::path rel = file.lexically_relative(c.canonical_folder);
+  if (rel.empty() || *rel.begin() == "..") return refuse(uri, "names a file outside the scene's folder");
+  struct stat st {};
+  if (::stat(file.c_str(), &st) != 0) return {};
+  if (!S_ISREG(st.st_mode)) return refuse(uri, "is not a regular file (a FIFO, a device or a folder)");
+  return file;
+}
+
+bool exists_confined(const std::string& joined, void* user) {
+  return !confined(*static_cast<Confinement*>(user), joined).empty();
+}
+
+// Read as the scene is (import::read_file: a regular file of at most 2 GiB, opened without
+// blocking), after the same check (the file may have changed since tinygltf found it).
+bool read_confined(std::vector<unsigned char>* out, std::string* err, const std::string& joined, void* user) {
   try {
-    const std::string bytes = import::read_file(path, path);
+    const std::filesystem::path file = confined(*static_cast<Confinement*>(user), joined);
+    if (file.empty()) fail("{}: not readable here", joined);
+    const std::string bytes = import::read_file(file, joined);
     out->assign(bytes.begin(), bytes.end());
     return true;
   } catch (const Error& e) {
@@ -420,23 +515,94 @@ bool no_write(std::string* err, const std::string&, const std::vector<unsigned c
   return false;
 }
 
+uint32_t big_endian(const unsigned char* p) {
+  return static_cast<uint32_t>(p[0]) << 24 | static_cast<uint32_t>(p[1]) << 16 | static_cast<uint32_t>(p[2]) << 8 | p[3];
+}
+
+// Width and height from a PNG's IHDR or a JPEG's start-of-frame (glTF's two image formats), or
+// {0, 0} when `bytes` is neither.
+std::pair<uint64_t, uint64_t> image_size(const unsigned char* bytes, std::size_t size) {
+  static constexpr unsigned char kPng[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (size >= 24 && std::memcmp(bytes, kPng, 8) == 0 && std::memcmp(bytes + 12, "IHDR", 4) == 0)
+    return {big_endian(bytes + 16), big_endian(bytes + 20)};
+  if (size < 4 || bytes[0] != 0xff || bytes[1] != 0xd8) return {0, 0};
+  std::size_t at = 2;  // JPEG: markers FF xx, each but the standalone ones followed by a big-endian length
+  while (at + 4 <= size) {
+    if (bytes[at] != 0xff) return {0, 0};
+    const unsigned char marker = bytes[at + 1];
+    if (marker == 0xff) {  // fill byte
+      ++at;
+      continue;
+    }
+    if (marker == 0x01 || (marker >= 0xd0 && marker <= 0xd7)) {
+      at += 2;
+      continue;
+    }
+    const std::size_t length = static_cast<std::size_t>(bytes[at + 2]) << 8 | bytes[at + 3];
+    const bool frame = marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 && marker != 0xcc;
+    if (frame && at + 9 <= size)
+      return {static_cast<uint64_t>(bytes[at + 7]) << 8 | bytes[at + 8], static_cast<uint64_t>(bytes[at + 5]) << 8 | bytes[at + 6]};
+    if (marker == 0xda || marker == 0xd9 || length < 2) return {0, 0};  // image data before any frame
+    at += 2 + length;
+  }
+  return {0, 0};
+}
+
+// Images are decoded (a base colour texture's mean colour is used) only once their header says
+// they are at most kMaxImagePixels; a PNG or JPEG larger is refused, an image of another format
+// is left undecoded (its texture then warns and baseColorFactor is used).
+bool load_image_bounded(tinygltf::Image* image, const int index, std::string* err, std::string* warn, int req_width,
+                        int req_height, const unsigned char* bytes, int size, void* user) {
+  const auto [width, height] = image_size(bytes, static_cast<std::size_t>(std::max(size, 0)));
+  if (width == 0 || height == 0) return true;
+  if (width * height > kMaxImagePixels) {
+    auto& c = *static_cast<Confinement*>(user);
+    if (c.refused.empty())
+      c.refused = fmt::format("image {} '{}' is {} x {} pixels, more than {} (a texture counts by its mean colour: a smaller copy "
+                              "gives the same)",
+                              index, import::printable(image->uri.empty() ? image->name : image->uri), width, height, kMaxImagePixels);
+    if (err) *err += c.refused + "\n";
+    return false;
+  }
+  return tinygltf::LoadImageData(image, index, err, warn, req_width, req_height, bytes, size, nullptr);
+}
+
+// The JSON of a .gltf, or of a .glb's first chunk ("" when the .glb is too short to have one:
+// tinygltf refuses it).
+std::string_view json_of(const std::string& bytes, bool binary) {
+  if (!binary) return bytes;
+  if (bytes.size() < 20) return {};
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  const std::size_t length = static_cast<std::size_t>(p[12]) | static_cast<std::size_t>(p[13]) << 8 |
+                             static_cast<std::size_t>(p[14]) << 16 | static_cast<std::size_t>(p[15]) << 24;
+  return std::string_view(bytes).substr(20, length);
+}
+
 }  // namespace
 
 Scene import_gltf(const std::string& path, const ImportOptions& options, std::vector<std::array<glm::vec3, 3>>* radiance) {
   const std::string bytes = import::read_file(path, path);
   if (bytes.size() > std::numeric_limits<unsigned int>::max()) fail("{}: file is larger than 2 GiB", path);
-  tinygltf::TinyGLTF loader;
-  loader.SetFsCallbacks({&tinygltf::FileExists, &tinygltf::ExpandFilePath, &read_bounded, &no_write, nullptr});
-  tinygltf::Model model;
-  std::string err, warn;
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  // External buffers and images are found beside the file (tinygltf wants an absolute folder).
-  const std::string dir = std::filesystem::absolute(std::filesystem::path(path)).parent_path().string();
+  check_json_depth(json_of(bytes, ext == ".glb"), path);
+  // External buffers and images are found in the file's folder (tinygltf wants an absolute one).
+  Confinement confinement;
+  confinement.folder = std::filesystem::absolute(std::filesystem::path(path)).parent_path().string();
+  std::error_code ec;
+  confinement.canonical_folder = std::filesystem::canonical(confinement.folder, ec);
+  if (ec) fail("{}: cannot resolve its folder ({})", path, ec.message());
+  tinygltf::TinyGLTF loader;
+  loader.SetFsCallbacks({&exists_confined, &tinygltf::ExpandFilePath, &read_confined, &no_write, &confinement});
+  loader.SetImageLoader(&load_image_bounded, &confinement);
+  tinygltf::Model model;
+  std::string err, warn;
   const auto size = static_cast<unsigned int>(bytes.size());
+  const std::string& dir = confinement.folder;
   bool ok = ext == ".glb"
                 ? loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()), size, dir)
                 : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), size, dir);
+  if (!confinement.refused.empty()) fail("{}: {}", path, confinement.refused);
   auto first_line = [](const std::string& s) {
     const std::string line = s.substr(0, s.find('\n'));
     return import::without_controls(line, 300) + (line.size() > 300 ? "..." : "");

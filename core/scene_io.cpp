@@ -20,7 +20,7 @@ namespace {
 constexpr std::string_view kTag = "sirad-scene-v1", kTagFlags = "sirad-scene-v2";
 static_assert(kTag.size() == kTagFlags.size());
 constexpr uint32_t kUnlit = 1, kInGap = 2;
-constexpr uint32_t kMaxCount = 1u << 26;  // the OBJ reader's own limits
+constexpr uint32_t kMaxCount = 1u << 26;  // at least the readers' own limits (scene_import.h)
 static_assert(std::endian::native == std::endian::little, "the scene encoding is little-endian");
 
 class Writer {

@@ -17,6 +17,12 @@
 #include <string>
 #include <vector>
 
+#include <fcntl.h>
+#include <png.h>
+#include <sys/inotify.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <fmt/format.h>
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
@@ -27,10 +33,13 @@
 #include "core/error.h"
 #include "core/gather.h"
 #include "core/gltf_out.h"
+#include "core/json_bounded.h"
 #include "core/output.h"
 #include "core/mesh.h"
 #include "core/reference.h"
 #include "core/scene.h"
+#include "core/scene_gltf.h"
+#include "core/scene_import.h"
 #include "core/solution.h"
 #include "tests/coincident_scenes.h"
 
@@ -243,10 +252,8 @@ TEST(Gltf, TheSameSceneAsObjAndAsGltfGivesTheSameAnswer) {
   }
 }
 
-// A minimal glTF text around one buffer (base64), one accessor set and one material, with parts
-// replaced by `edit` (key -> JSON text) to make it hostile.
-std::string gltf_text(std::map<std::string, std::string> edit = {}) {
-  // Buffer: 3 float3 positions, then 3 uint16 indices (and 2 bytes of padding).
+// The buffer of gltf_text: 3 float3 positions, then 3 uint16 indices (and 2 bytes of padding).
+std::vector<unsigned char> triangle_buffer() {
   std::vector<unsigned char> bytes;
   auto put_f = [&](float v) {
     unsigned char b[4];
@@ -260,6 +267,10 @@ std::string gltf_text(std::map<std::string, std::string> edit = {}) {
   }
   bytes.push_back(0);
   bytes.push_back(0);
+  return bytes;
+}
+
+std::string base64(const std::vector<unsigned char>& bytes) {
   static const char* b64 = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   std::string enc;
   for (std::size_t i = 0; i < bytes.size(); i += 3) {
@@ -269,6 +280,14 @@ std::string gltf_text(std::map<std::string, std::string> edit = {}) {
     enc += i + 1 < bytes.size() ? b64[(n >> 6) & 63] : '=';
     enc += i + 2 < bytes.size() ? b64[n & 63] : '=';
   }
+  return enc;
+}
+
+// A minimal glTF text around one buffer (base64), one accessor set and one material, with parts
+// replaced by `edit` (key -> JSON text) to make it hostile.
+std::string gltf_text(std::map<std::string, std::string> edit = {}) {
+  const std::vector<unsigned char> bytes = triangle_buffer();
+  const std::string enc = base64(bytes);
   std::map<std::string, std::string> part = {
       {"asset", R"({"version": "2.0"})"},
       {"scenes", R"([{"nodes": [0]}])"},
@@ -358,6 +377,167 @@ TEST_F(GltfFiles, HostileFilesGiveOneLineErrors) {
     const std::string path = write("bad.glb", garbage);
     EXPECT_THROW(load_scene(path), Error);
   }
+}
+
+// A .glb holding `json` as its JSON chunk (padded with spaces) and no binary chunk.
+std::string glb_of(std::string json) {
+  while (json.size() % 4 != 0) json += ' ';
+  std::string out = "glTF";
+  auto put = [&](std::size_t v) {
+    for (int k = 0; k < 4; ++k) out += static_cast<char>((v >> (8 * k)) & 0xff);
+  };
+  put(2);
+  put(12 + 8 + json.size());
+  put(json.size());
+  out += "JSON";
+  return out + json;
+}
+
+// JSON 200,000 levels deep in a node's extras (tinygltf converts extras recursively: it overflowed
+// the stack) is refused before tinygltf parses it, in a .gltf and in a .glb's JSON chunk; the
+// bound is the file's whole nesting (the node's extras sit at level 3); brackets inside a
+// string, after an escaped quote, are not nesting.
+TEST_F(GltfFiles, JsonNestedTooDeepIsRefusedBeforeItIsParsed) {
+  auto with_extras = [](std::size_t depth) {
+    return gltf_text({{"nodes", R"([{"mesh": 0, "extras": )" + std::string(depth, '[') + std::string(depth, ']') + "}]"}});
+  };
+  const std::string deep = with_extras(200000);
+  for (const auto& [name, text] : {std::pair{"deep.gltf", deep}, std::pair{"deep.glb", glb_of(deep)}}) {
+    const std::string m = expect_refused(name, text);
+    EXPECT_NE(m.find(fmt::format("JSON nested deeper than {} levels", kMaxJsonDepth)), std::string::npos) << m;
+  }
+  EXPECT_EQ(load_scene(write("limit.gltf", with_extras(kMaxJsonDepth - 3))).triangles.size(), 1u);
+  EXPECT_NE(expect_refused("past.gltf", with_extras(kMaxJsonDepth - 2)).find("nested deeper"), std::string::npos);
+  const std::string brackets = R"(\")" + std::string(1000, '[') + "{";
+  const Scene s = load_scene(write("name.glb", glb_of(gltf_text({{"nodes", R"([{"mesh": 0, "name": ")" + brackets + R"("}])"}}))));
+  EXPECT_EQ(s.objects.at(s.triangles.at(0).object).substr(0, 3), "\"[[");
+}
+
+// A buffer or an image whose URI names a FIFO is refused without being opened (tinygltf's own
+// FileExists opened it: an open of a FIFO with no writer blocks for ever). The test holds both
+// ends open, so that an importer that opens it cannot hang, and watches the FIFO with inotify:
+// nothing else opens it.
+TEST_F(GltfFiles, AFifoAsABufferOrAnImageIsRefusedWithoutBeingOpened) {
+  const fs::path fifo = dir_ / "pipe.bin";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << std::strerror(errno);
+  const int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  const int writer = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+  const int watch = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+  ASSERT_GE(reader, 0);
+  ASSERT_GE(writer, 0);
+  ASSERT_GE(watch, 0);
+  ASSERT_GE(::inotify_add_watch(watch, fifo.c_str(), IN_OPEN), 0);
+  const std::string textured = R"([{"emissiveFactor": [1, 1, 1], "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}])";
+  const std::vector<std::map<std::string, std::string>> cases = {
+      {{"buffers", R"([{"byteLength": 48, "uri": "pipe.bin"}])"}},
+      {{"images", R"([{"uri": "pipe.bin"}])"}, {"textures", R"([{"source": 0}])"}, {"materials", textured}}};
+  for (const auto& edit : cases) {
+    const std::string m = expect_refused("fifo.gltf", gltf_text(edit));
+    EXPECT_NE(m.find("URI 'pipe.bin' is not a regular file"), std::string::npos) << m;
+  }
+  alignas(inotify_event) char events[4096];
+  EXPECT_LT(::read(watch, events, sizeof events), 0) << "the FIFO was opened";
+  ::close(watch);
+  ::close(writer);
+  ::close(reader);
+}
+
+// External buffers are read from the scene's folder only: `../` (also percent-encoded), a
+// symlink that leads out, an absolute path and a URI with a scheme are refused, though each names
+// a valid buffer; a subfolder and a symlink within the folder are read.
+TEST_F(GltfFiles, ExternalUrisStayInTheScenesFolder) {
+  const std::vector<unsigned char> bytes = triangle_buffer();
+  const std::string buffer(bytes.begin(), bytes.end());
+  write("outside.bin", buffer);
+  fs::create_directories(dir_ / "scene" / "sub");
+  write("scene/sub/inside.bin", buffer);
+  fs::create_symlink(dir_ / "outside.bin", dir_ / "scene" / "out_link.bin");
+  fs::create_symlink("sub/inside.bin", dir_ / "scene" / "in_link.bin");
+  auto with_uri = [&](const std::string& uri) {
+    return gltf_text({{"buffers", fmt::format(R"([{{"byteLength": {}, "uri": "{}"}}])", bytes.size(), uri)}});
+  };
+  for (const std::string uri : {"sub/inside.bin", "in_link.bin", "sub/../in_link.bin"})
+    EXPECT_EQ(load_scene(write("scene/ok.gltf", with_uri(uri))).triangles.size(), 1u) << uri;
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {"../outside.bin", "URI '../outside.bin' names a file outside the scene's folder"},
+      {"sub/../../outside.bin", "outside the scene's folder"},
+      {"%2E%2E/outside.bin", "outside the scene's folder"},
+      {"out_link.bin", "outside the scene's folder"},
+      {(dir_ / "outside.bin").string(), "is an absolute path"},
+      {"file://" + (dir_ / "outside.bin").string(), "has a scheme"},
+  };
+  for (const auto& [uri, why] : refused) {
+    const std::string m = expect_refused("scene/bad.gltf", with_uri(uri));
+    EXPECT_NE(m.find(why), std::string::npos) << uri << ": " << m;
+  }
+}
+
+// One mesh of 4096 triangles used by enough nodes to make more than kMaxTriangles (a file of
+// 80 KB): refused from the count, naming it, before a triangle is made; used by two nodes it is
+// made twice.
+TEST_F(GltfFiles, AMeshUsedByManyNodesIsCountedBeforeItIsMade) {
+  constexpr std::size_t kPerMesh = 4096;
+  std::vector<unsigned char> bytes = triangle_buffer();
+  bytes.resize(36);  // the positions, then 3 x 4096 byte indices 0, 1, 2, ...
+  for (std::size_t i = 0; i < 3 * kPerMesh; ++i) bytes.push_back(static_cast<unsigned char>(i % 3));
+  auto used_by = [&](std::size_t nodes) {
+    std::string node_list, roots;
+    for (std::size_t k = 0; k < nodes; ++k) {
+      node_list += std::string(k ? ", " : "") + R"({"mesh": 0})";
+      roots += (k ? ", " : "") + std::to_string(k);
+    }
+    return gltf_text(
+        {{"accessors", fmt::format(R"([{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}},
+                                      {{"bufferView": 1, "componentType": 5121, "count": {}, "type": "SCALAR"}}])", 3 * kPerMesh)},
+         {"bufferViews", fmt::format(R"([{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": {}}}])",
+                                     3 * kPerMesh)},
+         {"buffers", fmt::format(R"([{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}])", bytes.size(), base64(bytes))},
+         {"nodes", "[" + node_list + "]"},
+         {"scenes", R"([{"nodes": [)" + roots + "]}]"}});
+  };
+  EXPECT_EQ(import_gltf(write("two.gltf", used_by(2)), {}).triangles.size(), 2 * kPerMesh);
+  const std::size_t nodes = import::kMaxTriangles / kPerMesh + 1;
+  const std::string path = write("many.gltf", used_by(nodes));
+  try {
+    import_gltf(path, {});
+    ADD_FAILURE() << "accepted";
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find(fmt::format("{}: its node tree makes {} triangles", path, nodes * kPerMesh)), std::string::npos) << m;
+  }
+}
+
+// An image's size is read from its header before it is decoded: a PNG of 8193 x 8192 (268 MB as
+// RGBA) and a JPEG that says 20000 x 20000 are refused, naming the image and its size; a small
+// texture is still decoded and counts by its mean colour.
+TEST_F(GltfFiles, AnImageTooLargeIsRefusedFromItsHeader) {
+  auto write_png = [&](const std::string& name, uint32_t width, uint32_t height, unsigned char grey) {
+    png_image image;
+    std::memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    image.width = width;
+    image.height = height;
+    image.format = PNG_FORMAT_GRAY;
+    const std::vector<unsigned char> pixels(std::size_t{width} * height, grey);
+    EXPECT_TRUE(png_image_write_to_file(&image, (dir_ / name).c_str(), 0, pixels.data(), 0, nullptr)) << image.message;
+  };
+  auto textured = [](const std::string& uri) {
+    return gltf_text({{"images", R"([{"uri": ")" + uri + R"("}])"},
+                      {"textures", R"([{"source": 0}])"},
+                      {"materials", R"([{"emissiveFactor": [1, 1, 1], "pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1], "baseColorTexture": {"index": 0}}}])"}});
+  };
+  write_png("small.png", 4, 4, 128);
+  const Scene s = load_scene(write("small.gltf", textured("small.png")));
+  EXPECT_NEAR(s.materials.at(s.triangles.at(0).material).reflectance.x, 0.5 * import::srgb_to_linear(128.0 / 255.0), 1e-6);
+  write_png("big.png", 8193, 8192, 128);
+  std::string m = expect_refused("big.gltf", textured("big.png"));
+  EXPECT_NE(m.find("image 0 'big.png' is 8193 x 8192 pixels"), std::string::npos) << m;
+  // SOI, a JFIF APP0, a baseline frame of 20000 x 20000 with three components, EOI.
+  const std::string jpeg = std::string("\xff\xd8\xff\xe0\x00\x10JFIF\x00\x01\x01\x00\x00\x01\x00\x01\x00\x00", 20) +
+                           std::string("\xff\xc0\x00\x11\x08\x4e\x20\x4e\x20\x03\x01\x22\x00\x02\x11\x01\x03\x11\x01\xff\xd9", 21);
+  write("big.jpg", jpeg);
+  m = expect_refused("jpeg.gltf", textured("big.jpg"));
+  EXPECT_NE(m.find("image 0 'big.jpg' is 20000 x 20000 pixels"), std::string::npos) << m;
 }
 
 // The two sides of a two-sided face come back from the glb apart, each pulled kSidesApart of the

@@ -9,6 +9,7 @@
 
 #include "cluster/jobs.h"
 #include "core/error.h"
+#include "core/json_bounded.h"
 
 namespace sirad::cluster {
 namespace {
@@ -159,6 +160,19 @@ TEST(JobStore, HostileJobFilesAndSubmissionsAreRefused) {
   EXPECT_THROW(store.submit("ok", "cornell", "x", {}, 0, 1), Error);     // both
   EXPECT_THROW(store.submit("ok", "cornell", "", std::vector<std::string>(kMaxJobArgs + 1, "-q"), 0, 1), Error);
   EXPECT_THROW(store.submit("ok", "cornell", "", {}, kMaxPriority + 1, 1), Error);
+}
+
+// A job file nested deeper than kMaxJsonDepth (here 200,000 levels in its args) fails its job by
+// its depth, found before the file is parsed.
+TEST(JobStore, AJobFileNestedTooDeepFailsItsJob) {
+  TempDir d;
+  JobStore(d.path.string()).submit("deep", "cornell", "", {}, 0, 1);
+  std::ofstream(d.path / "jobs" / "1" / "job.json") << R"({"id": 1, "args": )" << std::string(200000, '[') << std::string(200000, ']')
+                                                    << "}";
+  JobStore store(d.path.string());
+  EXPECT_EQ(store.get(1)->state, "failed");
+  EXPECT_NE(store.get(1)->error.find(fmt::format("job.json: JSON nested deeper than {} levels", kMaxJsonDepth)), std::string::npos)
+      << store.get(1)->error;
 }
 
 }  // namespace

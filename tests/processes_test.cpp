@@ -1072,6 +1072,27 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   stop_farm(farm, nodes, dir, "farm0.log");
 }
 
+// A job's JSON nested 200,000 levels deep (in a field the farm does not read) is refused by its
+// depth (400), before it is parsed; a scene file submitted by `sirad submit` (its multipart form
+// as the client writes it) is queued.
+TEST(Farm, AJobNestedTooDeepIsRefusedAndASceneFileIsQueued) {
+  const fs::path dir = fresh_dir("sirad_farm_deep");
+  FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
+  std::ofstream(dir / "deep.json") << R"({"name": "deep", "scene": "cornell", "priority": 0, "args": [], "x": )"
+                                   << std::string(200000, '[') << std::string(200000, ']') << "}";
+  auto [said, code] = curl(dir, {"-H", "Authorization: Bearer " + farm.token, "-F", "job=<" + (dir / "deep.json").string(),
+                                 farm.url + "/api/jobs"});
+  EXPECT_EQ(code, 400) << said;
+  EXPECT_NE(said.find("job: JSON nested deeper than 64 levels"), std::string::npos) << said;
+  EXPECT_EQ(sirad_submit(dir, {std::string(SIRAD_SOURCE_DIR) + "/scenes/cornell_box.obj", "--farm", farm.folder.string(), "--name",
+                               "box", "--bundles", "16"}),
+            0)
+      << slurp(dir / "submit.log");
+  EXPECT_EQ(job_state(farm, 1), "queued");
+  std::vector<std::unique_ptr<Child>> nodes;
+  stop_farm(farm, nodes, dir, "farm0.log");
+}
+
 }  // namespace
 
 // The scene is sent to a node once and kept by its hash (PROTOCOL.md 3.1, node/scene_cache.h):
