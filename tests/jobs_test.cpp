@@ -166,10 +166,10 @@ TEST(JobStore, HostileJobFilesAndSubmissionsAreRefused) {
 // its depth, found before the file is parsed.
 TEST(JobStore, AJobFileNestedTooDeepFailsItsJob) {
   TempDir d;
-  JobStore(d.path.string()).submit("deep", "cornell", "", {}, 0, 1);
+  JobStore(d.path.string(), 0).submit("deep", "cornell", "", {}, 0, 1);
   std::ofstream(d.path / "jobs" / "1" / "job.json") << R"({"id": 1, "args": )" << std::string(200000, '[') << std::string(200000, ']')
                                                     << "}";
-  JobStore store(d.path.string());
+  JobStore store(d.path.string(), 0);
   EXPECT_EQ(store.get(1)->state, "failed");
   EXPECT_NE(store.get(1)->error.find(fmt::format("job.json: JSON nested deeper than {} levels", kMaxJsonDepth)), std::string::npos)
       << store.get(1)->error;
