@@ -37,14 +37,16 @@ inline std::map<std::string, std::vector<float>> exr_channels(const std::filesys
   return exr_channels(in);
 }
 
-// An EXR's pixels (every channel, row by row) and its attributes but the device's description
-// (the machine's), the version, the time and the rates, as one string.
-inline std::string exr_content(const std::filesystem::path& path) {
+// An EXR's pixels (every channel, row by row; or only the channels' names without `pixels`)
+// and its attributes but the device's description (the machine's), the version, the time and
+// the rates, as one string.
+inline std::string exr_content(const std::filesystem::path& path, bool pixels = true) {
   Imf::InputFile in(path.c_str());
   const Imath::Box2i dw = in.header().dataWindow();
   std::string out = fmt::format("{}x{}\n", dw.max.x - dw.min.x + 1, dw.max.y - dw.min.y + 1);
   const std::map<std::string, std::vector<float>> channels = exr_channels(in);
-  for (const auto& [name, v] : channels) out += name + ":" + std::string(reinterpret_cast<const char*>(v.data()), v.size() * 4);
+  for (const auto& [name, v] : channels)
+    out += name + ":" + (pixels ? std::string(reinterpret_cast<const char*>(v.data()), v.size() * 4) : std::string());
   for (auto a = in.header().begin(); a != in.header().end(); ++a) {
     const std::string name = a.name();
     if (name.rfind("sirad.", 0) != 0 || name == "sirad.device" || name == "sirad.version") continue;

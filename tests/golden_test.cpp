@@ -10,20 +10,25 @@
 // real nodes (which node runs which bundle depends on their speeds) and the average rule on
 // two or more real nodes (the others' state a node absorbs depends on the order the reports
 // of an exchange round arrive in); the emulated runs cover both in virtual time.
+#include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <memory>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <OpenEXR/ImfIntAttribute.h>
 #include <xxhash.h>
 
 #include "cluster/status.h"
 #include "tests/exr_content.h"
+#include "tests/png_util.h"
 #include "tests/process_util.h"
 
 namespace fs = std::filesystem;
@@ -63,9 +68,9 @@ std::string ledger_content(const fs::path& path) {
   return out;
 }
 
-std::string digest_of(const fs::path& file) {
+std::string digest_of(const fs::path& file, bool pixels = true) {
   const std::string ext = file.extension().string();
-  if (ext == ".exr") return hex(sirad::test::exr_content(file));
+  if (ext == ".exr") return hex(sirad::test::exr_content(file, pixels));
   if (file.filename().string().find("status") != std::string::npos) return hex(status_content(file));
   if (file.filename().string().find("ledger") != std::string::npos) return hex(ledger_content(file));
   return hex(slurp(file));
@@ -116,17 +121,30 @@ class Golden : public ::testing::Test {
   }
 
   // Every output of run `name` (files NAME.*, NAME-*.csv and NAME-status.json) against the
-  // recorded digests, or into them with SIRAD_GOLDEN_RECORD.
-  void check(const std::string& name) {
+  // recorded digests, or into them with SIRAD_GOLDEN_RECORD. With `traced`, the run's images
+  // come from rays traced by Embree, whose arithmetic follows the CPU (it picks SSE, AVX2 or
+  // AVX-512 code as the machine allows): their pixels are held against recorded images within
+  // the bounds of expect_traced_alike, their attributes by digest.
+  void check(const std::string& name, bool traced = false) {
     std::map<std::string, std::string> got;
+    std::vector<fs::path> images;
+    std::size_t outputs = 0;
     for (const auto& e : fs::directory_iterator(dir_)) {
       const std::string f = e.path().filename().string();
       const std::string ext = e.path().extension().string();
       if (f.rfind(name + ".", 0) != 0 && f.rfind(name + "-", 0) != 0) continue;
       if (ext != ".exr" && ext != ".png" && ext != ".ply" && ext != ".glb" && ext != ".csv" && ext != ".json") continue;
-      got[f] = digest_of(e.path());
+      ++outputs;
+      const bool image = traced && (ext == ".exr" || ext == ".png");
+      if (image) images.push_back(e.path());
+      if (ext != ".png" || !image) got[f] = digest_of(e.path(), !image);
     }
-    ASSERT_GE(got.size(), 4u) << name << ": its outputs are missing";
+    for (const fs::path& image : images) {
+      const fs::path recorded = kDigests.parent_path() / image.filename();
+      if (std::getenv("SIRAD_GOLDEN_RECORD")) fs::copy_file(image, recorded, fs::copy_options::overwrite_existing);
+      else expect_traced_alike(image, recorded);
+    }
+    ASSERT_GE(outputs, 4u) << name << ": its outputs are missing";
     std::map<std::string, std::string> recorded;
     {
       std::istringstream in(slurp(kDigests));
@@ -155,6 +173,74 @@ class Golden : public ::testing::Test {
     }
   }
 
+  // An image of traced rays (`got`) against the one recorded on another machine (`want`), as
+  // a CPU's arithmetic can move it. The same code on another instruction set rounds a ray's
+  // hit point and distance differently in the last bits, so a sample's value (radiosity
+  // interpolated at the hit, its cosines) moves by some float ulps: every channel within
+  // kUlpShare relative of the recorded one. A sample whose ray grazes an edge may meet the face
+  // on its other side, or pass it: its pixel then moves by that sample's share, at most
+  // the image's largest value over its samples per pixel; at most kGrazedShare of the pixels
+  // may do so. kUlpShare is about 80 float ulps, kGrazedShare a handful of pixels' samples at
+  // edges. A PNG, 8 bits of the same values: within 1 where the EXR is within kUlpShare.
+  void expect_traced_alike(const fs::path& got, const fs::path& want) {
+    constexpr double kUlpShare = 1e-5, kGrazedShare = 0.02;
+    ASSERT_TRUE(fs::exists(want)) << want << ": no recorded image";
+    std::vector<std::vector<float>> a, b;  // per channel
+    double largest = 0.0;
+    int spp = 1;
+    if (got.extension() == ".exr") {
+      const auto ca = sirad::test::exr_channels(got), cb = sirad::test::exr_channels(want);
+      ASSERT_EQ(ca.size(), cb.size()) << got;
+      for (const auto& [c, v] : ca) {
+        ASSERT_TRUE(cb.count(c)) << got << ": channel " << c;
+        a.push_back(v);
+        b.push_back(cb.at(c));
+      }
+      spp = traced_spp(got);
+    } else {
+      int wa = 0, ha = 0, wb = 0, hb = 0;
+      const std::vector<unsigned char> pa = sirad::test::read_png(got.string(), wa, ha), pb = sirad::test::read_png(want.string(), wb, hb);
+      ASSERT_EQ(std::tie(wa, ha), std::tie(wb, hb)) << got;
+      for (int c = 0; c < 3; ++c) {
+        a.emplace_back();
+        b.emplace_back();
+        for (std::size_t k = c; k < pa.size(); k += 3) {
+          a.back().push_back(pa[k]);
+          b.back().push_back(pb[k]);
+        }
+      }
+    }
+    const std::size_t pixels = a.front().size();
+    std::size_t grazed = 0;
+    double worst = 0.0;  // the largest relative difference within rounding
+    for (std::size_t k = 0; k < pixels; ++k) {
+      bool moved = false;
+      for (std::size_t c = 0; c < a.size(); ++c) {
+        ASSERT_EQ(a[c].size(), pixels);
+        const double x = a[c][k], y = b[c][k];
+        largest = std::max({largest, std::abs(x), std::abs(y)});
+        const double close = got.extension() == ".exr" ? kUlpShare * std::max(std::abs(x), std::abs(y)) : 1.0;
+        if (std::abs(x - y) > close) moved = true;
+        else if (x != y) worst = std::max(worst, std::abs(x - y) / std::max(std::abs(x), std::abs(y)));
+      }
+      grazed += moved;
+    }
+    if (got.extension() == ".exr")  // (a PNG's bytes are tone-mapped: a sample's share is not bounded there)
+      for (std::size_t k = 0; k < pixels; ++k)
+        for (std::size_t c = 0; c < a.size(); ++c)
+          ASSERT_LE(std::abs(a[c][k] - b[c][k]), largest / spp) << got << ": pixel " << k << " channel " << c;
+    std::printf("%s: %zu of %zu pixels beyond the arithmetic's rounding; within it, %.2g relative at most\n", got.filename().c_str(),
+                grazed, pixels, worst);
+    EXPECT_LE(static_cast<double>(grazed), kGrazedShare * pixels) << got << ": pixels moved beyond rounding";
+  }
+
+  // The samples per pixel an EXR of the final gather was rendered with (its sirad.spp, else 1).
+  static int traced_spp(const fs::path& exr) {
+    Imf::InputFile in(exr.c_str());
+    if (const auto* a = in.header().findTypedAttribute<Imf::IntAttribute>("sirad.spp")) return std::max(1, a->value());
+    return 1;
+  }
+
   std::string out(const std::string& name) const { return (dir_ / name).string(); }
 
   fs::path dir_;
@@ -176,7 +262,7 @@ TEST_F(Golden, SingleNode) {
 TEST_F(Golden, SingleNodeFinalGather) {
   run(with({SIRAD_BINARY, "render", "cornell", "--bundles", "48", "--seed", "5", "--final-gather", "4", "--out", out("gather")}, kSmall),
       "gather.log");
-  check("gather");
+  check("gather", true);
 }
 
 TEST_F(Golden, SingleNodeAverageRulePlainEstimator) {
