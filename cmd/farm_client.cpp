@@ -173,6 +173,8 @@ int list_jobs(const FarmAddress& at) {
     std::printf("%-6llu %-10s %8d  %-24s %s\n", static_cast<unsigned long long>(j.value("id", uint64_t{0})),
                 j.value("state", "").c_str(), j.value("priority", 0), j.value("name", "").c_str(), progress.c_str());
   }
+  if (const uint64_t older = body.value("older", uint64_t{0}); older > 0)
+    std::printf("(%llu older jobs not listed)\n", static_cast<unsigned long long>(older));
   return 0;
 }
 

@@ -3,10 +3,13 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <random>
 
 #include <fmt/format.h>
@@ -30,6 +33,10 @@ namespace {
 
 // The largest request body: a scene as nodes receive it is at most this (decode_scene's bound).
 constexpr std::size_t kMaxBody = std::size_t{1} << 31;
+
+// GET /api/jobs answers this many jobs unless asked (`limit`), at most kMaxJobsPage: the page
+// polls it every second.
+constexpr uint64_t kJobsPage = 200, kMaxJobsPage = 1000;
 
 // The files a job's folder may hand out, by name (no path from a request reaches the disk).
 std::vector<std::string> job_files(const cluster::Job& j, const std::string& folder) {
@@ -111,10 +118,27 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
                    "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; img-src 'self'; connect-src 'self'");
     res.set_content(std::string(resource("cmd/farm_page.html")), "text/html; charset=utf-8");
   });
-  s.Get("/api/jobs", [this](const httplib::Request&, httplib::Response& res) {
+  // A page of the queue: the `limit` jobs (default kJobsPage) of the highest ids below `before`
+  // (default: all), in id order, with the count of older ones and of all.
+  s.Get("/api/jobs", [this](const httplib::Request& req, httplib::Response& res) {
+    auto number = [&](const char* name, uint64_t otherwise, uint64_t most) -> std::optional<uint64_t> {
+      if (!req.has_param(name)) return otherwise;
+      const std::string v = req.get_param_value(name);
+      if (v.empty() || v.size() > 12 || !std::all_of(v.begin(), v.end(), [](char c) { return c >= '0' && c <= '9'; })) return std::nullopt;
+      const uint64_t n = std::stoull(v);
+      return n >= 1 && n <= most ? std::optional<uint64_t>(n) : std::nullopt;
+    };
+    const std::optional<uint64_t> limit = number("limit", kJobsPage, kMaxJobsPage);
+    const std::optional<uint64_t> before = number("before", std::numeric_limits<uint64_t>::max(), std::numeric_limits<uint64_t>::max());
+    if (!limit || !before)
+      return refuse(res, 400, fmt::format("limit is 1 to {} and before a job's id", kMaxJobsPage));
+    std::vector<cluster::Job> all = store_.list();  // in id order
+    const std::size_t total = all.size();
+    const auto end = std::partition_point(all.begin(), all.end(), [&](const cluster::Job& j) { return j.id < *before; });
+    const auto begin = end - std::min<std::ptrdiff_t>(end - all.begin(), static_cast<std::ptrdiff_t>(*limit));
     json jobs = json::array();
     const std::vector<uint64_t> running = view_.running();
-    for (const cluster::Job& j : store_.list()) {
+    for (const cluster::Job& j : std::vector<cluster::Job>(begin, end)) {
       json o = job_object(j);
       if (std::optional<cluster::Status> st = view_.status(j.id)) {
         o["bundles_done"] = st->bundles_done;
@@ -128,7 +152,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
       o["files"] = job_files(j, store_.folder(j.id));
       jobs.push_back(std::move(o));
     }
-    reply(res, 200, {{"jobs", jobs}, {"running", running}});
+    reply(res, 200, {{"jobs", jobs}, {"running", running}, {"total", total}, {"older", begin - all.begin()}});
   });
   s.Get(R"(/api/jobs/(\d+))", [this, job_of](const httplib::Request& req, httplib::Response& res) {
     std::optional<cluster::Job> j = job_of(req, res);
@@ -196,7 +220,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
       plan_job(args);  // the flags are checked now, not when the job comes to run
       cluster::Job job = store_.submit(name, scene, bytes, std::move(args), priority, unix_now());
       logging::write(logging::Level::info, "sirad-coordinator", fmt::format("job {} ({}) submitted", job.id, job.name),
-                     {{"event", "job submitted"}, {"job", job.id}, {"address", req.remote_addr}});
+                     {{"event", "job submitted"}, {"job", job.id}, {"address", req.get_header_value("X-Sirad-Peer")}});
       reply(res, 201, job_object(job));
     } catch (const json::exception& e) {
       refuse(res, 400, fmt::format("job: {}", e.what()));
@@ -209,7 +233,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
     if (!j) return;
     if (!store_.cancel(j->id, unix_now())) return refuse(res, 409, fmt::format("job {} has ended ({})", j->id, j->state));
     logging::write(logging::Level::info, "sirad-coordinator", fmt::format("job {} cancelled", j->id),
-                   {{"event", "job cancel"}, {"job", j->id}, {"address", req.remote_addr}});
+                   {{"event", "job cancel"}, {"job", j->id}, {"address", req.get_header_value("X-Sirad-Peer")}});
     reply(res, 200, job_object(*store_.get(j->id)));
   });
 }
@@ -217,13 +241,20 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
 FarmHttp::~FarmHttp() { stop(); }
 
 int FarmHttp::start(const std::string& host, int port) {
-  const int bound = port == 0 ? server_->bind_to_any_port(host) : (server_->bind_to_port(host, port) ? port : -1);
-  if (bound <= 0) fail("--http {}:{}: cannot listen there", host, port);
+  const int inner = server_->bind_to_any_port("127.0.0.1");
+  if (inner <= 0) fail("--http: cannot listen on a loopback port");
   thread_ = std::thread([this] { server_->listen_after_bind(); });
-  return bound;
+  guard_ = std::make_unique<HttpGuard>(inner);
+  try {
+    return guard_->start(host, port);
+  } catch (const Error&) {
+    stop();
+    throw;
+  }
 }
 
 void FarmHttp::stop() {
+  if (guard_) guard_->stop();
   if (server_) server_->stop();
   if (thread_.joinable()) thread_.join();
 }

@@ -1,7 +1,8 @@
 // sirad: the farm's HTTP API and web page (cpp-httplib), served by `sirad-coordinator --serve`
-// beside its ZeroMQ endpoint (proto/PROTOCOL.md section 10). Reading (jobs, their progress and
-// nodes, outputs) is open to whoever reaches the address (localhost unless asked); submitting
-// and cancelling need the farm's token ("Authorization: Bearer TOKEN").
+// beside its ZeroMQ endpoint (proto/PROTOCOL.md section 10), behind cmd/http_guard.h (slow and
+// many clients). Reading (jobs, their progress and nodes, outputs) is open to whoever reaches
+// the address (localhost unless asked); submitting and cancelling need the farm's token
+// ("Authorization: Bearer TOKEN").
 #pragma once
 #include <memory>
 #include <string>
@@ -9,6 +10,7 @@
 
 #include "cluster/jobs.h"
 #include "cmd/farm.h"
+#include "cmd/http_guard.h"
 
 namespace httplib {
 class Server;
@@ -35,7 +37,8 @@ class FarmHttp {
   cluster::JobStore& store_;
   FarmView& view_;
   std::string token_;
-  std::unique_ptr<httplib::Server> server_;
+  std::unique_ptr<httplib::Server> server_;  // on a loopback port of its own, behind guard_
+  std::unique_ptr<HttpGuard> guard_;          // the public address
   std::thread thread_;
 };
 

@@ -1,6 +1,10 @@
 // sirad tests: the cluster as separate processes: one sirad-coordinator and three sirad-node
 // processes over loopback TCP on a port the system picks (never a fixed one).
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
 #include <signal.h>
+#include <sys/socket.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -33,7 +37,9 @@
 #include "core/bundle_cl.h"
 #include "core/scene.h"
 #include "core/solver.h"
+#include "cluster/jobs.h"
 #include "cluster/status.h"
+#include "cmd/http_guard.h"
 #include <nlohmann/json.hpp>
 
 #include "tests/exr_content.h"
@@ -1089,6 +1095,100 @@ TEST(Farm, AJobNestedTooDeepIsRefusedAndASceneFileIsQueued) {
             0)
       << slurp(dir / "submit.log");
   EXPECT_EQ(job_state(farm, 1), "queued");
+  std::vector<std::unique_ptr<Child>> nodes;
+  stop_farm(farm, nodes, dir, "farm0.log");
+}
+
+// Clients that open connections and send their request slowly, or never, hold none of the HTTP
+// server's threads (cmd/http_guard.h). With 60 such connections open from one address (the
+// server's pool has 8 threads; before the guard, 8 froze the page for as long as they stayed,
+// and these 60 for 40 s of read timeouts), the page and the API answer, and every held
+// connection is still open when they have: an order of events, not a time. A client's 65th
+// connection is refused at once (503), and the held ones are closed at their head's deadline
+// with 408 (waited for as events, within the suite's hang bound).
+TEST(Farm, SlowClientsHoldNoneOfTheServersThreads) {
+  const fs::path dir = fresh_dir("sirad_farm_slow");
+  FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
+  const int port = std::stoi(farm.url.substr(farm.url.rfind(':') + 1));
+  auto connect_to_farm = [&] {
+    const int s = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<uint16_t>(port));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(::connect(s, reinterpret_cast<sockaddr*>(&a), sizeof a), 0) << std::strerror(errno);
+    return s;
+  };
+  auto say = [](int s, const std::string& text) { EXPECT_EQ(::send(s, text.data(), text.size(), MSG_NOSIGNAL), ssize_t(text.size())); };
+  // What the farm answers on `s` until it closes it (bounded by the suite's hang time).
+  auto answer_on = [](int s) {
+    std::string got;
+    char buffer[4096];
+    for (;;) {
+      pollfd p{s, POLLIN, 0};
+      if (::poll(&p, 1, sirad::test::kHangS * 1000) != 1) return got + "(no answer)";
+      const ssize_t n = ::recv(s, buffer, sizeof buffer, 0);
+      if (n <= 0) return got;
+      got.append(buffer, static_cast<std::size_t>(n));
+    }
+  };
+  std::vector<int> held;
+  for (int i = 0; i < 60; ++i) {
+    held.push_back(connect_to_farm());
+    say(held.back(), i % 2 ? "GET /api/jobs HTTP/1.1\r\nHost: farm\r\nX-Slow: " : "");  // half a head, or nothing
+  }
+  auto [page, page_code] = curl(dir, {farm.url + "/"});
+  EXPECT_EQ(page_code, 200) << page;
+  auto [jobs, jobs_code] = curl(dir, {farm.url + "/api/jobs"});
+  EXPECT_EQ(jobs_code, 200) << jobs;
+  for (int s : held) {
+    pollfd p{s, POLLIN, 0};
+    EXPECT_EQ(::poll(&p, 1, 0), 0) << "a held connection was answered or closed before the page was";
+  }
+  // Up to the bound of one address (the two curls' connections may not be counted off yet).
+  for (std::size_t i = held.size(); i < sirad::cli::HttpGuard::kPerClient; ++i) held.push_back(connect_to_farm());
+  const int probe = connect_to_farm();
+  say(probe, "GET /api/jobs HTTP/1.1\r\nHost: farm\r\n\r\n");
+  EXPECT_EQ(answer_on(probe).rfind("HTTP/1.1 503", 0), 0u);
+  ::close(probe);
+  for (int s : held) {
+    EXPECT_EQ(answer_on(s).rfind("HTTP/1.1 408", 0), 0u);
+    ::close(s);
+  }
+  std::vector<std::unique_ptr<Child>> nodes;
+  stop_farm(farm, nodes, dir, "farm0.log");
+}
+
+// The job list comes in pages (the page polls it every second; 20,000 jobs made each poll
+// 4.5 MB): the newest 200 unless asked, `limit` and `before` for others, with the count of
+// older jobs and of all; nonsense paging is a 400.
+TEST(Farm, TheJobListComesInPages) {
+  const fs::path dir = fresh_dir("sirad_farm_pages");
+  {
+    sirad::cluster::JobStore store((dir / "farm").string(), 0);
+    for (int i = 0; i < 250; ++i) store.submit(fmt::format("j{}", i), "cornell", "", {}, 0, i);
+  }
+  FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
+  auto ids = [](const std::string& text) {
+    std::vector<uint64_t> out;
+    const nlohmann::json body = nlohmann::json::parse(text);
+    for (const auto& j : body["jobs"]) out.push_back(j["id"].get<uint64_t>());
+    return out;
+  };
+  auto [first, code] = curl(dir, {farm.url + "/api/jobs"});
+  ASSERT_EQ(code, 200) << first;
+  std::vector<uint64_t> page = ids(first);
+  ASSERT_EQ(page.size(), 200u);
+  EXPECT_EQ(page.front(), 51u);
+  EXPECT_EQ(page.back(), 250u);
+  EXPECT_EQ(nlohmann::json::parse(first)["older"], 50);
+  EXPECT_EQ(nlohmann::json::parse(first)["total"], 250);
+  auto [second, code2] = curl(dir, {farm.url + "/api/jobs?limit=10&before=51"});
+  ASSERT_EQ(code2, 200) << second;
+  EXPECT_EQ(ids(second), (std::vector<uint64_t>{41, 42, 43, 44, 45, 46, 47, 48, 49, 50}));
+  EXPECT_EQ(nlohmann::json::parse(second)["older"], 40);
+  for (const char* bad : {"?limit=0", "?limit=1001", "?limit=x", "?before=-1", "?limit=99999999999999999999"})
+    EXPECT_EQ(curl(dir, {farm.url + "/api/jobs" + bad}).second, 400) << bad;
   std::vector<std::unique_ptr<Child>> nodes;
   stop_farm(farm, nodes, dir, "farm0.log");
 }
