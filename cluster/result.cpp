@@ -5,6 +5,8 @@
 
 #include <algorithm>
 
+#include <string_view>
+
 #include <fmt/format.h>
 
 namespace sirad::cluster {
@@ -66,8 +68,12 @@ std::string traffic_line(const RunResult& r) {
 std::string ledger_csv(const RunResult& r) {
   std::string out = "node,name,first,last\n";
   for (const LedgerEntry& e : r.ledger) {
-    std::string name = e.name;  // a CSV field: quoted, quotes doubled
+    // A node's name as a CSV field: quoted, quotes doubled, and one that a spreadsheet would
+    // take for a formula (starting with = + - @, a tab or a carriage return) led by a ', which
+    // spreadsheets show as text (OWASP's rule against CSV injection).
+    std::string name = e.name;
     for (std::size_t at = name.find('"'); at != std::string::npos; at = name.find('"', at + 2)) name.insert(at, 1, '"');
+    if (!name.empty() && std::string_view("=+-@\t\r").find(name.front()) != std::string_view::npos) name.insert(0, 1, '\'');
     out += fmt::format("{},\"{}\",{},{}\n", e.node, name, e.range.first, e.range.last);
   }
   return out;

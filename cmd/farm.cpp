@@ -446,6 +446,8 @@ JobPlan plan_job(const std::vector<std::string>& args) {
   for (const std::string& a : args) argv.push_back(a.c_str());
   try {
     app.parse(static_cast<int>(argv.size()), argv.data());
+  } catch (const CLI::Success&) {  // --help, --help-all, --version
+    fail("job flags: a job cannot ask for help or the version (its flags are those of sirad-coordinator SCENE: see its --help)");
   } catch (const CLI::ExtrasError&) {
     std::string extra;  // CLI11's message lists them backwards
     for (const std::string& a : app.remaining()) extra += (extra.empty() ? "" : " ") + a;
@@ -455,6 +457,10 @@ JobPlan plan_job(const std::vector<std::string>& args) {
   }
   if (!plan.output.out.empty()) fail("job flags: --out: a job's outputs are named by the job");
   if (!plan.output.camera.empty()) camera_flag(plan.output.camera);  // checked now, not when the job runs
+  if (plan.output.width > 0 && plan.output.height > 0) {  // (one side alone follows the scene's aspect when the job runs)
+    int w = plan.output.width, h = plan.output.height;
+    settle_image_size(w, h, std::nullopt);  // an image the outputs can hold
+  }
   if (max_nodes != 0 && min_nodes > max_nodes) fail("job flags: --min-nodes {} is more than --max-nodes {}", min_nodes, max_nodes);
   plan.min_nodes = static_cast<uint32_t>(min_nodes);
   plan.max_nodes = static_cast<uint32_t>(max_nodes);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -204,10 +205,31 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
         fail("job: not JSON: {}", e.what());
       }
       if (!spec.is_object()) fail("job: not a JSON object");
-      const std::string name = spec.value("name", "");
-      const std::string scene = spec.value("scene", "");
-      const int priority = spec.value("priority", 0);
-      std::vector<std::string> args = spec.value("args", std::vector<std::string>{});
+      // Each field of its kind or absent, checked before it is converted (a number converts to
+      // an int by wrapping, a wrong kind to nlohmann's own message).
+      auto text = [&](const char* key) {
+        if (!spec.contains(key)) return std::string();
+        if (!spec[key].is_string()) fail("job: '{}' is not a string", key);
+        return spec[key].get<std::string>();
+      };
+      const std::string name = text("name"), scene = text("scene");
+      int priority = 0;
+      if (spec.contains("priority")) {
+        const json& p = spec["priority"];
+        const bool whole = p.is_number_integer() || (p.is_number_float() && std::isfinite(p.get<double>()) &&
+                                                     p.get<double>() == std::trunc(p.get<double>()));
+        const double v = whole ? p.get<double>() : 0.0;
+        if (!whole || std::abs(v) > cluster::kMaxPriority)
+          fail("job: 'priority' is a whole number within +-{}", cluster::kMaxPriority);
+        priority = static_cast<int>(v);
+      }
+      std::vector<std::string> args;
+      if (spec.contains("args")) {
+        const json& a = spec["args"];
+        if (!a.is_array() || !std::all_of(a.begin(), a.end(), [](const json& x) { return x.is_string(); }))
+          fail("job: 'args' is not a list of strings");
+        args = a.get<std::vector<std::string>>();
+      }
       std::string bytes;
       if (req.has_file("scene_data")) {
         bytes = req.get_file_value("scene_data").content;

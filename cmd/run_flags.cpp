@@ -193,6 +193,8 @@ void settle_image_size(int& width, int& height, const std::optional<double>& asp
   if (width == 0 && height == 0) height = kDefaultImageHeight;
   if (width == 0) width = side(height * a);
   if (height == 0) height = side(width / a);
+  if (int64_t{width} * height > kMaxImagePixels)
+    fail("image {}x{} (--width, --height): more than {} pixels", width, height, kMaxImagePixels);
 }
 
 void settle_image_size(OutputFlags& flags, const Scene& scene) {

@@ -596,6 +596,8 @@ void check_options(const GatherOptions& options) {
   if (options.spp < 1 || options.spp > 65536) fail("final gather: {} samples per pixel (1..65536)", options.spp);
   if (options.width < 1 || options.height < 1 || options.width > kMaxImageSide || options.height > kMaxImageSide)
     fail("final gather: image {}x{} (1 to {} a side)", options.width, options.height, kMaxImageSide);
+  if (int64_t{options.width} * options.height > kMaxImagePixels)
+    fail("final gather: image {}x{}: more than {} pixels", options.width, options.height, kMaxImagePixels);
   if (options.threads < 0) fail("final gather: {} threads", options.threads);
 }
 

@@ -21,6 +21,9 @@ using Attributes = std::vector<std::pair<std::string, AttributeValue>>;
 
 // The largest image side any writer, the final gather and the image phase's tiles take.
 inline constexpr int kMaxImageSide = 16384;
+// The most pixels of an image (8K UHD, 7680 x 4320, is 33.2 million): its final gather's three
+// passes then take 1.2 GB, known when the flags are read, not after a solve.
+inline constexpr int64_t kMaxImagePixels = int64_t{1} << 25;
 
 struct Image {
   int width = 0, height = 0;

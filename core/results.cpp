@@ -53,6 +53,8 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
                           const Attributes& attributes, const GatherPasses* gathered) {
   if (options.width < 1 || options.height < 1 || options.width > kMaxImageSide || options.height > kMaxImageSide)
     fail("image size {}x{} outside 1..{}", options.width, options.height, kMaxImageSide);
+  if (int64_t{options.width} * options.height > kMaxImagePixels)
+    fail("image size {}x{}: more than {} pixels", options.width, options.height, kMaxImagePixels);
   if (!mesh.camera) fail("{}: the mesh carries no camera", name);
   if (radiosity.size() != mesh.size()) fail("{}: {} radiosity values for {} patches", name, radiosity.size(), mesh.size());
   for (std::size_t j = 0; j < radiosity.size(); ++j)

@@ -722,6 +722,9 @@ TEST_F(Cli, ACameraBeyondTheScenesReachIsRefusedNotAborted) {
   write("room.mtl", kTinyMtl);
   write("room.obj", std::string("# sirad camera eye 0.5 0.5 3e19 look 0.5 0.5 0.5 up 0 1 0 fov 40\n") + kTinyRoom);
   expect_error(sirad("render room.obj --bundles 4 --final-gather 1 --width 8 --height 8"), "room.obj: its camera");
+  // An image too large for memory is refused when the flags are read, before any solve.
+  expect_error(sirad("render cornell --patches 200 --bundles 8 --width 16384 --height 16384"), "more than 33554432 pixels");
+  expect_error(sirad("image in/solved.ply --width 16384 --height 16384 --spp 1"), "more than 33554432 pixels");
   Outcome tele = sirad("image in/solved.ply --camera 'eye 278 273 -5e5 look 278 273 0 up 0 1 0 fov 0.1' --width 8 --height 8 --spp 1 --out tele -q");
   EXPECT_EQ(tele.status, 0) << tele.err;
 }

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "cluster/exchange.h"
+#include "cluster/result.h"
 #include "core/error.h"
 
 namespace sirad::cluster {
@@ -16,6 +17,23 @@ namespace {
 
 // Three nodes take grants of different sizes until the budget is gone, one dies half-way and
 // its grant is given again: every index 0..K-1 is done exactly once.
+// The downloadable ledger.csv names nodes as nodes name themselves: a name a spreadsheet would
+// run as a formula is led by a ' (shown as text), quotes are doubled, other names are as they
+// are.
+TEST(ClusterLedger, TheLedgersCsvRunsNoNodesNameAsAFormula) {
+  RunResult r;
+  for (const char* name : {"=HYPERLINK(\"http://x\")", "+1", "-2", "@SUM(A1)", "\tx", "a\"b", "gpu-box"})
+    r.ledger.push_back({3, name, {0, 4}});
+  EXPECT_EQ(ledger_csv(r), "node,name,first,last\n"
+                           "3,\"'=HYPERLINK(\"\"http://x\"\")\",0,4\n"
+                           "3,\"'+1\",0,4\n"
+                           "3,\"'-2\",0,4\n"
+                           "3,\"'@SUM(A1)\",0,4\n"
+                           "3,\"'\tx\",0,4\n"
+                           "3,\"a\"\"b\",0,4\n"
+                           "3,\"gpu-box\",0,4\n");
+}
+
 TEST(ClusterLedger, EveryIndexOnceAcrossNodesAndAbandonedGrants) {
   const uint64_t K = 1000;
   Ledger ledger(K);

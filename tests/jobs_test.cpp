@@ -156,6 +156,7 @@ TEST(JobStore, HostileJobFilesAndSubmissionsAreRefused) {
   EXPECT_FALSE(store.next());
   EXPECT_THROW(store.submit("../x", "cornell", "", {}, 0, 1), Error);
   EXPECT_THROW(store.submit(".hidden", "cornell", "", {}, 0, 1), Error);
+  EXPECT_THROW(store.submit("preview", "cornell", "", {}, 0, 1), Error);  // preview.png is the farm's
   EXPECT_THROW(store.submit("ok", "", "", {}, 0, 1), Error);             // no scene
   EXPECT_THROW(store.submit("ok", "cornell", "x", {}, 0, 1), Error);     // both
   EXPECT_THROW(store.submit("ok", "cornell", "", std::vector<std::string>(kMaxJobArgs + 1, "-q"), 0, 1), Error);

@@ -1159,6 +1159,43 @@ TEST(Farm, SlowClientsHoldNoneOfTheServersThreads) {
   stop_farm(farm, nodes, dir, "farm0.log");
 }
 
+// A job's spec as the API takes it: each field of its kind, checked before it is converted,
+// and refused with its name where it is not (priorities of 1e300, 2^31 or 2^63 wrapped to
+// -2147483648, 0 or 1, and 1.5 became 1; a list of numbers as args answered nlohmann's raw
+// "type_error.302"); flags that ask for help, an image too large for memory and the name
+// `preview` (its PNG would be the farm's preview) are refused when submitted, not when run.
+TEST(Farm, AJobSpecOfTheWrongKindIsRefusedWithItsReason) {
+  const fs::path dir = fresh_dir("sirad_farm_spec");
+  FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
+  auto submit = [&](const std::string& spec) {
+    std::ofstream(dir / "spec.json") << spec;
+    return curl(dir, {"-H", "Authorization: Bearer " + farm.token, "-F", "job=<" + (dir / "spec.json").string(), farm.url + "/api/jobs"});
+  };
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {R"({"name": "a", "scene": "cornell", "priority": 1e300})", "'priority' is a whole number within +-1000000"},
+      {R"({"name": "a", "scene": "cornell", "priority": 2147483648})", "'priority' is a whole number"},
+      {R"({"name": "a", "scene": "cornell", "priority": 9223372036854775808})", "'priority' is a whole number"},
+      {R"({"name": "a", "scene": "cornell", "priority": 1.5})", "'priority' is a whole number"},
+      {R"({"name": "a", "scene": "cornell", "priority": "3"})", "'priority' is a whole number"},
+      {R"({"name": "a", "scene": "cornell", "args": [1, 2]})", "'args' is not a list of strings"},
+      {R"({"name": "a", "scene": "cornell", "args": "--bundles 4"})", "'args' is not a list of strings"},
+      {R"({"name": 7, "scene": "cornell"})", "'name' is not a string"},
+      {R"({"name": "a", "scene": "cornell", "args": ["--help"]})", "a job cannot ask for help"},
+      {R"({"name": "a", "scene": "cornell", "args": ["--width", "16384", "--height", "16384"]})", "more than 33554432 pixels"},
+      {R"({"name": "preview", "scene": "cornell"})", "job name 'preview'"}};
+  for (const auto& [spec, why] : refused) {
+    auto [said, code] = submit(spec);
+    EXPECT_EQ(code, 400) << spec << ": " << said;
+    EXPECT_NE(said.find(why), std::string::npos) << spec << ": " << said;
+    EXPECT_EQ(said.find("json.exception"), std::string::npos) << said;
+  }
+  auto [said, code] = submit(R"({"name": "ok", "scene": "cornell", "priority": -1000000, "args": ["--bundles", "4"]})");
+  EXPECT_EQ(code, 201) << said;
+  EXPECT_EQ(nlohmann::json::parse(said)["priority"], -1000000);
+  std::vector<std::unique_ptr<Child>> nodes;
+  stop_farm(farm, nodes, dir, "farm0.log");
+}
+
 // The job list comes in pages (the page polls it every second; 20,000 jobs made each poll
 // 4.5 MB): the newest 200 unless asked, `limit` and `before` for others, with the count of
 // older jobs and of all; nonsense paging is a 400.
