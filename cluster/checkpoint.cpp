@@ -84,6 +84,8 @@ wire::Checkpoint decode_checkpoint(std::string_view all, const std::string& path
   if (c.nodes_size() > static_cast<int>(kMaxCheckpointNodes)) fail("{}: {} nodes (at most {})", path, c.nodes_size(), kMaxCheckpointNodes);
   for (const std::string& k : c.quarantined_keys())
     if (k.size() > 64) fail("{}: a quarantined key of {} bytes (a CURVE key has 40)", path, k.size());
+  if (c.output_args_size() > 32 || !std::all_of(c.output_args().begin(), c.output_args().end(), text_ok))
+    fail("{}: over 32 output flags, or one over {} bytes", path, kMaxCheckpointText);
   for (int n = 0; n < c.nodes_size(); ++n) {
     const wire::CheckpointNode& node = c.nodes(n);
     if (node.counts_size() != static_cast<int>(chunks) || node.sums().size() != 24 * static_cast<std::size_t>(run.patches()))

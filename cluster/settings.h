@@ -147,6 +147,9 @@ struct ProcessSettings {
   // after the solve, in tiles by the nodes that sent their FINAL (PROTOCOL.md section 3.4),
   // into RunResult::image; spp 0: none (the driver draws the patches).
   GatherOptions final_gather{.spp = 0};
+  // The driver's output flags, kept in each checkpoint (wire::Checkpoint::output_args) so that a
+  // resume without them renders the outputs the run was started for.
+  std::vector<std::string> output_args;
 };
 
 // Who a peer is to a coordinator: its CURVE public key ("" without CURVE) and IP address ("" off tcp://).

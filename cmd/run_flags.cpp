@@ -128,6 +128,35 @@ std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
   return names;
 }
 
+std::vector<std::string> output_args(const OutputFlags& o) {
+  std::vector<std::string> a;
+  if (o.width > 0) a.insert(a.end(), {"--width", std::to_string(o.width)});
+  if (o.height > 0) a.insert(a.end(), {"--height", std::to_string(o.height)});
+  if (o.exposure != 0.0f) a.insert(a.end(), {"--exposure", fmt::format("{}", o.exposure)});  // shortest exact form
+  if (o.flat) a.push_back("--flat");
+  if (o.final_gather > 0) a.insert(a.end(), {"--final-gather", std::to_string(o.final_gather)});
+  if (o.skip_degenerate) a.push_back("--skip-degenerate");
+  if (o.two_sided) a.push_back("--two-sided");
+  if (!o.camera.empty()) a.insert(a.end(), {"--camera", o.camera});
+  return a;
+}
+
+void parse_output_args(const std::vector<std::string>& args, OutputFlags& flags, const std::string& origin) {
+  CLI::App app{"outputs"};
+  OutputFlags parsed;
+  add_output_flags(&app, parsed);
+  std::vector<const char*> argv{"outputs"};
+  for (const std::string& a : args) argv.push_back(a.c_str());
+  try {
+    app.parse(static_cast<int>(argv.size()), argv.data());
+  } catch (const CLI::Error& e) {
+    fail("{}: its output flags: {}", origin, e.what());
+  }
+  if (!parsed.out.empty()) fail("{}: its output flags name --out", origin);
+  parsed.out = flags.out;
+  flags = parsed;
+}
+
 std::set<std::string> given_flags(const CLI::App* cmd) {
   std::set<std::string> out;
   for (const CLI::Option* o : cmd->get_options())

@@ -72,6 +72,12 @@ const std::vector<std::string>& cluster_flag_names();
 // --skip-degenerate, --two-sided, --camera; returns their long names.
 std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& flags);
 
+// `flags` (but --out) as the arguments that give them again through add_output_flags.
+std::vector<std::string> output_args(const OutputFlags& flags);
+// Sets `flags` from output_args' arguments (a checkpoint's); throws sirad::Error for ones that
+// are not output flags.
+void parse_output_args(const std::vector<std::string>& args, OutputFlags& flags, const std::string& origin);
+
 // The long names of the options given on `cmd`'s command line.
 std::set<std::string> given_flags(const CLI::App* cmd);
 

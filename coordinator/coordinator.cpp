@@ -977,7 +977,9 @@ class Coordinator {
     r.nodes.resize(policy_.nodes());
     for (const Peer* p : all_peers()) r.nodes.at(p->index) = {p->name, p->key, p->busy_s, p->idle_s};
     r.elapsed_s = seconds(Clock::now() - start_);
-    write_checkpoint(config_.checkpoint, make_checkpoint(config_, run_, policy_.snapshot(), r));
+    wire::Checkpoint c = make_checkpoint(config_, run_, policy_.snapshot(), r);
+    for (const std::string& a : config_.output_args) c.add_output_args(a);
+    write_checkpoint(config_.checkpoint, c);
   }
 
   // A checkpointed run, continued: its nodes (departed: their processes rejoin as new nodes),

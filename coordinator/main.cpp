@@ -2,6 +2,7 @@
 // outputs (NAME.exr, NAME.png, NAME.ply, NAME.glb). The run flags are sirad render's
 // (cmd/run_flags.h); the rest are the coordinator's own: --listen, --min-nodes, security,
 // liveness, checkpoints and --resume, status and ledger files. `sirad-coordinator --help`.
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -213,6 +214,11 @@ int main(int argc, char** argv) {
       static_cast<cluster::RunSettings&>(rc) = cluster::settings_of(*resumed);
       rc.resume = &*resumed;
       if (checkpoint.empty()) checkpoint = resume;
+      // The outputs the run was started for, unless this command names its own.
+      const bool outputs_given = std::any_of(output_flags.begin(), output_flags.end(),
+                                             [&](const std::string& f) { return f != "--out" && given.count(f); });
+      if (!outputs_given)
+        cli::parse_output_args({resumed->output_args().begin(), resumed->output_args().end()}, output, resume);
     } else {
       static_cast<cluster::RunSettings&>(rc) = cli::settings_from(run, given);
       if (std::string why = cluster::target_error_problem(rc); !why.empty()) fail("{}", why);
@@ -228,6 +234,7 @@ int main(int argc, char** argv) {
     rc.emulate_bandwidth = !network_bandwidth;
     rc.checkpoint = checkpoint;
     rc.checkpoint_every_s = checkpoint_every;
+    rc.output_args = cli::output_args(output);
     PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
     const SceneCheck check = check_scene(rc.scene, mesh, cli::camera_flag(output.camera), "--camera");
     if (resumed && resumed->run().scene_hash() != mesh.hash)

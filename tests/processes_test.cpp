@@ -461,7 +461,8 @@ TEST(Processes, AnImageInTilesOverTcpIsTheImageOfOneMachineThoughANodeStops) {
 // is not taken and render every tile, and the image is `sirad image`'s of the run's PLY bit for
 // bit. The first run is held in its image by stopping both nodes as soon as each has logged its
 // FINAL: the 64 tiles take seconds, and until the nodes are silent for the liveness window
-// (20 s) nobody else renders them.
+// (20 s) nobody else renders them. The resumed coordinator is given no image flags: the
+// checkpoint carries them (before, it drew a 512 x 512 image of the patches instead).
 TEST(Processes, ACoordinatorStoppedInItsImageResumesItOnNodesThatJoin) {
   const fs::path dir = fs::temp_directory_path() / fmt::format("sirad_image_resume_{}", ::getpid());
   fs::remove_all(dir);
@@ -473,7 +474,7 @@ TEST(Processes, ACoordinatorStoppedInItsImageResumesItOnNodesThatJoin) {
                                      (dir / "endpoint").string(), "--min-nodes", "2", "--timeout", sirad::test::kHangTimeout,
                                      "--heartbeat-ms", "200", "--liveness", "100", "--status-json", status.string(),
                                      "--checkpoint", checkpoint.string(), "--out", (dir / "run").string(), "-q"};
-    args.insert(args.end(), image_flags.begin(), image_flags.end());
+    if (n == 0) args.insert(args.end(), image_flags.begin(), image_flags.end());
     args.insert(args.end(), extra.begin(), extra.end());
     fs::remove(status);
     return std::make_unique<Child>(args, dir / fmt::format("coordinator{}.log", n));
