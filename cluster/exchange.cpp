@@ -58,6 +58,18 @@ std::vector<Range> Ledger::grant(uint32_t node, uint64_t count) {
   return out;
 }
 
+bool Ledger::grant_index(uint32_t node, uint64_t index) {
+  auto it = std::upper_bound(free_.begin(), free_.end(), index, [](uint64_t i, const Range& r) { return i < r.first; });
+  if (it == free_.begin() || index >= std::prev(it)->last) return false;
+  --it;
+  const Range f = *it;
+  it = free_.erase(it);
+  if (index + 1 < f.last) it = free_.insert(it, {index + 1, f.last});
+  if (f.first < index) free_.insert(it, {f.first, index});
+  granted_[node].push_back({index, index + 1});
+  return true;
+}
+
 uint64_t Ledger::available() const {
   uint64_t n = 0;
   for (const Range& f : free_) n += f.size();

@@ -36,6 +36,8 @@ class Ledger {
   explicit Ledger(uint64_t bundles);
   // Up to `count` indices for `node`, as ranges; empty when the budget is all granted.
   std::vector<Range> grant(uint32_t node, uint64_t count);
+  // Index `index` for `node` if it is free (neither granted nor done); false otherwise.
+  bool grant_index(uint32_t node, uint64_t index);
   // `node` finished `r`: every index must be granted to it and not yet done, or this throws
   // sirad::Error naming the first offending index (nothing is counted twice).
   void done(uint32_t node, Range r);

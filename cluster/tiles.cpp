@@ -127,12 +127,13 @@ void TilePlan::abandon(uint32_t node) {
           if (++losses_[t] >= kMaxTileLosses && !poisoned_) poisoned_ = t;
   ledger_.abandon(node);
   outstanding_.erase(node);
+  here_from_ = 0;  // tiles are free again
 }
 
 std::optional<uint64_t> TilePlan::take_here() {
-  std::vector<Range> tiles = ledger_.grant(kHere, 1);
-  if (tiles.empty()) return std::nullopt;
-  return tiles.front().first;
+  for (; here_from_ < grid_.count(); ++here_from_)
+    if (!losses_.count(here_from_) && ledger_.grant_index(kHere, here_from_)) return here_from_++;
+  return std::nullopt;
 }
 
 void TilePlan::place_here(uint64_t t, const GatherPasses& tile) {

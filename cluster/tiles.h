@@ -91,9 +91,10 @@ class TilePlan {
   // one that may crash whoever renders it, which the image phase must not hand out again.
   static constexpr uint32_t kMaxTileLosses = 3;
   std::optional<uint64_t> poisoned() const { return poisoned_; }
-  // For tiles no node is left to render: the next free tile (neither granted nor done), now
-  // taken by the coordinator itself, or none; then place_here with its passes (of the tile's
-  // size).
+  // For tiles no node is left to render: the next free tile (neither granted nor done) that no
+  // node was lost with, now taken by the coordinator itself, or none; then place_here with its
+  // passes (of the tile's size). A tile a node was lost with waits for a node: it may be what
+  // crashed it, and it must not crash the coordinator.
   std::optional<uint64_t> take_here();
   void place_here(uint64_t t, const GatherPasses& tile);
 
@@ -110,6 +111,7 @@ class TilePlan {
   std::map<uint32_t, std::vector<TileGrant>> outstanding_;  // per node, oldest first
   std::map<uint64_t, uint32_t> losses_;                    // per tile lost at least once
   std::optional<uint64_t> poisoned_;
+  uint64_t here_from_ = 0;  // take_here's scan: no tile below it is free and never lost
   uint64_t next_id_ = 1;
   static constexpr uint32_t kHere = 0xffffffffu;  // the ledger's node for tiles rendered here
 };

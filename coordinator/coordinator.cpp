@@ -286,7 +286,7 @@ class Coordinator {
     spot_floor_ = std::max({mesh_.background.x, mesh_.background.y, mesh_.background.z});
     for (const Material& m : mesh_.materials) spot_floor_ = std::max(spot_floor_, static_cast<double>(std::max({m.emission.x, m.emission.y, m.emission.z})));
     spot_floor_ *= 1e-6;
-    bool rendering_here = false;
+    bool rendering_here = false, waiting_for_lost = false;
     // A resumed run none of whose nodes is here to render: min_nodes to join before the first tile.
     bool waiting = imaging_peers() == 0 && config_.resume != nullptr;
     if (waiting)
@@ -318,6 +318,10 @@ class Coordinator {
           const TileRect r = plan.grid().rect(*t);
           plan.place_here(*t, here().render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
           ++result.tiles_here;
+        } else if (!waiting_for_lost) {
+          waiting_for_lost = true;
+          say(logging::Level::warn, "image: the tiles left were lost with nodes, so they wait for a node (never rendered here)",
+              {{"event", "image waits"}, {"lost", true}});
         }
       }
       std::string key;

@@ -58,6 +58,25 @@ TEST(ClusterLedger, EveryIndexOnceAcrossNodesAndAbandonedGrants) {
   EXPECT_TRUE(ledger.grant(0, 10).empty());
 }
 
+// One index granted out of the middle of the free ranges: only a free one, once; the rest
+// stays free around it, in order.
+TEST(ClusterLedger, GrantsOneFreeIndexByItsNumber) {
+  Ledger l(10);
+  EXPECT_TRUE(l.grant_index(1, 4));
+  EXPECT_FALSE(l.grant_index(2, 4));   // granted
+  EXPECT_FALSE(l.grant_index(2, 10));  // beyond the budget
+  EXPECT_EQ(l.available(), 9u);
+  EXPECT_EQ(l.grant(2, 5), (std::vector<Range>{{0, 4}, {5, 6}}));
+  l.done(1, {4, 5});
+  EXPECT_FALSE(l.grant_index(3, 4));  // done
+  EXPECT_TRUE(l.grant_index(3, 9));
+  EXPECT_TRUE(l.grant_index(3, 6));
+  EXPECT_EQ(l.grant(2, 10), (std::vector<Range>{{7, 9}}));
+  EXPECT_EQ(l.available(), 0u);
+  l.abandon(3);
+  EXPECT_EQ(l.grant(4, 10), (std::vector<Range>{{6, 7}, {9, 10}}));
+}
+
 TEST(ClusterLedger, RefusesWhatWasNotGrantedOrIsDoneAlready) {
   Ledger ledger(100);
   auto g = ledger.grant(0, 10);

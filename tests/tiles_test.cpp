@@ -122,24 +122,32 @@ TEST(Tiles, APlanGrantsTwoAtATimeAndPlacesWhatFits) {
   EXPECT_EQ(again[0].tiles, b[0].tiles) << "the lowest free tile: node 1's first";
   plan.accept(0, a[1].id, a[1].tiles, frames_of(a[1]));
   plan.accept(0, again[0].id, again[0].tiles, frames_of(again[0]));
-  // The rest (tiles 3 to 5: node 0 holds nothing now) rendered here, as the coordinator does
-  // with no node left.
+  // The rest rendered here, as the coordinator does with no node left (node 0 holds nothing
+  // now): tiles 4 and 5, not tile 3, which was lost with node 1 and waits for a node.
   EXPECT_EQ(plan.outstanding(0), 0u);
+  std::vector<uint64_t> here;
   while (std::optional<uint64_t> t = plan.take_here()) {
+    here.push_back(*t);
     const TileRect r = plan.grid().rect(*t);
     plan.place_here(*t, numbered(r.x1 - r.x0, r.y1 - r.y0, r.x0, r.y0));
   }
+  EXPECT_EQ(here, (std::vector<uint64_t>{4, 5}));
+  EXPECT_FALSE(plan.finished());
+  const std::vector<TileGrant> c = plan.top_up(0);
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_EQ(c[0].tiles, (std::vector<Range>{{3, 4}}));
+  plan.accept(0, c[0].id, c[0].tiles, frames_of(c[0]));
   EXPECT_TRUE(plan.finished());
   EXPECT_EQ(plan.passes().combined.pixels, numbered(40, 20).combined.pixels);
   EXPECT_EQ(plan.passes().direct.pixels, numbered(40, 20).direct.pixels);
   EXPECT_EQ(plan.passes().indirect.pixels, numbered(40, 20).indirect.pixels);
-  EXPECT_EQ(plan.tiles_done_by(0), 3u);
+  EXPECT_EQ(plan.tiles_done_by(0), 4u);
 }
 
 // A tile whose node is lost while it holds it goes back; one lost with kMaxTileLosses nodes is
-// named (the coordinator then ends the image instead of handing it to a next node to crash,
-// and never renders it itself). Tiles a node sent are not counted, nor a node dropped holding
-// nothing.
+// named (the coordinator then ends the image instead of handing it to a next node to crash).
+// The coordinator never renders a lost tile itself: it waits for a node. Tiles a node sent are
+// not counted, nor a node dropped holding nothing.
 TEST(Tiles, ATileLostWithThreeNodesIsNamed) {
   TilePlan plan(40, 20, 8);  // 5 x 3 tiles
   for (uint32_t node = 0; node < TilePlan::kMaxTileLosses; ++node) {
@@ -152,6 +160,19 @@ TEST(Tiles, ATileLostWithThreeNodesIsNamed) {
   }
   ASSERT_TRUE(plan.poisoned());
   EXPECT_EQ(*plan.poisoned(), 0u);
+  // With no node left, the coordinator takes every tile but the two lost ones (0 and 1).
+  std::vector<uint64_t> here;
+  while (std::optional<uint64_t> t = plan.take_here()) {
+    here.push_back(*t);
+    const TileRect r = plan.grid().rect(*t);
+    plan.place_here(*t, numbered(r.x1 - r.x0, r.y1 - r.y0, r.x0, r.y0));
+  }
+  EXPECT_EQ(here, (std::vector<uint64_t>{2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14}));
+  EXPECT_FALSE(plan.finished());
+  const std::vector<TileGrant> last = plan.top_up(7);  // a node joins: it is granted them
+  ASSERT_EQ(last.size(), 2u);
+  EXPECT_EQ(last[0].tiles, (std::vector<Range>{{0, 1}}));
+  EXPECT_EQ(last[1].tiles, (std::vector<Range>{{1, 2}}));
   TilePlan other(40, 20, 8);
   for (uint32_t node = 0; node < 2 * TilePlan::kMaxTileLosses; ++node) {
     const std::vector<TileGrant> g = other.top_up(node);
