@@ -1160,6 +1160,27 @@ TEST(Farm, SlowClientsHoldNoneOfTheServersThreads) {
   stop_farm(farm, nodes, dir, "farm0.log");
 }
 
+// A poison job: its camera's eye 1e20 away, which aborted a node in Embree and then the farm,
+// rendering the tile itself, again after every restart. Now the job fails at its start with
+// the reason, the farm and its node stay up, and the next job runs on that node.
+TEST(Farm, AJobWhoseCameraNoRayCanStartFromFailsAndTheFarmGoesOn) {
+  const fs::path dir = fresh_dir("sirad_farm_poison");
+  FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
+  auto submit = [&](std::vector<std::string> args) { EXPECT_EQ(sirad_submit(dir, std::move(args)), 0) << slurp(dir / "submit.log"); };
+  submit({"cornell", "--farm", farm.folder.string(), "--name", "far", "--priority", "1", "--patches", "200", "--bundles", "16",
+          "--width", "16", "--height", "16", "--final-gather", "1", "--camera", "eye 1e20 0 0 look 0 0 0 up 0 1 0 fov 60"});
+  submit({"cornell", "--farm", farm.folder.string(), "--name", "next", "--patches", "200", "--bundles", "16", "--width", "16",
+          "--height", "16", "--final-gather", "1"});
+  std::vector<std::unique_ptr<Child>> nodes = insecure_nodes(dir, farm.endpoint, "p", 1);
+  ASSERT_TRUE(wait_until([&] { return job_state(farm, 2) == "done" || job_state(farm, 2) == "failed"; })) << slurp(dir / "farm0.log");
+  EXPECT_EQ(job_state(farm, 1), "failed");
+  EXPECT_NE(job_record(farm, 1)["error"].get<std::string>().find("the camera's eye is 1e+20 from the scene's centre"), std::string::npos)
+      << job_record(farm, 1);
+  EXPECT_EQ(job_state(farm, 2), "done") << job_record(farm, 2);
+  EXPECT_TRUE(fs::exists(farm.folder / "jobs" / "2" / "next.exr"));
+  stop_farm(farm, nodes, dir, "farm0.log");
+}
+
 // A job's spec as the API takes it: each field of its kind, checked before it is converted,
 // and refused with its name where it is not (priorities of 1e300, 2^31 or 2^63 wrapped to
 // -2147483648, 0 or 1, and 1.5 became 1; a list of numbers as args answered nlohmann's raw
