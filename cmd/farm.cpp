@@ -107,7 +107,7 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
   } else {
     static_cast<cluster::RunSettings&>(rc) = plan.settings;
   }
-  ImportOptions import{.skip_degenerate = plan.output.skip_degenerate, .two_sided = plan.output.two_sided};
+  const ImportOptions import = plan.output.import();
   rc.scene = job.scene.empty()
                  ? decode_scene(read_file_whole((dir / "scene.bin").string(), "scene", kMaxSceneBytes), "job scene")
                  : load_scene(job.scene, import);

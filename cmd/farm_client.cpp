@@ -137,7 +137,7 @@ int submit_job(const FarmAddress& at, const std::string& scene, const std::vecto
   if (is_builtin_scene(scene)) {
     spec["scene"] = scene;
   } else {
-    Scene s = load_scene(scene, {.skip_degenerate = plan.output.skip_degenerate, .two_sided = plan.output.two_sided});
+    Scene s = load_scene(scene, plan.output.import());
     // The uploaded scene carries no camera aspect: the image size the scene's camera gives is
     // settled here and sent as flags.
     OutputFlags output = plan.output;

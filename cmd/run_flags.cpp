@@ -119,6 +119,9 @@ std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
       cmd->add_flag("--two-sided", o.two_sided,
                     "Every surface two-sided, as in Cycles: both sides receive, reflect and emit (per material: MTL "
                     "sirad_two_sided 1)"),
+      cmd->add_flag("--allow-outside-uris", o.outside_uris,
+                    "A glTF's external buffers and images may be read from outside its folder (../textures); by default "
+                    "only its folder and below"),
       cmd->add_option("--camera", o.camera,
                       "The view of the images: \"eye X Y Z look X Y Z up X Y Z fov DEG\" (default: the scene's, else one "
                       "chosen to see the most)")};
@@ -137,6 +140,7 @@ std::vector<std::string> output_args(const OutputFlags& o) {
   if (o.final_gather > 0) a.insert(a.end(), {"--final-gather", std::to_string(o.final_gather)});
   if (o.skip_degenerate) a.push_back("--skip-degenerate");
   if (o.two_sided) a.push_back("--two-sided");
+  if (o.outside_uris) a.push_back("--allow-outside-uris");
   if (!o.camera.empty()) a.insert(a.end(), {"--camera", o.camera});
   return a;
 }

@@ -52,7 +52,9 @@ struct OutputFlags {
   int final_gather = 0;  // samples per pixel of a final gather image (0: the patches drawn)
   bool skip_degenerate = false;
   bool two_sided = false;
+  bool outside_uris = false;  // --allow-outside-uris (ImportOptions::outside_uris)
   std::string camera;  // --camera "eye X Y Z look X Y Z up X Y Z fov DEG"
+  ImportOptions import() const { return {.skip_degenerate = skip_degenerate, .two_sided = two_sided, .outside_uris = outside_uris}; }
 };
 
 // The SCENE argument (a built-in name or a scene file).

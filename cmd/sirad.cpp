@@ -234,7 +234,7 @@ int render(RenderArgs a) {
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
   std::string out = output_name(a.output.out, a.scene);
   Meshed m = load_meshed(a.scene, settings.mesh_options,
-                         {.skip_degenerate = a.output.skip_degenerate, .two_sided = a.output.two_sided}, a.output.camera);
+                         a.output.import(), a.output.camera);
   cli::settle_image_size(a.output, m.scene);
   const PatchMesh& mesh = m.mesh;
   install_interrupt();
@@ -309,7 +309,7 @@ int emulate(EmulateArgs& e) {
   if (std::string why = cluster::target_error_problem(settings); !why.empty()) fail("{}", why);
   std::string out = output_name(a.output.out, a.scene);
   Meshed m = load_meshed(a.scene, settings.mesh_options,
-                         {.skip_degenerate = a.output.skip_degenerate, .two_sided = a.output.two_sided}, a.output.camera);
+                         a.output.import(), a.output.camera);
   cli::settle_image_size(a.output, m.scene);
   const PatchMesh& mesh = m.mesh;
 
@@ -572,7 +572,7 @@ int reference(const ReferenceArgs& r) {
     fail("--light-samples {} is below --batches {}", r.options.light_samples, r.options.batches);
   std::string out = output_name(r.output.out, r.scene, {".exr", ".png", ".ply", ".glb", ".ref.csv"});
   auto [scene, mesh, camera_from] = load_meshed(
-      r.scene, mesh_options, {.skip_degenerate = r.output.skip_degenerate, .two_sided = r.output.two_sided}, r.output.camera);
+      r.scene, mesh_options, r.output.import(), r.output.camera);
   cli::OutputFlags output = r.output;
   cli::settle_image_size(output, scene);
   if (!r.quiet)

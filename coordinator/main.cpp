@@ -223,7 +223,7 @@ int main(int argc, char** argv) {
       static_cast<cluster::RunSettings&>(rc) = cli::settings_from(run, given);
       if (std::string why = cluster::target_error_problem(rc); !why.empty()) fail("{}", why);
     }
-    rc.scene = load_scene(scene_spec, {.skip_degenerate = output.skip_degenerate, .two_sided = output.two_sided});
+    rc.scene = load_scene(scene_spec, output.import());
     cli::settle_image_size(output, rc.scene);
     rc.min_nodes = static_cast<uint32_t>(min_nodes);
     rc.timeout_s = timeout;

@@ -67,6 +67,9 @@ struct ImportOptions {
   bool skip_degenerate = false;
   // Every material two-sided (Material::two_sided), whatever the file says.
   bool two_sided = false;
+  // A glTF's relative URIs may name files outside its folder (../textures/a.png); by default
+  // only files in its folder and below are read.
+  bool outside_uris = false;
 };
 
 // Loads `spec`: a built-in name ("cornell", "furnace", "bright-room", "three-lights") or a path to an .obj file (its .mtl

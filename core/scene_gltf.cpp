@@ -461,6 +461,7 @@ class GltfReader {
 struct Confinement {
   std::string folder;        // as tinygltf joins it with a URI
   std::filesystem::path canonical_folder;
+  bool outside = false;      // ImportOptions::outside_uris: relative URIs may leave the folder
   std::string refused;       // the first refusal, or ""
 };
 
@@ -484,7 +485,8 @@ std::filesystem::path confined(Confinement& c, const std::string& joined) {
   const fs::path file = fs::canonical(joined, ec);
   if (ec) return {};  // no such file: tinygltf says so
   const fs::path rel = file.lexically_relative(c.canonical_folder);
-  if (rel.empty() || *rel.begin() == "..") return refuse(uri, "names a file outside the scene's folder");
+  if (!c.outside && (rel.empty() || *rel.begin() == ".."))
+    return refuse(uri, "names a file outside the scene's folder (--allow-outside-uris reads it)");
   struct stat st {};
   if (::stat(file.c_str(), &st) != 0) return {};
   if (!S_ISREG(st.st_mode)) return refuse(uri, "is not a regular file (a FIFO, a device or a folder)");
@@ -592,6 +594,7 @@ Scene import_gltf(const std::string& path, const ImportOptions& options, std::ve
   std::error_code ec;
   confinement.canonical_folder = std::filesystem::canonical(confinement.folder, ec);
   if (ec) fail("{}: cannot resolve its folder ({})", path, ec.message());
+  confinement.outside = options.outside_uris;
   tinygltf::TinyGLTF loader;
   loader.SetFsCallbacks({&exists_confined, &tinygltf::ExpandFilePath, &read_confined, &no_write, &confinement});
   loader.SetImageLoader(&load_image_bounded, &confinement);

@@ -470,6 +470,13 @@ TEST_F(GltfFiles, ExternalUrisStayInTheScenesFolder) {
     const std::string m = expect_refused("scene/bad.gltf", with_uri(uri));
     EXPECT_NE(m.find(why), std::string::npos) << uri << ": " << m;
   }
+  // --allow-outside-uris (ImportOptions::outside_uris): relative URIs may leave the folder; an
+  // absolute path, a scheme and a file that is not regular are still refused.
+  const ImportOptions outside{.outside_uris = true};
+  for (const std::string uri : {"../outside.bin", "out_link.bin", "sub/../../outside.bin"})
+    EXPECT_EQ(load_scene(write("scene/ok.gltf", with_uri(uri)), outside).triangles.size(), 1u) << uri;
+  for (const std::string& uri : {(dir_ / "outside.bin").string(), "file://" + (dir_ / "outside.bin").string(), std::string("../scene")})
+    EXPECT_THROW(load_scene(write("scene/bad.gltf", with_uri(uri)), outside), Error) << uri;
 }
 
 // One mesh of 4096 triangles used by enough nodes to make more than kMaxTriangles (a file of
