@@ -10,6 +10,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json_bounded.h"
 
 namespace sirad::emulation {
 
@@ -34,12 +35,19 @@ double number(const std::string& origin, const std::string& key, const YAML::Nod
   return v;
 }
 
+// A map's key as a name: a plain scalar, or one error with its line (yaml-cpp's own answer to
+// a list or map as a key is "bad conversion", without one).
+std::string key_of(const std::string& origin, const YAML::Node& key) {
+  if (!key.IsScalar()) fail("{}: a key is a plain name, not a list or a map", where(origin, key));
+  return key.Scalar();
+}
+
 // The link keys of `map` over `spec`; anything else in the map is an error unless in `extra`.
 void apply(const std::string& origin, const std::string& path, const YAML::Node& map, LinkSpec& spec,
            const std::vector<std::string>& extra) {
   if (!map.IsMap()) fail("{}: {}: expected a map of settings", where(origin, map), path);
   for (const auto& kv : map) {
-    std::string key = kv.first.as<std::string>();
+    std::string key = key_of(origin, kv.first);
     const YAML::Node& v = kv.second;
     std::string name = path.empty() ? key : fmt::format("{}.{}", path, key);
     if (key == "speed") spec.speed = number(origin, name, v, 1e-3, 1e3);
@@ -77,6 +85,9 @@ double Profile::max_speed() const {
 double Profile::slowdown(const LinkSpec& spec) const { return max_speed() / spec.speed; }
 
 Profile parse_profile(const std::string& text, const std::string& origin) {
+  // Nesting is bounded before yaml-cpp builds the tree (no profile needs more than 4 levels; a
+  // flow list nested thousands deep is "bad file" to yaml-cpp).
+  if (json_depth(text, kMaxJsonDepth) > kMaxJsonDepth) fail("{}: lists or maps nested deeper than {} levels", origin, kMaxJsonDepth);
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -87,16 +98,19 @@ Profile parse_profile(const std::string& text, const std::string& origin) {
   try {
     if (!root.IsMap()) fail("{}: a profile is a map with 'defaults' and 'nodes' (see deploy/profiles/)", origin);
     for (const auto& kv : root) {
-      std::string key = kv.first.as<std::string>();
+      std::string key = key_of(origin, kv.first);
       if (key != "profile" && key != "defaults" && key != "nodes" && key != "coordinator")
         fail("{}: unknown key '{}' (known: profile, defaults, nodes, coordinator)", where(origin, kv.first), key);
     }
-    if (root["profile"]) p.name = root["profile"].as<std::string>();
+    if (root["profile"]) {
+      if (!root["profile"].IsScalar()) fail("{}: profile: expected a name", where(origin, root["profile"]));
+      p.name = root["profile"].Scalar();
+    }
     if (root["defaults"]) apply(origin, "defaults", root["defaults"], p.defaults, {});
     if (const YAML::Node c = root["coordinator"]) {
       if (c.IsMap())
         for (const auto& kv : c) {
-          std::string key = kv.first.as<std::string>();
+          std::string key = key_of(origin, kv.first);
           if (key == "speed" || key == "disconnect_at_s" || key == "reconnect_after_s")
             fail("{}: coordinator.{}: not a setting of the coordinator's link (known: latency_ms, jitter_ms, bandwidth_mbit, "
                  "up_mbit, down_mbit, loss)",

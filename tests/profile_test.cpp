@@ -70,6 +70,13 @@ TEST(Profile, BadInputIsOneLineNamingFileLineAndKey) {
   EXPECT_EQ(error_of("defaults:\n  reconnect_after_s: 2\n"), "p.yaml:2: defaults: reconnect_after_s without disconnect_at_s");
   EXPECT_NE(error_of("defaults: [1, 2\n").find("p.yaml:"), std::string::npos);
   EXPECT_NE(error_of("defaults: {speed: 1\n").find("not valid YAML"), std::string::npos);
+  // A list or map as a key (yaml-cpp: "bad conversion", no line) and deep nesting (yaml-cpp:
+  // "bad file") each get their reason.
+  EXPECT_EQ(error_of("nodes:\n  - ? [a, b]\n    : 3\n"), "p.yaml:2: a key is a plain name, not a list or a map");
+  EXPECT_EQ(error_of("? {a: 1}\n: 3\n"), "p.yaml:1: a key is a plain name, not a list or a map");
+  EXPECT_EQ(error_of("profile: [x]\n"), "p.yaml:1: profile: expected a name");
+  EXPECT_EQ(error_of("nodes: " + std::string(100000, '[') + std::string(100000, ']') + "\n"),
+            "p.yaml: lists or maps nested deeper than 64 levels");
   try {
     load_profile("/nonexistent/x.yaml");
     FAIL();
