@@ -246,8 +246,10 @@ void HttpGuard::loop() {
       const std::shared_ptr<Conn> c = it->second;
       const uint32_t ev = events[k].events;
       bool dead = false;
-      if (fd == c->client) {
-        if ((ev & EPOLLIN) || (ev & (EPOLLHUP | EPOLLERR))) {
+      if (fd == c->client && (ev & (EPOLLHUP | EPOLLERR))) {
+        dead = true;  // gone: nothing can reach it any more
+      } else if (fd == c->client) {
+        if (ev & EPOLLIN) {
           if (!c->relaying) {
             const std::size_t room = kMaxHead + 1 - c->head.size();
             const ssize_t r = ::recv(fd, buffer.data(), std::min(room, buffer.size()), 0);
@@ -283,16 +285,17 @@ void HttpGuard::loop() {
           }
         }
       } else if (fd == c->backend) {
-        if (((ev & EPOLLIN) || (ev & (EPOLLHUP | EPOLLERR))) && c->down.size() < kBuffer) {
-          const ssize_t r = ::recv(fd, buffer.data(), std::min(kBuffer - c->down.size(), buffer.size()), 0);
+        // Hung up, the server has sent all it will: what its socket holds (a kernel buffer) is
+        // taken at once whatever the room, so no event repeats while the client is slow.
+        const bool hung_up = ev & (EPOLLHUP | EPOLLERR);
+        if (((ev & EPOLLIN) && c->down.size() < kBuffer) || hung_up) {
+          const ssize_t r = ::recv(fd, buffer.data(), hung_up ? buffer.size() : std::min(kBuffer - c->down.size(), buffer.size()), 0);
           if (r > 0) {
             if (!c->answering) c->first_answer = now;
             c->answering = true;
             c->down.append(buffer.data(), static_cast<std::size_t>(r));
-          } else if (r == 0) {
+          } else if (r == 0 || (errno != EAGAIN && errno != EWOULDBLOCK)) {
             c->backend_eof = true;
-          } else if (errno != EAGAIN && errno != EWOULDBLOCK) {
-            dead = true;
           }
         }
         if (!dead && (ev & EPOLLOUT) && !c->up.empty()) {
@@ -300,6 +303,13 @@ void HttpGuard::loop() {
           if (w > 0) c->up.erase(0, static_cast<std::size_t>(w));
           else if (w < 0 && errno != EAGAIN && errno != EWOULDBLOCK) dead = true;
         }
+      }
+      if (!dead && c->backend_eof && c->backend >= 0) {  // the answer is all in `down`: the server's socket goes
+        ::epoll_ctl(ep, EPOLL_CTL_DEL, c->backend, nullptr);
+        ::close(c->backend);
+        by_fd.erase(c->backend);
+        c->backend = -1;
+        c->up.clear();
       }
       if (!dead && c->client_eof && c->up.empty() && c->backend >= 0) ::shutdown(c->backend, SHUT_WR);
       if (!dead && c->relaying && c->backend_eof && c->down.empty()) dead = true;  // answered in full

@@ -27,7 +27,7 @@ class HttpGuard {
   static constexpr double kMinRate = 16384.0;  // bytes a second
   static constexpr std::size_t kMaxHead = 16384;
   static constexpr std::size_t kPerClient = 64, kMaxConnections = 1024;
-  static constexpr std::size_t kBuffer = std::size_t{256} << 10;  // per direction and connection
+  static constexpr std::size_t kBuffer = std::size_t{64} << 10;  // per direction and connection
 
   // Forwards to the HTTP server at 127.0.0.1:`backend_port`.
   explicit HttpGuard(int backend_port);
