@@ -92,7 +92,7 @@ Job job_from_json(const std::string& text, const std::string& origin) {
   return job;
 }
 
-JobStore::JobStore(std::string dir, double now) : dir_(std::move(dir)) {
+JobStore::JobStore(std::string dir, double now, bool recover) : dir_(std::move(dir)) {
   std::error_code ec;
   fs::create_directories(fs::path(dir_) / "jobs", ec);
   if (ec) fail("{}: cannot make the farm's folder: {}", dir_, ec.message());
@@ -113,7 +113,7 @@ JobStore::JobStore(std::string dir, double now) : dir_(std::move(dir)) {
     try {
       job = job_from_json(read_file_whole(path, "job", kMaxJobFileBytes), path);
       if (job.id != id) fail("{}: 'id' {} is not its folder's", path, job.id);
-      if (job.state == "running") {  // the farm died while it ran
+      if (recover && job.state == "running") {  // the farm died while it ran
         if (++job.lost_runs >= kMaxLostRuns) {
           job.state = "failed";
           job.error = fmt::format("the farm stopped {} times in a row while this job ran (its input may crash the farm); "

@@ -56,8 +56,9 @@ class JobStore {
  public:
   // Opens (making it) DIR and DIR/jobs and reads every job there. A job left `running` (the
   // farm died while it ran) counts a lost run and is queued again to resume from its checkpoint,
-  // or is failed with the reason at its kMaxLostRuns-th loss in a row (`now`: that time).
-  JobStore(std::string dir, double now);
+  // or is failed with the reason at its kMaxLostRuns-th loss in a row (`now`: that time). With
+  // `recover` false (a look at the store, which a running farm may own) nothing is changed.
+  JobStore(std::string dir, double now, bool recover = true);
 
   // A new queued job (its folder, scene.bin when `scene_bytes` is given, job.json). Throws
   // sirad::Error for a bad name, too many args or jobs.

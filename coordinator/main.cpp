@@ -97,7 +97,7 @@ int serve_farm(const std::string& dir, const std::string& http, const std::strin
     port = std::stoi(http.substr(colon + 1));
   if (port < 0 || port > 65535) fail("--http {}: expected HOST:PORT (e.g. 127.0.0.1:8080)", http);
   const std::string host = http.substr(0, colon);
-  cluster::JobStore store(dir, cli::unix_now());
+  cluster::JobStore store(dir, cli::unix_now(), !check_config);  // a check changes nothing of a farm that may be running
   const std::string token = cli::farm_token(token_file.empty() ? (std::filesystem::path(dir) / "token").string() : token_file);
   if (check_config) {
     std::printf("sirad-coordinator: config ok: farm %s, %zu jobs, %s\n", dir.c_str(), store.list().size(), http.c_str());

@@ -66,6 +66,11 @@ TEST(JobStore, AJobTheFarmDiesInTwiceInARowIsFailedNotResumed) {
     store.submit("fine", "cornell", "", {}, 0, 2);
     store.started(1, 3);
   }  // the farm dies with job 1 running
+  for (int look = 0; look < 3; ++look) {  // looks at the store (--check-config) change nothing
+    JobStore seen(d.path.string(), 5, false);
+    EXPECT_EQ(seen.get(1)->state, "running");
+    EXPECT_EQ(seen.get(1)->lost_runs, 0u);
+  }
   {
     JobStore again(d.path.string(), 10);
     EXPECT_EQ(again.get(1)->state, "queued");
