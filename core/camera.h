@@ -60,10 +60,10 @@ inline CameraFrame camera_frame(const Camera& camera, int width, int height, con
   return f;
 }
 
-// How far from a scene its camera may stand, in radii of the scene's bounding sphere. From
-// 1e4 radii a float ray's origin is still finer than 1e-3 of the scene (float's spacing there is
-// 1e4 * 6e-8 radii), and the scene fills a view of 0.01 degrees; much farther, rays lose the
-// scene to rounding, and Embree refuses (aborts on) origins beyond about 1.8e18.
+// How far from a scene its camera may stand, in radii of the scene's bounding sphere. At 1e4
+// radii a float ray's origin is still placed to 1e-3 of the scene (float's spacing there is
+// 1e4 * 1.2e-7 radii), and the scene fills a view of about 0.01 degrees; much farther, rays
+// lose the scene to rounding, and Embree refuses (aborts on) origins beyond about 1.8e18.
 inline constexpr double kMaxEyeDistanceRadii = 1e4;
 
 // Throws sirad::Error (`what` first) for a camera with a non-finite number or whose eye is more
