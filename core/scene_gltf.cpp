@@ -58,7 +58,7 @@ using import::srgb_to_linear;
 constexpr std::size_t kMaxNodes = std::size_t{1} << 20;
 // The most pixels of an image decoded (8192 x 8192: 512 MiB at 16 bits RGBA). A texture is
 // reduced to its mean colour, which a smaller copy of it gives as well.
-constexpr std::size_t kMaxImagePixels = std::size_t{1} << 26;
+constexpr std::size_t kMaxTexturePixels = std::size_t{1} << 26;
 
 // A name from the file as it may appear in messages and outputs.
 std::string clean(const std::string& name) { return import::without_controls(name, 200); }
@@ -551,18 +551,18 @@ std::pair<uint64_t, uint64_t> image_size(const unsigned char* bytes, std::size_t
 }
 
 // Images are decoded (a base colour texture's mean colour is used) only once their header says
-// they are at most kMaxImagePixels; a PNG or JPEG larger is refused, an image of another format
+// they are at most kMaxTexturePixels; a PNG or JPEG larger is refused, an image of another format
 // is left undecoded (its texture then warns and baseColorFactor is used).
 bool load_image_bounded(tinygltf::Image* image, const int index, std::string* err, std::string* warn, int req_width,
                         int req_height, const unsigned char* bytes, int size, void* user) {
   const auto [width, height] = image_size(bytes, static_cast<std::size_t>(std::max(size, 0)));
   if (width == 0 || height == 0) return true;
-  if (width * height > kMaxImagePixels) {
+  if (width * height > kMaxTexturePixels) {
     auto& c = *static_cast<Confinement*>(user);
     if (c.refused.empty())
       c.refused = fmt::format("image {} '{}' is {} x {} pixels, more than {} (a texture counts by its mean colour: a smaller copy "
                               "gives the same)",
-                              index, import::printable(image->uri.empty() ? image->name : image->uri), width, height, kMaxImagePixels);
+                              index, import::printable(image->uri.empty() ? image->name : image->uri), width, height, kMaxTexturePixels);
     if (err) *err += c.refused + "\n";
     return false;
   }
