@@ -24,6 +24,7 @@
 #include "cluster/status.h"
 #include "tests/exr_content.h"
 #include "tests/png_util.h"
+#include "tests/test_folder.h"
 
 namespace fs = std::filesystem;
 
@@ -37,10 +38,7 @@ struct Outcome {
 class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("sirad_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = sirad::test::fresh_test_folder("sirad_cli");
   }
   void TearDown() override { fs::remove_all(dir_); }
 

@@ -20,6 +20,7 @@
 #include "core/scene.h"
 #include "core/scene_io.h"
 #include "tests/process_util.h"
+#include "tests/test_folder.h"
 
 namespace sirad {
 namespace {
@@ -64,10 +65,7 @@ Outcome sirad(const fs::path& dir, std::vector<std::string> args) {
 class FarmClient : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / fmt::format("sirad_farm_client_{}_{}", ::getpid(),
-                                                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = sirad::test::fresh_test_folder("sirad_farm_client");
   }
   void TearDown() override { fs::remove_all(dir_); }
   fs::path dir_;

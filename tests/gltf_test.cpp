@@ -42,6 +42,7 @@
 #include "core/scene_import.h"
 #include "core/solution.h"
 #include "tests/coincident_scenes.h"
+#include "tests/test_folder.h"
 
 namespace sirad {
 namespace {
@@ -311,10 +312,7 @@ std::string gltf_text(std::map<std::string, std::string> edit = {}) {
 class GltfFiles : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("sirad_gltf_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = sirad::test::fresh_test_folder("sirad_gltf");
   }
   void TearDown() override { fs::remove_all(dir_); }
   std::string write(const std::string& name, const std::string& text) {

@@ -29,6 +29,7 @@
 #include "tests/exr_content.h"
 #include "tests/png_util.h"
 #include "tests/process_util.h"
+#include "tests/test_folder.h"
 
 namespace fs = std::filesystem;
 using sirad::test::Child;
@@ -78,10 +79,7 @@ std::string digest_of(const fs::path& file, bool pixels = true) {
 class Golden : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / fmt::format("sirad_golden_{}_{}", ::getpid(),
-                                                    ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = sirad::test::fresh_test_folder("sirad_golden");
     // The band count of the transfer pass orders float sums (core/bundle_cl.h): fixed, so the
     // digests do not depend on the machine's core count.
     ::setenv("SIRAD_BANDS", "4", 1);

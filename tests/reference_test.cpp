@@ -20,6 +20,7 @@
 #include "tests/agreement.h"
 #include "tests/coincident_scenes.h"
 #include "tests/test_util.h"
+#include "tests/test_folder.h"
 
 namespace sirad {
 namespace {
@@ -423,10 +424,7 @@ TEST(ReferenceAgreement, DefaultSolverThreeLights) {
 class ReferenceCli : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("sirad_ref_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = sirad::test::fresh_test_folder("sirad_ref");
   }
   void TearDown() override { fs::remove_all(dir_); }
   struct Outcome {
