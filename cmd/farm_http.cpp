@@ -139,7 +139,8 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
     const auto begin = end - std::min<std::ptrdiff_t>(end - all.begin(), static_cast<std::ptrdiff_t>(*limit));
     json jobs = json::array();
     const std::vector<uint64_t> running = view_.running();
-    for (const cluster::Job& j : std::vector<cluster::Job>(begin, end)) {
+    for (auto it = begin; it != end; ++it) {
+      const cluster::Job& j = *it;
       json o = job_object(j);
       if (std::optional<cluster::Status> st = view_.status(j.id)) {
         o["bundles_done"] = st->bundles_done;
