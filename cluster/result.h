@@ -54,6 +54,10 @@ struct RunResult {
   // The final gather's image, when the run rendered one (RunConfig::final_gather), its time
   // (from the last FINAL), its tiles, and those the coordinator rendered itself (no node left).
   std::optional<GatherPasses> image;
+  // Why the image was not made (empty: it was, or none was asked): a tile that crashed every
+  // node it went to, the run's time limit reached during the image. The solution stays good
+  // (write_results keeps it).
+  std::string image_error;
   double image_seconds = 0;
   uint64_t image_tiles = 0, tiles_here = 0;
 };

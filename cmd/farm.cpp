@@ -142,10 +142,10 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
   cluster::RunResult result = cluster::coordinate(router, rc, mesh);
   reporter.finish();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  write_file_atomic((dir / "ledger.csv").string(), cluster::ledger_csv(result));  // kept should the image fail
   write_results((dir / job.name).string(), mesh, result.radiosity, shown,
                 cluster::run_attributes(rc, cluster::outcome_of(result), mesh, job.scene.empty() ? job.name : job.scene, true),
-                result.image ? &*result.image : nullptr);
-  write_file_atomic((dir / "ledger.csv").string(), cluster::ledger_csv(result));
+                result.image ? &*result.image : nullptr, result.image_error);
   fs::remove(checkpoint);
   fs::remove(preview);
   return cluster::cluster_summary(result, mesh.size(), seconds);

@@ -118,12 +118,12 @@ class Progress {
 };
 
 // The outputs and their paths on stdout (`gathered`: the final gather's passes a cluster run
-// rendered in tiles, write_results).
+// rendered in tiles, or `image_failed` why it could not, write_results).
 void write_outputs(const cli::OutputFlags& o, const std::string& out, const PatchMesh& mesh,
                    const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from,
-                   const GatherPasses* gathered = nullptr) {
+                   const GatherPasses* gathered = nullptr, const std::string& image_failed = {}) {
   attrs.emplace_back("sirad.camera_from", camera_from);
-  ResultFiles files = write_results(out, mesh, radiosity, cli::result_options(o), attrs, gathered);
+  ResultFiles files = write_results(out, mesh, radiosity, cli::result_options(o), attrs, gathered, image_failed);
   std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), camera_from.c_str());
   std::fputs(wrote_lines(files).c_str(), stdout);
 }
@@ -208,7 +208,8 @@ int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, c
     if (!short_of.empty())
       for (auto& [key, value] : attrs)
         if (key == "sirad.ended_by") value = short_of;
-    write_outputs(a.output, out, m.mesh, result.radiosity, attrs, m.camera_from, result.image ? &*result.image : nullptr);
+    write_outputs(a.output, out, m.mesh, result.radiosity, attrs, m.camera_from, result.image ? &*result.image : nullptr,
+                  result.image_error);
   };
   embedded::Outcome o = embedded::run(rc, m.mesh, eo);
   const cluster::RunResult& result = o.result;

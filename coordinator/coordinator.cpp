@@ -37,6 +37,12 @@ using proto::Message;
 
 using Clock = std::chrono::steady_clock;
 
+// The image cannot be made (RunResult::image_error); the solution before it stays good.
+class ImageFailed : public Error {
+ public:
+  using Error::Error;
+};
+
 // What a grant given before a node's first report may take beyond its bound: PoCL compiles a
 // kernel for its work-group size at its first use (3 s for a whole 20-bundle render here, with
 // an empty POCL_CACHE_DIR and an idle machine; several times that under load).
@@ -167,7 +173,17 @@ class Coordinator {
     }
     const double solved_s = seconds(Clock::now() - start_);
     RunResult result = policy_result(policy_, static_cast<int>(run_.grid()));
-    if (imaging()) image_phase(result);
+    if (imaging()) {
+      try {
+        image_phase(result);
+      } catch (const ImageFailed& e) {  // the solution stays good: the caller keeps it
+        for (auto& [id, p] : peers_)
+          if (p.imaging) end_image(p);
+        result.image.reset();
+        result.image_error = e.what();
+        say(logging::Level::error, fmt::format("image failed: {}", e.what()), {{"event", "image failed"}, {"error", e.what()}});
+      }
+    }
     // FINAL is in from every live node (and the image's tiles); let the last shaped messages
     // (STOPs) go out.
     for (auto& [id, p] : peers_) p.down.flush(router_, std::numeric_limits<double>::infinity());
@@ -296,6 +312,9 @@ class Coordinator {
     while (!plan.finished()) {
       auto now = Clock::now();
       image_done_ = plan.done_count();
+      if (config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s)
+        throw ImageFailed(fmt::format("the run's time limit of {} s was reached with {} of {} tiles done", config_.timeout_s,
+                                      plan.done_count(), plan.grid().count()));
       ends_now(now);
       if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
         last_status = now;
@@ -316,7 +335,11 @@ class Coordinator {
         }
         if (std::optional<uint64_t> t = plan.take_here()) {
           const TileRect r = plan.grid().rect(*t);
-          plan.place_here(*t, here().render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
+          try {
+            plan.place_here(*t, here().render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
+          } catch (const Error& e) {
+            throw ImageFailed(fmt::format("tile {} rendered here: {}", *t, e.what()));
+          }
           ++result.tiles_here;
         } else if (!waiting_for_lost) {
           waiting_for_lost = true;
@@ -544,9 +567,9 @@ class Coordinator {
     log(p.id, fmt::format("dropped from the image ({}); its outstanding tiles are granted again", why));
     end_image(p);
     if (std::optional<uint64_t> t = plan.poisoned())
-      fail("image: tile {} was lost with {} nodes, each gone while it rendered the tile: it may crash whoever renders it, so "
-           "it is not handed out again",
-           *t, TilePlan::kMaxTileLosses);
+      throw ImageFailed(fmt::format("tile {} was lost with {} nodes, each gone while it rendered the tile: it may crash whoever "
+                                    "renders it, so it is not handed out again",
+                                    *t, TilePlan::kMaxTileLosses));
   }
 
   // The image's STOP (without image_follows): the node forgets the run.

@@ -266,14 +266,14 @@ int main(int argc, char** argv) {
     cluster::RunResult result = cluster::coordinate(router, rc, mesh);
     reporter.finish();
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    ResultFiles files = write_results(
-        out, mesh, result.radiosity, shown, cluster::run_attributes(rc, cluster::outcome_of(result), mesh, scene_spec, true),
-        result.image ? &*result.image : nullptr);
-    std::fputs(wrote_lines(files).c_str(), stdout);
-    if (!ledger.empty()) {
+    if (!ledger.empty()) {  // first: the ledger stays with the solution should the image have failed
       write_file_atomic(ledger, cluster::ledger_csv(result));
       std::printf("wrote %s\n", std::filesystem::absolute(ledger).c_str());
     }
+    ResultFiles files = write_results(
+        out, mesh, result.radiosity, shown, cluster::run_attributes(rc, cluster::outcome_of(result), mesh, scene_spec, true),
+        result.image ? &*result.image : nullptr, result.image_error);
+    std::fputs(wrote_lines(files).c_str(), stdout);
     std::fputs(cluster::cluster_summary(result, mesh.size(), seconds).c_str(), stdout);
     if (result.ended_by != "budget") std::printf("ended early: %s\n", result.ended_by.c_str());
   } catch (const std::bad_alloc&) {

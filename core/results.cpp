@@ -11,6 +11,9 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <functional>
+#include <new>
+#include <utility>
 
 #include <unistd.h>
 
@@ -48,9 +51,37 @@ std::string wrote_lines(const ResultFiles& files) {
   return out;
 }
 
+namespace {
+
+// Writes each (path, writer) pair to a temporary beside its path, then replaces the paths only
+// once every one is written: all or none (a full disk, a directory in an output's place: no
+// mixed set of new and old files is left).
+void write_together(const std::vector<std::pair<std::string, std::function<void(const std::string&)>>>& files) {
+  namespace fs = std::filesystem;
+  const std::string tag = fmt::format(".sirad-{}.tmp", ::getpid());
+  std::vector<std::string> temps;
+  for (const auto& [path, write] : files) temps.push_back(path + tag);
+  try {
+    for (const auto& [path, write] : files) {
+      std::error_code ec;
+      if (fs::is_directory(path, ec)) fail("{}: is a directory; nothing written", path);
+    }
+    for (std::size_t i = 0; i < files.size(); ++i) files[i].second(temps[i]);
+    for (std::size_t i = 0; i < files.size(); ++i)
+      if (std::rename(temps[i].c_str(), files[i].first.c_str()) != 0)
+        fail("{}: cannot replace it: {}", files[i].first, std::strerror(errno));
+  } catch (...) {
+    std::error_code ec;
+    for (const std::string& t : temps) fs::remove(t, ec);
+    throw;
+  }
+}
+
+}  // namespace
+
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
                           const std::vector<glm::vec3>& radiosity, const ResultOptions& options,
-                          const Attributes& attributes, const GatherPasses* gathered) {
+                          const Attributes& attributes, const GatherPasses* gathered, const std::string& image_failed) {
   if (options.width < 1 || options.height < 1 || options.width > kMaxImageSide || options.height > kMaxImageSide)
     fail("image size {}x{} outside 1..{}", options.width, options.height, kMaxImageSide);
   if (int64_t{options.width} * options.height > kMaxImagePixels)
@@ -61,57 +92,56 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
     if (!std::isfinite(radiosity[j].x) || !std::isfinite(radiosity[j].y) || !std::isfinite(radiosity[j].z))
       fail("{}: the result is not finite at patch {} ({}, {}, {}); nothing written", name, j, radiosity[j].x, radiosity[j].y,
            radiosity[j].z);
+  const ResultFiles files{name + ".exr", name + ".png", name + ".ply", name + ".glb"};
+  const auto ply = [&](const std::string& path) { write_ply(path, mesh, radiosity, options.exposure); };
+  const auto glb = [&](const std::string& path) {
+    write_glb(path, mesh, radiosity, options.exposure, static_cast<double>(options.width) / options.height);
+  };
   Attributes with_camera = attributes;
   with_camera.emplace_back("sirad.camera", camera_spec(*mesh.camera));
   GatherPasses passes;
-  if (options.gather_spp > 0) {
-    if (gathered) {
-      if (gathered->combined.width != options.width || gathered->combined.height != options.height)
-        fail("{}: a gathered image of {}x{} for {}x{}", name, gathered->combined.width, gathered->combined.height, options.width,
-             options.height);
-      passes = *gathered;
-    } else {
-      passes = FinalGather(mesh, radiosity, final_gather_of(options)).render(*mesh.camera);
+  std::string why = image_failed;
+  if (why.empty()) {
+    try {
+      if (options.gather_spp > 0) {
+        if (gathered) {
+          if (gathered->combined.width != options.width || gathered->combined.height != options.height)
+            fail("a gathered image of {}x{} for {}x{}", gathered->combined.width, gathered->combined.height, options.width,
+                 options.height);
+          passes = *gathered;
+        } else {
+          passes = FinalGather(mesh, radiosity, final_gather_of(options)).render(*mesh.camera);
+        }
+      } else {
+        int s = options.samples_per_side;
+        if (s == 0) s = std::clamp(4096 / std::max(options.width, options.height), 1, 4);
+        passes.combined = render_view_antialiased(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading, s);
+      }
+    } catch (const Error& e) {
+      why = e.what();
+    } catch (const std::bad_alloc&) {
+      why = fmt::format("out of memory for a {}x{} image", options.width, options.height);
     }
+  }
+  if (!why.empty()) {
+    write_together({{files.ply, ply}, {files.glb, glb}});
+    fail("{}: no image ({}); the solution is kept in {} and {}", name, why, files.ply, files.glb);
+  }
+  if (options.gather_spp > 0) {
     with_camera.emplace_back("sirad.image", std::string("final gather"));
     with_camera.emplace_back("sirad.spp", static_cast<int64_t>(options.gather_spp));
-  } else {
-    int s = options.samples_per_side;
-    if (s == 0) s = std::clamp(4096 / std::max(options.width, options.height), 1, 4);
-    passes.combined = render_view_antialiased(mesh, radiosity, *mesh.camera, options.width, options.height, options.shading, s);
   }
   const Image& image = passes.combined;
-  ResultFiles files{name + ".exr", name + ".png", name + ".ply", name + ".glb"};
-  // All four or none: each is written to a temporary beside it, and they replace the outputs
-  // only once every one is written (a full disk, a directory in an output's place: no mixed set
-  // of new and old files is left).
-  namespace fs = std::filesystem;
-  const std::string tag = fmt::format(".sirad-{}.tmp", ::getpid());
-  const std::vector<std::string> finals = {files.exr, files.png, files.ply, files.glb};
-  std::vector<std::string> temps;
-  for (const std::string& f : finals) temps.push_back(f + tag);
-  auto discard = [&] {
-    std::error_code ec;
-    for (const std::string& t : temps) fs::remove(t, ec);
-  };
-  try {
-    for (const std::string& f : finals) {
-      std::error_code ec;
-      if (fs::is_directory(f, ec)) fail("{}: is a directory; nothing written", f);
-    }
-    if (options.gather_spp > 0)
-      write_exr_layers(temps[0], passes.layers(), with_camera);
-    else
-      write_exr(temps[0], image, with_camera);
-    write_png(temps[1], image, options.exposure);
-    write_ply(temps[2], mesh, radiosity, options.exposure);
-    write_glb(temps[3], mesh, radiosity, options.exposure, static_cast<double>(options.width) / options.height);
-    for (std::size_t i = 0; i < finals.size(); ++i)
-      if (std::rename(temps[i].c_str(), finals[i].c_str()) != 0) fail("{}: cannot replace it: {}", finals[i], std::strerror(errno));
-  } catch (...) {
-    discard();
-    throw;
-  }
+  write_together({{files.exr,
+                   [&](const std::string& path) {
+                     if (options.gather_spp > 0)
+                       write_exr_layers(path, passes.layers(), with_camera);
+                     else
+                       write_exr(path, image, with_camera);
+                   }},
+                  {files.png, [&](const std::string& path) { write_png(path, image, options.exposure); }},
+                  {files.ply, ply},
+                  {files.glb, glb}});
   return files;
 }
 

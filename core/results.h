@@ -1,5 +1,5 @@
-// sirad: writing a solution as the three outputs of DESIGN.md section 4 (NAME.exr, NAME.png,
-// NAME.ply), shared by every driver (single node, coordinator).
+// sirad: writing a solution as the four outputs of DESIGN.md section 4 (NAME.exr, NAME.png,
+// NAME.ply, NAME.glb), shared by every driver (single node, coordinator, farm).
 #pragma once
 #include <string>
 #include <vector>
@@ -42,8 +42,13 @@ void check_file_name(const std::string& path, const std::string& flag);
 // Renders the view of the mesh's camera and writes NAME.exr, .png, .ply and .glb atomically.
 // `gathered`: with options.gather_spp > 0, the final gather's passes already rendered (a
 // cluster run's tiles: RunResult::image), of the options' size; null: rendered here.
+// A solution outlives its image: where the image cannot be made (`image_failed` says why, as a
+// cluster run's RunResult::image_error does, or rendering it here fails or runs out of memory),
+// NAME.ply and NAME.glb are still written, together, and then an Error names the image's
+// failure and the files kept.
 ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
                           const std::vector<glm::vec3>& radiosity, const ResultOptions& options,
-                          const Attributes& attributes, const GatherPasses* gathered = nullptr);
+                          const Attributes& attributes, const GatherPasses* gathered = nullptr,
+                          const std::string& image_failed = {});
 
 }  // namespace sirad

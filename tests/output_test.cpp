@@ -14,6 +14,7 @@
 #include <numbers>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <OpenEXR/ImfChannelList.h>
@@ -905,6 +906,35 @@ TEST_F(OutputResults, NonFiniteResultIsNeverWritten) {
     EXPECT_NE(std::string(e.what()).find("not finite at patch 1"), std::string::npos) << e.what();
   }
   EXPECT_TRUE(listing().empty());
+}
+
+// A solution outlives its image (issue 35): where the final gather cannot render the view (a
+// camera 1e20 away, past check_camera_reach), the PLY and glb are still written and the error
+// says so; no EXR or PNG is. The same where the image failed before (a cluster run's
+// RunResult::image_error): nothing is rendered.
+TEST_F(OutputResults, TheSolutionIsKeptWhenItsImageFails) {
+  PatchMesh far = quad_with_camera();
+  far.camera->eye = glm::vec3(0, 0, 1e20f);
+  ResultOptions gather = small();
+  gather.gather_spp = 4;
+  for (const auto& [mesh, failed, why] : {std::tuple{far, std::string(), std::string("the camera's eye is 1e+20")},
+                                          std::tuple{quad_with_camera(), std::string("tile 3 was lost"), std::string("tile 3 was lost")}}) {
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    try {
+      write_results(file("x"), mesh, {glm::vec3(1), glm::vec3(3)}, gather, {}, nullptr, failed);
+      ADD_FAILURE() << "no error for " << why;
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("no image ("), std::string::npos) << what;
+      EXPECT_NE(what.find(why), std::string::npos) << what;
+      EXPECT_NE(what.find("the solution is kept in " + file("x.ply") + " and " + file("x.glb")), std::string::npos) << what;
+    }
+    EXPECT_EQ(listing(), (std::vector<std::string>{"x.glb", "x.ply"})) << why;
+    std::ifstream ply(file("x.ply"));
+    std::string text((std::istreambuf_iterator<char>(ply)), {});
+    EXPECT_EQ(text.rfind("ply\n", 0), 0u) << why;
+  }
 }
 
 // An output name that is a directory (`--out some/dir/`) is refused before the run.

@@ -945,6 +945,70 @@ def case_pixels_wrong(build, work, ctx):
     lying_pixels_case(build, work, ctx, lie, "pixel (")
 
 
+class CrashingProxy(LyingProxy):
+    """A real sirad-node that "crashes" on the image's first TILES it is granted: from that message
+    on, the proxy passes nothing either way, as if the node had died rendering the tile."""
+
+    def __init__(self, ctx, coordinator_endpoint):
+        self.crashed = False
+
+        def never(frames):
+            return None
+        super().__init__(ctx, coordinator_endpoint, never)
+
+    def loop(self):
+        poller = zmq.Poller()
+        poller.register(self.front, zmq.POLLIN)
+        poller.register(self.back, zmq.POLLIN)
+        node = None
+        while not self.stopping:
+            for sock, _ in poller.poll(50):
+                if sock is self.front:
+                    node, *frames = self.front.recv_multipart()
+                    if not self.crashed:
+                        self.back.send_multipart(frames)
+                else:
+                    frames = self.back.recv_multipart()
+                    if len(frames) >= 2 and frames[0] == SIG and frames[1][0] == CMD["tiles"]:
+                        self.crashed = True
+                    if node is not None and not self.crashed:
+                        self.front.send_multipart([node] + frames)
+
+
+def case_poison_tile(build, work, ctx):
+    """Class 18, a tile that crashes every node it goes to (issue 35): three nodes, each gone at
+    its first TILES, on an image of one tile. The tile is lost with all three
+    (TilePlan::kMaxTileLosses), and is never rendered by the coordinator itself; the image
+    fails with its reason, and the solution the run made before it is kept: the coordinator
+    exits 1 naming the image's failure and the files kept, and furnace.ply (the furnace's right
+    answer) and furnace.glb are written, no EXR or PNG."""
+    run = Run(build, work, 1024, 3, ["--final-gather", "4"], size=(32, 32))
+    proxies = [CrashingProxy(ctx, run.endpoint) for _ in range(3)]
+    nodes = [Proc([os.path.join(build, "sirad-node"), "--connect", p.endpoint, "--name", f"crash{i}", "--insecure"],
+                  os.path.join(work, f"crash{i}.log")) for i, p in enumerate(proxies)]
+    try:
+        rc = run.finish()
+    finally:
+        for n in nodes:
+            n.stop()
+        for p in proxies:
+            p.stop()
+    log = run.coordinator.log()
+    check(rc == 1, f"coordinator exit {rc}, not 1:\n{log[-4000:]}")
+    check(sum(p.crashed for p in proxies) == 3, f"{sum(p.crashed for p in proxies)} of 3 nodes were granted the tile")
+    check("tile 0 was lost with 3 nodes" in log, f"the image did not fail for its tile:\n{log[-4000:]}")
+    check("no image (" in log and "the solution is kept in" in log, f"the error does not say the solution was kept:\n{log[-4000:]}")
+    check("renders the" not in log or "never rendered here" in log, f"the coordinator rendered the lost tile:\n{log[-4000:]}")
+    for ext in (".exr", ".png"):
+        check(not os.path.exists(run.out + ext), f"{run.out + ext} was written without an image")
+    check(os.path.getsize(run.out + ".glb") > 0, "no glb")
+    check(len(ledger_ranges(run.ledger)) > 0, "no ledger")
+    radiosity = ply_radiosity(run.out + ".ply")
+    mean = sum(r for r, _, _ in radiosity) / len(radiosity)
+    tol = 0.0097 * 4  # as Run.check_result: 4 sd of a 1024-bundle chain average's mean
+    check(abs(mean - 2.0) <= tol, f"the kept solution's furnace mean {mean} is not 2 within {tol}")
+
+
 CASES = {name[len("case_"):]: fn for name, fn in globals().items() if name.startswith("case_")}
 
 
