@@ -55,9 +55,10 @@ constexpr int kTileSide = 32;
 // Pixels of each tile a node sends that the coordinator renders too and compares
 // (Coordinator::spot_check): 2 of 1,024, so the checks cost a node's image 0.2 %.
 constexpr int kSpotChecks = 2;
-// Once a node has measured its time per tile, the first tiles of the nodes that have sent none
-// are due this many times that (Coordinator::tighten_first_tiles).
-constexpr double kUnequalTiles = 16;
+// Once a node has measured how long its first grant took (compilation included), or its time per
+// tile, the first grants, or tiles, of the nodes that have sent none are due this many times
+// that (Coordinator::tighten_first_grants, tighten_first_tiles).
+constexpr double kUnequalFirst = 16;
 
 // Joins (HELLOs that make a new node entry) per CURVE key or address in any 10 s: enough for a
 // farm of 256 nodes behind one address (a NAT, one host) to start at once.
@@ -85,6 +86,7 @@ struct Peer {
   double ms_per_bundle = 0;  // as its READY said (its burn-in, slowdown included)
   uint64_t first_bundles = 0;  // bundles and busy time at its first report
   double first_busy_s = 0;
+  Clock::time_point first_grant_at{};  // when its first grant went out (none yet: the epoch)
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   proto::ShapedLink down;     // the coordinator -> node link (shaped by the profile)
   // Its outstanding grants, oldest first, and when each is due (Policy::grant_time_bound after
@@ -501,9 +503,42 @@ class Coordinator {
     tighten_first_tiles(p);
   }
 
+  // What a node's first grant may take beyond its bound (PoCL compiling its kernels at their first
+  // use): kFirstGrantS, or, once a node has reported its first grant, kUnequalFirst times the
+  // quickest such grant took, compilation included, if that is less.
+  double first_grant_allowance() const {
+    return std::min(kFirstGrantS, kUnequalFirst * first_grant_s_);
+  }
+
+  // A node's first grant is due its bound, the first_grant_allowance and the grant slack after
+  // it went out: before any node has reported, 30 s and more. Once `measured` has reported its
+  // first grant (it took t s from going out, compilation included), the k-th outstanding grant
+  // of each node that has reported none is due (k + 1) kUnequalFirst t from now (plus the grant
+  // slack), if that is sooner: a node that heartbeats but never reports, or runs sixteen times
+  // slower, is declared dead then and its bundles granted again, not after the allowance.
+  void tighten_first_grants(const Peer& measured) {
+    const auto now = Clock::now();
+    const double t = seconds(now - measured.first_grant_at);
+    if (measured.first_grant_at == Clock::time_point{} || !(t < first_grant_s_)) return;
+    first_grant_s_ = t;
+    bool tightened = false;
+    for (auto& [id, q] : peers_) {
+      if (q.imaging || policy_.node(q.index).bundles > 0 || policy_.node(q.index).dead) continue;
+      for (std::size_t k = 0; k < q.due.size(); ++k) {
+        const auto due = now + grant_slack() +
+                         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(static_cast<double>(k + 1) * kUnequalFirst * t));
+        if (due < q.due[k].second) q.due[k].second = due, tightened = true;
+      }
+    }
+    if (tightened)
+      say(logging::Level::info, fmt::format("first grants now due within {:.1f} s of now ({} times {}'s first grant, {:.3f} s)",
+                                            seconds(grant_slack()) + kUnequalFirst * t, kUnequalFirst, measured.name, t),
+          {{"event", "first grants due"}, {"first_grant_s", t}});
+  }
+
   // A node's first tiles are due kFirstGrantS and 20 us a sample after their grant: a bound for
   // the slowest start, minutes at many samples. Once `measured` has sent tiles, the k-th
-  // outstanding grant of each node that has sent none is due (k + 1) kUnequalTiles times its time
+  // outstanding grant of each node that has sent none is due (k + 1) kUnequalFirst times its time
   // per tile from now (plus the grant slack), if that is sooner: a node that holds tiles without
   // rendering them, or renders them sixteen times slower, is dropped then and its tiles granted
   // again, not minutes later.
@@ -515,13 +550,13 @@ class Coordinator {
       for (std::size_t k = 0; k < q.due.size(); ++k) {
         const auto due = now + grant_slack() +
                          std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
-                             static_cast<double>(k + 1) * kUnequalTiles * measured.tile_s));
+                             static_cast<double>(k + 1) * kUnequalFirst * measured.tile_s));
         if (due < q.due[k].second) q.due[k].second = due, tightened = true;
       }
     }
     if (tightened)
       say(logging::Level::info, fmt::format("image: first tiles now due within {:.1f} s of now ({} times {}'s {:.3f} s a tile)",
-                                            seconds(grant_slack()) + kUnequalTiles * measured.tile_s, kUnequalTiles, measured.name,
+                                            seconds(grant_slack()) + kUnequalFirst * measured.tile_s, kUnequalFirst, measured.name,
                                             measured.tile_s),
           {{"event", "first tiles due"}, {"tile_s", measured.tile_s}});
   }
@@ -887,7 +922,8 @@ class Coordinator {
       const auto now = Clock::now();
       const auto from = p.due.empty() ? now : std::max(now, p.due.back().second - grant_slack());  // queued behind
       const double bound = policy_.grant_time_bound(p.index, bundles, p.ms_per_bundle / 1e3);
-      const double first = policy_.node(p.index).bundles == 0 ? kFirstGrantS : 0.0;
+      const double first = policy_.node(p.index).bundles == 0 ? first_grant_allowance() : 0.0;
+      if (p.first_grant_at == Clock::time_point{}) p.first_grant_at = now;
       p.due.emplace_back(o.id, from + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bound + first)) +
                                    grant_slack());
       send(p, {Command::grant, g, {}});
@@ -963,7 +999,10 @@ class Coordinator {
     // Its speed as it runs, for balanced grants: busy time (emulated slowdown included) over
     // bundles since its first report (the first grant carries the kernels' compilation).
     if (uint64_t b = policy_.node(p.index).bundles; b > 0) {
-      if (p.first_bundles == 0) p.first_bundles = b, p.first_busy_s = p.busy_s;
+      if (p.first_bundles == 0) {
+        p.first_bundles = b, p.first_busy_s = p.busy_s;
+        tighten_first_grants(p);
+      }
       else if (b > p.first_bundles) policy_.set_bundle_time(p.index, (p.busy_s - p.first_busy_s) / static_cast<double>(b - p.first_bundles));
     }
     if (config_.progress) config_.progress(policy_.ledger().done_count(), config_.bundles);
@@ -1054,6 +1093,7 @@ class Coordinator {
   Clock::time_point read_up_to_ = Clock::now();
   uint32_t read_in_a_row_ = 0;
   uint64_t image_tiles_ = 0, image_done_ = 0;  // the image's tiles, and those placed (the status)
+  double first_grant_s_ = std::numeric_limits<double>::infinity();  // the quickest first grant reported (tighten_first_grants)
   const std::vector<glm::vec3>* image_solution_ = nullptr;  // the solution the image is gathered from
   std::unique_ptr<FinalGather> here_;                       // here(): made at its first use
   std::mt19937_64 spot_rng_;                                // which pixels spot_check renders

@@ -361,9 +361,11 @@ def case_big_hello(build, work, ctx):
 
 def case_never_reports(build, work, ctx):
     """Class 2: a node that joins, takes its grant, heartbeats, and never reports. The run waits
-    for it (--min-nodes 3), so it holds a grant; its deadline (Policy::grant_time_bound, plus the
-    first grant's 30 s and the 10 s least slack) passes, it is declared dead, its grant goes
-    back to the budget and the honest nodes run it: the run ends with every bundle."""
+    for it (--min-nodes 3), so it holds a grant; due at first after its bound, the first grant's
+    30 s and the 10 s least slack, the grant is brought forward when an honest node reports its
+    own first grant (16 times what that one took, plus the slack: tighten_first_grants); it
+    passes, the sleeper is declared dead, its grant goes back to the budget and the honest
+    nodes run it: the run ends with every bundle."""
     run = Run(build, work, 2048, 3)
     p = Peer(ctx, run.endpoint, "sleeper")
     run.honest(2)
@@ -371,6 +373,7 @@ def case_never_reports(build, work, ctx):
     check("grant" in p.idle_until_exit(run.coordinator), "the sleeper never got a grant")
     run.finish()
     log = run.check_result({"h0", "h1"})
+    check("first grants now due within" in log, f"the sleeper's grant was not brought forward:\n{log[-3000:]}")
     check("sleeper: declared dead (grant" in log and "overdue" in log, f"no overdue grant in the log:\n{log[-3000:]}")
     status = read_status(run.status)
     check(any(n["name"] == "sleeper" and n["state"] == "dead" and n.get("why", "").startswith("grant ") and "overdue" in n["why"]
