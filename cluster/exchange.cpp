@@ -114,6 +114,51 @@ void Ledger::abandon(uint32_t node) {
   free_ = merged(std::move(free_));  // the lowest indices go out first
 }
 
+void Ledger::lose(uint32_t node) {
+  auto it = granted_.find(node);
+  if (it == granted_.end()) return;
+  // Splits the loss entry holding index x (if any) so that one starts at x.
+  const auto split = [&](uint64_t x) {
+    auto e = losses_.upper_bound(x);
+    if (e == losses_.begin()) return;
+    --e;
+    auto& [last, count] = e->second;
+    if (e->first < x && x < last) {
+      losses_.emplace(x, std::pair{last, count});
+      last = x;
+    }
+  };
+  for (const Range& r : it->second) {
+    split(r.first);
+    split(r.last);
+    uint64_t at = r.first;
+    for (auto e = losses_.lower_bound(r.first); at < r.last;) {
+      if (e == losses_.end() || e->first >= r.last) {  // no entry from `at` on: a new one to r.last
+        losses_.emplace(at, std::pair{r.last, 1u});
+        break;
+      }
+      if (e->first > at) losses_.emplace(at, std::pair{e->first, 1u});  // the gap before it
+      ++e->second.second;
+      at = e->second.first;
+      ++e;
+    }
+  }
+  abandon(node);
+}
+
+std::optional<Range> Ledger::poisoned(uint32_t times) const {
+  std::optional<Range> out;
+  for (const auto& [first, e] : losses_) {
+    if (e.second >= times && (!out || out->last == first)) {
+      if (!out) out = Range{first, first};
+      out->last = e.first;
+    } else if (out) {
+      break;
+    }
+  }
+  return out;
+}
+
 uint64_t Ledger::revoke(uint32_t node) {
   abandon(node);
   auto it = done_.find(node);

@@ -180,10 +180,18 @@ void Policy::ready(uint32_t n) {
   p.ready = true;
 }
 
-uint64_t Policy::dead(uint32_t n) {
+uint64_t Policy::dead(uint32_t n, bool planned) {
   NodeState& p = nodes_.at(n);
   uint64_t back = ledger_.outstanding(n);
-  ledger_.abandon(n);
+  if (planned) {
+    ledger_.abandon(n);
+  } else {
+    ledger_.lose(n);
+    if (std::optional<Range> r = ledger_.poisoned(kMaxBundleLosses))
+      close(fmt::format("bundles {}..{} were lost with {} nodes, each gone while it ran them: they may crash whoever runs "
+                        "them, so the run ended with the bundles done",
+                        r->first, r->last - 1, kMaxBundleLosses));
+  }
   p.dead = true;
   p.grants.clear();
   return back;

@@ -455,7 +455,7 @@ class Coordinator {
   }
 
   void drop_joiner(Peer& p, const std::string& why) {
-    policy_.dead(p.index);
+    policy_.dead(p.index, true);  // it holds no bundles: it joined during the image
     p.dead_why = why;
     p.down.clear();
     p.due.clear();
@@ -739,12 +739,23 @@ class Coordinator {
   }
 
   void declare_dead(Peer& p, const std::string& why) {
-    uint64_t back = policy_.dead(p.index);
+    const bool poisoned_before = policy_.ledger().poisoned(Policy::kMaxBundleLosses).has_value();
+    uint64_t back = policy_.dead(p.index, disconnected_on_purpose(p));
     p.dead_why = why;
     p.down.clear();
     p.due.clear();
     log(p.id, fmt::format("declared dead ({}); {} granted bundles return to the budget", why, back));
+    if (!poisoned_before && policy_.ledger().poisoned(Policy::kMaxBundleLosses))
+      say(logging::Level::error, policy_.ended_by(), {{"event", "bundles lost"}});
     schedule();  // a sync barrier may have been waiting on it
+  }
+
+  // Whether `p` went silent because its emulated link said so (the profile's disconnect_at_s,
+  // past since it was ready): its grant's bundles did not crash it.
+  bool disconnected_on_purpose(const Peer& p) const {
+    if (!config_.profile || p.ready_at == Clock::time_point{}) return false;
+    const double at = config_.profile->for_node(p.index, p.name).disconnect_at_s;
+    return at >= 0 && seconds(Clock::now() - p.ready_at) >= at;
   }
 
   // Milliseconds to wait for a message: up to 100, less when an emulated link has one due.

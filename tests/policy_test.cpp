@@ -1,6 +1,7 @@
 // sirad tests: the coordinator's decisions (cluster/policy.h) as plain state.
 #include <cmath>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "cluster/policy.h"
@@ -118,6 +119,40 @@ TEST(Policy, SyncGrantsARoundOnlyWhenTheLastIsIn) {
   ASSERT_EQ(second.grants.size(), 2u);
   EXPECT_EQ(second.grants[0].ranges.front().first, 16u);  // node 2's returned range first
   EXPECT_THROW(p.report(0, first.grants[0].id, first.grants[0].ranges, {}, 0), Error);  // answered already
+}
+
+// Bundles that crash whoever runs them: the lowest free indices go out first, so the first
+// grant goes to node after node, each dying with it. At the third loss the run closes (no more
+// grants, ended_by naming the bundles) and, no live node holding a grant, it is done. Deaths
+// that were planned (an emulated disconnect) count no loss: the same sequence keeps granting.
+TEST(Policy, BundlesLostWithThreeNodesCloseTheRun) {
+  for (const bool planned : {false, true}) {
+    PolicyConfig c{.bundles = 64, .exchange_every = 8, .mode = Mode::async, .min_nodes = 1};
+    Policy p = make(c, 0);
+    uint64_t held = 0;  // what each node held when it died: two grants of 8
+    for (uint32_t n = 0; n < 3; ++n) {
+      EXPECT_EQ(p.join(), n);
+      p.ready(n);
+      Orders o = p.schedule();
+      ASSERT_FALSE(o.grants.empty()) << planned << " " << n;
+      EXPECT_EQ(o.grants.front().ranges.front().first, 0u);  // the lost bundles first
+      held = p.grant_size() * o.grants.size();
+      EXPECT_EQ(p.dead(n, planned), held);
+    }
+    EXPECT_EQ(p.ended_by().empty(), planned);
+    p.join();
+    p.ready(3);
+    if (planned) {
+      EXPECT_FALSE(p.schedule().grants.empty());
+      continue;
+    }
+    EXPECT_EQ(held, 16u);
+    EXPECT_NE(p.ended_by().find(fmt::format("bundles 0..{} were lost with 3 nodes", held - 1)), std::string::npos) << p.ended_by();
+    Orders after = p.schedule();
+    EXPECT_TRUE(after.grants.empty());
+    EXPECT_EQ(after.stops, (std::vector<uint32_t>{3}));
+    EXPECT_TRUE(p.ending());
+  }
 }
 
 // --exchange-every auto: chosen once, when the first grants go out, from the ready nodes.

@@ -948,6 +948,28 @@ def case_pixels_wrong(build, work, ctx):
     lying_pixels_case(build, work, ctx, lie, "pixel (")
 
 
+def case_poison_bundles(build, work, ctx):
+    """Class 2, bundles that crash every node they go to (issue 35): three nodes in turn each
+    join, take their grants (the lowest free bundles: the ones the node before died with) and
+    die (silent from then on). At the third loss the run is not handed to a fourth node: it
+    closes, names the bundles in the log and in status.json's ended_by, and ends with the
+    bundles done (none here), its outputs written."""
+    run = Run(build, work, 1024, 1)
+    for i in range(3):
+        p = Peer(ctx, run.endpoint, f"crash{i}")
+        p.join([run.coordinator])
+        p.wait_grant(run.coordinator)
+        p.s.close(linger=0)  # dies with its grants
+        wait_until(f"crash{i} declared dead", lambda: f"crash{i}: declared dead" in run.coordinator.log(), [run.coordinator])
+    rc = run.finish()
+    log = run.coordinator.log()
+    check(rc == 0, f"coordinator exit {rc}:\n{log[-4000:]}")
+    check("bundles 0.." in log and "were lost with 3 nodes" in log, f"the run did not name the lost bundles:\n{log[-4000:]}")
+    status = read_status(run.status)
+    check("were lost with 3 nodes" in (status.get("ended_by") or ""), f"status.json's ended_by: {status.get('ended_by')}")
+    check(os.path.exists(run.out + ".ply"), "no outputs")
+
+
 class CrashingProxy(LyingProxy):
     """A real sirad-node that "crashes" on the image's first TILES it is granted: from that message
     on, the proxy passes nothing either way, as if the node had died rendering the tile."""
