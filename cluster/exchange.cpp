@@ -114,7 +114,7 @@ void Ledger::abandon(uint32_t node) {
   free_ = merged(std::move(free_));  // the lowest indices go out first
 }
 
-void Ledger::lose(uint32_t node) {
+void Ledger::lose(uint32_t node, const std::string& who) {
   auto it = granted_.find(node);
   if (it == granted_.end()) return;
   // Splits the loss entry holding index x (if any) so that one starts at x.
@@ -122,11 +122,13 @@ void Ledger::lose(uint32_t node) {
     auto e = losses_.upper_bound(x);
     if (e == losses_.begin()) return;
     --e;
-    auto& [last, count] = e->second;
-    if (e->first < x && x < last) {
-      losses_.emplace(x, std::pair{last, count});
-      last = x;
+    if (e->first < x && x < e->second.last) {
+      losses_.emplace(x, e->second);
+      e->second.last = x;
     }
+  };
+  const auto count = [&](Lost& l) {
+    if (l.who.size() < kLossesKept && std::find(l.who.begin(), l.who.end(), who) == l.who.end()) l.who.push_back(who);
   };
   for (const Range& r : it->second) {
     split(r.first);
@@ -134,12 +136,12 @@ void Ledger::lose(uint32_t node) {
     uint64_t at = r.first;
     for (auto e = losses_.lower_bound(r.first); at < r.last;) {
       if (e == losses_.end() || e->first >= r.last) {  // no entry from `at` on: a new one to r.last
-        losses_.emplace(at, std::pair{r.last, 1u});
+        losses_.emplace(at, Lost{r.last, {who}});
         break;
       }
-      if (e->first > at) losses_.emplace(at, std::pair{e->first, 1u});  // the gap before it
-      ++e->second.second;
-      at = e->second.first;
+      if (e->first > at) losses_.emplace(at, Lost{e->first, {who}});  // the gap before it
+      count(e->second);
+      at = e->second.last;
       ++e;
     }
   }
@@ -149,9 +151,9 @@ void Ledger::lose(uint32_t node) {
 std::optional<Range> Ledger::poisoned(uint32_t times) const {
   std::optional<Range> out;
   for (const auto& [first, e] : losses_) {
-    if (e.second >= times && (!out || out->last == first)) {
+    if (e.who.size() >= times && (!out || out->last == first)) {
       if (!out) out = Range{first, first};
-      out->last = e.first;
+      out->last = e.last;
     } else if (out) {
       break;
     }

@@ -44,10 +44,11 @@ class Ledger {
   // Everything granted to `node` and not done returns to the budget.
   void abandon(uint32_t node);
   // The same for a node that died while it held them (gone, or past its grant's due time):
-  // each of those indices counts a loss. A bundle that crashes whoever runs it (a kernel fault
-  // on one direction) is lost with every node it goes to, since the lowest free indices are
-  // granted first; poisoned() names the first range lost with `times` nodes or more.
-  void lose(uint32_t node);
+  // each of those indices counts a loss by `who` (the node's identity: a peer that joins again
+  // and again counts once). A bundle that crashes whoever runs it (a kernel fault on one
+  // direction) is lost with every node it goes to, since the lowest free indices are granted
+  // first; poisoned() names the first range lost by `times` identities or more, merged.
+  void lose(uint32_t node, const std::string& who);
   std::optional<Range> poisoned(uint32_t times) const;
   // Everything granted to `node`, done or not, returns to the budget (a quarantined node: its
   // data are dropped, so its bundles must be run again). Returns how many were done.
@@ -69,9 +70,15 @@ class Ledger {
   std::map<uint32_t, std::vector<Range>> granted_;    // per node, not yet done
   std::map<uint32_t, std::vector<Range>> done_;       // per node, done (unmerged)
   uint64_t done_count_ = 0;
-  // Indices lost at least once (lose()): disjoint ranges, first -> (last, losses). At most two
-  // entries more per range a loss returns: bounded by the node entries a run keeps.
-  std::map<uint64_t, std::pair<uint64_t, uint32_t>> losses_;
+  // Indices lost at least once (lose()): disjoint ranges, first -> their last and who lost
+  // them (distinct, at most kLossesKept). At most two entries more per range a loss returns:
+  // bounded by the node entries a run keeps.
+  struct Lost {
+    uint64_t last = 0;
+    std::vector<std::string> who;
+  };
+  static constexpr std::size_t kLossesKept = 8;
+  std::map<uint64_t, Lost> losses_;
 };
 
 // Contiguous chunks of patches: chunk c is [starts[c], starts[c+1]), starts.back() = patches.

@@ -180,20 +180,23 @@ void Policy::ready(uint32_t n) {
   p.ready = true;
 }
 
-uint64_t Policy::dead(uint32_t n, bool planned) {
+uint64_t Policy::dead(uint32_t n) {
   NodeState& p = nodes_.at(n);
   uint64_t back = ledger_.outstanding(n);
-  if (planned) {
-    ledger_.abandon(n);
-  } else {
-    ledger_.lose(n);
-    if (std::optional<Range> r = ledger_.poisoned(kMaxBundleLosses))
-      close(fmt::format("bundles {}..{} were lost with {} nodes, each gone while it ran them: they may crash whoever runs "
-                        "them, so the run ended with the bundles done",
-                        r->first, r->last - 1, kMaxBundleLosses));
-  }
+  ledger_.abandon(n);
   p.dead = true;
   p.grants.clear();
+  return back;
+}
+
+uint64_t Policy::lost(uint32_t n, const std::string& who) {
+  const uint64_t back = ledger_.outstanding(n);
+  ledger_.lose(n, who);  // and back to the budget
+  if (std::optional<Range> r = ledger_.poisoned(kMaxBundleLosses))
+    close(fmt::format("bundles {}..{} were lost with {} nodes, each gone while it ran them: they may crash whoever runs "
+                      "them, so the run ended with the bundles done",
+                      r->first, r->last - 1, kMaxBundleLosses));
+  dead(n);
   return back;
 }
 

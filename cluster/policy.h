@@ -193,12 +193,15 @@ class Policy {
   const NodeState& node(uint32_t n) const { return nodes_.at(n); }
   void ready(uint32_t n);  // throws sirad::Error for a second READY
   // Declares node n dead: its outstanding grant goes back to the budget. Returns how many
-  // bundles went back. Call schedule() next (a sync barrier may have waited on it). Unless
-  // `planned` (an emulated disconnect, a joiner dropped before any grant), the bundles count a
-  // loss each (Ledger::lose): bundles lost with kMaxBundleLosses nodes may crash whoever runs
-  // them, so the run closes then (close(): no more grants; it ends with the bundles done, its
-  // ended_by naming them) rather than handing them to node after node.
-  uint64_t dead(uint32_t n, bool planned = false);
+  // bundles went back. Call schedule() next (a sync barrier may have waited on it).
+  uint64_t dead(uint32_t n);
+  // The same for a node gone while it held its grants (silent, unreachable, past due: not one
+  // that left on purpose or said HELLO again), known as `who` (its CURVE key, else its
+  // address): each bundle it held counts a loss by `who` (Ledger::lose). Bundles lost by
+  // kMaxBundleLosses identities may crash whoever runs them, so the run closes then (close():
+  // no more grants; it ends with the bundles done, its ended_by naming them) rather than
+  // handing them to node after node.
+  uint64_t lost(uint32_t n, const std::string& who);
   static constexpr uint32_t kMaxBundleLosses = 3;
   // Quarantines node n for sending what no honest node can (a non-finite or absurd value, a
   // count beyond its bundles or going backwards, bundles it was not granted): dead, its data

@@ -22,6 +22,7 @@ RunResult policy_result(const Policy& p, int grid) {
   r.grid = grid;
   r.bundles = p.ledger().done_count();
   r.ended_by = p.ended_by().empty() ? "budget" : p.ended_by();
+  r.bundles_lost = p.ledger().poisoned(Policy::kMaxBundleLosses);
   r.error_estimate = p.error_estimate();
   r.exchange_every = p.exchange_every();
   r.fraction = p.fraction();

@@ -58,6 +58,9 @@ struct RunResult {
   // node it went to, the run's time limit reached during the image. The solution stays good
   // (write_results keeps it).
   std::string image_error;
+  // Bundles lost with Policy::kMaxBundleLosses nodes (they may crash whoever runs them): the run
+  // closed with the bundles done. Its drivers write the outputs and then fail.
+  std::optional<Range> bundles_lost;
   double image_seconds = 0;
   uint64_t image_tiles = 0, tiles_here = 0;
 };

@@ -148,6 +148,7 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
                 result.image ? &*result.image : nullptr, result.image_error);
   fs::remove(checkpoint);
   fs::remove(preview);
+  if (result.bundles_lost) fail("{}", result.ended_by);  // the job fails with its outputs kept
   return cluster::cluster_summary(result, mesh.size(), seconds);
 }
 
@@ -351,6 +352,7 @@ class Farm {
     std::string key;
     auto in = proto::receive(router_, 0, 1, kFarmMaxPatches, proto::kMaxChunks, &key);
     if (!in) return false;
+    if (options_.peer_bytes) options_.peer_bytes->delivered(in->fd, in->frames_seen, in->bytes_seen);
     if (in->frames.size() < 2 || in->over) return true;  // a job could take none of it
     const std::string& id = in->frames.front();
     auto it = nodes_.find(id);

@@ -25,6 +25,7 @@
 #include "cluster/settings.h"
 #include "cluster/status.h"
 #include "cmd/run_flags.h"
+#include "proto/peer_bytes.h"
 
 namespace sirad::cli {
 
@@ -78,6 +79,7 @@ inline constexpr std::size_t kFarmMaxNodes = 4096;
 struct FarmOptions {
   cluster::ProcessSettings process;           // heartbeat, liveness, checkpoint period (per job)
   const std::atomic<bool>* stop = nullptr;    // set: the running jobs checkpoint and stay queued; serve returns
+  proto::PeerBytes* peer_bytes = nullptr;     // the farm socket's bytes per peer (told what it reads)
 };
 
 // Serves the store's jobs until *options.stop. `router` is bound (and secured) by the caller,

@@ -58,6 +58,9 @@ struct Conn {
   std::string up, down;  // bytes on their way to the server, to the client
   bool relaying = false, answering = false, client_eof = false, backend_eof = false, chunked = false;
   uint64_t body_length = 0, body_read = 0, answered = 0;
+  bool draining = false;  // refused: its answer sent, what the client still sends is dropped
+  Clock::time_point drain_from;
+  uint64_t drained = 0;
   uint32_t client_mask = 0, backend_mask = 0;  // the epoll interests armed
 };
 
@@ -155,6 +158,16 @@ void HttpGuard::loop() {
     set(c.client, c.client_mask, client);
     set(c.backend, c.backend_mask, backend);
   };
+  // The guard's own answer to a request it refuses before its head is in, then the lingering
+  // close: no more writing, the client's bytes read and dropped (kLingerBytes, kLingerSeconds).
+  auto refuse = [&](const std::shared_ptr<Conn>& c, const char* status, Clock::time_point now) {
+    answer(c->client, status);
+    ::shutdown(c->client, SHUT_WR);
+    c->draining = true;
+    c->drain_from = now;
+    c->head.clear();
+    c->head.shrink_to_fit();
+  };
   // The head is in: pass it on with the client's address and one request per connection.
   auto relay = [&](const std::shared_ptr<Conn>& c, std::size_t end) -> bool {
     const std::string_view head(c->head.data(), end);
@@ -249,7 +262,11 @@ void HttpGuard::loop() {
       if (fd == c->client && (ev & (EPOLLHUP | EPOLLERR))) {
         dead = true;  // gone: nothing can reach it any more
       } else if (fd == c->client) {
-        if (ev & EPOLLIN) {
+        if ((ev & EPOLLIN) && c->draining) {
+          const ssize_t r = ::recv(fd, buffer.data(), buffer.size(), 0);
+          if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK)) dead = true;
+          else if (r > 0 && (c->drained += static_cast<uint64_t>(r)) > kLingerBytes) dead = true;
+        } else if (ev & EPOLLIN) {
           if (!c->relaying) {
             const std::size_t room = kMaxHead + 1 - c->head.size();
             const ssize_t r = ::recv(fd, buffer.data(), std::min(room, buffer.size()), 0);
@@ -258,10 +275,7 @@ void HttpGuard::loop() {
               c->head.append(buffer.data(), static_cast<std::size_t>(r));
               const std::size_t end = c->head.find("\r\n\r\n");
               if (end != std::string::npos && end + 4 <= kMaxHead) dead = !relay(c, end + 4);
-              else if (c->head.size() > kMaxHead) {
-                answer(fd, "431 Request Header Fields Too Large");
-                dead = true;
-              }
+              else if (c->head.size() > kMaxHead) refuse(c, "431 Request Header Fields Too Large", now);
             }
           } else if (c->up.size() < kBuffer) {
             const ssize_t r = ::recv(fd, buffer.data(), std::min(kBuffer - c->up.size(), buffer.size()), 0);
@@ -322,11 +336,12 @@ void HttpGuard::loop() {
     std::vector<std::shared_ptr<Conn>> late;
     for (const auto& [fd, c] : by_fd) {
       if (fd != c->client) continue;
+      if (c->draining) {
+        if (since(c->drain_from, now) > kLingerSeconds) late.push_back(c);
+        continue;
+      }
       if (!c->relaying) {
-        if (since(c->opened, now) > kHeadSeconds) {
-          answer(c->client, "408 Request Timeout");
-          late.push_back(c);
-        }
+        if (since(c->opened, now) > kHeadSeconds) refuse(c, "408 Request Timeout", now);
         continue;
       }
       const double owed = (since(c->head_done, now) - kHeadSeconds) * kMinRate;

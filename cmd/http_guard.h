@@ -7,7 +7,10 @@
 // client's head, and every byte after it must move at kMinRate.
 //
 // Its bounds, per connection: the request's head within kHeadSeconds of the connection and at
-// most kMaxHead bytes (else 408 or 431, closed); after the head, the body and the response
+// most kMaxHead bytes (else 408 or 431, then a lingering close: the guard stops writing and
+// reads and drops what the client still sends, up to kLingerBytes or kLingerSeconds, so that
+// the answer is not lost to a reset while the client is still sending; RFC 9112 section 9.6);
+// after the head, the body and the response
 // each at kMinRate bytes a second on average, counted from kHeadSeconds after the head (else
 // closed); one request per connection (the server closes after each answer). Per client
 // address at most kPerClient connections at once, kMaxConnections in all (else 503, closed).
@@ -28,6 +31,8 @@ class HttpGuard {
   static constexpr std::size_t kMaxHead = 16384;
   static constexpr std::size_t kPerClient = 64, kMaxConnections = 1024;
   static constexpr std::size_t kBuffer = std::size_t{64} << 10;  // per direction and connection
+  static constexpr double kLingerSeconds = 2.0;
+  static constexpr std::size_t kLingerBytes = std::size_t{256} << 10;
 
   // Forwards to the HTTP server at 127.0.0.1:`backend_port`.
   explicit HttpGuard(int backend_port);

@@ -79,6 +79,7 @@ struct Rejoin : Error {
 struct Peer {
   std::string id;       // ZeroMQ routing id
   std::string key;      // its CURVE public key (the ZAP user id; "" without CURVE)
+  std::string address;  // its IP address over tcp:// ("" over inproc)
   uint32_t index = 0;   // in the policy (a node that rejoins gets a new one)
   std::string name, device;
   double busy_s = 0, idle_s = 0;
@@ -105,8 +106,8 @@ struct Peer {
 
 class Coordinator {
  public:
-  Coordinator(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh)
-      : router_(router), config_(config), mesh_(mesh),
+  Coordinator(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh, proto::PeerBytes* peer_bytes)
+      : router_(router), peer_bytes_(peer_bytes), config_(config), mesh_(mesh),
         policy_(make_policy(config, mesh, config.min_nodes, [this](const std::vector<uint32_t>& ready) { return choose(ready); })),
         scene_bytes_(encode_scene(config.scene)) {
     // A reconnecting node keeps its routing id; the new connection takes it over.
@@ -231,6 +232,7 @@ class Coordinator {
   std::optional<proto::Received> next(Clock::time_point now, std::string& key, bool no_wait = false) {
     const int ms = wait_ms(now);
     auto in = proto::receive(router_, no_wait ? 0 : ms, 1, mesh_.size(), run_.chunk_starts_size(), &key);
+    if (in && peer_bytes_) peer_bytes_->delivered(in->fd, in->frames_seen, in->bytes_seen);
     if (!in || ++read_in_a_row_ >= kReadUpToDateAfter) {
       read_up_to_ = now;
       read_in_a_row_ = 0;
@@ -455,7 +457,7 @@ class Coordinator {
   }
 
   void drop_joiner(Peer& p, const std::string& why) {
-    policy_.dead(p.index, true);  // it holds no bundles: it joined during the image
+    policy_.dead(p.index);  // it holds no bundles: it joined during the image
     p.dead_why = why;
     p.down.clear();
     p.due.clear();
@@ -706,7 +708,7 @@ class Coordinator {
         else p.down.flush(router_, clock(now));
         continue;
       }
-      if (std::string why = gone(p, n.ready); !why.empty()) declare_dead(p, why);
+      if (std::string why = gone(p, n.ready); !why.empty()) declare_dead(p, why, true);
       else keep_in_touch(p, now);
     }
   }
@@ -738,9 +740,13 @@ class Coordinator {
     return std::max<Clock::duration>(liveness_window(), std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(kGrantSlackS)));
   }
 
-  void declare_dead(Peer& p, const std::string& why) {
+  // `p` is dead for `why`. `gone` (silent, unreachable, past due, and not an emulated
+  // disconnect): it may have crashed on its bundles, which count a loss by its CURVE key, else
+  // its address (Policy::lost).
+  void declare_dead(Peer& p, const std::string& why, bool gone) {
     const bool poisoned_before = policy_.ledger().poisoned(Policy::kMaxBundleLosses).has_value();
-    uint64_t back = policy_.dead(p.index, disconnected_on_purpose(p));
+    const uint64_t back = gone && !disconnected_on_purpose(p) ? policy_.lost(p.index, p.key.empty() ? p.address : p.key)
+                                                              : policy_.dead(p.index);
     p.dead_why = why;
     p.down.clear();
     p.due.clear();
@@ -842,7 +848,7 @@ class Coordinator {
       // quarantined at its FINAL gave its bundles back): then it rejoins, its FINAL kept.
       bool work = n.final_in && !policy_.closing() && policy_.ledger().available() > 0;
       if (!n.dead && (!n.ready || n.stopped) && !work) return;
-      if (!n.dead && !n.final_in) declare_dead(old, "it said HELLO again: it lost its run");
+      if (!n.dead && !n.final_in) declare_dead(old, "it said HELLO again: it lost its run", false);
       departed_.push_back(std::move(old));
       peers_.erase(it);
     }
@@ -857,6 +863,7 @@ class Coordinator {
     Peer& p = peers_[id];
     p.id = id;
     p.key = key;
+    p.address = address;
     p.index = index;
     // What a peer names itself reaches logs, the summary and the status: printable ASCII only.
     p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : peer_text(h.node_name(), 64);
@@ -1084,6 +1091,7 @@ class Coordinator {
   }
 
   zmq::socket_t& router_;
+  proto::PeerBytes* peer_bytes_;  // told of each message read (may be null)
   const RunConfig& config_;
   const PatchMesh& mesh_;
   Policy policy_;
@@ -1120,9 +1128,9 @@ void check_real_run(const RunConfig& config) {
          config.profile->name.empty() ? "" : " " + config.profile->name);
 }
 
-RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh) {
+RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh, proto::PeerBytes* peer_bytes) {
   check_real_run(config);
-  return Coordinator(router, config, mesh).run();
+  return Coordinator(router, config, mesh, peer_bytes).run();
 }
 
 }  // namespace sirad::cluster

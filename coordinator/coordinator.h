@@ -6,6 +6,7 @@
 #include <zmq.hpp>
 
 #include "cluster/result.h"
+#include "proto/peer_bytes.h"
 #include "cluster/settings.h"
 #include "cluster/status.h"
 #include "core/mesh.h"
@@ -19,7 +20,8 @@ namespace sirad::cluster {
 // declared dead: its outstanding grant returns to the budget and its last accepted state stays
 // in the estimate. Throws sirad::Error on the timeout, and when `interrupt` is set (after the
 // checkpoint, if any, is written).
-RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh);
+// `peer_bytes`, if given, watches `router`'s connections and is told of each message read.
+RunResult coordinate(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh, proto::PeerBytes* peer_bytes = nullptr);
 // Throws sirad::Error for settings only the virtual-time cluster models (a profile's
 // coordinator link); coordinate() checks it first.
 void check_real_run(const RunConfig& config);

@@ -61,6 +61,7 @@ ServerKeys server_keys(const std::string& listen, const std::string& curve_secre
 struct Listener {
   std::optional<proto::ZapHandler> zap;
   zmq::socket_t router;
+  std::optional<proto::PeerBytes> bytes;  // what libzmq holds per peer, bounded
   std::string bound;
   Listener(zmq::context_t& context, const std::string& listen, const std::optional<proto::KeyPair>& keys,
            const proto::AllowList& allow, std::size_t max_patches, bool insecure, const std::string& endpoint_file,
@@ -69,6 +70,13 @@ struct Listener {
     router = zmq::socket_t(context, zmq::socket_type::router);
     router.set(zmq::sockopt::linger, 0);
     proto::harden(router, proto::max_frame_bytes(max_patches));
+    const uint64_t per_peer = proto::max_peer_bytes(max_patches);
+    bytes.emplace(context, router, per_peer, [per_peer](const std::string& address, uint64_t held) {
+      logging::write(logging::Level::warn, "sirad-coordinator",
+                     fmt::format("{}: connection shut: libzmq held {} bytes of its unread messages, over the bound of {}", address,
+                                 held, per_peer),
+                     {{"event", "peer bytes"}, {"address", address}, {"held", held}});
+    });
     if (keys) proto::make_curve_server(router, *keys);
     try {
       router.bind(listen);
@@ -119,6 +127,7 @@ int serve_farm(const std::string& dir, const std::string& http, const std::strin
   options.process.liveness = liveness;
   options.process.checkpoint_every_s = checkpoint_every;
   options.stop = &interrupted;
+  options.peer_bytes = &*listener.bytes;
   cli::serve_farm(context, listener.router, store, options, view);
   server.stop();
   logging::write(logging::Level::info, "sirad-coordinator", "farm stopped", {{"event", "stopped"}});
@@ -263,7 +272,7 @@ int main(int argc, char** argv) {
     std::signal(SIGTERM, on_signal);
     rc.interrupt = &interrupted;
     auto start = std::chrono::steady_clock::now();
-    cluster::RunResult result = cluster::coordinate(router, rc, mesh);
+    cluster::RunResult result = cluster::coordinate(router, rc, mesh, &*listener.bytes);
     reporter.finish();
     double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!ledger.empty()) {  // first: the ledger stays with the solution should the image have failed
@@ -276,6 +285,10 @@ int main(int argc, char** argv) {
     std::fputs(wrote_lines(files).c_str(), stdout);
     std::fputs(cluster::cluster_summary(result, mesh.size(), seconds).c_str(), stdout);
     if (result.ended_by != "budget") std::printf("ended early: %s\n", result.ended_by.c_str());
+    if (result.bundles_lost) {  // the outputs are written: the run is not what was asked
+      std::fprintf(stderr, "sirad-coordinator: error: %s\n", result.ended_by.c_str());
+      return 1;
+    }
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "sirad-coordinator: error: out of memory\n");
     return 1;

@@ -43,6 +43,10 @@ int64_t max_frame_bytes(std::size_t patches, bool with_scene) {
   return static_cast<int64_t>(std::min<uint64_t>(largest + 64 * 1024, std::numeric_limits<int64_t>::max()));
 }
 
+uint64_t max_peer_bytes(std::size_t patches) {
+  return 4 * static_cast<uint64_t>(max_frame_bytes(patches)) + (uint64_t{4} << 20);
+}
+
 bool send(zmq::socket_t& socket, const Message& message, const std::string* routing_id) {
   std::vector<std::string> frames = encode(message);
   if (routing_id) frames.insert(frames.begin(), *routing_id);
@@ -131,8 +135,10 @@ std::optional<Received> receive(zmq::socket_t& socket, int timeout_ms, std::size
       if (index == 0) user_id->clear();
       if (const char* user = zmq_msg_gets(part.handle(), "User-Id")) *user_id = user;  // NULL without ZAP
     }
-    if (index == envelope)
+    if (index == envelope) {
       if (const char* address = zmq_msg_gets(part.handle(), "Peer-Address")) r.address = address;
+      r.fd = zmq_msg_get(part.handle(), ZMQ_SRCFD);
+    }
     ++index;
   } while (part.more());
   return r;

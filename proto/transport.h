@@ -35,6 +35,10 @@ void harden(zmq::socket_t& socket, int64_t max_frame_bytes);
 // bytes per patch) or a header, or, `with_scene` (a node, which receives SCENE), a SCENE frame,
 // whichever is larger, plus 64 KiB.
 int64_t max_frame_bytes(std::size_t patches, bool with_scene = false);
+// What libzmq may hold for one peer of a coordinator or farm of `patches` patches
+// (PeerBytes): four of its largest messages (a node's two reports, its FINAL and what comes
+// with them, each at most one largest frame of bulk and headers), plus 4 MiB.
+uint64_t max_peer_bytes(std::size_t patches);
 
 // Sends `message`, preceded by `routing_id` on a ROUTER socket. False when it could not go: the
 // peer is unknown to the ROUTER (gone) or its queue was full (for the send timeout, on a DEALER).
@@ -81,6 +85,7 @@ struct Received {
   bool over = false;                // it held more than its bound: refuse it
   std::size_t frames_seen = 0, bytes_seen = 0;  // the whole message's, envelope not counted
   std::string address;  // the sender's IP address over tcp:// (ZeroMQ's Peer-Address), else ""
+  int fd = -1;          // the connection it came on (ZMQ_SRCFD, for PeerBytes::delivered), else -1
 };
 std::optional<Received> receive(zmq::socket_t& socket, int timeout_ms, std::size_t envelope, std::size_t patches,
                                 std::size_t chunks, std::string* user_id = nullptr);

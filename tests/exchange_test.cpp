@@ -117,25 +117,28 @@ TEST(ClusterLedger, RevokeReturnsDoneAndOutstandingIndices) {
   EXPECT_THROW(ledger.done(0, {25, 30}), Error);  // its late report
 }
 
-// A node that dies holding indices loses them (Ledger::lose): each counts a loss however the
-// ranges were cut since, and poisoned(k) names the first indices lost k times or more, merged;
-// abandon() (a planned disconnect) counts none. Lost indices are free again.
+// A node that dies holding indices loses them (Ledger::lose): each counts a loss by the node's
+// identity however the ranges were cut since, one identity once, and poisoned(k) names the
+// first indices lost by k identities or more, merged; abandon() (a planned disconnect) counts
+// none. Lost indices are free again.
 TEST(ClusterLedger, IndicesLostWithNodesAreCounted) {
   Ledger ledger(100);
   ledger.grant(0, 10);  // [0, 10)
-  ledger.lose(0);
+  ledger.lose(0, "a");
   EXPECT_FALSE(ledger.poisoned(2));
   EXPECT_EQ(ledger.grant(1, 16), (std::vector<Range>{{0, 16}}));
-  ledger.lose(1);  // [0, 10) twice, [10, 16) once
-  EXPECT_EQ(ledger.poisoned(2), (Range{0, 10}));
-  EXPECT_EQ(ledger.poisoned(1), (Range{0, 16}));
+  ledger.lose(1, "a");  // the same peer again: nothing more
+  EXPECT_FALSE(ledger.poisoned(2));
+  EXPECT_EQ(ledger.grant(1, 16), (std::vector<Range>{{0, 16}}));
+  ledger.lose(1, "b");  // [0, 10) by a and b, [10, 16) by a and b
+  EXPECT_EQ(ledger.poisoned(2), (Range{0, 16}));
   EXPECT_FALSE(ledger.poisoned(3));
   EXPECT_EQ(ledger.grant(2, 4), (std::vector<Range>{{0, 4}}));
   EXPECT_EQ(ledger.grant(3, 8), (std::vector<Range>{{4, 12}}));
-  ledger.abandon(2);  // no loss
-  ledger.lose(3);     // [4, 10) three times, [10, 12) twice
-  EXPECT_EQ(ledger.poisoned(3), (Range{4, 10}));
-  EXPECT_EQ(ledger.poisoned(2), (Range{0, 12}));  // [0, 4) twice, [4, 10) three times, [10, 12) twice
+  ledger.abandon(2);    // no loss
+  ledger.lose(3, "c");  // [4, 12) by three, the rest of [0, 16) by two
+  EXPECT_EQ(ledger.poisoned(3), (Range{4, 12}));
+  EXPECT_EQ(ledger.poisoned(2), (Range{0, 16}));
   EXPECT_EQ(ledger.available(), 100u);
   EXPECT_EQ(ledger.grant(4, 100), (std::vector<Range>{{0, 100}}));
   ledger.done(4, {0, 100});

@@ -2,12 +2,18 @@
 // truncated, oversized, wrong-version, wrong-type and inconsistent messages are refused with a
 // one-line reason. Then the same frames over a real ZeroMQ ROUTER/DEALER pair.
 #include <algorithm>
+#include <chrono>
 #include <cstring>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <zmq.hpp>
 
 #include "proto/codec.h"
+#include "proto/peer_bytes.h"
 #include "proto/transport.h"
 #include "proto_samples.h"
 
@@ -214,6 +220,65 @@ TEST(ProtoTransport, ReceiveCopiesOnlyWithinTheBound) {
   ASSERT_TRUE(r);
   EXPECT_TRUE(r->over);
   EXPECT_TRUE(r->frames.empty());
+}
+
+// PeerBytes over real loopback TCP, a bound of 1 MiB: honest traffic (200 messages of 64 KiB,
+// 12.5 MiB in all, each read and told to delivered()) is never shut, however much of it passes,
+// since what was read is subtracted; one message of 64 frames of 256 KiB (16 MiB, each frame
+// within ZMQ_MAXMSGSIZE) is shut while it arrives: never read, on_shut names the connection's
+// address and more than the bound held, and the honest connection goes on. The watcher runs
+// every 10 ms: the test waits for its events (the message read, the shut), bounded only by the
+// suite's hang cap.
+TEST(ProtoTransport, PeerBytesShutsAPeerWhoseUnreadBytesPassTheBound) {
+  zmq::context_t ctx;
+  zmq::socket_t router(ctx, zmq::socket_type::router);
+  router.set(zmq::sockopt::linger, 0);
+  harden(router, 1 << 20);
+  std::mutex mutex;
+  std::vector<std::pair<std::string, uint64_t>> shut;
+  PeerBytes bytes(ctx, router, uint64_t{1} << 20, [&](const std::string& address, uint64_t held) {
+    std::lock_guard lock(mutex);
+    shut.emplace_back(address, held);
+  });
+  router.bind("tcp://127.0.0.1:*");
+  const std::string endpoint = router.get(zmq::sockopt::last_endpoint);
+  zmq::socket_t honest(ctx, zmq::socket_type::dealer), flood(ctx, zmq::socket_type::dealer);
+  for (zmq::socket_t* s : {&honest, &flood}) {
+    s->set(zmq::sockopt::linger, 0);
+    s->set(zmq::sockopt::sndhwm, 0);
+    s->connect(endpoint);
+  }
+  const auto until = [](const std::function<bool()>& done) {  // within the suite's hang cap
+    for (int i = 0; i < 90000; ++i, std::this_thread::sleep_for(std::chrono::milliseconds(10)))
+      if (done()) return true;
+    return false;
+  };
+  const std::string piece(64 << 10, 'h');
+  for (int m = 0; m < 200; ++m) {
+    ASSERT_TRUE(send_frames(honest, {piece}));
+    std::optional<Received> r;
+    ASSERT_TRUE(until([&] { return (r = receive(router, 0, 1, 0, 0)).has_value(); }));
+    EXPECT_GE(r->fd, 0);
+    bytes.delivered(r->fd, r->frames_seen, r->bytes_seen);
+  }
+  EXPECT_EQ(bytes.shut(), 0u);
+  std::vector<std::string> big(64, std::string(256 << 10, 'f'));
+  ASSERT_TRUE(send_frames(flood, big));
+  ASSERT_TRUE(until([&] { return bytes.shut() == 1; }));
+  {
+    std::lock_guard lock(mutex);
+    ASSERT_EQ(shut.size(), 1u);
+    EXPECT_EQ(shut[0].first.rfind("127.0.0.1:", 0), 0u) << shut[0].first;
+    EXPECT_GT(shut[0].second, uint64_t{1} << 20);
+  }
+  const std::vector<std::string> heartbeat = {std::string(kSignature), std::string(1, char(Command::heartbeat)), ""};
+  ASSERT_TRUE(send_frames(honest, heartbeat));
+  std::optional<Received> r;
+  ASSERT_TRUE(until([&] { return (r = receive(router, 0, 1, 0, 0)).has_value(); }));
+  ASSERT_FALSE(r->over);
+  // The routing id, then the honest message: the flood's never came.
+  EXPECT_EQ(std::vector<std::string>(r->frames.begin() + 1, r->frames.end()), heartbeat);
+  EXPECT_EQ(bytes.shut(), 1u);
 }
 
 }  // namespace
