@@ -20,9 +20,11 @@
 #include <string>
 #include <vector>
 
-#include "coordinator/coordinator.h"
+#include "cluster/result.h"
+#include "cluster/settings.h"
 #include "core/bundle.h"
 #include "core/shot.h"
+#include "core/solver.h"
 
 namespace sirad::cluster {
 

@@ -9,6 +9,7 @@
 
 #include "cluster_util.h"
 #include "cluster/emulate.h"
+#include "coordinator/coordinator.h"
 #include "cluster/profile.h"
 #include "core/bundle_cl.h"
 #include "core/error.h"
