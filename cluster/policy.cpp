@@ -192,12 +192,15 @@ uint64_t Policy::dead(uint32_t n) {
 uint64_t Policy::lost(uint32_t n, const std::string& who) {
   const uint64_t back = ledger_.outstanding(n);
   ledger_.lose(n, who);  // and back to the budget
-  if (std::optional<Range> r = ledger_.poisoned(kMaxBundleLosses))
-    close(fmt::format("bundles {}..{} were lost with {} nodes, each gone while it ran them: they may crash whoever runs "
-                      "them, so the run ended with the bundles done",
-                      r->first, r->last - 1, kMaxBundleLosses));
+  if (std::optional<Range> r = ledger_.poisoned(kMaxBundleLosses)) close(lost_reason(*r));
   dead(n);
   return back;
+}
+
+std::string Policy::lost_reason(const Range& bundles) {
+  return fmt::format("bundles {}..{} were lost with {} nodes, each gone while it ran them: they may crash whoever runs them, "
+                     "so the run ended with the bundles done",
+                     bundles.first, bundles.last - 1, kMaxBundleLosses);
 }
 
 uint64_t Policy::grant_size() const {

@@ -203,6 +203,8 @@ class Policy {
   // handing them to node after node.
   uint64_t lost(uint32_t n, const std::string& who);
   static constexpr uint32_t kMaxBundleLosses = 3;
+  // What a run closed by lost bundles says (its ended_by, the drivers' error).
+  static std::string lost_reason(const Range& bundles);
   // Quarantines node n for sending what no honest node can (a non-finite or absurd value, a
   // count beyond its bundles or going backwards, bundles it was not granted): dead, its data
   // dropped from the aggregate, and every index granted to it, done or not, back in the budget,

@@ -12,6 +12,7 @@
 
 #include "cluster/checkpoint.h"
 #include "cluster/live_view.h"
+#include "cluster/policy.h"
 #include "cluster/rate_limit.h"
 #include "cluster/result.h"
 #include "coordinator/coordinator.h"
@@ -148,7 +149,7 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
                 result.image ? &*result.image : nullptr, result.image_error);
   fs::remove(checkpoint);
   fs::remove(preview);
-  if (result.bundles_lost) fail("{}", result.ended_by);  // the job fails with its outputs kept
+  if (result.bundles_lost) fail("{}", cluster::Policy::lost_reason(*result.bundles_lost));  // failed, its outputs kept
   return cluster::cluster_summary(result, mesh.size(), seconds);
 }
 

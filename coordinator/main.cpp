@@ -15,6 +15,7 @@
 
 #include "core/scene_check.h"
 #include "cluster/checkpoint.h"
+#include "cluster/policy.h"
 #include "cmd/farm.h"
 #include "cmd/farm_http.h"
 #include "cmd/log_flags.h"
@@ -286,7 +287,7 @@ int main(int argc, char** argv) {
     std::fputs(cluster::cluster_summary(result, mesh.size(), seconds).c_str(), stdout);
     if (result.ended_by != "budget") std::printf("ended early: %s\n", result.ended_by.c_str());
     if (result.bundles_lost) {  // the outputs are written: the run is not what was asked
-      std::fprintf(stderr, "sirad-coordinator: error: %s\n", result.ended_by.c_str());
+      std::fprintf(stderr, "sirad-coordinator: error: %s\n", cluster::Policy::lost_reason(*result.bundles_lost).c_str());
       return 1;
     }
   } catch (const std::bad_alloc&) {
