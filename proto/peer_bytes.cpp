@@ -9,6 +9,7 @@
 #include <sys/socket.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
 #include <vector>
 
@@ -86,18 +87,23 @@ void PeerBytes::watch() {
   while (!stopping_) {
     // The monitor's events until the next check: a connection accepted starts from nothing (a
     // descriptor libzmq closed may come back as another connection), one that ended goes.
-    zmq::pollitem_t item{events_.handle(), 0, ZMQ_POLLIN, 0};
-    zmq::poll(&item, 1, std::chrono::milliseconds(static_cast<int64_t>(period * 1e3)));
-    zmq::message_t event, address;
-    while (events_.recv(event, zmq::recv_flags::dontwait)) {
-      if (!event.more() || !events_.recv(address) || event.size() < 6) continue;
-      uint16_t what = 0;
-      int32_t fd = -1;
-      std::memcpy(&what, event.data(), 2);
-      std::memcpy(&fd, static_cast<const char*>(event.data()) + 2, 4);
-      std::lock_guard lock(mutex_);
-      if (what == ZMQ_EVENT_ACCEPTED) conns_[fd] = Conn{peer_address(fd)};
-      else conns_.erase(fd);
+    // A signal (the process's SIGTERM handler may run on this thread) only ends the wait early.
+    try {
+      zmq::pollitem_t item{events_.handle(), 0, ZMQ_POLLIN, 0};
+      zmq::poll(&item, 1, std::chrono::milliseconds(static_cast<int64_t>(period * 1e3)));
+      zmq::message_t event, address;
+      while (events_.recv(event, zmq::recv_flags::dontwait)) {
+        if (!event.more() || !events_.recv(address) || event.size() < 6) continue;
+        uint16_t what = 0;
+        int32_t fd = -1;
+        std::memcpy(&what, event.data(), 2);
+        std::memcpy(&fd, static_cast<const char*>(event.data()) + 2, 4);
+        std::lock_guard lock(mutex_);
+        if (what == ZMQ_EVENT_ACCEPTED) conns_[fd] = Conn{peer_address(fd)};
+        else conns_.erase(fd);
+      }
+    } catch (const zmq::error_t& e) {
+      if (e.num() != EINTR) return;  // the context is ending: nothing more to watch
     }
     std::vector<std::pair<std::string, uint64_t>> shut;
     {
