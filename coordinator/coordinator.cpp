@@ -212,6 +212,8 @@ class Coordinator {
 
   // What ends the run from outside, checked each turn of a loop: an interrupt (a checkpoint,
   // then the run fails), the timeout, a local node's failure.
+  bool past_time_limit(Clock::time_point now) const { return config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s; }
+
   void ends_now(Clock::time_point now) {
     if (config_.interrupt && config_.interrupt->load()) {
       if (config_.checkpoint.empty()) fail("interrupted after {} bundles (no --checkpoint)", policy_.ledger().done_count());
@@ -219,7 +221,7 @@ class Coordinator {
       fail("interrupted after {} bundles; checkpoint in {}: continue with --resume {}", policy_.ledger().done_count(),
            config_.checkpoint, config_.checkpoint);
     }
-    if (config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s)
+    if (past_time_limit(now))
       fail("run did not finish within {} s ({} of {} bundles done{})", config_.timeout_s, policy_.ledger().done_count(),
            config_.bundles, policy_.done() ? ", the image not" : "");
     if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
@@ -316,7 +318,7 @@ class Coordinator {
     while (!plan.finished()) {
       auto now = Clock::now();
       image_done_ = plan.done_count();
-      if (config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s)
+      if (past_time_limit(now))
         throw ImageFailed(fmt::format("the run's time limit of {} s was reached with {} of {} tiles done", config_.timeout_s,
                                       plan.done_count(), plan.grid().count()));
       ends_now(now);

@@ -180,18 +180,26 @@ class Peer:
         return seen
 
     def join(self, procs, ms_per_bundle=1.0):
-        """HELLO, WELCOME, the SCENE chunks, READY: as a node joins, without running anything."""
+        """HELLO, WELCOME, the SCENE chunks, READY: as a node joins, without running anything.
+        Asked to say HELLO again (an ERROR: a farm starting a job for it), it does, and from then
+        on heartbeats while it waits, as a farm's node must to stay known."""
         self.hello()
+        asked = False
         end = time.monotonic() + CAP_S
         while True:
-            check(time.monotonic() < end, "no WELCOME and SCENE")
+            check(time.monotonic() < end, f"{self.name}: no WELCOME and SCENE")
             for p in procs:
                 check(p.poll() is None, f"{p.args[0]} exited while {self.name} joined:\n{p.log()[-3000:]}")
             m = self.recv(100)
             if m is None:
+                if asked:
+                    self.send("heartbeat")
                 continue
             cmd, h, _ = m
-            if cmd == "welcome" and h.HasField("run"):
+            if cmd == "error":
+                asked = True
+                self.hello()
+            elif cmd == "welcome" and h.HasField("run"):
                 self.run = h.run
             elif cmd == "scene" and h.last:
                 self.send("ready", pb.Ready(run_id=self.run.run_id, scene_hash=self.run.scene_hash,
@@ -764,9 +772,13 @@ class LyingProxy:
         self.back.setsockopt(zmq.LINGER, 0)
         self.back.connect(coordinator_endpoint)
         self.lied = 0
+        self.crashed = False  # set (by heard()): from then on nothing passes either way
         self.stopping = False
         self.thread = threading.Thread(target=self.loop, daemon=True)
         self.thread.start()
+
+    def heard(self, frames):
+        """A message from the coordinator, before it is passed on (a subclass may crash on it)."""
 
     def loop(self):
         poller = zmq.Poller()
@@ -781,10 +793,12 @@ class LyingProxy:
                     if lied is not None:
                         frames = lied
                         self.lied += 1
-                    self.back.send_multipart(frames)
+                    if not self.crashed:
+                        self.back.send_multipart(frames)
                 else:
                     frames = self.back.recv_multipart()
-                    if node is not None:
+                    self.heard(frames)
+                    if node is not None and not self.crashed:
                         self.front.send_multipart([node] + frames)
 
     def stop(self):
@@ -985,29 +999,11 @@ class CrashingProxy(LyingProxy):
     on, the proxy passes nothing either way, as if the node had died rendering the tile."""
 
     def __init__(self, ctx, coordinator_endpoint):
-        self.crashed = False
+        super().__init__(ctx, coordinator_endpoint, lambda frames: None)
 
-        def never(frames):
-            return None
-        super().__init__(ctx, coordinator_endpoint, never)
-
-    def loop(self):
-        poller = zmq.Poller()
-        poller.register(self.front, zmq.POLLIN)
-        poller.register(self.back, zmq.POLLIN)
-        node = None
-        while not self.stopping:
-            for sock, _ in poller.poll(50):
-                if sock is self.front:
-                    node, *frames = self.front.recv_multipart()
-                    if not self.crashed:
-                        self.back.send_multipart(frames)
-                else:
-                    frames = self.back.recv_multipart()
-                    if len(frames) >= 2 and frames[0] == SIG and frames[1][0] == CMD["tiles"]:
-                        self.crashed = True
-                    if node is not None and not self.crashed:
-                        self.front.send_multipart([node] + frames)
+    def heard(self, frames):
+        if len(frames) >= 2 and frames[0] == SIG and frames[1][0] == CMD["tiles"]:
+            self.crashed = True
 
 
 def case_poison_tile(build, work, ctx):
@@ -1151,31 +1147,6 @@ def case_farm_hostile_requests(build, work, ctx):
     check(farm.proc.maxrss_kib < 200 * 1024, f"the farm peaked at {farm.proc.maxrss_kib / 1024:.0f} MiB")
 
 
-class FarmPeer(Peer):
-    """A SIRAD/1 node of a farm: it says HELLO again whenever the farm asks (ERROR rejoin, when a
-    job starts for it), then joins that job's run as Peer.join does."""
-
-    def join(self, procs, ms_per_bundle=1.0):
-        self.hello()
-        end = time.monotonic() + CAP_S
-        while True:
-            check(time.monotonic() < end, f"{self.name}: no job's WELCOME and SCENE")
-            for p in procs:
-                check(p.poll() is None, f"{p.args[0]} exited while {self.name} joined:\n{p.log()[-3000:]}")
-            m = self.recv(100)
-            if m is None:
-                self.send("heartbeat")
-                continue
-            cmd, h, _ = m
-            if cmd == "error":
-                self.hello()
-            elif cmd == "welcome" and h.HasField("run"):
-                self.run = h.run
-            elif cmd == "scene" and h.last:
-                self.send("ready", pb.Ready(run_id=self.run.run_id, scene_hash=self.run.scene_hash, ms_per_bundle=ms_per_bundle))
-                return
-
-
 def case_farm_poison_bundles(build, work, ctx):
     """A farm job whose bundles crash every node they go to (issue 35: a node that crashes on a
     job is not handed the same work forever): three nodes in turn (from three addresses) join
@@ -1185,7 +1156,7 @@ def case_farm_poison_bundles(build, work, ctx):
     farm.submit(["furnace", "--name", "poison", "--patches", "300", "--bundles", "1024", "--width", "16", "--height", "16"])
     port = farm.endpoint.rsplit(":", 1)[1]
     for i in range(3):  # from three addresses
-        p = FarmPeer(ctx, f"tcp://127.0.0.{10 + i}:0;127.0.0.1:{port}", f"crash{i}")
+        p = Peer(ctx, f"tcp://127.0.0.{10 + i}:0;127.0.0.1:{port}", f"crash{i}")
         p.join([farm.proc])
         p.wait_grant(farm.proc)
         p.s.close(linger=0)  # dies with its grants
