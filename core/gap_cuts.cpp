@@ -88,7 +88,8 @@ void cut_near_emitters(Scene& scene) {
   struct Emitter {
     Poly p;  // a convex outline, counter-clockwise seen from the front
     glm::dvec3 n;
-    double reach;  // the largest gap cut for: kGapCut x its longest extent
+    double extent;  // the outline's longest extent
+    double reach;   // the largest gap cut for: kGapCut x its extent
     glm::dvec3 lo, hi;
   };
   // Emitting triangles grouped: one material, one plane (normals within 1e-4 rad, offsets within
@@ -134,12 +135,12 @@ void cut_near_emitters(Scene& scene) {
   std::map<std::size_t, std::vector<std::size_t>> groups;
   for (std::size_t a = 0; a < lights.size(); ++a) groups[find(a)].push_back(lights[a]);
   std::vector<Emitter> emitters;
+  std::map<std::size_t, std::size_t> emitter_of;  // emitting triangle -> its outline in `emitters`
   auto add = [&](Poly outline, const glm::dvec3& n) {
-    Emitter em{std::move(outline), n, 0.0, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
-    double extent = 0.0;
+    Emitter em{std::move(outline), n, 0.0, 0.0, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
     for (const glm::dvec3& a : em.p)
-      for (const glm::dvec3& b : em.p) extent = std::max(extent, glm::length(b - a));
-    em.reach = kGapCut * extent;
+      for (const glm::dvec3& b : em.p) em.extent = std::max(em.extent, glm::length(b - a));
+    em.reach = kGapCut * em.extent;
     for (const glm::dvec3& a : em.p) em.lo = glm::min(em.lo, a), em.hi = glm::max(em.hi, a);
     em.lo -= glm::dvec3(em.reach);
     em.hi += glm::dvec3(em.reach);
@@ -150,27 +151,116 @@ void cut_near_emitters(Scene& scene) {
     Poly outline = members.size() > 1 ? convex_outline(scene.triangles, members, n) : Poly{};
     if (!outline.empty() && outline.size() <= 256) {
       add(std::move(outline), n);
+      for (std::size_t i : members) emitter_of[i] = emitters.size() - 1;
       continue;
     }
     for (std::size_t i : members) {
       const Triangle& t = scene.triangles[i];
       add(Poly{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, normal_of(i));
+      emitter_of[i] = emitters.size() - 1;
     }
   }
   if (emitters.empty()) return;
   // Pairs looked at are bounded: a scene of very many emitters and faces is left uncut.
   if (static_cast<double>(emitters.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return;
 
-  std::vector<Triangle> out;
-  out.reserve(scene.triangles.size());
   std::vector<Poly> pending, pieces;
   std::vector<uint8_t> pending_over, over;
-  std::vector<Triangle> cut;
   Poly inside, part_in, part_out;
-  for (const Triangle& t : scene.triangles) {
+  // Each piece's marks: kOver, it lies over an emitter's outline (Triangle::in_gap); kStrip, it
+  // lies in a strip along the outline (Triangle::whole).
+  constexpr uint8_t kOver = 1, kStrip = 2;
+  // Cuts `pieces` (convex, on a plane parallel to em's, `gap` from it along em.n) along em's
+  // outline moved outward by `offset` (inward where negative: each edge's line moved, so the
+  // corners are mitred). The marks of the pieces inside become (marks | set) & ~clear; the others
+  // keep theirs. A cut that would leave a part of less than `least` area is not made: the part
+  // stays with the larger side. Returns whether any piece lies partly or wholly inside.
+  auto cut_pieces = [&](const Emitter& em, double gap, double offset, uint8_t set, uint8_t clear, double tiny, double least) {
+    std::swap(pending, pieces);
+    std::swap(pending_over, over);
+    pieces.clear();
+    over.clear();
+    bool overlaps = false;
+    for (std::size_t p = 0; p < pending.size(); ++p) {
+      const Poly& piece = pending[p];
+      inside = piece;
+      std::vector<Poly> outside;
+      for (std::size_t k = 0; k < em.p.size() && !inside.empty(); ++k) {
+        const glm::dvec3 q0 = em.p[k] + em.n * gap, q1 = em.p[(k + 1) % em.p.size()] + em.n * gap;
+        const glm::dvec3 m = glm::normalize(glm::cross(em.n, q1 - q0));  // points into the outline
+        split(inside, q0 - m * offset, m, part_in, part_out);
+        const double ai = part_in.size() >= 3 ? area_of(part_in) : 0.0, ao = part_out.size() >= 3 ? area_of(part_out) : 0.0;
+        const double small = std::max(tiny, least);
+        if (ao <= small && (least == 0.0 || ai > ao)) continue;  // wholly inside this edge
+        if (ai <= small) {                                        // wholly outside
+          inside.clear();
+          break;
+        }
+        outside.push_back(part_out);
+        inside = part_in;
+      }
+      overlaps = overlaps || !inside.empty();
+      const uint8_t in_marks = static_cast<uint8_t>((pending_over[p] | set) & ~clear);
+      if (inside.empty() || outside.empty()) {  // wholly outside, or wholly inside
+        pieces.push_back(piece);
+        over.push_back(inside.empty() ? pending_over[p] : in_marks);
+        continue;
+      }
+      pieces.push_back(inside);
+      over.push_back(in_marks);
+      for (Poly& o : outside) {
+        pieces.push_back(std::move(o));
+        over.push_back(pending_over[p]);
+      }
+    }
+    return overlaps;
+  };
+  // Appends triangle t's pieces as triangles (with their marks) to `into`, or t itself where
+  // rounding left a piece not quite convex.
+  auto emit_pieces = [&](const Triangle& t, const glm::dvec3& n, double tiny, std::vector<Triangle>& into) {
+    if (pieces.size() == 1) {
+      Triangle u = t;
+      u.in_gap = (over[0] & kOver) != 0;
+      u.whole = (over[0] & kStrip) != 0;
+      into.push_back(u);
+      return;
+    }
+    const std::size_t start = into.size();
+    for (std::size_t p = 0; p < pieces.size(); ++p) {
+      std::vector<glm::vec3> corners(pieces[p].begin(), pieces[p].end());
+      std::vector<std::array<uint32_t, 3>> tris;
+      try {
+        tris = triangulate_polygon(corners);
+      } catch (const Error&) {
+        into.resize(start);
+        into.push_back(t);
+        return;
+      }
+      for (const auto& k : tris) {
+        Triangle u = t;
+        u.p = {corners[k[0]], corners[k[1]], corners[k[2]]};
+        u.in_gap = (over[p] & kOver) != 0;
+        u.whole = (over[p] & kStrip) != 0;
+        const glm::dvec3 uc = glm::cross(glm::dvec3(u.p[1] - u.p[0]), glm::dvec3(u.p[2] - u.p[0]));
+        if (!(glm::length(uc) > tiny) || !(glm::dot(uc, n) > 0.0)) continue;  // a sliver of rounding
+        into.push_back(u);
+      }
+    }
+    if (into.size() > import::kMaxTriangles) fail("{}: more than {} triangles once cut along emitters", scene.name, import::kMaxTriangles);
+  };
+
+  // Faces across a gap from an emitter: cut along its outline, and along the strips on both
+  // sides of it where the gap is wide enough to matter.
+  std::vector<double> nearest(emitters.size(), std::numeric_limits<double>::infinity());  // each emitter's narrowest gap
+  std::vector<Triangle> out;
+  out.reserve(scene.triangles.size());
+  std::vector<std::pair<std::size_t, std::size_t>> emitting;  // (place in out, emitter)
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    const Triangle& t = scene.triangles[i];
     const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
     const glm::dvec3 cr = glm::cross(b - a, c - a);
     if (emits(scene.materials[t.material]) || !(glm::length(cr) > 0.0)) {
+      if (const auto e = emitter_of.find(i); e != emitter_of.end()) emitting.emplace_back(out.size(), e->second);
       out.push_back(t);
       continue;
     }
@@ -178,84 +268,54 @@ void cut_near_emitters(Scene& scene) {
     const glm::dvec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
     const double tiny = 1e-9 * glm::length(cr);
     pieces.assign(1, Poly{a, b, c});
-    over.assign(1, t.in_gap ? 1 : 0);  // whether each piece lies over an emitter's outline
-    for (const Emitter& em : emitters) {
+    over.assign(1, static_cast<uint8_t>((t.in_gap ? kOver : 0) | (t.whole ? kStrip : 0)));
+    for (std::size_t e = 0; e < emitters.size(); ++e) {
+      const Emitter& em = emitters[e];
       if (pieces.size() > kMaxPiecesPerFace) break;  // many emitters over one face: cut no further
       if (glm::any(glm::lessThan(hi, em.lo)) || glm::any(glm::greaterThan(lo, em.hi))) continue;
       if (!(glm::dot(n, em.n) < -0.9999)) continue;  // facing the emitter, parallel
       const double gap = glm::dot(a - em.p[0], em.n);
       if (!(gap > 0.0 && gap <= em.reach)) continue;
-      // The emitter's outline on this face's plane (moved along its normal), and its edges'
-      // inward planes (through the edge, containing the normal).
-      std::swap(pending, pieces);
-      std::swap(pending_over, over);
-      pieces.clear();
-      over.clear();
-      for (std::size_t p = 0; p < pending.size(); ++p) {
-        const Poly& piece = pending[p];
-        inside = piece;
-        std::vector<Poly> outside;
-        for (std::size_t k = 0; k < em.p.size() && !inside.empty(); ++k) {
-          const glm::dvec3 q0 = em.p[k] + em.n * gap, q1 = em.p[(k + 1) % em.p.size()] + em.n * gap;
-          const glm::dvec3 m = glm::cross(em.n, q1 - q0);  // points into the emitter's outline
-          split(inside, q0, m, part_in, part_out);
-          const double ai = part_in.size() >= 3 ? area_of(part_in) : 0.0, ao = part_out.size() >= 3 ? area_of(part_out) : 0.0;
-          if (ao <= tiny) continue;  // wholly inside this edge
-          if (ai <= tiny) {          // wholly outside: not under the emitter
-            inside.clear();
-            break;
-          }
-          outside.push_back(part_out);
-          inside = part_in;
-        }
-        if (inside.empty() || outside.empty()) {  // not under the emitter, or wholly under it
-          pieces.push_back(piece);
-          over.push_back(inside.empty() ? pending_over[p] : 1);
-          continue;
-        }
-        pieces.push_back(inside);
-        over.push_back(1);
-        for (Poly& o : outside) {
-          pieces.push_back(std::move(o));
-          over.push_back(pending_over[p]);
-        }
-      }
+      if (!cut_pieces(em, gap, 0.0, kOver, 0, tiny, 0.0)) continue;  // not over the emitter
+      nearest[e] = std::min(nearest[e], gap);
+      if (gap < kGapStripsFrom * em.extent) continue;
+      const double least = kGapStripLeast * gap * em.extent;
+      cut_pieces(em, gap, kGapStripsOut.back() * gap, kStrip, 0, tiny, least);  // the strips' outer edge
+      for (std::size_t k = 0; k + 1 < kGapStripsOut.size(); ++k) cut_pieces(em, gap, kGapStripsOut[k] * gap, 0, 0, tiny, least);
+      for (std::size_t k = 0; k + 1 < kGapStripsIn.size(); ++k) cut_pieces(em, gap, -kGapStripsIn[k] * gap, 0, 0, tiny, least);
+      cut_pieces(em, gap, -kGapStripsIn.back() * gap, 0, kStrip, tiny, least);  // their inner edge
     }
-    if (pieces.size() == 1) {
-      Triangle u = t;
-      u.in_gap = over[0] != 0;
-      out.push_back(u);
+    emit_pieces(t, n, tiny, out);
+  }
+  // The emitters' own strips along their rims, where a face lies across a gap from them.
+  std::vector<Triangle> done;
+  done.reserve(out.size());
+  std::size_t next = 0;
+  for (std::size_t j = 0; j < out.size(); ++j) {
+    if (next == emitting.size() || emitting[next].first != j) {
+      done.push_back(out[j]);
       continue;
     }
-    cut.clear();
-    bool whole = false;  // a piece that rounding left not quite convex: the face stays uncut
-    for (std::size_t p = 0; p < pieces.size(); ++p) {
-      const Poly& piece = pieces[p];
-      std::vector<glm::vec3> corners(piece.begin(), piece.end());
-      std::vector<std::array<uint32_t, 3>> tris;
-      try {
-        tris = triangulate_polygon(corners);
-      } catch (const Error&) {
-        whole = true;
-        break;
-      }
-      for (const auto& k : tris) {
-        Triangle u = t;
-        u.p = {corners[k[0]], corners[k[1]], corners[k[2]]};
-        u.in_gap = over[p] != 0;
-        const glm::dvec3 uc = glm::cross(glm::dvec3(u.p[1] - u.p[0]), glm::dvec3(u.p[2] - u.p[0]));
-        if (!(glm::length(uc) > tiny) || !(glm::dot(uc, n) > 0.0)) continue;  // a sliver of rounding
-        cut.push_back(u);
-      }
+    const Emitter& em = emitters[emitting[next++].second];
+    const double gap = nearest[&em - emitters.data()];
+    const Triangle& t = out[j];
+    if (!(gap >= kGapStripsFrom * em.extent && gap <= em.reach)) {
+      done.push_back(t);
+      continue;
     }
-    if (whole) {
-      out.push_back(t);
-    } else {
-      out.insert(out.end(), cut.begin(), cut.end());
-    }
-    if (out.size() > import::kMaxTriangles) fail("{}: more than {} triangles once cut along emitters", scene.name, import::kMaxTriangles);
+    const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
+    const glm::dvec3 cr = glm::cross(b - a, c - a);
+    const double tiny = 1e-9 * glm::length(cr);
+    pieces.assign(1, Poly{a, b, c});
+    over.assign(1, kStrip);
+    // On the emitter's own plane (its outline is em.p, so the distance along its normal is ~0).
+    const double on = glm::dot(a - em.p[0], em.n);
+    const double least = kGapStripLeast * gap * em.extent;
+    for (std::size_t k = 0; k + 1 < kGapStripsEmitter.size(); ++k) cut_pieces(em, on, -kGapStripsEmitter[k] * gap, 0, 0, tiny, least);
+    cut_pieces(em, on, -kGapStripsEmitter.back() * gap, 0, kStrip, tiny, least);
+    emit_pieces(t, glm::normalize(cr), tiny, done);
   }
-  scene.triangles = std::move(out);
+  scene.triangles = std::move(done);
 }
 
 }  // namespace sirad

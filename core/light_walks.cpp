@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 
 #include <glm/geometric.hpp>
 
@@ -51,7 +52,12 @@ std::vector<uint8_t> light_reaches(const PatchMesh& mesh, const RayScene& rays, 
     const auto& tri = mesh.patches[i];
     const glm::dvec3 a(mesh.vertices[tri[0]]), b(mesh.vertices[tri[1]]), c(mesh.vertices[tri[2]]);
     const bool emitter = mesh.emits(i);
-    Rng rng(0x7317, i, 0, 6);
+    // Keyed by the face's corners, not its index: a face's walks, and so whether it is marked,
+    // do not change when faces elsewhere are cut or added.
+    uint64_t key = 0;
+    for (uint32_t v : tri)
+      for (int d = 0; d < 3; ++d) key = Rng::mix(key ^ std::bit_cast<uint32_t>(mesh.vertices[v][d]));
+    Rng rng(0x7317, key, 0, 6);
     stratified_square(walks, rng, pts);
     stratified_square(walks, rng, dirs);
     for (int k = 0; k < walks && !lit[f]; ++k) {

@@ -27,6 +27,17 @@ double longest_edge(const Triangle& t) {
       std::max({glm::dot(b - a, b - a), glm::dot(c - b, c - b), glm::dot(a - c, a - c)}));
 }
 
+// The length a triangle is subdivided by: its longest edge, but for a sliver (longest^2 over
+// 16 x its area) 4 x the square root of its area, so that its n x n pieces, slivers of the same
+// shape, are no smaller in area than about a quarter of a well-shaped patch's: a patch's noise
+// grows as its area shrinks, and a strip along a lamp's rim or a Boolean's cut is only wanted
+// narrow across. Triangles of any better shape (equilateral, right-angled) are unaffected.
+double subdivision_length(const Triangle& t) {
+  const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
+  const double area = 0.5 * glm::length(glm::cross(b - a, c - a));
+  return std::min(longest_edge(t), 4.0 * std::sqrt(area));
+}
+
 // Subdivisions per edge: n = max(1, ceil(longest / max_edge)); max_edge 0 means none.
 uint64_t subdivisions(double longest, double max_edge) {
   if (max_edge == 0.0) return 1;
@@ -308,7 +319,7 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
     if (t.material >= scene.materials.size())
       fail("{}: triangle {} has material {} of {}", scene.name, i, t.material,
            scene.materials.size());
-    longest.push_back(t.unlit ? 0.0 : longest_edge(t));  // a face no light reaches stays one patch
+    longest.push_back(t.unlit || t.whole ? 0.0 : subdivision_length(t));  // a face no light reaches, or a strip along a gap, stays one patch
   }
 
   // Step 2: the edge length, and the patch count checked before anything is allocated.

@@ -46,6 +46,9 @@ struct Triangle {
   // the gap. Outputs and the final gather do not blend its values with the face's beyond the
   // emitter's outline (corner_radiosity); the solve does not depend on it.
   bool in_gap = false;
+  // A strip along the rim of such a gap, on either face or on the emitter (cut_near_emitters):
+  // its width is set by the gap, so the mesher leaves it whole, one patch however long.
+  bool whole = false;
 };
 
 struct Scene {
@@ -94,13 +97,27 @@ void add_back_faces(Scene& scene);
 
 // Cuts every face that faces an emitter across a gap of at most kGapCut times the emitter's
 // extent (a ceiling 1-2 cm above a lamp's upper side) along the emitter's outline (a convex
-// lamp surface's rim, else each emitting triangle's edges), so that
-// no patch averages the light trapped in the gap with the light outside it (core/gap_cuts.cpp;
-// DESIGN.md section 1, "Light in gaps"). Faces are cut per emitter triangle; the pieces keep the
-// face's material, object and line (at most about 1024 pieces a face). Scenes with more than
-// kMaxGapCutPairs (emitter, face) pairs
-// are left as they are.
+// lamp surface's rim, else each emitting triangle's edges), so that no patch averages the light
+// trapped in the gap with the light outside it. Where the gap g is at least kGapStripsFrom of
+// the emitter's extent, strips along the rim are cut too: on the face, along the outline moved
+// out by kGapStripsOut x g and in by kGapStripsIn x g; on the emitter, along its outline moved
+// in by kGapStripsEmitter x g (each list ascending; the last is the strips' far edge). The
+// radiosity in a gap falls off towards its rim within a few gap heights, the light that leaves
+// the gap is the rim's, and the ceiling just outside the slit sends part of its light back in,
+// so a patch that averages either band with what lies beyond sends too much light into the room
+// (core/gap_cuts.cpp; DESIGN.md section 1, "Light in gaps"). Strips are Triangle::whole. The
+// pieces keep the face's material, object and line (at most about 1024 pieces a face). Scenes
+// with more than kMaxGapCutPairs (emitter, face) pairs are left as they are.
 inline constexpr double kGapCut = 0.25;
+inline constexpr double kGapStripsFrom = 1.0 / 256.0;
+inline constexpr std::array<double, 1> kGapStripsOut = {1.0};
+inline constexpr std::array<double, 2> kGapStripsIn = {0.5, 2.0};
+inline constexpr std::array<double, 1> kGapStripsEmitter = {2.0};
+// No strip cut leaves a piece smaller than kGapStripLeast x g x the emitter's extent (a strip is
+// about g wide and as long as the emitter): a patch that few lines cross has an estimate of a few
+// large values, and a chain passes each on to the patches its lines reach, so the bits that a
+// face's own edges cut off a strip's corner stay with the piece beside them.
+inline constexpr double kGapStripLeast = 1.0 / 8.0;
 inline constexpr double kMaxGapCutPairs = 1e8;
 void cut_near_emitters(Scene& scene);
 // Marks the faces no light reaches (Triangle::unlit): no random walk from a face's front

@@ -15,11 +15,12 @@ namespace sirad {
 
 namespace {
 
-// v2 adds a flags word per triangle (bit 0: Triangle::unlit, bit 1: Triangle::in_gap); a scene
+// v2 adds a flags word per triangle (bit 0: Triangle::unlit, bit 1: Triangle::in_gap, bit 2:
+// Triangle::whole); a scene
 // without flags is written as v1, which nodes of every version read.
 constexpr std::string_view kTag = "sirad-scene-v1", kTagFlags = "sirad-scene-v2";
 static_assert(kTag.size() == kTagFlags.size());
-constexpr uint32_t kUnlit = 1, kInGap = 2;
+constexpr uint32_t kUnlit = 1, kInGap = 2, kWhole = 4;
 constexpr uint32_t kMaxCount = 1u << 26;  // at least the readers' own limits (scene_import.h)
 static_assert(std::endian::native == std::endian::little, "the scene encoding is little-endian");
 
@@ -87,7 +88,7 @@ bool finite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y
 
 std::string encode_scene(const Scene& scene) {
   Writer w;
-  const bool flags = std::any_of(scene.triangles.begin(), scene.triangles.end(), [](const Triangle& t) { return t.unlit || t.in_gap; });
+  const bool flags = std::any_of(scene.triangles.begin(), scene.triangles.end(), [](const Triangle& t) { return t.unlit || t.in_gap || t.whole; });
   const std::string_view tag = flags ? kTagFlags : kTag;
   w.raw(tag.data(), tag.size());
   w.str(scene.name);
@@ -102,7 +103,7 @@ std::string encode_scene(const Scene& scene) {
     for (const auto& p : t.p) w.vec(p);
     w.u32(t.material);
     w.u32(t.source_line);
-    if (flags) w.u32((t.unlit ? kUnlit : 0u) | (t.in_gap ? kInGap : 0u));
+    if (flags) w.u32((t.unlit ? kUnlit : 0u) | (t.in_gap ? kInGap : 0u) | (t.whole ? kWhole : 0u));
   }
   w.vec(scene.background);
   w.u32(scene.camera ? 1u : 0u);
@@ -153,9 +154,10 @@ Scene decode_scene(std::string_view bytes, const std::string& label) {
     if (t.material >= materials) fail("{}: triangle {} uses material {} of {}", label, i, t.material, materials);
     if (flags) {
       const uint32_t f = r.u32("triangle flags");
-      if (f & ~(kUnlit | kInGap)) fail("{}: triangle {} has unknown flags {:#x}", label, i, f);
+      if (f & ~(kUnlit | kInGap | kWhole)) fail("{}: triangle {} has unknown flags {:#x}", label, i, f);
       t.unlit = (f & kUnlit) != 0;
       t.in_gap = (f & kInGap) != 0;
+      t.whole = (f & kWhole) != 0;
     }
   }
   if (!emitter) fail("{}: scene has no emitter", label);

@@ -74,6 +74,24 @@ TEST(MeshSubdivision, MaxEdgeGivesNSquaredPatchesAndShortEdges) {
   }
 }
 
+// A sliver (longest edge squared over 16 x its area) is subdivided by 4 x the square root of its
+// area instead of its longest edge, so that its pieces (slivers of its shape) are no smaller in
+// area than about a quarter of a well-shaped patch's; right and equilateral triangles are
+// subdivided by their longest edge as before.
+TEST(MeshSubdivision, SliversAreSubdividedByTheirArea) {
+  const Scene scene = parse_obj("sliver.obj",
+                                "mtllib m.mtl\nusemtl e\n"
+                                "v 0 0 0\nv 1 0 0\nv 0 0.01 0\nf 1 2 3\n"         // 1 m x 1 cm
+                                "v 0 0 1\nv 1 0 1\nv 0 1 1\nf 4 5 6\n"             // right, legs 1 m
+                                "v 0 0 2\nv 1 0 2\nv 0.5 0.8660254 2\nf 7 8 9\n",  // equilateral
+                                {{"m.mtl", "newmtl e\nKd 0.5 0.5 0.5\nKe 1 1 1\n"}});
+  const PatchMesh mesh = mesh_scene(scene, {.max_edge = 0.1});
+  const auto counts = patches_per_triangle(mesh, scene.triangles.size());
+  EXPECT_EQ(counts[0], 3u * 3u);    // ceil(4 sqrt(0.005) / 0.1) = 3, not ceil(1 / 0.1) = 10
+  EXPECT_EQ(counts[1], 15u * 15u);  // ceil(sqrt(2) / 0.1)
+  EXPECT_EQ(counts[2], 10u * 10u);
+}
+
 TEST(MeshSubdivision, SubTriangleOrderAndOrientation) {
   // One triangle split n = 3 ways: the first patch is the corner at a, the last the one at c.
   Scene s = unit_square();

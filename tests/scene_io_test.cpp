@@ -22,7 +22,8 @@ TEST(SceneIo, RoundTripMeshesToTheSameHash) {
 }
 
 // Faces no light reaches (Triangle::unlit) travel with the scene, so that a node meshes them
-// whole as the coordinator does, and so do the pieces over a lamp (Triangle::in_gap): the v2
+// whole as the coordinator does, and so do the pieces over a lamp (Triangle::in_gap) and the
+// strips along its rim (Triangle::whole, also meshed whole): the v2
 // encoding, written only when a face is marked (a scene without marks stays v1, which every node
 // reads).
 TEST(SceneIo, FacesNoLightReachesTravelWithTheScene) {
@@ -30,6 +31,7 @@ TEST(SceneIo, FacesNoLightReachesTravelWithTheScene) {
   EXPECT_EQ(encode_scene(scene).substr(0, 14), "sirad-scene-v1");
   scene.triangles[0].unlit = scene.triangles[5].unlit = true;
   scene.triangles[5].in_gap = scene.triangles[6].in_gap = true;
+  scene.triangles[7].whole = true;
   const std::string bytes = encode_scene(scene);
   EXPECT_EQ(bytes.substr(0, 14), "sirad-scene-v2");
   Scene back = decode_scene(bytes, "wire");
@@ -37,6 +39,7 @@ TEST(SceneIo, FacesNoLightReachesTravelWithTheScene) {
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
     EXPECT_EQ(back.triangles[i].unlit, i == 0 || i == 5) << i;
     EXPECT_EQ(back.triangles[i].in_gap, i == 5 || i == 6) << i;
+    EXPECT_EQ(back.triangles[i].whole, i == 7) << i;
   }
   const PatchMesh here = mesh_scene(scene, {.target_patches = 2000}), there = mesh_scene(back, {.target_patches = 2000});
   EXPECT_EQ(here.hash, there.hash);
@@ -74,7 +77,7 @@ TEST(SceneIo, MalformedBytesAreRefused) {
   s = builtin_cornell();
   for (auto& m : s.materials) m.emission = glm::vec3(0.0f);
   expect_refused(encode_scene(s), "no emitter");
-  // Flags: only bits 0 (unlit) and 1 (in a gap) are known. The first triangle's flags word follows its 3 vertices,
+  // Flags: only bits 0 (unlit), 1 (in a gap) and 2 (whole) are known. The first triangle's flags word follows its 3 vertices,
   // material and line, after the tag, the name and the materials.
   s = builtin_cornell();
   s.triangles[0].unlit = true;
@@ -83,8 +86,8 @@ TEST(SceneIo, MalformedBytesAreRefused) {
   for (const Material& m : s.materials) at += 4 + m.name.size() + 24;
   at += 4 + 36 + 8;
   ASSERT_EQ(flagged[at], 1);
-  flagged[at] = 5;
-  expect_refused(flagged, "unknown flags 0x5");
+  flagged[at] = 9;
+  expect_refused(flagged, "unknown flags 0x9");
 }
 
 }  // namespace

@@ -450,6 +450,57 @@ TEST(GapCuts, ACeilingOverALampIsCutAlongItsOutline) {
   EXPECT_EQ(far_ceiling, 2u);
 }
 
+// Where the gap is wide enough to matter (kGapStripsFrom of the lamp's extent), strips along the
+// rim are cut too: on the ceiling from kGapStripsIn.back() x g inside the lamp's outline to
+// kGapStripsOut.back() x g outside it, on the lamp's upper side within kGapStripsEmitter.back() x g
+// of its rim. They are Triangle::whole, so the mesher leaves each one patch; nothing else is whole,
+// and every surface keeps its area. Below kGapStripsFrom only the outline is cut.
+TEST(GapCuts, StripsAlongALampsRimAreAsWideAsTheGap) {
+  const double g = 0.015;
+  const Scene s = test::lamp_under_ceiling(g);
+  // How far a point lies outside the lamp's outline (x 1.4..2.6, z 1.7..2.3; negative inside):
+  // the outline moved out by d is where this is d (its corners mitred, as the cuts make them).
+  auto outside = [](const glm::dvec3& p) { return std::max({1.4 - p.x, p.x - 2.6, 1.7 - p.z, p.z - 2.3}); };
+  const double out = kGapStripsOut.back() * g, in = kGapStripsIn.back() * g, lamp_in = kGapStripsEmitter.back() * g;
+  auto rect = [](double grow) { return (1.2 + 2 * grow) * (0.6 + 2 * grow); };
+  double ceiling_strips = 0.0, lamp_strips = 0.0, ceiling = 0.0, lamp_up = 0.0;
+  std::size_t whole = 0;
+  for (const Triangle& t : s.triangles) {
+    const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
+    const glm::dvec3 n = glm::cross(b - a, c - a);
+    const double area = 0.5 * glm::length(n), d = outside((a + b + c) / 3.0);
+    const bool on_ceiling = std::abs(a.y - 3.0) < 1e-6 && n.y < 0.0, lamp_top = std::abs(a.y - (3.0 - g)) < 1e-6 && n.y > 0.0;
+    whole += t.whole;
+    if (on_ceiling) {
+      ceiling += area;
+      EXPECT_EQ(t.whole, d > -in && d < out) << "ceiling piece at " << d << " m from the outline";
+      if (t.whole) ceiling_strips += area;
+    } else if (lamp_top) {
+      lamp_up += area;
+      EXPECT_EQ(t.whole, d > -lamp_in) << "lamp piece at " << d << " m from its rim";
+      if (t.whole) lamp_strips += area;
+    } else {
+      EXPECT_FALSE(t.whole) << "a triangle at y " << a.y;
+    }
+  }
+  EXPECT_NEAR(ceiling, 16.0, 1e-4);
+  EXPECT_NEAR(lamp_up, rect(0.0), 1e-5);
+  EXPECT_NEAR(ceiling_strips, rect(out) - rect(-in), 1e-5);
+  // The lamp's diagonal runs through two of its corners and cuts a triangle of (2g)^2 / 2 off the
+  // strip there, under kGapStripLeast x g x extent: it stays with the piece beside it, at most two.
+  EXPECT_LE(std::abs(lamp_strips - (rect(0.0) - rect(-lamp_in))), lamp_in * lamp_in + 1e-5);
+  EXPECT_LT(lamp_in * lamp_in / 2, kGapStripLeast * g * std::hypot(1.2, 0.6));
+  // Each strip is one patch, however fine the rest of the mesh.
+  const PatchMesh mesh = mesh_scene(s, {.target_patches = 20000});
+  std::size_t strip_patches = 0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) strip_patches += s.triangles[mesh.source_triangle[j]].whole;
+  EXPECT_EQ(strip_patches, whole);
+  // 1 mm under the ceiling (under 1/256 of the lamp's 1.34 m) the outline is cut, no strips.
+  const Scene thin = test::lamp_under_ceiling(0.001);
+  EXPECT_TRUE(std::any_of(thin.triangles.begin(), thin.triangles.end(), [](const Triangle& t) { return t.in_gap; }));
+  EXPECT_TRUE(std::none_of(thin.triangles.begin(), thin.triangles.end(), [](const Triangle& t) { return t.whole; }));
+}
+
 // The corner values that images, outputs and the final gather interpolate never blend the light
 // over a lamp into the ceiling beside it (PatchMesh::in_gap), also once the solution is read back
 // from its PLY: with 100 over the lamp and 1 elsewhere, every corner of a patch beside it is 1,
@@ -476,7 +527,9 @@ TEST(GapCuts, CornerValuesDoNotBlendAcrossALampsOutline) {
       for (const glm::vec3& c : corners[j]) EXPECT_EQ(c, glm::vec3(1.0f)) << "patch " << j;
     }
   }
-  EXPECT_GT(beside_at_outline, 20u);
+  // Beside the outline lies the strip outside it, one patch per piece: at least the two
+  // triangles of each side's piece, in each of the two loops.
+  EXPECT_GE(beside_at_outline, 2u * 4u * 2u);
   std::filesystem::remove(ply);
 }
 
