@@ -30,8 +30,9 @@ double longest_edge(const Triangle& t) {
 // The length a triangle is subdivided by: its longest edge, but for a sliver (longest^2 over
 // 16 x its area) 4 x the square root of its area, so that its n x n pieces, slivers of the same
 // shape, are no smaller in area than about a quarter of a well-shaped patch's: a patch's noise
-// grows as its area shrinks, and a strip along a lamp's rim or a Boolean's cut is only wanted
-// narrow across. Triangles of any better shape (equilateral, right-angled) are unaffected.
+// grows as its area shrinks, and the slivers beside a lamp's strips (core/gap_cuts.cpp) or a
+// Boolean's cut gained nothing from being cut to zero area in float. Triangles of any better
+// shape (equilateral, right-angled) are unaffected.
 double subdivision_length(const Triangle& t) {
   const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
   const double area = 0.5 * glm::length(glm::cross(b - a, c - a));
