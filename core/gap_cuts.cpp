@@ -135,7 +135,8 @@ void cut_near_emitters(Scene& scene) {
   std::map<std::size_t, std::vector<std::size_t>> groups;
   for (std::size_t a = 0; a < lights.size(); ++a) groups[find(a)].push_back(lights[a]);
   std::vector<Emitter> emitters;
-  std::map<std::size_t, std::size_t> emitter_of;  // emitting triangle -> its outline in `emitters`
+  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> emitter_of(scene.triangles.size(), kNone);  // emitting triangle -> its outline in `emitters`
   auto add = [&](Poly outline, const glm::dvec3& n) {
     Emitter em{std::move(outline), n, 0.0, 0.0, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
     for (const glm::dvec3& a : em.p)
@@ -260,7 +261,7 @@ void cut_near_emitters(Scene& scene) {
     const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
     const glm::dvec3 cr = glm::cross(b - a, c - a);
     if (emits(scene.materials[t.material]) || !(glm::length(cr) > 0.0)) {
-      if (const auto e = emitter_of.find(i); e != emitter_of.end()) emitting.emplace_back(out.size(), e->second);
+      if (emitter_of[i] != kNone) emitting.emplace_back(out.size(), emitter_of[i]);
       out.push_back(t);
       continue;
     }
@@ -296,10 +297,11 @@ void cut_near_emitters(Scene& scene) {
       done.push_back(out[j]);
       continue;
     }
-    const Emitter& em = emitters[emitting[next++].second];
-    const double gap = nearest[&em - emitters.data()];
+    const std::size_t e = emitting[next++].second;
+    const Emitter& em = emitters[e];
+    const double gap = nearest[e];  // infinite where no face lies across a gap from it
     const Triangle& t = out[j];
-    if (!(gap >= kGapStripsFrom * em.extent && gap <= em.reach)) {
+    if (!std::isfinite(gap) || gap < kGapStripsFrom * em.extent) {
       done.push_back(t);
       continue;
     }

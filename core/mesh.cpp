@@ -39,18 +39,19 @@ double subdivision_length(const Triangle& t) {
   return std::min(longest_edge(t), 4.0 * std::sqrt(area));
 }
 
-// Subdivisions per edge: n = max(1, ceil(longest / max_edge)); max_edge 0 means none.
-uint64_t subdivisions(double longest, double max_edge) {
+// Subdivisions per edge: n = max(1, ceil(length / max_edge)), `length` a triangle's
+// subdivision_length; max_edge 0 means none.
+uint64_t subdivisions(double length, double max_edge) {
   if (max_edge == 0.0) return 1;
-  const double n = std::ceil(longest / max_edge);
+  const double n = std::ceil(length / max_edge);
   if (!(n < double(uint64_t{1} << 20))) return uint64_t{1} << 20;  // n^2 alone saturates
   return std::max<uint64_t>(1, static_cast<uint64_t>(n));
 }
 
 // Total patches for `max_edge`, saturating at kSaturated. Monotone non-increasing in max_edge.
-uint64_t patch_count(const std::vector<double>& longest, double max_edge) {
+uint64_t patch_count(const std::vector<double>& lengths, double max_edge) {
   uint64_t total = 0;
-  for (double l : longest) {
+  for (double l : lengths) {
     const uint64_t n = subdivisions(l, max_edge);
     total = std::min(kSaturated, total + n * n);
   }
@@ -59,17 +60,17 @@ uint64_t patch_count(const std::vector<double>& longest, double max_edge) {
 
 // The max_edge whose patch count is closest to `target` (ties: the smaller count), found by
 // bisection over the bit patterns of positive doubles (ordered like their values).
-double max_edge_for_target(const std::vector<double>& longest, uint64_t target) {
-  const double top = *std::max_element(longest.begin(), longest.end());
+double max_edge_for_target(const std::vector<double>& lengths, uint64_t target) {
+  const double top = *std::max_element(lengths.begin(), lengths.end());
   if (!(top > 0.0)) return 0.0;  // every triangle stays whole
   // count(hi) = number of triangles <= target; count(lo) > target since its n for the
-  // longest triangle exceeds sqrt(target).
+  // triangle of the greatest length exceeds sqrt(target).
   double hi = top;
   double lo = top / (std::ceil(std::sqrt(double(target))) + 1.0);
   uint64_t lo_bits = std::bit_cast<uint64_t>(lo), hi_bits = std::bit_cast<uint64_t>(hi);
   while (hi_bits - lo_bits > 1) {
     const uint64_t mid = lo_bits + (hi_bits - lo_bits) / 2;
-    if (patch_count(longest, std::bit_cast<double>(mid)) > target)
+    if (patch_count(lengths, std::bit_cast<double>(mid)) > target)
       lo_bits = mid;
     else
       hi_bits = mid;
@@ -78,7 +79,7 @@ double max_edge_for_target(const std::vector<double>& longest, uint64_t target) 
   hi = std::bit_cast<double>(hi_bits);
   // Adjacent doubles: count(lo) is the smallest count above target, count(hi) the largest
   // at or below it.
-  return patch_count(longest, lo) - target < target - patch_count(longest, hi) ? lo : hi;
+  return patch_count(lengths, lo) - target < target - patch_count(lengths, hi) ? lo : hi;
 }
 
 // Exact float bit pattern of a position, -0.0 folded into 0.0: the welding key.
@@ -310,8 +311,8 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
     fail("{}: target of {} patches exceeds 2^31 - 1", scene.name, options.target_patches);
   if (scene.triangles.empty()) fail("{}: scene has no triangles", scene.name);
   check_radiometry(scene);
-  std::vector<double> longest;
-  longest.reserve(scene.triangles.size());
+  std::vector<double> lengths;  // each triangle's subdivision_length
+  lengths.reserve(scene.triangles.size());
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
     const Triangle& t = scene.triangles[i];
     for (const glm::vec3& p : t.p)
@@ -320,14 +321,14 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
     if (t.material >= scene.materials.size())
       fail("{}: triangle {} has material {} of {}", scene.name, i, t.material,
            scene.materials.size());
-    longest.push_back(t.unlit || t.whole ? 0.0 : subdivision_length(t));  // a face no light reaches, or a strip along a gap, stays one patch
+    lengths.push_back(t.unlit || t.whole ? 0.0 : subdivision_length(t));  // a face no light reaches, or a strip along a gap, stays one patch
   }
 
   // Step 2: the edge length, and the patch count checked before anything is allocated.
   double max_edge = options.max_edge;
   if (options.target_patches > scene.triangles.size())
-    max_edge = max_edge_for_target(longest, options.target_patches);
-  const uint64_t total = patch_count(longest, max_edge);
+    max_edge = max_edge_for_target(lengths, options.target_patches);
+  const uint64_t total = patch_count(lengths, max_edge);
   if (total > kMaxPatches)
     fail("{}: meshing would make {}{} patches, more than 2^31 - 1", scene.name,
          total == kSaturated ? "over " : "", total);
@@ -346,7 +347,7 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
     Welder weld(mesh.vertices, scene.name, total / 2 + 3 * scene.triangles.size());
     std::vector<uint32_t> grid;
     for (std::size_t i = 0; i < scene.triangles.size(); ++i)
-      subdivide(scene, static_cast<uint32_t>(i), subdivisions(longest[i], max_edge), weld, mesh,
+      subdivide(scene, static_cast<uint32_t>(i), subdivisions(lengths[i], max_edge), weld, mesh,
                 grid);
   } catch (const std::bad_alloc&) {
     fail("{}: out of memory meshing {} patches", scene.name, total);
