@@ -12,6 +12,7 @@
 #include <memory>
 #include <new>
 
+#include "core/contacts.h"
 #include "core/error.h"
 
 namespace sirad {
@@ -38,6 +39,16 @@ double subdivision_length(const Triangle& t) {
   const double area = 0.5 * glm::length(glm::cross(b - a, c - a));
   return std::min(longest_edge(t), 4.0 * std::sqrt(area));
 }
+
+// A patch is split along at most this many pieces' worth of contact segments, and not where a
+// piece would reach less than this fraction of its size beyond the cut (a contact along its
+// edge, moved a hair inside by float rounding; a foot that grazes its corner).
+constexpr std::size_t kMaxPiecesPerPatch = 8;
+constexpr double kLeastCut = 1e-3;
+// A grid, and a first meshing for a target, may pass the limit on patches by this factor (the
+// splits drop pieces inside solids and add others, and a target's grid is then made coarser by
+// what they added; mesh_scene): the final meshing may not.
+constexpr uint64_t kSplitHeadroom = 4;
 
 // Subdivisions per edge: n = max(1, ceil(length / max_edge)), `length` a triangle's
 // subdivision_length; max_edge 0 means none.
@@ -169,7 +180,7 @@ glm::vec3 grid_point(const Triangle& t, uint64_t i, uint64_t j, uint64_t n) {
 // (i,j),(i+1,j),(i,j+1) and the inverted one (i+1,j),(i+1,j+1),(i,j+1). Both keep the
 // parent's orientation.
 void subdivide(const Scene& scene, uint32_t ti, uint64_t n, Welder& weld, PatchMesh& mesh,
-               std::vector<uint32_t>& grid) {
+               std::vector<uint32_t>& grid, const std::vector<ContactSegment>& contacts, CoverTest& cover) {
   const Triangle& t = scene.triangles[ti];
   // Step 1: weld the (n+1)(n+2)/2 grid points, row by row.
   grid.clear();
@@ -194,10 +205,73 @@ void subdivide(const Scene& scene, uint32_t ti, uint64_t n, Welder& weld, PatchM
     mesh.material.push_back(t.material);
     mesh.source_triangle.push_back(ti);
   };
+  // A sub-triangle that a contact segment crosses is split along it (convex pieces, each a fan):
+  // no patch straddles the foot of a wall. A piece inside the solid that stands there (under the
+  // wall) is left out: no light reaches it, and it would cost patches. So are fan triangles too
+  // thin to have an area in float (holes of about 1e-9 of the patch).
+  const glm::dvec3 normal = glm::normalize(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0])));
+  std::vector<std::vector<glm::dvec3>> pieces, next;
+  std::vector<glm::dvec3> in, out;
+  const auto put = [&](uint32_t a, uint32_t b, uint32_t c) {
+    const std::array<glm::dvec3, 3> sub = {glm::dvec3(mesh.vertices[a]), glm::dvec3(mesh.vertices[b]), glm::dvec3(mesh.vertices[c])};
+    pieces.assign(1, {sub[0], sub[1], sub[2]});
+    const double size = std::sqrt(glm::length(glm::cross(sub[1] - sub[0], sub[2] - sub[0])));  // about an edge
+    for (const ContactSegment& s : contacts) {
+      glm::dvec3 p = s.p, q = s.q;
+      if (pieces.size() >= kMaxPiecesPerPatch || !clip_to_triangle(sub, normal, p, q) || !(glm::length(q - p) > 1e-6 * size)) continue;
+      const glm::dvec3 m = glm::normalize(glm::cross(normal, q - p));
+      next.clear();
+      for (const auto& piece : pieces) {
+        in.clear();
+        out.clear();
+        double over = 0.0, under = 0.0;  // how far the piece reaches either side of the cut
+        for (const glm::dvec3& u : piece) over = std::max(over, glm::dot(u - p, m)), under = std::max(under, -glm::dot(u - p, m));
+        if (!(std::min(over, under) > kLeastCut * size)) {
+          next.push_back(piece);  // along its edge, or a sliver of it
+          continue;
+        }
+        for (std::size_t k = 0; k < piece.size(); ++k) {
+          const glm::dvec3 &u = piece[k], &v = piece[(k + 1) % piece.size()];
+          const double su = glm::dot(u - p, m), sv = glm::dot(v - p, m);
+          if (su >= 0.0) in.push_back(u);
+          if (su <= 0.0) out.push_back(u);
+          if ((su > 0.0 && sv < 0.0) || (su < 0.0 && sv > 0.0)) {
+            const glm::dvec3 x = u + (v - u) * (su / (su - sv));
+            in.push_back(x);
+            out.push_back(x);
+          }
+        }
+        if (in.size() >= 3 && out.size() >= 3) {
+          next.push_back(in);
+          next.push_back(out);
+        } else {
+          next.push_back(piece);
+        }
+      }
+      std::swap(pieces, next);
+    }
+    if (pieces.size() == 1) {
+      emit(a, b, c);
+      return;
+    }
+    for (const auto& piece : pieces) {
+      glm::dvec3 centre(0.0);
+      for (const glm::dvec3& x : piece) centre += x;
+      if (cover.inside(ti, contacts, centre / static_cast<double>(piece.size()))) continue;
+      for (std::size_t k = 1; k + 1 < piece.size(); ++k) {
+        const uint32_t u = weld(glm::vec3(piece[0])), v = weld(glm::vec3(piece[k])), w = weld(glm::vec3(piece[k + 1]));
+        const glm::dvec3 pu(mesh.vertices[u]), pv(mesh.vertices[v]), pw(mesh.vertices[w]);
+        const glm::dvec3 cross = glm::cross(pv - pu, pw - pu);
+        if (u == v || v == w || u == w || !(static_cast<float>(0.5 * glm::length(cross)) > 0.0f) || !(glm::dot(cross, normal) > 0.0))
+          continue;
+        emit(u, v, w);
+      }
+    }
+  };
   for (uint64_t j = 0; j < n; ++j)
     for (uint64_t i = 0; i + j < n; ++i) {
-      emit(at(i, j), at(i + 1, j), at(i, j + 1));
-      if (i + j + 1 < n) emit(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+      put(at(i, j), at(i + 1, j), at(i, j + 1));
+      if (i + j + 1 < n) put(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
     }
 }
 
@@ -324,34 +398,59 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
     lengths.push_back(t.unlit || t.whole ? 0.0 : subdivision_length(t));  // a face no light reaches, or a strip along a gap, stays one patch
   }
 
-  // Step 2: the edge length, and the patch count checked before anything is allocated.
+  // Step 2: where faces meet, along which patches are split (none when each face stays one
+  // patch: the meshes of the load-time helpers, which must match their faces one to one).
+  const bool whole_faces = options.target_patches == 0 && options.max_edge == 0.0;
+  const double tolerance = contact_tolerance(scene);
+  const std::vector<std::vector<ContactSegment>> contacts =
+      whole_faces ? std::vector<std::vector<ContactSegment>>(scene.triangles.size()) : contact_segments(scene, tolerance);
+
+  // Step 3: for an edge length, the grid's patch count checked before anything is allocated,
+  // then subdivide, split and weld, in input triangle order.
+  const uint64_t limit = options.max_patches > 0 ? options.max_patches : kMaxPatches;
+  const auto grid_mesh = [&](double max_edge) {
+    CoverTest cover(scene, tolerance);
+    const uint64_t total = patch_count(lengths, max_edge);
+    if (total > kMaxPatches)
+      fail("{}: meshing would make {}{} patches, more than 2^31 - 1", scene.name,
+           total == kSaturated ? "over " : "", total);
+    if (options.max_patches > 0 && total > kSplitHeadroom * options.max_patches)
+      fail("{}: meshing would make {} patches, more than the {} expected", scene.name, total, options.max_patches);
+    PatchMesh mesh;
+    try {
+      mesh.patches.reserve(total);
+      mesh.normal.reserve(total);
+      mesh.area.reserve(total);
+      mesh.material.reserve(total);
+      mesh.source_triangle.reserve(total);
+      // About one vertex per two patches, plus the corners and edges of each input triangle.
+      Welder weld(mesh.vertices, scene.name, total / 2 + 3 * scene.triangles.size());
+      std::vector<uint32_t> grid;
+      for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+        subdivide(scene, static_cast<uint32_t>(i), subdivisions(lengths[i], max_edge), weld, mesh,
+                  grid, contacts[i], cover);
+        if (mesh.size() > kSplitHeadroom * limit)
+          fail("{}: split where faces meet, the meshing makes more than {} patches", scene.name, kSplitHeadroom * limit);
+      }
+    } catch (const std::bad_alloc&) {
+      fail("{}: out of memory meshing {} patches", scene.name, total);
+    }
+    return mesh;
+  };
   double max_edge = options.max_edge;
   if (options.target_patches > scene.triangles.size())
     max_edge = max_edge_for_target(lengths, options.target_patches);
-  const uint64_t total = patch_count(lengths, max_edge);
-  if (total > kMaxPatches)
-    fail("{}: meshing would make {}{} patches, more than 2^31 - 1", scene.name,
-         total == kSaturated ? "over " : "", total);
-  if (options.max_patches > 0 && total > options.max_patches)
-    fail("{}: meshing would make {} patches, more than the {} expected", scene.name, total, options.max_patches);
-
-  // Step 3: subdivide and weld, in input triangle order.
-  PatchMesh mesh;
-  try {
-    mesh.patches.reserve(total);
-    mesh.normal.reserve(total);
-    mesh.area.reserve(total);
-    mesh.material.reserve(total);
-    mesh.source_triangle.reserve(total);
-    // About one vertex per two patches, plus the corners and edges of each input triangle.
-    Welder weld(mesh.vertices, scene.name, total / 2 + 3 * scene.triangles.size());
-    std::vector<uint32_t> grid;
-    for (std::size_t i = 0; i < scene.triangles.size(); ++i)
-      subdivide(scene, static_cast<uint32_t>(i), subdivisions(lengths[i], max_edge), weld, mesh,
-                grid);
-  } catch (const std::bad_alloc&) {
-    fail("{}: out of memory meshing {} patches", scene.name, total);
+  PatchMesh mesh = grid_mesh(max_edge);
+  // A target counts the patches the splits add: the grid is made coarser once by as many. A
+  // coarser grid's cells cross fewer contacts, so the count ends a little under the target.
+  const uint64_t grid_count = patch_count(lengths, max_edge);
+  const uint64_t added = mesh.size() > grid_count ? mesh.size() - grid_count : 0;
+  if (options.target_patches > scene.triangles.size() + added && added > 0) {
+    const double coarser = max_edge_for_target(lengths, options.target_patches - added);
+    if (coarser != max_edge) mesh = grid_mesh(coarser);
   }
+  if (mesh.size() > limit)
+    fail("{}: split where faces meet, the meshing makes {} patches, more than {}", scene.name, mesh.size(), limit);
 
   // Step 4: scene data, bounds and the content hash.
   if (std::any_of(scene.triangles.begin(), scene.triangles.end(), [](const Triangle& t) { return t.in_gap; })) {

@@ -341,7 +341,7 @@ TEST_F(Golden, AFarmJobIsTheSameRunAsALoneCoordinators) {
 }
 
 // tests/data/golden/resume.ckpt: a run of 4096 bundles of the Cornell box (300 patches, seed
-// 13, exchange every 8) checkpointed after 588 of them by one node, resumed here by another.
+// 13, exchange every 8) checkpointed after 616 of them by one node, resumed here by another.
 TEST_F(Golden, ResumedCheckpoint) {
   fs::copy_file(fs::path(SIRAD_SOURCE_DIR) / "tests/data/golden/resume.ckpt", dir_ / "resume.ckpt");
   run_tcp({"--resume", out("resume.ckpt"), "--width", "24", "--height", "24", "--status-json",
