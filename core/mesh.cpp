@@ -207,8 +207,9 @@ void subdivide(const Scene& scene, uint32_t ti, uint64_t n, Welder& weld, PatchM
   };
   // A sub-triangle that a contact segment crosses is split along it (convex pieces, each a fan):
   // no patch straddles the foot of a wall. A piece inside the solid that stands there (under the
-  // wall) is left out: no light reaches it, and it would cost patches. So are fan triangles too
-  // thin to have an area in float (holes of about 1e-9 of the patch).
+  // wall), or a whole sub-triangle there, is left out: no light reaches it, and it would cost
+  // patches. So are fan triangles too thin to have an area in float (holes of about 1e-9 of the
+  // patch).
   const glm::dvec3 normal = glm::normalize(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0])));
   std::vector<std::vector<glm::dvec3>> pieces, next;
   std::vector<glm::dvec3> in, out;
@@ -250,14 +251,14 @@ void subdivide(const Scene& scene, uint32_t ti, uint64_t n, Welder& weld, PatchM
       }
       std::swap(pieces, next);
     }
-    if (pieces.size() == 1) {
-      emit(a, b, c);
-      return;
-    }
     for (const auto& piece : pieces) {
       glm::dvec3 centre(0.0);
       for (const glm::dvec3& x : piece) centre += x;
-      if (cover.inside(ti, contacts, centre / static_cast<double>(piece.size()))) continue;
+      if (!contacts.empty() && cover.inside(ti, contacts, centre / static_cast<double>(piece.size()))) continue;
+      if (pieces.size() == 1) {
+        emit(a, b, c);
+        return;
+      }
       for (std::size_t k = 1; k + 1 < piece.size(); ++k) {
         const uint32_t u = weld(glm::vec3(piece[0])), v = weld(glm::vec3(piece[k])), w = weld(glm::vec3(piece[k + 1]));
         const glm::dvec3 pu(mesh.vertices[u]), pv(mesh.vertices[v]), pw(mesh.vertices[w]);
@@ -441,13 +442,14 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
   if (options.target_patches > scene.triangles.size())
     max_edge = max_edge_for_target(lengths, options.target_patches);
   PatchMesh mesh = grid_mesh(max_edge);
-  // A target counts the patches the splits add: the grid is made coarser once by as many. A
-  // coarser grid's cells cross fewer contacts, so the count ends a little under the target.
-  const uint64_t grid_count = patch_count(lengths, max_edge);
-  const uint64_t added = mesh.size() > grid_count ? mesh.size() - grid_count : 0;
-  if (options.target_patches > scene.triangles.size() + added && added > 0) {
-    const double coarser = max_edge_for_target(lengths, options.target_patches - added);
-    if (coarser != max_edge) mesh = grid_mesh(coarser);
+  // A target counts the patches the splits add and the cover leaves out: the grid is made
+  // coarser (or finer) once by as many. The second grid's cells cross the contacts a little less
+  // (or more) often, so the count ends near the target, not on it.
+  const auto added = static_cast<int64_t>(mesh.size()) - static_cast<int64_t>(patch_count(lengths, max_edge));
+  const auto regrid = static_cast<int64_t>(options.target_patches) - added;
+  if (options.target_patches > scene.triangles.size() && added != 0 && regrid > static_cast<int64_t>(scene.triangles.size())) {
+    const double other = max_edge_for_target(lengths, static_cast<uint64_t>(regrid));
+    if (other != max_edge) mesh = grid_mesh(other);
   }
   if (mesh.size() > limit)
     fail("{}: split where faces meet, the meshing makes {} patches, more than {}", scene.name, mesh.size(), limit);
