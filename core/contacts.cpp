@@ -2,10 +2,10 @@
 #include "core/contacts.h"
 
 #include <algorithm>
-#include <utility>
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <utility>
 
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
@@ -197,6 +197,7 @@ bool CoverTest::inside(uint32_t face, const std::vector<ContactSegment>& contact
   for (std::size_t i = 0; i < hits_.size();) {
     const std::size_t first = i;
     for (const double t = hits_[i].t; i < hits_.size() && hits_[i].t <= t + tolerance_; ++i) {}
+    if (i - first > kMaxFacesAtOnePlace) return false;
     bool front = false, back = false;
     for (std::size_t h = first; h < i; ++h) {
       bool twin = false;

@@ -38,8 +38,9 @@ inline constexpr std::size_t kMaxContactsPerFace = 64;
 inline constexpr double kMaxContactPairs = 1e8;
 std::vector<std::vector<ContactSegment>> contact_segments(const Scene& scene, double tolerance);
 
-// Whether a point of a face (its centre of a piece that `contacts`, the face's, split off) lies
-// inside a solid that stands on it (under a wall's foot, a table leg). Two tests, both needed:
+// Whether a point of a face (the centre of a piece or a sub-triangle of it; `contacts` the
+// face's segments) lies inside a solid that stands on it (under a wall's foot, a table leg). Two
+// tests, both needed:
 // - behind the face that stands nearest: of the segments the point lies beside, the nearest
 //   has it behind its face, and none at that distance has it in front (a zero-thickness wall's
 //   twin);
@@ -50,8 +51,10 @@ std::vector<std::vector<ContactSegment>> contact_segments(const Scene& scene, do
 // So a floor behind a one-sided outer wall, which sees the sky, is kept, as is the floor under
 // a two-sided table top. Double precision against the triangles in front of the face whose
 // extent across its normal overlaps the face's: the same answer in every process. Past
-// kMaxCoverTests ray-triangle tests and candidate looks together, every point is open (kept).
+// kMaxCoverTests ray-triangle tests and candidate looks together, every point is open (kept),
+// and so is one whose ray meets more than kMaxFacesAtOnePlace faces at one place.
 inline constexpr double kMaxCoverTests = 2e8;
+inline constexpr std::size_t kMaxFacesAtOnePlace = 64;
 class CoverTest {
  public:
   CoverTest(const Scene& scene, double tolerance) : scene_(scene), tolerance_(tolerance) {}

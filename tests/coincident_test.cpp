@@ -182,9 +182,13 @@ TEST(Coincident, ReferenceSeesAZeroThicknessWallAsTheLimitOfAThinOne) {
   }
 }
 
+// 64 x 64 directions: at 48 x 48 (transport seeds 77/78) room B read +0.185 % +- 0.054 % on the
+// floor split along the wall's foot, and +0.128 % +- 0.063 % against another reference seed
+// with the same directions, but -0.071 % +- 0.072 % with other directions: the directions'
+// sample, which the SE (from 16 replicates) can understate by up to 1.6x (above).
 TEST(Coincident, ThinWallWithADoorway) {
   Solved s = solved(two_rooms(0.0, glm::dmat3(1.0)), 1500);
-  expect_transport_agrees("two rooms", s, room_regions(s.mesh, glm::dmat3(1.0), 0.0), 48);
+  expect_transport_agrees("two rooms", s, room_regions(s.mesh, glm::dmat3(1.0), 0.0), 64);
 }
 
 TEST(Coincident, ThinWallAtAnObliqueAngleWithTJunctions) {

@@ -382,7 +382,11 @@ TEST(ReferenceAgreement, BundleTransportCornell) { check_transport("cornell", bu
 TEST(ReferenceAgreement, BundleTransportBrightRoom) { check_transport("bright-room", builtin_bright_room(), 1200, 24); }
 TEST(ReferenceAgreement, BundleTransportThreeLights) { check_transport("three-lights", builtin_three_lights(), 1500, 40); }
 TEST(ReferenceAgreement, BundleSolverCornell) { check_solver("cornell", builtin_cornell(), 1200, 6); }
-TEST(ReferenceAgreement, BundleSolverBrightRoom) { check_solver("bright-room", builtin_bright_room(), 1200, 6); }
+// 12 runs for the bright room, whose runs scatter most: the SE comes from the runs' own spread,
+// and with 6 (5 degrees of freedom) |t| > 3 has a 3 % chance. On the mesh split at its boxes'
+// feet the six runs of seeds 7000-7005 read -1.39 % +- 0.42 % (t = -3.3), six of 7100-7105
+// +0.38 % +- 0.76 %.
+TEST(ReferenceAgreement, BundleSolverBrightRoom) { check_solver("bright-room", builtin_bright_room(), 1200, 12); }
 TEST(ReferenceAgreement, BundleSolverThreeLights) { check_solver("three-lights", builtin_three_lights(), 1500, 6); }
 // With the first shot (one shot per bundle). The direct light no longer depends on the bundles'
 // directions finding the lights, but the indirect part's aggregate still scatters by ~1.8% per
