@@ -3,8 +3,8 @@
 // for a sliver from its area, and the maximum edge length; a face no light reaches,
 // Triangle::unlit, and a strip along a gap, Triangle::whole, stay one patch and count as one
 // towards a target); a sub-triangle that the foot of another face crosses (a wall standing
-// on a floor, core/contacts.h) is split along it, so that no patch straddles a contact;
-// vertices are welded so that shared corners carry one value
+// on a floor, core/contacts.h) is split along it, so that no patch straddles a contact, and
+// what lies inside the solid standing there is left out; vertices are welded so that shared corners carry one value
 // (Gouraud shading, PLY connectivity). Patch order is stable: input triangle order, then
 // sub-triangle order. The content hash names the meshed scene across processes.
 #pragma once
@@ -24,9 +24,11 @@ struct MeshOptions {
   // contacts (the meshes of add_back_faces and mark_unlit_faces, core/scene.h).
   std::size_t target_patches = 0;  // subdivide to the patch count closest to this
   double max_edge = 0.0;           // subdivide until no patch edge is longer than this (a sliver: by its area, mesh.cpp)
-  // Refuse a meshing to more patches than this (0: 2^31 - 1), before allocating the grid's and
-  // as soon as the contacts' splits pass it: a node meshing a coordinator's scene takes no more
-  // than the run says it has.
+  // Refuse a meshing to more patches than this (0: 2^31 - 1): a grid of more than 4 times it
+  // before allocating, a meshing as soon as it passes 4 times it (the splits at contacts add
+  // patches, the cover leaves some out, and a target's grid is then redone: mesh.cpp
+  // kSplitHeadroom), and the final mesh beyond it. A node meshing a coordinator's scene takes no
+  // more than the run says it has.
   uint64_t max_patches = 0;
 };
 
