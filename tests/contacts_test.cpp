@@ -145,7 +145,9 @@ TEST(MeshContacts, BesideAZeroThicknessOrOneSidedWallTheFloorIsKept) {
       }
       EXPECT_EQ(straddling, 0u) << what;
       EXPECT_NEAR(footprint(s, mesh, 0, 0, 4, 0, 4).area, 16.0, 1e-5 * 16.0) << what;
-      if (ceiling) EXPECT_NEAR(footprint(s, mesh, 1, 0, 4, 0, 4).area, 16.0, 1e-5 * 16.0) << what;
+      if (ceiling) {
+        EXPECT_NEAR(footprint(s, mesh, 1, 0, 4, 0, 4).area, 16.0, 1e-5 * 16.0) << what;
+      }
     }
 }
 
