@@ -93,9 +93,9 @@ Footprint footprint(const Scene& s, const PatchMesh& mesh, uint32_t object, doub
 // A wall 0.2 m thick standing on the floor and touching the ceiling: both are met along its
 // outline (2 x (0.2 + 2.5) = 5.4 m each), no patch of either straddles it, and what lies inside
 // it is left out (the floor's and the ceiling's area less the wall's footprint, 0.5 m^2). The
-// ray from a ceiling piece over the wall passes the wall's bottom on the floor (a back and a
-// front at one place) and ends on the floor slab's... here nothing: it is decided by the wall's
-// bottom alone, and a floor piece's by the wall's top under the ceiling.
+// ray from a floor piece under the wall meets the wall's top (a back) where the ceiling's
+// underside (a front) touches it, and the ray from a ceiling piece the wall's bottom on the
+// floor: a back beside a front that is not its twin is a back.
 TEST(MeshContacts, AWallsFootSplitsTheFloorAndWhatIsUnderItIsLeftOut) {
   Scene s = floor_scene(true);
   box(s, {1.5f, 0.0f, 0.5f}, {1.7f, 2.5f, 3.0f});
