@@ -30,24 +30,6 @@ double area_of(const Poly& p) {
   return 0.5 * glm::length(s);
 }
 
-// Splits the convex polygon `p` by the plane dot(x - o, m) = 0 into the parts where it is >= 0
-// (`in`) and <= 0 (`out`), corners kept in p's order.
-void split(const Poly& p, const glm::dvec3& o, const glm::dvec3& m, Poly& in, Poly& out) {
-  in.clear();
-  out.clear();
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    const glm::dvec3 &a = p[i], &b = p[(i + 1) % p.size()];
-    const double sa = glm::dot(a - o, m), sb = glm::dot(b - o, m);
-    if (sa >= 0.0) in.push_back(a);
-    if (sa <= 0.0) out.push_back(a);
-    if ((sa > 0.0 && sb < 0.0) || (sa < 0.0 && sb > 0.0)) {
-      const glm::dvec3 x = a + (b - a) * (sa / (sa - sb));
-      in.push_back(x);
-      out.push_back(x);
-    }
-  }
-}
-
 // The convex outline (counter-clockwise seen from the front of normal n) of the triangles
 // `members`, if they fill it to kSameArea: a lamp's cap that the exporter cut into a fan of
 // slivers is cut along its rim only. Empty if they do not (a concave or broken group).
@@ -189,7 +171,7 @@ void cut_near_emitters(Scene& scene) {
       for (std::size_t k = 0; k < em.p.size() && !inside.empty(); ++k) {
         const glm::dvec3 q0 = em.p[k] + em.n * gap, q1 = em.p[(k + 1) % em.p.size()] + em.n * gap;
         const glm::dvec3 m = glm::normalize(glm::cross(em.n, q1 - q0));  // points into the outline
-        split(inside, q0 - m * offset, m, part_in, part_out);
+        split_convex(inside, q0 - m * offset, m, part_in, part_out);
         const double ai = part_in.size() >= 3 ? area_of(part_in) : 0.0, ao = part_out.size() >= 3 ? area_of(part_out) : 0.0;
         const double small = std::max(tiny, least);
         if (ao <= small && (least == 0.0 || ai > ao)) continue;  // wholly inside this edge

@@ -14,6 +14,7 @@
 
 #include "core/contacts.h"
 #include "core/error.h"
+#include "core/polygon.h"
 
 namespace sirad {
 namespace {
@@ -223,25 +224,13 @@ void subdivide(const Scene& scene, uint32_t ti, uint64_t n, Welder& weld, PatchM
       const glm::dvec3 m = glm::normalize(glm::cross(normal, q - p));
       next.clear();
       for (const auto& piece : pieces) {
-        in.clear();
-        out.clear();
         double over = 0.0, under = 0.0;  // how far the piece reaches either side of the cut
         for (const glm::dvec3& u : piece) over = std::max(over, glm::dot(u - p, m)), under = std::max(under, -glm::dot(u - p, m));
         if (!(std::min(over, under) > kLeastCut * size)) {
           next.push_back(piece);  // along its edge, or a sliver of it
           continue;
         }
-        for (std::size_t k = 0; k < piece.size(); ++k) {
-          const glm::dvec3 &u = piece[k], &v = piece[(k + 1) % piece.size()];
-          const double su = glm::dot(u - p, m), sv = glm::dot(v - p, m);
-          if (su >= 0.0) in.push_back(u);
-          if (su <= 0.0) out.push_back(u);
-          if ((su > 0.0 && sv < 0.0) || (su < 0.0 && sv > 0.0)) {
-            const glm::dvec3 x = u + (v - u) * (su / (su - sv));
-            in.push_back(x);
-            out.push_back(x);
-          }
-        }
+        split_convex(piece, p, m, in, out);
         if (in.size() >= 3 && out.size() >= 3) {
           next.push_back(in);
           next.push_back(out);

@@ -151,4 +151,21 @@ std::vector<std::size_t> convex_hull(std::span<const glm::dvec2> q, double flat)
   return hull;
 }
 
+void split_convex(std::span<const glm::dvec3> p, const glm::dvec3& o, const glm::dvec3& m, std::vector<glm::dvec3>& in,
+                  std::vector<glm::dvec3>& out) {
+  in.clear();
+  out.clear();
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const glm::dvec3 &a = p[i], &b = p[(i + 1) % p.size()];
+    const double sa = glm::dot(a - o, m), sb = glm::dot(b - o, m);
+    if (sa >= 0.0) in.push_back(a);
+    if (sa <= 0.0) out.push_back(a);
+    if ((sa > 0.0 && sb < 0.0) || (sa < 0.0 && sb > 0.0)) {
+      const glm::dvec3 x = a + (b - a) * (sa / (sa - sb));
+      in.push_back(x);
+      out.push_back(x);
+    }
+  }
+}
+
 }  // namespace sirad

@@ -1,5 +1,6 @@
 // sirad: a polygon face cut into triangles (OBJ n-gons as Blender writes them: a wall with a door
-// cut by a Boolean is one concave face).
+// cut by a Boolean is one concave face), and convex polygons cut by a plane (the gap cuts' and the
+// mesher's splits).
 #pragma once
 #include <array>
 #include <cstddef>
@@ -29,5 +30,10 @@ std::vector<std::array<uint32_t, 3>> triangulate_polygon(std::span<const glm::ve
 // of the triangle they make) is left out, so points on its edges within rounding are not
 // corners. Collinear or too few points give fewer than 3 indices.
 std::vector<std::size_t> convex_hull(std::span<const glm::dvec2> q, double flat);
+
+// Splits the convex polygon `p` by the plane dot(x - o, m) = 0 into the parts where it is >= 0
+// (`in`) and <= 0 (`out`), corners kept in p's order (a corner on the plane goes to both).
+void split_convex(std::span<const glm::dvec3> p, const glm::dvec3& o, const glm::dvec3& m, std::vector<glm::dvec3>& in,
+                  std::vector<glm::dvec3>& out);
 
 }  // namespace sirad
