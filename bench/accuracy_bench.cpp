@@ -1,7 +1,7 @@
 // sirad bench: accuracy per second. Runs the solver in one or more configurations
-// against a reference solution (`sirad reference`, core/reference.h) and prints, as CSV, the
+// against a reference solution (`sirad reference`, solver/reference.h) and prints, as CSV, the
 // relative RMS error per non-emitting patch (area-weighted, the reference's own variance
-// subtracted: core/metrics.h relative_rms_vs_reference) at checkpoints of growing bundle counts,
+// subtracted: solver/metrics.h relative_rms_vs_reference) at checkpoints of growing bundle counts,
 // with the solver's wall time up to there (error evaluation not counted) and the process's CPU
 // time over the same steps (all threads). The summary lines
 // give the time to 2 % and to 1 % of each configuration (the first checkpoint at or below).
@@ -26,13 +26,13 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/metrics.h"
-#include "core/reference.h"
-#include "core/scene.h"
-#include "core/shot.h"
-#include "core/solver.h"
+#include "engine/bundle_cl.h"
+#include "engine/shot.h"
+#include "scene/scene.h"
+#include "solver/metrics.h"
+#include "solver/reference.h"
+#include "solver/solver.h"
+#include "util/error.h"
 
 using namespace sirad;
 

@@ -19,12 +19,12 @@
 #include <string>
 #include <vector>
 
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/metrics.h"
-#include "core/scene.h"
-#include "core/solver.h"
+#include "engine/bundle_cl.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "solver/metrics.h"
+#include "solver/solver.h"
+#include "util/error.h"
 
 using namespace sirad;
 

@@ -78,15 +78,15 @@
 #include "cluster/exchange.h"
 #include "cluster/worker.h"
 #include "cmd/embedded.h"
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/scene.h"
-#include "core/solver.h"
-#include "core/scene_io.h"
-#include "core/solver.h"
+#include "engine/bundle_cl.h"
 #include "proto/codec.h"
 #include "proto/transport.h"
+#include "scene/encoding.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "solver/solver.h"
+#include "solver/solver.h"
+#include "util/error.h"
 
 using namespace sirad;
 using Clock = std::chrono::steady_clock;

@@ -1,5 +1,5 @@
 // sirad bench: random against stratified directions on the Cornell box.
-// Relative RMS error per non-emitting patch (area-weighted, core/metrics.h) of single chain-rule
+// Relative RMS error per non-emitting patch (area-weighted, solver/metrics.h) of single chain-rule
 // runs against a long-run truth (the mean of --truth-runs random runs of --truth-bundles each,
 // seeds 1000..), at the checkpoint bundle counts, for --seeds paired seeds (the random and the
 // stratified run of a pair share the seed). Also the bias check: the area mean of every run at
@@ -21,14 +21,14 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/metrics.h"
-#include "core/reference.h"
-#include "core/scene.h"
-#include "core/shot.h"
-#include "core/solver.h"
+#include "engine/bundle_cl.h"
+#include "engine/shot.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "solver/metrics.h"
+#include "solver/reference.h"
+#include "solver/solver.h"
+#include "util/error.h"
 
 using namespace sirad;
 

@@ -46,10 +46,10 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <fmt/format.h>
 
-#include "core/error.h"
-#include "core/gather.h"
-#include "core/output.h"
-#include "core/solution.h"
+#include "io/read_solution.h"
+#include "io/write.h"
+#include "render/gather.h"
+#include "util/error.h"
 
 using namespace sirad;
 namespace fs = std::filesystem;

@@ -6,9 +6,9 @@
 //   sirad_bench_paper hetero --profile deploy/profiles/hetero-16.yaml --target 0.02
 //                            (time to the target error: sync/async x star/ring x I)
 //
-// Errors are measured against a reference solution (core/reference.h; computed once and kept
+// Errors are measured against a reference solution (solver/reference.h; computed once and kept
 // in --reference, default SCENE-PATCHES.ref.csv): relative RMS per non-emitting patch,
-// area-weighted, the reference's own variance subtracted (core/metrics.h).
+// area-weighted, the reference's own variance subtracted (solver/metrics.h).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -21,16 +21,16 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
-#include "cmd/run_flags.h"
 #include "cluster/emulate.h"
 #include "cluster/profile.h"
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/metrics.h"
-#include "core/model.h"
-#include "core/model_fit.h"
-#include "core/reference.h"
-#include "core/scene.h"
+#include "cmd/run_flags.h"
+#include "engine/bundle_cl.h"
+#include "model/model.h"
+#include "model/model_fit.h"
+#include "scene/scene.h"
+#include "solver/metrics.h"
+#include "solver/reference.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {

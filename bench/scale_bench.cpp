@@ -31,13 +31,13 @@
 
 #include "cluster/exchange.h"
 #include "cluster/settings.h"
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/scene.h"
-#include "core/scene_check.h"
-#include "core/shot.h"
-#include "core/solver.h"
+#include "engine/bundle_cl.h"
+#include "engine/shot.h"
+#include "scene/check.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "solver/solver.h"
+#include "util/error.h"
 
 using namespace sirad;
 using Clock = std::chrono::steady_clock;

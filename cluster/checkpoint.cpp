@@ -7,9 +7,9 @@
 
 #include <xxhash.h>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
 #include "proto/transport.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 

@@ -15,9 +15,9 @@
 
 #include "cluster/exchange_choice.h"
 #include "cluster/worker.h"
-#include "core/error.h"
-#include "core/scene_io.h"
-#include "core/solver.h"
+#include "scene/encoding.h"
+#include "solver/solver.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 

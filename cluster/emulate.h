@@ -22,9 +22,9 @@
 
 #include "cluster/result.h"
 #include "cluster/settings.h"
-#include "core/bundle.h"
-#include "core/shot.h"
-#include "core/solver.h"
+#include "engine/bundle.h"
+#include "engine/shot.h"
+#include "solver/solver.h"
 
 namespace sirad::cluster {
 

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <limits>
 
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 
@@ -269,7 +269,7 @@ void Aggregate::check(uint32_t node, uint32_t chunk, const std::vector<double>& 
     fail("node {}: chunk {} has {} values, expected {}", node, chunk, sum.size(), 3 * chunk_size(chunk));
   const uint64_t before = state_[node].empty() ? 0 : state_[node][chunk].count;
   if (count < before) fail("node {}: count of chunk {} went back from {} to {}", node, chunk, before, count);
-  // Sums are signed: the transport's control variate (core/solver.cpp) makes a single
+  // Sums are signed: the transport's control variate (solver/solver.cpp) makes a single
   // estimate of a nearly dark patch negative at times. What no node can send: a non-finite
   // value, one beyond count x the largest float (every estimate is made from floats), or
   // anything but zeros with a count of 0.

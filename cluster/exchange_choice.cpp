@@ -6,9 +6,9 @@
 
 #include <fmt/format.h>
 
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/model_fit.h"
+#include "engine/bundle_cl.h"
+#include "model/model_fit.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 

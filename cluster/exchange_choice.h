@@ -6,9 +6,9 @@
 
 #include "cluster/policy.h"
 #include "cluster/settings.h"
-#include "core/bundle.h"
-#include "core/mesh.h"
-#include "core/model.h"
+#include "engine/bundle.h"
+#include "model/model.h"
+#include "scene/mesh.h"
 
 namespace sirad::cluster {
 

@@ -8,9 +8,9 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "core/json_bounded.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
+#include "util/json_bounded.h"
 
 namespace sirad::cluster {
 

@@ -2,7 +2,7 @@
 // the queue of runs a farm coordinator serves one after another, kept on disk so that it
 // survives the coordinator's restart. Each job is a folder DIR/jobs/ID holding job.json (its
 // record, rewritten atomically on every change), its scene (scene.bin: encoded as nodes receive
-// it, core/scene_io.h) unless it names a built-in scene, its checkpoint while it runs, its
+// it, scene/encoding.h) unless it names a built-in scene, its checkpoint while it runs, its
 // status and its outputs. Plain files and a mutex: no sockets, no clocks (times are passed in).
 // Every file read is hostile: a damaged job.json makes its job failed with the reason, never
 // a crash or a job run twice.

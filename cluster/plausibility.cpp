@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 #include <glm/common.hpp>
 
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 

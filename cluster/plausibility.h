@@ -14,7 +14,7 @@
 // the bundles it ran in between: (S' - S) / (m' - m) is the mean of those bundles. Increments
 // are merged into batches of at least `batch_bundles` (longer than the chain's memory, so
 // batches are nearly independent: chain_memory below); like the nodes' own batch means
-// (core/error_estimate.h) at most kSlots are kept, neighbours merging and the batch length
+// (solver/error_estimate.h) at most kSlots are kept, neighbours merging and the batch length
 // doubling when they are full. y's variance is the delete-a-batch jackknife's,
 //     Var(y) = (k - 1) / k sum_i (y_(-i) - mean_i y_(-i))^2,   y_(-i) = (S - S_i) / (m - n_i)
 // (batch i: n_i bundles summing to S_i): for batches of equal size it is the spread of the
@@ -68,7 +68,7 @@
 
 #include <glm/vec3.hpp>
 
-#include "core/mesh.h"
+#include "scene/mesh.h"
 
 namespace sirad::cluster {
 

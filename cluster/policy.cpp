@@ -9,7 +9,7 @@
 
 #include <fmt/format.h>
 
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 
@@ -350,7 +350,7 @@ void Policy::take_chunks(uint32_t n, std::vector<ChunkState>& chunks) {
     } catch (const Error& e) {
       quarantine_and_fail(n, e.what());
     }
-    // A node's count of a chunk is the bundles its chain has run (core/solver.h): never more
+    // A node's count of a chunk is the bundles its chain has run (solver/solver.h): never more
     // than the bundles the ledger says it has done.
     if (c.count > p.bundles) quarantine_and_fail(n, fmt::format("chunk {} count {} exceeds its {} bundles", c.chunk, c.count, p.bundles));
     if (seen[c.chunk]) quarantine_and_fail(n, fmt::format("chunk {} twice in one message", c.chunk));

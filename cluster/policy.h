@@ -16,10 +16,10 @@
 #include "cluster/exchange.h"
 #include "cluster/plausibility.h"
 #include "cluster/profile.h"
-#include "core/bundle.h"
-#include "core/mesh.h"
-#include "core/model.h"
-#include "core/solver.h"
+#include "engine/bundle.h"
+#include "model/model.h"
+#include "scene/mesh.h"
+#include "solver/solver.h"
 
 namespace sirad::cluster {
 
@@ -72,7 +72,7 @@ struct NodeCost {
 
 // --exchange-every auto for `nodes` sharing `bundles` (or, with a time limit, that
 // time: then exchanging costs bundles not done).
-// Average rule: the paper's model (core/model.h choose_exchange) picks I and S, with T_i the
+// Average rule: the paper's model (model/model.h choose_exchange) picks I and S, with T_i the
 // nodes' median bundle time and T_e such that an exchange costs P S T_e (eq. 1) =
 // max(S e, P S c): the nodes' links carry their states side by side (e: the slowest transfer;
 // 0 in async mode, where a queued grant hides it), the coordinator's link (c: its time per
@@ -97,8 +97,8 @@ double exchange_seconds(std::size_t patches, const emulation::LinkSpec* link);
 double coordinator_seconds(std::size_t patches, const emulation::LinkSpec& link);
 
 // Grants must be whole multiples of: the interleave G under stratified directions (a node's
-// chain runs same-sequence bundles >= G steps apart even across grants, core/bundle.cpp), and
-// 1 / X when that is a whole number k of steps sharing one shot (core/solver.h shots_of_step),
+// chain runs same-sequence bundles >= G steps apart even across grants, engine/bundle.cpp), and
+// 1 / X when that is a whole number k of steps sharing one shot (solver/solver.h shots_of_step),
 // so each shot stays on one node and the nodes' chains stay independent.
 uint64_t grant_unit(const PatchMesh& mesh, Directions directions, double shots_per_bundle);
 

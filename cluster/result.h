@@ -11,7 +11,7 @@
 #include "cluster/exchange.h"
 #include "cluster/settings.h"
 #include "cluster/status.h"
-#include "core/gather.h"
+#include "render/gather.h"
 
 namespace sirad::cluster {
 

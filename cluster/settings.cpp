@@ -5,16 +5,16 @@
 #include <cmath>
 
 #include "cluster/policy.h"
-#include "core/error.h"
-#include "core/error_estimate.h"
-#include "core/scene_io.h"
-#include "core/version.h"
+#include "engine/version.h"
+#include "scene/encoding.h"
+#include "solver/error_estimate.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 
 void check(const RunSettings& s) {
   if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
-    fail("stratified directions need the chain rule (under average they bias the estimate: core/bundle.cpp)");
+    fail("stratified directions need the chain rule (under average they bias the estimate: engine/bundle.cpp)");
   check_first_shot(s.shots_per_bundle, s.shot_resolution);
   if (s.bundles == 0 || s.bundles > kMaxBundles) fail("bundles {} is outside 1..{}", s.bundles, kMaxBundles);
   if (s.grid != 0 && (s.grid < 2 || s.grid > kMaxGrid)) fail("grid {} is outside 2..{} (0: auto)", s.grid, kMaxGrid);

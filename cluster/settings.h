@@ -15,13 +15,13 @@
 
 #include "cluster/exchange.h"
 #include "cluster/profile.h"
-#include "core/bundle.h"
-#include "core/gather.h"
-#include "core/mesh.h"
-#include "core/output.h"
-#include "core/scene.h"
-#include "core/solver.h"
+#include "engine/bundle.h"
+#include "io/write.h"
 #include "proto/codec.h"
+#include "render/gather.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "solver/solver.h"
 
 namespace sirad::cluster {
 
@@ -41,7 +41,7 @@ struct RunSettings {
   UpdateRule rule = UpdateRule::chain;
   int burn_in = -1;             // chain bundles run before counting (-1: auto)
   Directions directions = Directions::random;  // stratified: chain rule only
-  bool control_variate = true;  // the transport's control variate (core/solver.h SolverOptions)
+  bool control_variate = true;  // the transport's control variate (solver/solver.h SolverOptions)
   double shots_per_bundle = 0;  // first shot: shots rendered per bundle (0: off)
   int shot_resolution = 0;      // hemicube side (0: auto)
   uint32_t exchange_every = 0;  // I; 0: states only at the end; kExchangeAuto: chosen at the start
@@ -143,7 +143,7 @@ struct ProcessSettings {
   std::string checkpoint;
   double checkpoint_every_s = 10;
   double status_every_s = 1.0;  // how often RunHooks::status is called
-  // The run's image by a final gather (core/gather.h) of the mesh's camera: spp > 0 renders it
+  // The run's image by a final gather (render/gather.h) of the mesh's camera: spp > 0 renders it
   // after the solve, in tiles by the nodes that sent their FINAL (PROTOCOL.md section 3.4),
   // into RunResult::image; spp 0: none (the driver draws the patches).
   GatherOptions final_gather{.spp = 0};

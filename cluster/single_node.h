@@ -8,7 +8,7 @@
 #include <string>
 
 #include "cluster/settings.h"
-#include "core/solver.h"
+#include "solver/solver.h"
 
 namespace sirad::cluster {
 

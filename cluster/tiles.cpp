@@ -5,8 +5,8 @@
 #include <cmath>
 #include <cstring>
 
-#include "core/error.h"
 #include "proto/codec.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 

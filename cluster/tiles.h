@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "cluster/exchange.h"
-#include "core/gather.h"
+#include "render/gather.h"
 
 namespace sirad::cluster {
 
@@ -46,7 +46,7 @@ std::string pack_tile(const GatherPasses& tile);
 void unpack_tile(const std::string& frame, const TileRect& rect, GatherPasses& image);
 
 // A node's pixel against the same pixel rendered here (`here`: passes of 1 x 1), for the
-// coordinator's spot checks: a pixel depends only on the seed and its place (core/gather.h), so
+// coordinator's spot checks: a pixel depends only on the seed and its place (render/gather.h), so
 // an honest node of the same build sends it bit for bit; another machine's arithmetic may send
 // a sample that grazes an edge another way, which moves a pixel by that sample's share. Each
 // channel of `sent` (9 floats: direct, indirect, combined r, g, b) must be within kPixelTolerance

@@ -1,7 +1,7 @@
 // sirad: a node's part of one run (see worker.h).
 #include "cluster/worker.h"
 
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 

@@ -15,10 +15,10 @@
 #include "cluster/exchange.h"
 #include "cluster/policy.h"
 #include "cluster/settings.h"
-#include "core/bundle.h"
-#include "core/mesh.h"
-#include "core/shot.h"
-#include "core/solver.h"
+#include "engine/bundle.h"
+#include "engine/shot.h"
+#include "scene/mesh.h"
+#include "solver/solver.h"
 
 namespace sirad::cluster {
 

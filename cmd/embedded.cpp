@@ -11,8 +11,8 @@
 #include <zmq.hpp>
 
 #include "coordinator/coordinator.h"
-#include "core/error.h"
 #include "node/node.h"
+#include "util/error.h"
 
 namespace sirad::embedded {
 

@@ -7,7 +7,7 @@
 
 #include "cluster/result.h"
 #include "cluster/settings.h"
-#include "core/mesh.h"
+#include "scene/mesh.h"
 
 namespace sirad::embedded {
 

@@ -12,11 +12,11 @@
 #include <nlohmann/json.hpp>
 
 #include "cmd/farm.h"
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "core/json_bounded.h"
-#include "core/scene.h"
-#include "core/scene_io.h"
+#include "scene/encoding.h"
+#include "scene/scene.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
+#include "util/json_bounded.h"
 
 namespace sirad::cli {
 

@@ -17,13 +17,13 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "core/json_bounded.h"
-#include "core/log.h"
-#include "core/resources.h"
-#include "core/scene.h"
-#include "core/scene_io.h"
+#include "scene/encoding.h"
+#include "scene/scene.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
+#include "util/json_bounded.h"
+#include "util/log.h"
+#include "util/resources.h"
 
 namespace sirad::cli {
 

@@ -22,7 +22,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cli {
 

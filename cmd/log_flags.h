@@ -1,10 +1,10 @@
-// sirad: --log-format and --log-level, the same on sirad-node and sirad-coordinator (core/log.h).
+// sirad: --log-format and --log-level, the same on sirad-node and sirad-coordinator (util/log.h).
 #pragma once
 #include <string>
 
 #include <CLI/CLI.hpp>
 
-#include "core/log.h"
+#include "util/log.h"
 
 namespace sirad::cli {
 

@@ -6,7 +6,7 @@
 #include <fmt/format.h>
 
 #include "cluster/exchange.h"
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cli {
 
@@ -183,11 +183,11 @@ cluster::RunSettings settings_from(const RunFlags& f, const std::set<std::string
   s.mesh_options = mesh_options_from(f.patches, f.max_edge);
   s.rule = parse_update_rule(f.rule);
   // "auto": stratified under the chain rule, random under average (where stratification
-  // biases: core/bundle.cpp).
+  // biases: engine/bundle.cpp).
   s.directions = f.directions == "auto" ? (s.rule == UpdateRule::chain ? Directions::stratified : Directions::random)
                                         : parse_directions(f.directions);
   if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
-    fail("--directions stratified needs --rule chain (under average it biases the estimate: core/bundle.cpp)");
+    fail("--directions stratified needs --rule chain (under average it biases the estimate: engine/bundle.cpp)");
   s.bundles = static_cast<uint64_t>(f.target_error > 0 && !given.count("--bundles") ? kTargetErrorCap : f.bundles);
   s.seed = f.seed;
   s.grid = f.grid.value_or(0);

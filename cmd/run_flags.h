@@ -12,9 +12,9 @@
 #include <CLI/CLI.hpp>
 
 #include "cluster/settings.h"
-#include "core/mesh.h"
-#include "core/results.h"
-#include "core/scene.h"
+#include "io/results.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
 
 namespace sirad::cli {
 

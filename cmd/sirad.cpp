@@ -25,22 +25,22 @@
 #include "cmd/embedded.h"
 #include "cmd/farm_client.h"
 #include "cmd/run_flags.h"
-#include "core/atomic_file.h"
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/gather.h"
-#include "core/mesh.h"
-#include "core/output.h"
-#include "core/model.h"
-#include "core/model_fit.h"
-#include "core/reference.h"
-#include "core/results.h"
-#include "core/scene.h"
-#include "core/scene_check.h"
-#include "core/solution.h"
-#include "core/solver.h"
-#include "core/version.h"
+#include "engine/bundle_cl.h"
+#include "engine/version.h"
+#include "io/read_solution.h"
+#include "io/results.h"
+#include "io/write.h"
+#include "model/model.h"
+#include "model/model_fit.h"
 #include "proto/security.h"
+#include "render/gather.h"
+#include "scene/check.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "solver/reference.h"
+#include "solver/solver.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {
@@ -377,7 +377,7 @@ int profile_table(const std::string& path, int nodes, const std::string& prefix)
   return 0;
 }
 
-// `sirad model`: the paper's cost and error model (core/model.h) for one setup, or swept over
+// `sirad model`: the paper's cost and error model (model/model.h) for one setup, or swept over
 // processors, exchange periods or fractions; CSV on stdout, then the exchange period that
 // maximises the effective sample number.
 struct ModelArgs {
@@ -533,7 +533,7 @@ int model_table(ModelArgs m) {
   return 0;
 }
 
-// `sirad reference SCENE`: the independent reference solver (core/reference.h). Writes NAME.exr,
+// `sirad reference SCENE`: the independent reference solver (solver/reference.h). Writes NAME.exr,
 // .png, .ply like `render`, plus NAME.ref.csv (per-patch B, D and their standard errors).
 struct ReferenceArgs {
   std::string scene;
@@ -603,8 +603,8 @@ int reference(const ReferenceArgs& r) {
   return 0;
 }
 
-// sirad image SOLUTION: a final gather (core/gather.h) of a solution read back from the PLY or
-// glTF sirad wrote (core/solution.h).
+// sirad image SOLUTION: a final gather (render/gather.h) of a solution read back from the PLY or
+// glTF sirad wrote (io/read_solution.h).
 struct ImageArgs {
   std::string solution, camera, cameras, out;
   GatherOptions gather;

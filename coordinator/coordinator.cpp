@@ -19,14 +19,14 @@
 #include "cluster/rate_limit.h"
 #include "cluster/status.h"
 #include "cluster/tiles.h"
-#include "core/bundle.h"
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/error_estimate.h"
-#include "core/gather.h"
-#include "core/log.h"
-#include "core/scene_io.h"
+#include "engine/bundle.h"
+#include "engine/bundle_cl.h"
 #include "proto/transport.h"
+#include "render/gather.h"
+#include "scene/encoding.h"
+#include "solver/error_estimate.h"
+#include "util/error.h"
+#include "util/log.h"
 
 namespace sirad::cluster {
 
@@ -785,7 +785,7 @@ class Coordinator {
         {{"event", "peer"}, {"peer", name}});
   }
 
-  // A line of the operator's log (core/log.h), with the run's id among its fields.
+  // A line of the operator's log (util/log.h), with the run's id among its fields.
   void say(logging::Level level, const std::string& message, nlohmann::json fields) const {
     fields["run"] = fmt::format("{:016x}", run_.run_id());
     logging::write(level, "sirad-coordinator", message, fields);

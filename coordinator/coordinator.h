@@ -6,10 +6,10 @@
 #include <zmq.hpp>
 
 #include "cluster/result.h"
-#include "proto/peer_bytes.h"
 #include "cluster/settings.h"
 #include "cluster/status.h"
-#include "core/mesh.h"
+#include "proto/peer_bytes.h"
+#include "scene/mesh.h"
 
 namespace sirad::cluster {
 

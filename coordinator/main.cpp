@@ -13,22 +13,22 @@
 
 #include <CLI/CLI.hpp>
 
-#include "core/scene_check.h"
 #include "cluster/checkpoint.h"
+#include "cluster/live_view.h"
 #include "cluster/policy.h"
 #include "cmd/farm.h"
 #include "cmd/farm_http.h"
 #include "cmd/log_flags.h"
 #include "cmd/run_flags.h"
 #include "coordinator/coordinator.h"
-#include "cluster/live_view.h"
-#include "core/atomic_file.h"
-#include "core/bundle.h"
-#include "core/error.h"
-#include "core/results.h"
-#include "core/version.h"
+#include "engine/bundle.h"
+#include "engine/version.h"
+#include "io/results.h"
 #include "proto/security.h"
 #include "proto/transport.h"
+#include "scene/check.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
 
 using namespace sirad;
 

@@ -9,13 +9,13 @@
 #include <unistd.h>
 
 #include "cmd/log_flags.h"
-#include "core/error.h"
-#include "core/log.h"
-#include "core/opencl.h"
-#include "core/version.h"
+#include "engine/opencl.h"
+#include "engine/version.h"
 #include "node/node.h"
 #include "node/scene_cache.h"
 #include "proto/transport.h"
+#include "util/error.h"
+#include "util/log.h"
 
 namespace {
 std::atomic<bool> stop{false};

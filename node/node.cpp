@@ -13,22 +13,22 @@
 
 #include <fmt/format.h>
 
+#include "cluster/profile.h"
 #include "cluster/settings.h"
 #include "cluster/status.h"
 #include "cluster/tiles.h"
 #include "cluster/worker.h"
-#include "cluster/profile.h"
-#include "core/bundle_cl.h"
-#include "core/camera.h"
-#include "core/error.h"
-#include "core/gather.h"
-#include "core/log.h"
-#include "core/mesh.h"
-#include "core/scene_io.h"
-#include "core/solver.h"
-#include "core/version.h"
+#include "engine/bundle_cl.h"
+#include "engine/version.h"
 #include "node/scene_cache.h"
 #include "proto/transport.h"
+#include "render/gather.h"
+#include "scene/camera.h"
+#include "scene/encoding.h"
+#include "scene/mesh.h"
+#include "solver/solver.h"
+#include "util/error.h"
+#include "util/log.h"
 
 namespace sirad::node {
 
@@ -153,7 +153,7 @@ class Node {
  private:
   bool stopping() const { return options_.stop && options_.stop->load(); }
 
-  // The operator's log (core/log.h): "sirad-node NAME: ...", or a JSON line with the fields.
+  // The operator's log (util/log.h): "sirad-node NAME: ...", or a JSON line with the fields.
   void log(logging::Level level, const std::string& message, nlohmann::json fields) const {
     fields["node"] = options_.name;
     if (const RunState* r = state_ ? state_.get() : pending_.get()) fields["run"] = fmt::format("{:016x}", r->run.run_id());
@@ -368,7 +368,7 @@ class Node {
   // Scene chunks in order; the last one completes the scene: mesh it, check the hash, start.
   void scene(const wire::SceneChunk& c, const std::string& bytes) {
     if (!pending_ || c.offset() != scene_bytes_.size()) return error("SCENE out of order");
-    // No scene file sirad reads is larger (core/scene.cpp); a claim beyond it is refused before
+    // No scene file sirad reads is larger (scene/scene.cpp); a claim beyond it is refused before
     // the node buffers it.
     constexpr uint64_t kMaxSceneBytes = uint64_t{1} << 31;
     if (c.total_bytes() > kMaxSceneBytes) {

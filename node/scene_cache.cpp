@@ -5,9 +5,9 @@
 #include <filesystem>
 #include <system_error>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "core/scene_io.h"
+#include "scene/encoding.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
 
 namespace sirad::node {
 

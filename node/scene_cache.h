@@ -1,4 +1,4 @@
-// sirad: the scenes a node holds, named by the XXH3-128 of their encoded bytes (core/scene_io.h
+// sirad: the scenes a node holds, named by the XXH3-128 of their encoded bytes (scene/encoding.h
 // scene_bytes_hash), so a coordinator sends a scene to a node once (Hello.scene_hashes,
 // proto/PROTOCOL.md 3.1). In memory for the process's life, and in a folder when the node is
 // given one (`sirad-node --scene-cache DIR`), so a restarted node still holds them.

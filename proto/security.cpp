@@ -12,9 +12,9 @@
 
 #include <fmt/format.h>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
 #include "proto/transport.h"
+#include "util/atomic_file.h"
+#include "util/error.h"
 
 namespace sirad::proto {
 

@@ -1,7 +1,7 @@
 // sirad: SIRAD/1 over ZeroMQ: multipart send and receive with a timeout.
 #include "proto/transport.h"
 
-#include "core/error.h"
+#include "util/error.h"
 
 #include <cerrno>
 #include <algorithm>

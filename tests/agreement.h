@@ -19,9 +19,9 @@
 
 #include <glm/vec3.hpp>
 
-#include "core/bundle.h"
-#include "core/mesh.h"
-#include "core/reference.h"
+#include "engine/bundle.h"
+#include "scene/mesh.h"
+#include "solver/reference.h"
 
 namespace sirad::test {
 

@@ -4,10 +4,10 @@
 
 #include <gtest/gtest.h>
 
-#include "core/bundle.h"
-#include "core/bundle_cl.h"
-#include "core/mesh.h"
-#include "core/scene.h"
+#include "engine/bundle.h"
+#include "engine/bundle_cl.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
 #include "tests/coincident_scenes.h"
 
 namespace sirad {

@@ -14,7 +14,7 @@
 #include <gtest/gtest.h>
 
 #include "cluster/checkpoint.h"
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 namespace {

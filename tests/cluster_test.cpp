@@ -16,12 +16,12 @@
 
 #include "cluster_util.h"
 #include "coordinator/coordinator.h"
-#include "core/error.h"
-#include "core/metrics.h"
 #include "node/node.h"
 #include "proto/security.h"
 #include "proto/transport.h"
+#include "solver/metrics.h"
 #include "tests/process_util.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 namespace {
@@ -126,7 +126,7 @@ void expect_whole_grants(const Outcome& o, uint64_t unit, uint64_t total) {
   EXPECT_GT(aligned, 0);
 }
 
-// Stratified directions over 3 nodes (core/bundle.h): the Run message carries them, the furnace
+// Stratified directions over 3 nodes (engine/bundle.h): the Run message carries them, the furnace
 // stays unbiased (same bound as above: stratification lowers the noise, see directions_test),
 // and grants are whole multiples of the interleave G = 10 (rho = 0.5): I = 32 becomes 40, so
 // every range a node ran starts at a multiple of 10 but in the end of the budget.

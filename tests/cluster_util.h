@@ -9,7 +9,7 @@
 
 #include "cluster/status.h"
 #include "cmd/embedded.h"
-#include "core/scene.h"
+#include "scene/scene.h"
 
 namespace sirad::cluster::test {
 

@@ -10,7 +10,7 @@
 #include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 
-#include "core/scene.h"
+#include "scene/scene.h"
 
 namespace sirad::test {
 

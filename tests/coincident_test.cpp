@@ -5,7 +5,7 @@
 // a floor in the middle of its faces and walls cut into strips whose vertices fall on the middle
 // of their neighbours' edges (T-junctions). Each is compared per region (the room lit only
 // through a doorway, the patches under a rug, each side of a panel) against the reference solver
-// (core/reference.h), for the bundle transport (tests/agreement.h) and for the first shot.
+// (solver/reference.h), for the bundle transport (tests/agreement.h) and for the first shot.
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -18,12 +18,12 @@
 #include <glm/mat3x3.hpp>
 #include <gtest/gtest.h>
 
-#include "core/bundle_cl.h"
-#include "core/mesh.h"
-#include "core/rays.h"
-#include "core/reference.h"
-#include "core/scene.h"
-#include "core/shot.h"
+#include "engine/bundle_cl.h"
+#include "engine/shot.h"
+#include "scene/mesh.h"
+#include "scene/rays.h"
+#include "scene/scene.h"
+#include "solver/reference.h"
 #include "tests/agreement.h"
 #include "tests/coincident_scenes.h"
 #include "tests/test_util.h"

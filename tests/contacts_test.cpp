@@ -1,6 +1,6 @@
-// Where faces meet (core/contacts.h) and the mesher's splits along it (core/mesh.h): a wall
+// Where faces meet (scene/contacts.h) and the mesher's splits along it (scene/mesh.h): a wall
 // standing on a floor, a zero-thickness wall, a one-sided wall, a table on legs.
-#include "core/contacts.h"
+#include "scene/contacts.h"
 
 #include <gtest/gtest.h>
 
@@ -12,9 +12,9 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/scene.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {

@@ -1,4 +1,4 @@
-// sirad tests: stratified bundle directions (core/bundle.h Directions, issue 4 item 3): the
+// sirad tests: stratified bundle directions (engine/bundle.h Directions, issue 4 item 3): the
 // draws themselves (reproducible, stratified, uniform) here; what they do to the solver below.
 #include <algorithm>
 #include <cmath>
@@ -11,8 +11,8 @@
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
-#include "core/error.h"
 #include "tests/test_util.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {
@@ -167,7 +167,7 @@ namespace sirad {
 namespace {
 
 // Area-weighted relative RMS error over all patches against a constant (the furnace: every
-// patch emits, so core/metrics.h relative_rms, which skips emitters, does not apply).
+// patch emits, so solver/metrics.h relative_rms, which skips emitters, does not apply).
 double furnace_rel_rms(const PatchMesh& mesh, const std::vector<glm::vec3>& est, double exact) {
   double sq = 0.0, a = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
@@ -208,7 +208,7 @@ FurnaceRuns furnace_runs(const PatchMesh& mesh, BundleEngine& engine, SolverOpti
 }
 
 // Furnace (E = 1, rho = 0.5, B = 2), 192 patches, chain rule, 16 paired seeds x 1024 bundles.
-// Bias. Stratified sampling's bias is about 0.2 rho^G / (K - 1) (core/bundle.cpp): with the
+// Bias. Stratified sampling's bias is about 0.2 rho^G / (K - 1) (engine/bundle.cpp): with the
 // plan's G = 10 about 1e-5 for K = 256 and 1e-5 for K = 16 too. The pooled area mean's noise:
 // one run's sd after 1024 bundles is 0.0097 with random directions (solver_test.cpp, 60 seeds;
 // 0.006 .. 0.009 measured here with either sampling), so 16 runs give sd 0.0024 and we hold the

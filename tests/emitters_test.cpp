@@ -1,4 +1,4 @@
-// sirad tests: the lights the direct light samples (core/emitters.h): a light cut into patches,
+// sirad tests: the lights the direct light samples (scene/emitters.h): a light cut into patches,
 // or read back as many faces, is sampled whole; shapes it cannot rebuild fall back to input
 // triangles or patches, with the same area.
 #include <algorithm>
@@ -13,11 +13,11 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#include "core/emitters.h"
-#include "core/mesh.h"
-#include "core/output.h"
-#include "core/scene.h"
-#include "core/solution.h"
+#include "io/read_solution.h"
+#include "io/write.h"
+#include "scene/emitters.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
 #include "tests/coincident_scenes.h"
 
 namespace sirad {

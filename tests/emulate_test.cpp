@@ -9,13 +9,13 @@
 
 #include "cluster_util.h"
 #include "cluster/emulate.h"
-#include "coordinator/coordinator.h"
 #include "cluster/profile.h"
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/metrics.h"
-#include "core/reference.h"
-#include "core/scene.h"
+#include "coordinator/coordinator.h"
+#include "engine/bundle_cl.h"
+#include "scene/scene.h"
+#include "solver/metrics.h"
+#include "solver/reference.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 namespace {

@@ -8,7 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "cluster_util.h"
-#include "core/metrics.h"
+#include "solver/metrics.h"
 
 namespace sirad::cluster {
 namespace {

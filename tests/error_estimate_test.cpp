@@ -1,4 +1,4 @@
-// sirad tests: the run's own error estimate (core/error_estimate.h) — batch means with doubling
+// sirad tests: the run's own error estimate (solver/error_estimate.h) — batch means with doubling
 // batches, and its calibration against the measured error of real runs (the reference solver).
 #include <cmath>
 #include <random>
@@ -6,10 +6,10 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "core/error.h"
-#include "core/error_estimate.h"
-#include "core/reference.h"
-#include "core/shot.h"
+#include "engine/shot.h"
+#include "solver/error_estimate.h"
+#include "solver/reference.h"
+#include "util/error.h"
 #include "cluster_util.h"
 #include "test_util.h"
 

@@ -10,7 +10,7 @@
 
 #include "cluster/exchange.h"
 #include "cluster/result.h"
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 namespace {

@@ -16,11 +16,11 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
-#include "core/json_bounded.h"
-#include "core/scene.h"
-#include "core/scene_io.h"
+#include "scene/encoding.h"
+#include "scene/scene.h"
 #include "tests/process_util.h"
 #include "tests/test_folder.h"
+#include "util/json_bounded.h"
 
 namespace sirad {
 namespace {

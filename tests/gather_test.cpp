@@ -1,4 +1,4 @@
-// sirad tests: the final gather (core/gather.h) and the camera convention (core/camera.h):
+// sirad tests: the final gather (render/gather.h) and the camera convention (scene/camera.h):
 // exact framing, a furnace, a square light over a floor against its closed form, and tiles.
 #include <algorithm>
 #include <cmath>
@@ -10,13 +10,13 @@
 #include <gtest/gtest.h>
 #include <glm/geometric.hpp>
 
-#include "core/camera.h"
-#include "core/emitters.h"
-#include "core/error.h"
-#include "core/gather.h"
-#include "core/mesh.h"
-#include "core/output.h"
-#include "core/scene.h"
+#include "io/write.h"
+#include "render/gather.h"
+#include "scene/camera.h"
+#include "scene/emitters.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {
@@ -39,7 +39,7 @@ struct QuadScene {
   }
 };
 
-// The camera convention (core/camera.h): 16 x 16 pixels, a 90 degree field of view, the eye at
+// The camera convention (scene/camera.h): 16 x 16 pixels, a 90 degree field of view, the eye at
 // the origin looking along +z with up +y, so right = forward x up = -x. A square emitter 1 unit in
 // front of the eye spans world x in [-0.25, 0.5] (camera x in [-0.5, 0.25]) and y in [-0.25, 0.5].
 // On the image plane at distance 1 a pixel is 2 / 16 = 0.125 wide, so the square's edges fall
@@ -387,7 +387,7 @@ TEST(Gather, TheIndirectLightUnderALitSquareMatchesItsClosedForm) {
 }
 
 // Many lights, each pixel's emitter samples choosing among them by what they send it
-// (Impl::choice in core/gather.cpp): a floor (rho 0.5, z = 0) under 16 square lights (side 0.25, E = 1,
+// (Impl::choice in render/gather.cpp): a floor (rho 0.5, z = 0) under 16 square lights (side 0.25, E = 1,
 // rho = 0, facing down at height 1, a 4 x 4 grid 1 apart), seen from below them straight down.
 // A floor point's radiance is the sum of the lights' closed forms (floor_radiance); there is no
 // indirect light (the lights reflect nothing). The choice must leave the estimate unbiased,
@@ -443,7 +443,7 @@ TEST(Gather, ManyLightsChosenByWhatTheySendMatchTheirClosedForm) {
 }
 
 // A penumbra under a light cut into many patches is as quiet as the light's strata make it
-// (core/emitters.h): the emitter samples of a pixel's N = m x m samples are one per cell of an
+// (scene/emitters.h): the emitter samples of a pixel's N = m x m samples are one per cell of an
 // m x m grid of the light (Light::at), not spread over the patches. Scene: a floor (rho 0.5, z =
 // 0) under a square light (side 0.3, E = 1, rho = 0, z = 2, cut into about 200 patches), and
 // between them at z = 1 a black occluder whose edge passes over the origin at 30 degrees to the
@@ -719,7 +719,7 @@ TEST(Gather, TilesAndThreadsGiveTheSameImage) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), MeshOptions{.target_patches = 300});
   std::vector<glm::vec3> radiosity(mesh.size());
   for (std::size_t j = 0; j < mesh.size(); ++j) radiosity[j] = mesh.emission(j) + mesh.reflectance(j) * 3.0f;
-  // 256 spp: an edge's samples gather for themselves, 8 rays each (kEdgeSpp in core/gather.cpp).
+  // 256 spp: an edge's samples gather for themselves, 8 rays each (kEdgeSpp in render/gather.cpp).
   for (const int spp : {4, 256}) {
     SCOPED_TRACE(fmt::format("{} spp", spp));
     GatherOptions o{.width = 24, .height = 20, .spp = spp, .seed = 5, .threads = 2};

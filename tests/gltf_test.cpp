@@ -1,4 +1,4 @@
-// sirad tests: glTF 2.0 scenes (core/scene_gltf.h). A scene exported by Blender 3.4's own
+// sirad tests: glTF 2.0 scenes (scene/gltf.h). A scene exported by Blender 3.4's own
 // exporters (tests/data/blender/make_room.py wrote room.glb and room.obj + room.mtl): objects,
 // materials with emission strength, two-sided materials, the transform hierarchy and the camera
 // are read; the same scene as OBJ and as glTF gives the same answer; hostile files give one
@@ -30,19 +30,19 @@
 #include <tiny_gltf.h>
 
 #include "cmd/run_flags.h"
-#include "core/error.h"
-#include "core/gather.h"
-#include "core/gltf_out.h"
-#include "core/json_bounded.h"
-#include "core/output.h"
-#include "core/mesh.h"
-#include "core/reference.h"
-#include "core/scene.h"
-#include "core/scene_gltf.h"
-#include "core/scene_import.h"
-#include "core/solution.h"
+#include "io/read_solution.h"
+#include "io/write.h"
+#include "io/write_gltf.h"
+#include "render/gather.h"
+#include "scene/gltf.h"
+#include "scene/import.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "solver/reference.h"
 #include "tests/coincident_scenes.h"
 #include "tests/test_folder.h"
+#include "util/error.h"
+#include "util/json_bounded.h"
 
 namespace sirad {
 namespace {
@@ -65,7 +65,7 @@ TEST(Gltf, BlenderExportReadsObjectsMaterialsCameraAndTransforms) {
   // each triangle has its reversed twin where that side sees light. The room is the default cube
   // scaled up (normals out): its twins face in and are all kept, as are the lamp's; the block's
   // twins would face into the solid block and are not made.
-  // The room's ceiling is cut along the lamp's outline 5 cm below it (core/gap_cuts.cpp), and
+  // The room's ceiling is cut along the lamp's outline 5 cm below it (scene/gap_cuts.cpp), and
   // both it and the lamp's upper side along strips by the rim: more triangles, the same areas
   // (the room's twice the cube's with the twins, the lamp's its two sides).
   std::map<std::string, double> area;
@@ -548,7 +548,7 @@ TEST_F(GltfFiles, AnImageTooLargeIsRefusedFromItsHeader) {
 }
 
 // The two sides of a two-sided face come back from the glb apart, each pulled kSidesApart of the
-// scene's radius along its own normal (core/gltf_out.h): Cycles, which ignores back-face
+// scene's radius along its own normal (io/write_gltf.h): Cycles, which ignores back-face
 // culling, then shows the side that faces the camera instead of either at random. Here the lamp
 // 1.5 cm under a ceiling, its lower side lit by itself and its upper side by the gap.
 TEST_F(GltfFiles, TheTwoSidesOfAFaceComeBackApart) {
@@ -573,7 +573,7 @@ TEST_F(GltfFiles, TheTwoSidesOfAFaceComeBackApart) {
       }
     }
   }
-  EXPECT_GT(up, 0u);  // the upper side, cut into strips by its rim (core/gap_cuts.cpp), has more corners
+  EXPECT_GT(up, 0u);  // the upper side, cut into strips by its rim (scene/gap_cuts.cpp), has more corners
   EXPECT_GT(down, 0u);
   // The ceiling, a face of one side only, stays where it is.
   for (std::size_t j = 0; j < back.mesh.size(); ++j) {
@@ -583,7 +583,7 @@ TEST_F(GltfFiles, TheTwoSidesOfAFaceComeBackApart) {
   }
 }
 
-// A solution read back from the .glb sirad wrote renders as from its PLY (core/solution.h): the
+// A solution read back from the .glb sirad wrote renders as from its PLY (io/read_solution.h): the
 // same patches, the corner values the gather interpolates, the camera and background exactly,
 // so the final gathers of the two are one image bit for bit; reflectance and emission come
 // from the materials' extras (the base colour is an unlit white).
@@ -761,7 +761,7 @@ TEST_F(GltfFiles, RenderedGlbPassesTheKhronosValidator) {
 namespace sirad {
 namespace {
 
-// PLY scenes (core/scene_ply.h): the PLY sirad writes is a scene again: the same triangles in
+// PLY scenes (scene/ply.h): the PLY sirad writes is a scene again: the same triangles in
 // patch order, each with its patch's reflectance and emission (the per-face properties).
 TEST_F(GltfFiles, SiradsOwnPlyIsASceneAgain) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 300});

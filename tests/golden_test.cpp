@@ -80,7 +80,7 @@ class Golden : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = sirad::test::fresh_test_folder("sirad_golden");
-    // The band count of the transfer pass orders float sums (core/bundle_cl.h): fixed, so the
+    // The band count of the transfer pass orders float sums (engine/bundle_cl.h): fixed, so the
     // digests do not depend on the machine's core count.
     ::setenv("SIRAD_BANDS", "4", 1);
   }
@@ -240,7 +240,7 @@ TEST_F(Golden, SingleNode) {
   check("single");
 }
 
-// The final gather (core/gather.h) of the single-node run above: its EXR passes and PNG.
+// The final gather (render/gather.h) of the single-node run above: its EXR passes and PNG.
 TEST_F(Golden, SingleNodeFinalGather) {
   run(with({SIRAD_BINARY, "render", "cornell", "--bundles", "48", "--seed", "5", "--final-gather", "4", "--out", out("gather")}, kSmall),
       "gather.log");

@@ -8,8 +8,8 @@
 #include <unistd.h>
 
 #include "cluster/jobs.h"
-#include "core/error.h"
-#include "core/json_bounded.h"
+#include "util/error.h"
+#include "util/json_bounded.h"
 
 namespace sirad::cluster {
 namespace {

@@ -1,4 +1,4 @@
-// sirad tests: the operator's log (core/log.h) and what the programs log with it: JSON lines
+// sirad tests: the operator's log (util/log.h) and what the programs log with it: JSON lines
 // for collectors, a node that says what it does, and a refused key made visible on the node.
 #include <filesystem>
 #include <sstream>
@@ -9,9 +9,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "core/error.h"
-#include "core/log.h"
 #include "tests/process_util.h"
+#include "util/error.h"
+#include "util/log.h"
 
 namespace fs = std::filesystem;
 using sirad::test::Child;

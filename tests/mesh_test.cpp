@@ -1,5 +1,5 @@
 // sirad tests: meshing (subdivision counts, edge lengths, area, target counts, welding, hash).
-#include "core/mesh.h"
+#include "scene/mesh.h"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "core/error.h"
-#include "core/scene.h"
+#include "scene/scene.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {
@@ -348,7 +348,7 @@ std::string mesh_error(const Scene& s, const MeshOptions& o = {}) {
 }
 
 // Values the float pipeline cannot carry are refused at meshing, whatever the scene's format:
-// an emission of 1e38 (which gave an all-NaN result before: core/mesh.cpp's derivation of the
+// an emission of 1e38 (which gave an all-NaN result before: scene/mesh.cpp's derivation of the
 // 1e20 bound), a brightest light below 1e-20, emission x area above 1e30, and a reflectance
 // outside [0, 1]. The bounds themselves are accepted.
 TEST(MeshRadiometry, ValuesBeyondTheFloatPipelineAreRefused) {

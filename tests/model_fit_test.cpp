@@ -1,14 +1,14 @@
-// The model's scene parameters measured with real bundles (core/model_fit.h).
+// The model's scene parameters measured with real bundles (model/model_fit.h).
 #include <cmath>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "core/bundle_cl.h"
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/model_fit.h"
-#include "core/scene.h"
+#include "engine/bundle_cl.h"
+#include "model/model_fit.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "util/error.h"
 
 namespace sirad::model {
 namespace {

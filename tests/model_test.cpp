@@ -1,4 +1,4 @@
-// The paper's cost and error model (core/model.h): its closed forms against its recurrences,
+// The paper's cost and error model (model/model.h): its closed forms against its recurrences,
 // small cases by hand, and the optimum exchange period against a brute-force search.
 #include <cmath>
 #include <limits>
@@ -6,8 +6,8 @@
 
 #include <gtest/gtest.h>
 
-#include "core/error.h"
-#include "core/model.h"
+#include "model/model.h"
+#include "util/error.h"
 
 namespace sirad::model {
 namespace {

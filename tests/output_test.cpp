@@ -33,10 +33,10 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
-#include "core/error.h"
-#include "core/results.h"
-#include "core/output.h"
+#include "io/results.h"
+#include "io/write.h"
 #include "tests/png_util.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {

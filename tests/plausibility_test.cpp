@@ -8,9 +8,9 @@
 
 #include "cluster/plausibility.h"
 #include "cluster/policy.h"
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/scene.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 namespace {

@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "cluster/policy.h"
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 namespace {

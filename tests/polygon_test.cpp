@@ -1,5 +1,5 @@
-// sirad tests: polygon faces cut into triangles (core/polygon.h).
-#include "core/polygon.h"
+// sirad tests: polygon faces cut into triangles (util/polygon.h).
+#include "util/polygon.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {

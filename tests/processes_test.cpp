@@ -33,13 +33,13 @@
 #include <gtest/gtest.h>
 #include <glm/vec3.hpp>
 
-#include "core/metrics.h"
-#include "core/bundle_cl.h"
-#include "core/scene.h"
-#include "core/solver.h"
 #include "cluster/jobs.h"
 #include "cluster/status.h"
 #include "cmd/http_guard.h"
+#include "engine/bundle_cl.h"
+#include "scene/scene.h"
+#include "solver/metrics.h"
+#include "solver/solver.h"
 #include <nlohmann/json.hpp>
 
 #include "tests/exr_content.h"

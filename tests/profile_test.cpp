@@ -6,7 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "cluster/profile.h"
-#include "core/error.h"
+#include "util/error.h"
 
 namespace sirad::emulation {
 namespace {

@@ -1,4 +1,4 @@
-// sirad tests: the independent reference solver (core/reference.h): exact cases (furnace, closed
+// sirad tests: the independent reference solver (solver/reference.h): exact cases (furnace, closed
 // form factors with and without an occluder), calibration of its standard error, agreement of
 // the bundle solver with it, and its command line and file. Tolerances are derived beside each
 // test; seeds are fixed, so every test is deterministic.
@@ -15,12 +15,12 @@
 
 #include <gtest/gtest.h>
 
-#include "core/error.h"
-#include "core/reference.h"
+#include "solver/reference.h"
 #include "tests/agreement.h"
 #include "tests/coincident_scenes.h"
-#include "tests/test_util.h"
 #include "tests/test_folder.h"
+#include "tests/test_util.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {
@@ -199,7 +199,7 @@ TEST(ReferenceFormFactor, ALampFlushWithTheCeilingGivesTheCeilingNothing) {
 // the lid. The ceiling's direct light must be the same as with a one-sided box (the inside adds
 // nothing there) and as precise: the visibility control variate would subtract K's peak (up to
 // ~40 times its mean over a light 4 cm away) from the exact form factor at every sample, so the
-// reference estimates a wholly hidden light by its visible part alone (core/reference.cpp
+// reference estimates a wholly hidden light by its visible part alone (solver/reference.cpp
 // kPilot). Measured at 64 light samples: the over-the-lid direct part's relative SE 0.21 % with
 // the box one-sided, 0.23 % two-sided (9.7 % before the pilot, and 5.5 % low); the two sides'
 // difference is tested within 4 SE of the pair, and the two-sided SE within 3 times the
@@ -399,8 +399,8 @@ TEST(ReferenceAgreement, FirstShotSolverCornell) { check_solver("cornell", built
 TEST(ReferenceAgreement, FirstShotSolverBrightRoom) { check_solver("bright-room", builtin_bright_room(), 1200, 6, 1.0, 256); }
 TEST(ReferenceAgreement, FirstShotSolverThreeLights) { check_solver("three-lights", builtin_three_lights(), 1500, 6, 1.0, 256); }
 // A lamp 1.5 cm under the ceiling, two-sided: the shot takes its lower side and leaves the upper
-// one, which lights the gap, to the bundles (core/shot.h shot_emitter_table). The estimator with
-// such a split is unbiased as a whole (core/solver.cpp run_bundle), at the ~2 % level of the
+// one, which lights the gap, to the bundles (engine/shot.h shot_emitter_table). The estimator with
+// such a split is unbiased as a whole (solver/solver.cpp run_bundle), at the ~2 % level of the
 // tests above.
 TEST(ReferenceAgreement, FirstShotSolverLampUnderTheCeiling) {
   check_solver("lamp under the ceiling", test::lamp_under_ceiling(0.015), 1500, 6, 1.0, 256);

@@ -8,9 +8,9 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "core/error.h"
-#include "core/scene_io.h"
 #include "node/scene_cache.h"
+#include "scene/encoding.h"
+#include "util/error.h"
 
 namespace {
 

@@ -2,9 +2,9 @@
 // truncated, padded and tampered bytes are refused with a one-line reason.
 #include <gtest/gtest.h>
 
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/scene_io.h"
+#include "scene/encoding.h"
+#include "scene/mesh.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {

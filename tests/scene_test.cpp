@@ -1,5 +1,5 @@
 // sirad tests: scene import (built-ins, OBJ/MTL files, the camera line, rejection of bad input).
-#include "core/scene.h"
+#include "scene/scene.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "core/error.h"
-#include "core/resources.h"
 #include "tests/coincident_scenes.h"
+#include "util/error.h"
+#include "util/resources.h"
 
 namespace sirad {
 namespace {

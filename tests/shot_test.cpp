@@ -1,4 +1,4 @@
-// sirad tests: the first shot (core/shot.h, kernels/shot.cl): the kernel against the C++
+// sirad tests: the first shot (engine/shot.h, kernels/shot.cl): the kernel against the C++
 // reference pixel for pixel, watertightness, the hemicube's weights, and the estimator
 // against a closed-form form factor.
 #include <algorithm>
@@ -9,10 +9,10 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "core/output.h"
-#include "core/reference.h"
-#include "core/shot.h"
-#include "core/solution.h"
+#include "engine/shot.h"
+#include "io/read_solution.h"
+#include "io/write.h"
+#include "solver/reference.h"
 #include "test_util.h"
 #include "tests/coincident_scenes.h"
 
@@ -244,7 +244,7 @@ f 5 6 7 8
 namespace sirad {
 namespace {
 
-// The first shot alone against the independent reference's direct component D (core/reference.h:
+// The first shot alone against the independent reference's direct component D (solver/reference.h:
 // exact unoccluded form factors, ray-cast visibility), on scenes with shadows and lights of
 // different sizes. Shots are split into G batches; the aggregate (area-weighted over the
 // non-emitting patches, all channels) of each batch is independent, so its mean has standard
@@ -257,7 +257,7 @@ namespace {
 // outlier inflates the estimate and its SE together. Pass: at most 1 % beyond 4. A bias of two
 // SEs on every patch would put about 5 % there, a missing shadow far more. (Sums of squares over
 // patches are not used: a few tiny patches next to the brightest lamp dominate them.)
-// Stratified shots (core/shot.h): a batch is a whole number of blocks of 64 shots, so batches
+// Stratified shots (engine/shot.h): a batch is a whole number of blocks of 64 shots, so batches
 // stay independent and everything above holds as it is.
 void check_direct(const char* name, const Scene& scene, std::size_t patches, int resolution, int per_batch,
                   bool stratified = false) {
@@ -366,7 +366,7 @@ TEST(FirstShot, ErrorFallsWithItsOwnSampleCount) {
 namespace sirad {
 namespace {
 
-// Stratified points on the lights (core/shot.h) against random ones: 8 disjoint replicas of
+// Stratified points on the lights (engine/shot.h) against random ones: 8 disjoint replicas of
 // 256 shots each (4 whole blocks), Cornell at 1200 patches, H 96 (about 16 pixel samples per
 // median patch, so that the point's noise, where on the light a shot stands, dominates: the
 // light's nearness to the ceiling and the penumbrae). Mean squared error against the
@@ -395,7 +395,7 @@ namespace sirad {
 namespace {
 
 // The shot leaves to the bundles the lights that their receivers do not see alike from every
-// point (core/shot.h shot_emitter_table): a lamp 1.5 cm under a ceiling, made two-sided as
+// point (engine/shot.h shot_emitter_table): a lamp 1.5 cm under a ceiling, made two-sided as
 // Blender exports it, is shot from its lower side only; its upper side, which lights the gap, stays
 // in what the bundles carry. The Cornell box's light, 0.1 mm under its ceiling but facing down, is
 // shot whole.
@@ -421,7 +421,7 @@ TEST(FirstShot, LightsThatLightANearSurfaceAreLeftToTheBundles) {
 }
 
 
-// A lamp 1.5 cm under a ceiling, two-sided: the ceiling is cut along the lamp's outline (core/scene.h
+// A lamp 1.5 cm under a ceiling, two-sided: the ceiling is cut along the lamp's outline (scene/scene.h
 // cut_near_emitters), so that no ceiling triangle, and so no patch, lies partly over the lamp
 // (where the gap's light is trapped) and partly beside it. The ceiling keeps its area.
 TEST(GapCuts, ACeilingOverALampIsCutAlongItsOutline) {

@@ -11,8 +11,8 @@
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
-#include "core/error.h"
 #include "tests/test_util.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {

@@ -6,11 +6,11 @@
 
 #include <glm/vec3.hpp>
 
-#include "core/bundle_cl.h"
-#include "core/mesh.h"
-#include "core/metrics.h"
-#include "core/scene.h"
-#include "core/solver.h"
+#include "engine/bundle_cl.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "solver/metrics.h"
+#include "solver/solver.h"
 
 namespace sirad::test {
 

@@ -8,10 +8,10 @@
 #include <gtest/gtest.h>
 
 #include "cluster/tiles.h"
-#include "core/error.h"
-#include "core/mesh.h"
-#include "core/scene.h"
 #include "proto/codec.h"
+#include "scene/mesh.h"
+#include "scene/scene.h"
+#include "util/error.h"
 
 namespace sirad::cluster {
 namespace {

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Figures 1 to 5 of the paper from its model (core/model.h via `sirad model`), twice: with the
+# Figures 1 to 5 of the paper from its model (model/model.h via `sirad model`), twice: with the
 # paper's costs (T_i = 4.5 s, T_e = 0.05 s, T = 60 s, sigma_1 / C = 1) and with the costs
 # measured here (T_i and T_e from a real 2-node sync run of the Cornell box at 10,000 patches on
 # this machine, read back by `sirad model --from-run`), same T and contractions.

@@ -8,7 +8,7 @@
 Both are sirad's own binary PLY of the same scene and --patches (one face per patch, in the same
 order). Prints, per candidate, the relative RMS error per patch over the patches that do not emit
 (area-weighted, all three channels: sqrt(sum A |B - B_ref|^2 / sum A |B_ref|^2), the measure of
-core/metrics.h) and, with --rooms apartment, each room's mean radiosity over the reference's
+solver/metrics.h) and, with --rooms apartment, each room's mean radiosity over the reference's
 (the patches whose centre, moved 1 cm along the face's normal, lies in the room: walls count for
 the room they face). The rooms are those of tests/data/blender/make_apartment.py (`apartment`) or make_studio.py
 (`studio`).

@@ -10,7 +10,7 @@
 #include <string_view>
 
 #include "cluster/checkpoint.h"
-#include "core/error.h"
+#include "util/error.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string bytes = sirad::cluster::frame_checkpoint(std::string_view(reinterpret_cast<const char*>(data), size));

@@ -1,0 +1,215 @@
+// sirad: the single-node stochastic iteration: update rules, burn-in, double accumulation.
+#include "solver/solver.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "util/error.h"
+
+namespace sirad {
+
+UpdateRule parse_update_rule(const std::string& name) {
+  if (name == "chain") return UpdateRule::chain;
+  if (name == "average") return UpdateRule::average;
+  fail("unknown update rule '{}' (expected chain or average)", name);
+}
+
+const char* to_string(UpdateRule rule) { return rule == UpdateRule::chain ? "chain" : "average"; }
+
+int auto_burn_in(const PatchMesh& mesh) {
+  float rho_max = 0.0f;
+  for (const auto& m : mesh.materials) rho_max = std::max({rho_max, m.reflectance.x, m.reflectance.y, m.reflectance.z});
+  if (rho_max <= 0.0f) return 0;
+  if (rho_max >= 1.0f) return 64;
+  double k = std::ceil(std::log(1e-3) / std::log(static_cast<double>(rho_max)));
+  return static_cast<int>(std::min(k, 64.0));
+}
+
+ShotRange shots_of_step(double x, uint64_t index) {
+  if (!(x > 0.0)) return {};
+  auto at = [x](uint64_t k) { return static_cast<uint64_t>(std::floor(static_cast<double>(k) * x)); };
+  uint64_t a = at(index), b = at(index + 1);
+  return {a, std::max<uint64_t>(b - a, 1)};
+}
+
+void check_first_shot(double x, int resolution) {
+  if (!(x >= 0.0) || x > 1024.0) fail("shots per bundle must be in [0, 1024] (got {})", x);
+  if (resolution != 0 && (resolution < 4 || resolution % 2 != 0 || resolution > 2048))
+    fail("shot resolution must be 0 (auto) or even in [4, 2048] (got {})", resolution);
+}
+
+Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options, ShotEngine* shots)
+    : mesh_(mesh), engine_(engine), options_(options) {
+  check_first_shot(options.shots_per_bundle, options.shot_resolution);
+  if (options.shots_per_bundle > 0.0) {
+    if (shots == nullptr) fail("first shot: no shot engine given");
+    // A scene that emits nothing has no direct light to shoot: D = 0 and the plain iteration.
+    // Only the emitters whose light the shot estimates well (shot_emitter_table); the others'
+    // emission stays in what the bundles carry.
+    emitters_ = shot_emitter_table(mesh);
+    if (!emitters_.empty()) shots_ = shots;
+    shot_emission_.assign(mesh.size(), glm::dvec3(0.0));
+    for (uint32_t j : emitters_.patch) shot_emission_[j] = glm::dvec3(mesh.emission(j));
+    shot_resolution_ = options.shot_resolution ? options.shot_resolution : auto_shot_resolution(mesh);
+  }
+  if (options.grid < 0 || options.grid == 1) fail("grid must be at least 2 (got {})", options.grid);
+  grid_ = options.grid == 0 ? auto_grid(mesh) : options.grid;
+  burn_in_ = options.rule == UpdateRule::average ? 0 : (options.burn_in < 0 ? auto_burn_in(mesh) : options.burn_in);
+  if (options.directions == Directions::stratified && options.rule != UpdateRule::chain)
+    fail("stratified directions need the chain rule (under average they bias the estimate: engine/bundle.cpp)");
+  sampling_ = sampling_plan(mesh, options.directions);
+  if (options.interleave) sampling_.interleave = options.interleave;
+  if (options.strata_side) sampling_.side = options.strata_side;
+  two_delta_ = 2.0 * cell_area(mesh, grid_);
+  const std::size_t n = mesh.size();
+  sum_.assign(n, glm::dvec3(0.0));
+  // Batch means assume the chain's estimates; under the average rule each one depends on the
+  // running mean of all before it and batch means would understate the error: not tracked.
+  if (options.track_error && options.rule == UpdateRule::chain) batches_ = std::make_unique<BatchMeans>(n);
+  source_.resize(n);
+  for (std::size_t j = 0; j < n; ++j) source_[j] = glm::dvec3(mesh.emission(j));
+  state_ = source_;
+  input_.resize(n);
+  incoming_sum_.assign(n, glm::dvec3(0.0));
+  direct_sum_.assign(n, glm::dvec3(0.0));
+  // Burn-in: advance the chain from E without counting, on its own stream of bundles.
+  for (int k = 0; k < burn_in_; ++k) {
+    if (options.cancelled && options.cancelled()) fail("set-up interrupted after {} of {} burn-in bundles", k, burn_in_);
+    uint64_t index = (options.chain_id << 32) | static_cast<uint64_t>(k);
+    update_source(index, Stream::burn_in_shots);
+    run_bundle(index, Stream::burn_in);
+    transport(result_);
+    state_.swap(next_state_);
+  }
+}
+
+bool Solver::error_estimate_ready() const {
+  if (!batches_ || batches_->full_batches() < 8) return false;
+  double x = shots_ ? options_.shots_per_bundle : 0.0;
+  double shared = x > 0.0 && x < 1.0 ? std::ceil(4.0 / x) : 4.0;
+  return static_cast<double>(batches_->batch_size()) >= std::max(4.0, shared);
+}
+
+void Solver::update_source(uint64_t index, Stream stream) {
+  if (shots_ == nullptr) return;
+  ShotRange range = shots_of_step(options_.shots_per_bundle, index);
+  if (stream == cached_stream_ && range.first == cached_.first && range.count == cached_.count) return;
+  // Stratified directions stratify the counted shots' points on the emitters too (engine/shot.h).
+  const bool stratified = sampling_.directions == Directions::stratified && stream == Stream::shots;
+  run_shots(mesh_, emitters_, *shots_, shot_resolution_, options_.seed, range.first, range.count, stream, stratified,
+            shot_sums_, shot_scratch_);
+  const ShotSums& sums = shot_sums_;
+  shots_rendered_ += sums.shots;
+  direct_shots_ += sums.shots;
+  for (std::size_t j = 0; j < source_.size(); ++j) {
+    source_[j] = glm::dvec3(mesh_.emission(j)) + sums.direct[j] / static_cast<double>(sums.shots);
+    direct_sum_[j] += sums.direct[j];
+  }
+  cached_stream_ = stream;
+  cached_ = range;
+}
+
+void Solver::run_bundle(uint64_t index, Stream stream) {
+  // With a first shot the bundles transport Y = B - E_s, E_s the emission of the emitters shot
+  // from (their light is already in D); the other emitters' emission E_l stays in Y:
+  // Y = E_l + D + rho F Y, and the estimate E + D_m + rho T(Y) has mean E_s + Y = B.
+  for (std::size_t j = 0; j < state_.size(); ++j)
+    input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - shot_emission_[j] : state_[j]), 0.0f);
+  SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream, sampling_);
+  engine_.run(b, input_, result_);
+  crossings_ += result_.crossings;
+}
+
+const std::vector<glm::dvec3>& Solver::transport(const BundleResult& r) {
+  // The incoming radiance of patch j, I_j = sum_i F_ji X_i, estimated by one bundle:
+  //     I*_j = (2 delta / A_j) g_j                       (g_j: the front neighbours' X summed over
+  //                                                       the h_j lines crossing j; DESIGN.md)
+  // E[h_j 2 delta / A_j] = 1 (the same fact that makes I* unbiased for X = 1), so for any
+  // constant c_j fixed before the bundle is drawn
+  //     I*_j + c_j (1 - (2 delta / A_j) h_j)  =  c_j + (2 delta / A_j) sum over lines (X_seen - c_j)
+  // is unbiased too: the constant control variate of stochastic radiosity (Bekaert), whose
+  // hemisphere integral is exactly c_j. Its variance is that of the deviations X_seen - c_j:
+  // the noise of a constant's transport (h_j is a lattice count, and one direction weighs the
+  // hemisphere with 2 |cos|: relative variance 1/3 even for uniform light) is gone. c_j is the
+  // mean of patch j's earlier incoming estimates (0 before the first): fixed given the past,
+  // so each step stays conditionally unbiased and so does the average of the chain's steps.
+  // The chain's next input (next_state_) gets the same transport, but the direct light in it
+  // is the mean of every shot so far, D-bar, not this step's D_m: E[D-bar] = D as well, so
+  // E[next] = E + D + T E[state] still has B as its fixed point (each transport is linear and
+  // independent of its input), while the transported input is far less noisy (one shot leaves
+  // most patches with a few samples or none). The estimate keeps D_m, so the run's average
+  // weighs every shot equally.
+  const bool cv = options_.control_variate && incoming_count_ > 0;
+  const double shots = direct_shots_ > 0 ? 1.0 / static_cast<double>(direct_shots_) : 0.0;
+  next_state_.resize(mesh_.size());
+  const double past = incoming_count_ > 0 ? 1.0 / static_cast<double>(incoming_count_) : 0.0;
+  std::vector<glm::dvec3>& out = estimate_;
+  out.resize(mesh_.size());
+  for (std::size_t j = 0; j < out.size(); ++j) {
+    double w = two_delta_ / mesh_.area[j];
+    glm::dvec3 in = w * glm::dvec3(r.gathered[j]);
+    if (cv) in += incoming_sum_[j] * past * (1.0 - w * static_cast<double>(r.hits[j]));
+    incoming_sum_[j] += in;
+    glm::dvec3 reflected = glm::dvec3(mesh_.reflectance(j)) * in;
+    out[j] = source_[j] + reflected;
+    next_state_[j] = shots_ ? glm::dvec3(mesh_.emission(j)) + direct_sum_[j] * shots + reflected : out[j];
+  }
+  ++incoming_count_;
+  return out;
+}
+
+void Solver::step(uint64_t index) {
+  update_source(index, Stream::shots);
+  run_bundle(index, Stream::bundles);
+  const std::vector<glm::dvec3>& estimate = transport(result_);
+  ++count_;
+  for (std::size_t j = 0; j < estimate.size(); ++j) sum_[j] += estimate[j];
+  if (batches_) batches_->add(estimate);
+  if (options_.rule == UpdateRule::chain) {
+    state_.swap(next_state_);
+  } else {
+    update_average_state();
+  }
+}
+
+void Solver::update_average_state() {
+  // L_p = (S_p + O_p) / (m_p + M_p): the average over every sample this node has seen.
+  const bool others = !others_count_.empty();
+  for (std::size_t j = 0; j < state_.size(); ++j) {
+    uint64_t m = count_ + (others ? others_count_[j] : 0);
+    if (m > 0) state_[j] = (others ? sum_[j] + others_sum_[j] : sum_[j]) / static_cast<double>(m);
+  }
+}
+
+void Solver::absorb(std::size_t first, std::span<const glm::dvec3> others, uint64_t others_count) {
+  if (first > mesh_.size() || others.size() > mesh_.size() - first)
+    fail("absorb: patches [{}, {}) outside the mesh's {}", first, first + others.size(), mesh_.size());
+  // The others' sums as the coordinator checks every node's (cluster::Aggregate::check): finite
+  // and within count x FLT_MAX; checked before any is taken.
+  const double limit = static_cast<double>(others_count) * static_cast<double>(std::numeric_limits<float>::max());
+  for (std::size_t i = 0; i < others.size(); ++i)
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite(others[i][k]) || std::fabs(others[i][k]) > limit)
+        fail("absorb: patch {} value {} for {} bundles", first + i, others[i][k], others_count);
+  // Only the average rule's input uses them (allocated at the first exchange: 32 B per patch).
+  if (options_.rule != UpdateRule::average) return;
+  if (others_count_.empty()) {
+    others_sum_.assign(mesh_.size(), glm::dvec3(0.0));
+    others_count_.assign(mesh_.size(), 0);
+  }
+  for (std::size_t i = 0; i < others.size(); ++i) {
+    others_sum_[first + i] = others[i];
+    others_count_[first + i] = others_count;
+  }
+  update_average_state();
+}
+
+std::vector<glm::vec3> Solver::estimate() const {
+  std::vector<glm::vec3> out(mesh_.size());
+  for (std::size_t j = 0; j < out.size(); ++j)
+    out[j] = count_ == 0 ? mesh_.emission(j) : glm::vec3(sum_[j] / static_cast<double>(count_));
+  return out;
+}
+
+}  // namespace sirad
