@@ -1,4 +1,4 @@
-// sirad tests: scenes with coincident and touching faces (tests/coincident_test.cpp has what
+// sirad tests: scenes with coincident and touching faces (tests/engine/coincident_test.cpp has what
 // each is for), built as OBJ text so that every variant (gap, angle, strips) is one call.
 #pragma once
 #include <cmath>

@@ -13,8 +13,8 @@ generous cap that only turns a hang into a failure; no case depends on how fast 
 
 The farm section (cases farm_*) attacks a farm (sirad-coordinator --serve) from its HTTP side
 and from its nodes: hostile requests, a job whose bundles crash every node. Slow clients,
-hostile job specs and a hostile farm's answers to `sirad jobs` are tests/processes_test.cpp's
-Farm.* and tests/farm_client_test.cpp.
+hostile job specs and a hostile farm's answers to `sirad jobs` are tests/cmd/processes_test.cpp's
+Farm.* and tests/cmd/farm_client_test.cpp.
 """
 import argparse
 import math

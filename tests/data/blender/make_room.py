@@ -3,7 +3,7 @@
 # A room made as a Blender user would: the default cube scaled up (normals out, materials
 # two-sided as Blender's default), a lamp plane with an Emission strength, a block under an
 # empty that turns and lifts it (a transform hierarchy), and a camera inside. Both files are
-# exported by Blender's own exporters (glTF 2.0 and OBJ), the test data of tests/gltf_test.cpp.
+# exported by Blender's own exporters (glTF 2.0 and OBJ), the test data of tests/scene/gltf_test.cpp.
 import sys, math, os
 import bpy
 

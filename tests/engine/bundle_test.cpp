@@ -194,7 +194,7 @@ TEST(BundleKernel, CoincidentFacesOfAThinWallLookOutwards) {
   }
 }
 
-// The scenes of tests/coincident_test.cpp, bundle for bundle: a zero-thickness wall whose two
+// The scenes of tests/engine/coincident_test.cpp, bundle for bundle: a zero-thickness wall whose two
 // faces are cut differently, at an oblique angle, with T-junctions; a rug on a floor at zero
 // gap (which face is on top is decided by patch order, never by rounding); a free-standing
 // zero-thickness panel. The kernels and the C++ reference order the faces at one place alike.

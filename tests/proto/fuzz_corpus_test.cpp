@@ -11,8 +11,8 @@
 
 #include <gtest/gtest.h>
 
-#include "fuzz/decode_fuzz.h"
-#include "proto_samples.h"
+#include "tests/fuzz/decode_fuzz.h"
+#include "tests/proto_samples.h"
 
 namespace sirad::proto {
 namespace {

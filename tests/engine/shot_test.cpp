@@ -13,7 +13,7 @@
 #include "io/read_solution.h"
 #include "io/write.h"
 #include "solver/reference.h"
-#include "test_util.h"
+#include "tests/test_util.h"
 #include "tests/coincident_scenes.h"
 
 namespace sirad {

@@ -393,7 +393,7 @@ TEST(ReferenceAgreement, BundleSolverThreeLights) { check_solver("three-lights",
 // run of 256 bundles on Cornell (it is the chain's, correlated across patches), so a CI-sized run
 // checks consistency at the ~2% level; the power to see a 0.5% bias comes from the transport
 // tests above and the first shot's own tests against the reference's direct light
-// (tests/shot_test.cpp). A long run (SIRAD_REFERENCE_BUNDLES=4096, 6 runs) measured Cornell at
+// (tests/engine/shot_test.cpp). A long run (SIRAD_REFERENCE_BUNDLES=4096, 6 runs) measured Cornell at
 // -0.31% +- 0.18%.
 TEST(ReferenceAgreement, FirstShotSolverCornell) { check_solver("cornell", builtin_cornell(), 1200, 6, 1.0, 256); }
 TEST(ReferenceAgreement, FirstShotSolverBrightRoom) { check_solver("bright-room", builtin_bright_room(), 1200, 6, 1.0, 256); }

@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "cluster_util.h"
+#include "tests/cluster_util.h"
 #include "cluster/emulate.h"
 #include "cluster/profile.h"
 #include "coordinator/coordinator.h"

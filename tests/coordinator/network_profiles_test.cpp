@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "cluster_util.h"
+#include "tests/cluster_util.h"
 #include "solver/metrics.h"
 
 namespace sirad::cluster {

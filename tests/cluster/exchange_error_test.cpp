@@ -6,7 +6,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "cluster_util.h"
+#include "tests/cluster_util.h"
 
 namespace sirad::cluster {
 namespace {

@@ -18,7 +18,7 @@ namespace {
 // bundle, so a = 0.5 to float precision: a check of the bookkeeping. sigma_1 / C uses the
 // plain estimator: one bundle's first bounce at patch j is
 // rho * 2 * c_j with Var(c_j) = 1/3 + v_lat, v_lat in [0, 1/2] at the auto grid (derivation in
-// tests/solver_test.cpp), so sigma_1 / C = sqrt(mean relative variance) in [0.577, 0.913];
+// tests/solver/solver_test.cpp), so sigma_1 / C = sqrt(mean relative variance) in [0.577, 0.913];
 // 64 bundles estimate each patch's variance to ~18 % and the mean over 300 patches far better,
 // so [0.55, 0.95] is the band.
 TEST(ModelFit, FurnaceContractionIsItsAlbedo) {

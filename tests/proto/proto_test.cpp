@@ -15,7 +15,7 @@
 #include "proto/codec.h"
 #include "proto/peer_bytes.h"
 #include "proto/transport.h"
-#include "proto_samples.h"
+#include "tests/proto_samples.h"
 
 namespace sirad::proto {
 namespace {

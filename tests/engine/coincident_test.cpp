@@ -375,11 +375,11 @@ namespace {
 // surfaces"). Inside, the twins are a furnace: B = 2; outside, the original faces see only the
 // background: B = E = 1 exactly, in the reference and in the bundles (no line crossing an outer
 // face has a front neighbour). The reference inside: as for the furnace (rounding, 1e-5,
-// tests/reference_test.cpp) plus the rays that meet a wall's two faces at a grazing angle,
+// tests/solver/reference_test.cpp) plus the rays that meet a wall's two faces at a grazing angle,
 // where float hit distances differ by about 2^-24 |x| / sin(theta) and exceed the tie for
 // sin(theta) < 6e-3: the flux arriving that flat is about theta^2 / 2 = 2e-5 of it, half of
 // which sees the back face first, so B inside may fall short by a few 1e-5: bound 1e-4. The
-// bundles with the control variate: the bound of tests/solver_test.cpp's furnace, relative RMS
+// bundles with the control variate: the bound of tests/solver/solver_test.cpp's furnace, relative RMS
 // per patch < 0.0015 after 1024 bundles.
 TEST(TwoSided, AnInsideOutFurnaceIsAFurnaceInside) {
   ObjBuilder o(oblique(29.0));

@@ -14,7 +14,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "cluster_util.h"
+#include "tests/cluster_util.h"
 #include "coordinator/coordinator.h"
 #include "node/node.h"
 #include "proto/security.h"

@@ -61,7 +61,7 @@ Scene cornell_without_blocks() {
 }
 
 // A triangle gets n x n patches; the floor, where the blocks stand, is also split along their
-// feet (tests/contacts_test.cpp). Faces that meet only along their edges are not.
+// feet (tests/scene/contacts_test.cpp). Faces that meet only along their edges are not.
 TEST(MeshSubdivision, MaxEdgeGivesNSquaredPatchesAndShortEdges) {
   const Scene scene = builtin_cornell();
   for (double max_edge : {1000.0, 120.0, 37.5}) {

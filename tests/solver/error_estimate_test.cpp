@@ -10,8 +10,8 @@
 #include "solver/error_estimate.h"
 #include "solver/reference.h"
 #include "util/error.h"
-#include "cluster_util.h"
-#include "test_util.h"
+#include "tests/cluster_util.h"
+#include "tests/test_util.h"
 
 namespace sirad {
 namespace {
