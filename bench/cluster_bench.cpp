@@ -75,9 +75,9 @@
 #include <glm/vec3.hpp>
 #include <zmq.hpp>
 
+#include "cli/embedded.h"
 #include "cluster/exchange.h"
 #include "cluster/worker.h"
-#include "cmd/embedded.h"
 #include "engine/bundle_cl.h"
 #include "proto/codec.h"
 #include "proto/transport.h"
@@ -305,7 +305,7 @@ struct ClusterRun {
   double total_s = 0, coordinate_s = 0, join_s = 0;
 };
 
-// The embedded driver (cmd/embedded.h), as `sirad render --nodes` runs it: the scene meshed
+// The embedded driver (cli/embedded.h), as `sirad render --nodes` runs it: the scene meshed
 // here, then the coordinator on this thread and `nodes` node threads; timed from before the
 // meshing to the end of the teardown.
 int g_node_poll_ms = 100;  // NodeOptions::poll_ms of the node threads (100: as sirad render --nodes)

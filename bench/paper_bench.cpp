@@ -21,9 +21,9 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "cli/run_flags.h"
 #include "cluster/emulate.h"
 #include "cluster/profile.h"
-#include "cmd/run_flags.h"
 #include "engine/bundle_cl.h"
 #include "model/model.h"
 #include "model/model_fit.h"

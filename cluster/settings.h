@@ -2,7 +2,7 @@
 // from the wire (the Run of WELCOME and of the checkpoint), to a node's solver options, to the
 // policy's configuration, and to the EXR header attributes. Every driver, `sirad render` on one
 // node or many, `sirad emulate`, `sirad-coordinator` and `sirad-node`, holds a run's settings
-// in this one type; the command lines fill it from one declaration of the flags (cmd/run_flags.h).
+// in this one type; the command lines fill it from one declaration of the flags (cli/run_flags.h).
 // The settings of a process (timeouts, heartbeats, files) and the hooks a driver gives a run
 // (signals, callbacks) are kept apart from it, in ProcessSettings and RunHooks.
 #pragma once
@@ -32,7 +32,7 @@ class Policy;
 
 // What defines a run: with the scene, its result is a function of these and of which node ran
 // which bundle. The defaults are the library's (plain runs in tests and benches); the command
-// lines' defaults are their flags' (cmd/run_flags.h).
+// lines' defaults are their flags' (cli/run_flags.h).
 struct RunSettings {
   MeshOptions mesh_options;     // how the nodes mesh the scene
   uint64_t bundles = 1000;      // K: the budget (the cap when a time limit or target ends it early)

@@ -16,17 +16,17 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include "cli/embedded.h"
+#include "cli/run_flags.h"
 #include "cluster/emulate.h"
 #include "cluster/live_view.h"
 #include "cluster/policy.h"
 #include "cluster/profile.h"
 #include "cluster/single_node.h"
 #include "cluster/status.h"
-#include "cmd/embedded.h"
-#include "cmd/farm_client.h"
-#include "cmd/run_flags.h"
 #include "engine/bundle_cl.h"
 #include "engine/version.h"
+#include "farm/farm_client.h"
 #include "io/read_solution.h"
 #include "io/results.h"
 #include "io/write.h"
@@ -186,7 +186,7 @@ int finish_line(const std::string& ended_by, const std::string& short_of, int64_
 }
 
 // The embedded default: the coordinator on this thread, N nodes on their own threads, all over
-// ZeroMQ inproc with the same code as a cluster (cmd/embedded.h).
+// ZeroMQ inproc with the same code as a cluster (cli/embedded.h).
 int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, const Meshed& m, const std::string& out,
                     std::optional<emulation::Profile> profile) {
   cluster::RunConfig rc;
@@ -766,7 +766,7 @@ int run(int argc, char** argv) {
   profile_cmd->add_option("--nodes", profile_nodes, "Nodes to list")->check(CLI::Range(1, 4096))->capture_default_str();
   profile_cmd->add_option("--name-prefix", profile_prefix, "Node names are PREFIX0, PREFIX1, ...")->capture_default_str();
 
-  // The farm's client (cmd/farm_client.h).
+  // The farm's client (farm/farm_client.h).
   cli::FarmAddress farm;
   auto add_farm = [&](CLI::App* cmd, bool token) {
     cmd->add_option("--farm", farm.farm, "The farm: http://HOST:PORT, or its folder on this machine")->required();

@@ -7,8 +7,8 @@
 
 #include <fmt/format.h>
 
+#include "cli/embedded.h"
 #include "cluster/status.h"
-#include "cmd/embedded.h"
 #include "scene/scene.h"
 
 namespace sirad::cluster::test {

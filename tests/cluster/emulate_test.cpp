@@ -7,7 +7,6 @@
 
 #include <gtest/gtest.h>
 
-#include "tests/cluster_util.h"
 #include "cluster/emulate.h"
 #include "cluster/profile.h"
 #include "coordinator/coordinator.h"
@@ -15,6 +14,7 @@
 #include "scene/scene.h"
 #include "solver/metrics.h"
 #include "solver/reference.h"
+#include "tests/cluster_util.h"
 #include "util/error.h"
 
 namespace sirad::cluster {

@@ -1,4 +1,4 @@
-// sirad tests: `sirad jobs`, `sirad submit` and `sirad cancel` (cmd/farm_client.h) run as
+// sirad tests: `sirad jobs`, `sirad submit` and `sirad cancel` (farm/farm_client.h) run as
 // processes against a farm this test plays (cpp-httplib on 127.0.0.1, a port the system picks):
 // a hostile farm's answer nested 200,000 levels deep, or larger than the client reads, is one
 // clear error, not a crash or gigabytes of memory; a submission's parts and token arrive as the

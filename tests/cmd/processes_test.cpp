@@ -35,8 +35,8 @@
 
 #include "cluster/jobs.h"
 #include "cluster/status.h"
-#include "cmd/http_guard.h"
 #include "engine/bundle_cl.h"
+#include "farm/http_guard.h"
 #include "scene/scene.h"
 #include "solver/metrics.h"
 #include "solver/solver.h"
@@ -743,7 +743,7 @@ TEST(Processes, KilledCoordinatorResumesFromItsCheckpoint) {
 }
 
 
-// --- the farm (sirad-coordinator --serve; cmd/farm.h) ------------------------------------
+// --- the farm (sirad-coordinator --serve; farm/farm.h) ------------------------------------
 
 // A farm process over loopback TCP: its folder, ZeroMQ endpoint, HTTP URL and token.
 struct FarmProcess {
@@ -1101,7 +1101,7 @@ TEST(Farm, AJobNestedTooDeepIsRefusedAndASceneFileIsQueued) {
 }
 
 // Clients that open connections and send their request slowly, or never, hold none of the HTTP
-// server's threads (cmd/http_guard.h). With 60 such connections open from one address (the
+// server's threads (farm/http_guard.h). With 60 such connections open from one address (the
 // server's pool has 8 threads; before the guard, 8 froze the page for as long as they stayed,
 // and these 60 for 40 s of read timeouts), the page and the API answer, and when they have,
 // every held connection is still open or was closed by the guard's head deadline with a 408

@@ -14,12 +14,12 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include "tests/cluster_util.h"
 #include "coordinator/coordinator.h"
 #include "node/node.h"
 #include "proto/security.h"
 #include "proto/transport.h"
 #include "solver/metrics.h"
+#include "tests/cluster_util.h"
 #include "tests/process_util.h"
 #include "util/error.h"
 

@@ -7,8 +7,8 @@
 
 #include <gtest/gtest.h>
 
-#include "tests/cluster_util.h"
 #include "solver/metrics.h"
+#include "tests/cluster_util.h"
 
 namespace sirad::cluster {
 namespace {

@@ -13,8 +13,8 @@
 #include "io/read_solution.h"
 #include "io/write.h"
 #include "solver/reference.h"
-#include "tests/test_util.h"
 #include "tests/coincident_scenes.h"
+#include "tests/test_util.h"
 
 namespace sirad {
 namespace {

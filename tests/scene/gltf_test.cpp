@@ -29,7 +29,7 @@
 
 #include <tiny_gltf.h>
 
-#include "cmd/run_flags.h"
+#include "cli/run_flags.h"
 #include "io/read_solution.h"
 #include "io/write.h"
 #include "io/write_gltf.h"

@@ -9,9 +9,9 @@
 #include "engine/shot.h"
 #include "solver/error_estimate.h"
 #include "solver/reference.h"
-#include "util/error.h"
 #include "tests/cluster_util.h"
 #include "tests/test_util.h"
+#include "util/error.h"
 
 namespace sirad {
 namespace {

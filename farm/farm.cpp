@@ -1,5 +1,5 @@
 // sirad: the farm coordinator (see farm.h).
-#include "cmd/farm.h"
+#include "farm/farm.h"
 
 #include <algorithm>
 #include <chrono>

@@ -1,6 +1,6 @@
 // sirad-coordinator: serves one run of a scene to the nodes that connect, then writes its
 // outputs (NAME.exr, NAME.png, NAME.ply, NAME.glb). The run flags are sirad render's
-// (cmd/run_flags.h); the rest are the coordinator's own: --listen, --min-nodes, security,
+// (cli/run_flags.h); the rest are the coordinator's own: --listen, --min-nodes, security,
 // liveness, checkpoints and --resume, status and ledger files. `sirad-coordinator --help`.
 #include <algorithm>
 #include <atomic>
@@ -13,16 +13,16 @@
 
 #include <CLI/CLI.hpp>
 
+#include "cli/log_flags.h"
+#include "cli/run_flags.h"
 #include "cluster/checkpoint.h"
 #include "cluster/live_view.h"
 #include "cluster/policy.h"
-#include "cmd/farm.h"
-#include "cmd/farm_http.h"
-#include "cmd/log_flags.h"
-#include "cmd/run_flags.h"
 #include "coordinator/coordinator.h"
 #include "engine/bundle.h"
 #include "engine/version.h"
+#include "farm/farm.h"
+#include "farm/farm_http.h"
 #include "io/results.h"
 #include "proto/security.h"
 #include "proto/transport.h"
@@ -94,7 +94,7 @@ struct Listener {
 };
 }  // namespace
 
-// `--serve DIR`: the farm (cmd/farm.h) on one socket, its HTTP API beside it, until SIGTERM.
+// `--serve DIR`: the farm (farm/farm.h) on one socket, its HTTP API beside it, until SIGTERM.
 int serve_farm(const std::string& dir, const std::string& http, const std::string& token_file, const std::string& listen,
                const std::string& endpoint_file, const std::string& curve_secret, const std::string& allow_file, bool insecure,
                bool check_config, uint32_t heartbeat_ms, uint32_t liveness, double checkpoint_every) {

@@ -1,4 +1,4 @@
-// sirad: `sirad submit`, `sirad jobs` and `sirad cancel`: a farm's HTTP API (cmd/farm_http.h)
+// sirad: `sirad submit`, `sirad jobs` and `sirad cancel`: a farm's HTTP API (farm/farm_http.h)
 // from the command line.
 #pragma once
 #include <string>

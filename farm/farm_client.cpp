@@ -1,5 +1,5 @@
 // sirad: the farm's command-line client (see farm_client.h).
-#include "cmd/farm_client.h"
+#include "farm/farm_client.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -11,7 +11,7 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
-#include "cmd/farm.h"
+#include "farm/farm.h"
 #include "scene/encoding.h"
 #include "scene/scene.h"
 #include "util/atomic_file.h"

@@ -21,10 +21,10 @@
 
 #include <zmq.hpp>
 
+#include "cli/run_flags.h"
 #include "cluster/jobs.h"
 #include "cluster/settings.h"
 #include "cluster/status.h"
-#include "cmd/run_flags.h"
 #include "proto/peer_bytes.h"
 
 namespace sirad::cli {

@@ -1,5 +1,5 @@
 // sirad: the farm's HTTP API and web page (cpp-httplib), served by `sirad-coordinator --serve`
-// beside its ZeroMQ endpoint (proto/PROTOCOL.md section 10), behind cmd/http_guard.h (slow and
+// beside its ZeroMQ endpoint (proto/PROTOCOL.md section 10), behind farm/http_guard.h (slow and
 // many clients). Reading (jobs, their progress and nodes, outputs) is open to whoever reaches
 // the address (localhost unless asked); submitting and cancelling need the farm's token
 // ("Authorization: Bearer TOKEN").
@@ -9,8 +9,8 @@
 #include <thread>
 
 #include "cluster/jobs.h"
-#include "cmd/farm.h"
-#include "cmd/http_guard.h"
+#include "farm/farm.h"
+#include "farm/http_guard.h"
 
 namespace httplib {
 class Server;

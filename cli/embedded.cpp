@@ -1,5 +1,5 @@
 // sirad: the embedded cluster driver (see embedded.h).
-#include "cmd/embedded.h"
+#include "cli/embedded.h"
 
 #include <algorithm>
 #include <atomic>

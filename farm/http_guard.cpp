@@ -1,5 +1,5 @@
 // sirad: the front of the farm's HTTP server (see http_guard.h).
-#include "cmd/http_guard.h"
+#include "farm/http_guard.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>

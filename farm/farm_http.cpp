@@ -1,5 +1,5 @@
 // sirad: the farm's HTTP API and web page (see farm_http.h).
-#include "cmd/farm_http.h"
+#include "farm/farm_http.h"
 
 #include <sys/stat.h>
 
@@ -117,7 +117,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
   s.Get("/", [](const httplib::Request&, httplib::Response& res) {
     res.set_header("Content-Security-Policy",
                    "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; img-src 'self'; connect-src 'self'");
-    res.set_content(std::string(resource("cmd/farm_page.html")), "text/html; charset=utf-8");
+    res.set_content(std::string(resource("farm/farm_page.html")), "text/html; charset=utf-8");
   });
   // A page of the queue: the `limit` jobs (default kJobsPage) of the highest ids below `before`
   // (default: all), in id order, with the count of older ones and of all.

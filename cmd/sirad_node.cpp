@@ -8,7 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 
-#include "cmd/log_flags.h"
+#include "cli/log_flags.h"
 #include "engine/opencl.h"
 #include "engine/version.h"
 #include "node/node.h"

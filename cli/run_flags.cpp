@@ -1,5 +1,5 @@
 // sirad: the run and output flags (see run_flags.h).
-#include "cmd/run_flags.h"
+#include "cli/run_flags.h"
 
 #include <cmath>
 
