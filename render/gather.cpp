@@ -14,6 +14,7 @@
 #include "scene/emitters.h"
 #include "scene/rays.h"
 #include "util/error.h"
+#include "util/parallel.h"
 
 namespace sirad {
 
@@ -618,7 +619,7 @@ FinalGather::FinalGather(const PatchMesh& mesh, std::vector<std::array<glm::vec3
 FinalGather::~FinalGather() = default;
 
 int GatherOptions::thread_count() const {
-  return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  return static_cast<int>(worker_threads(threads));
 }
 
 GatherPasses GatherPasses::of_size(int width, int height) {
@@ -651,23 +652,17 @@ GatherPasses FinalGather::render(const Camera& camera, int x0, int y0, int x1, i
         if (((tx + ty) & 1) == colour)
           tiles.push_back({std::max(x0, tx * kCacheSpacing), std::max(y0, ty * kCacheSpacing), std::min(x1, (tx + 1) * kCacheSpacing),
                            std::min(y1, (ty + 1) * kCacheSpacing)});
-  const unsigned threads = std::min<unsigned>(static_cast<unsigned>(o.thread_count()), static_cast<unsigned>(std::max<std::size_t>(1, tiles.size())));
+  const unsigned threads = static_cast<unsigned>(o.thread_count());
   const std::shared_ptr<RecordStore> records = impl_->records(camera);
-  std::atomic<std::size_t> next_tile{0};
   std::vector<uint64_t> cast(threads, 0), record_cast(threads, 0);
-  auto work = [&](unsigned t) {  // whole tiles each: no pixel is written by two threads
-    for (std::size_t k; (k = next_tile.fetch_add(1)) < tiles.size();) {
-      const auto [tx0, ty0, tx1, ty1] = tiles[k];
-      for (int y = ty0; y < ty1; ++y) {
-        for (int x = tx0; x < tx1; ++x) cast[t] += impl_->pixel(frame, records.get(), x, y, x - x0, y - y0, out, record_cast[t]);
-        if (t == 0 && between) between();
-      }
+  // Whole tiles each: no pixel is written by two threads.
+  parallel_for(tiles.size(), 1, threads, [&](std::size_t k, std::size_t, unsigned t) {
+    const auto [tx0, ty0, tx1, ty1] = tiles[k];
+    for (int y = ty0; y < ty1; ++y) {
+      for (int x = tx0; x < tx1; ++x) cast[t] += impl_->pixel(frame, records.get(), x, y, x - x0, y - y0, out, record_cast[t]);
+      if (t == 0 && between) between();
     }
-  };
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work, t);
-  work(0);
-  for (auto& th : pool) th.join();
+  });
   for (uint64_t c : cast) out.rays += c;
   for (uint64_t c : record_cast) out.record_rays += c;
   return out;

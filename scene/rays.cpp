@@ -2,8 +2,7 @@
 // way (see rays.h).
 #include "scene/rays.h"
 
-#include <atomic>
-#include <thread>
+#include "util/parallel.h"
 
 namespace sirad {
 
@@ -125,30 +124,24 @@ void RayScene::blocked(const glm::dvec3* org, const glm::dvec3* to, std::size_t 
 std::vector<uint8_t> RayScene::find_overlaps() const {
   const uint32_t n = static_cast<uint32_t>(mesh_.size());
   std::vector<uint8_t> out(n, 0);
-  std::atomic<uint32_t> next{0};
-  auto work = [&] {
-    constexpr uint32_t kChunk = 1024;
-    for (uint32_t start; (start = next.fetch_add(kChunk)) < n;)
-      for (uint32_t j = start; j < std::min(n, start + kChunk); ++j) {
-        Query q{&mesh_, triangle(mesh_, j), j, tie_};
-        const glm::dvec3 c = (q.self.v[0] + q.self.v[1] + q.self.v[2]) / 3.0;
-        double r = 0.0;
-        for (const glm::dvec3& v : q.self.v) r = std::max(r, glm::length(v - c));
-        RTCPointQuery pq;
-        pq.x = static_cast<float>(c.x), pq.y = static_cast<float>(c.y), pq.z = static_cast<float>(c.z);
-        pq.time = 0.0f;
-        pq.radius = static_cast<float>(r + 2.0 * tie_);
-        RTCPointQueryContext ctx;
-        rtcInitPointQueryContext(&ctx);
-        rtcPointQuery(scene_, &pq, &ctx, &candidate, &q);
-        out[j] = q.found ? 1 : 0;
-      }
-  };
-  const unsigned threads = std::max(1u, std::min(std::thread::hardware_concurrency(), n / 4096 + 1));
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
+  // A thread for every 4,096 faces, up to every core (a small mesh is not worth one).
+  const unsigned threads = std::min(worker_threads(0), n / 4096 + 1);
+  parallel_for(n, 1024, threads, [&](std::size_t begin, std::size_t end, unsigned) {
+    for (uint32_t j = static_cast<uint32_t>(begin); j < end; ++j) {
+      Query q{&mesh_, triangle(mesh_, j), j, tie_};
+      const glm::dvec3 c = (q.self.v[0] + q.self.v[1] + q.self.v[2]) / 3.0;
+      double r = 0.0;
+      for (const glm::dvec3& v : q.self.v) r = std::max(r, glm::length(v - c));
+      RTCPointQuery pq;
+      pq.x = static_cast<float>(c.x), pq.y = static_cast<float>(c.y), pq.z = static_cast<float>(c.z);
+      pq.time = 0.0f;
+      pq.radius = static_cast<float>(r + 2.0 * tie_);
+      RTCPointQueryContext ctx;
+      rtcInitPointQueryContext(&ctx);
+      rtcPointQuery(scene_, &pq, &ctx, &candidate, &q);
+      out[j] = q.found ? 1 : 0;
+    }
+  });
   return out;
 }
 

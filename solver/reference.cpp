@@ -15,7 +15,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -24,7 +23,6 @@
 #include <map>
 #include <numbers>
 #include <sstream>
-#include <thread>
 
 #include <glm/geometric.hpp>
 
@@ -32,6 +30,7 @@
 #include "scene/rays.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
+#include "util/parallel.h"
 
 namespace sirad {
 namespace {
@@ -110,133 +109,127 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
 
   std::vector<std::vector<Row>> rows(static_cast<std::size_t>(R), std::vector<Row>(n));
   std::vector<std::vector<dvec3>> direct(static_cast<std::size_t>(R), std::vector<dvec3>(n, dvec3(0.0)));
-  std::atomic<uint64_t> cast{0};
-  std::atomic<std::size_t> next{0};
-  constexpr std::size_t kBlock = 16;
-
-  auto work = [&] {
+  const unsigned threads = worker_threads(o.threads);
+  // Each worker's scratch and the rays it cast.
+  struct Scratch {
     std::vector<std::array<double, 2>> pts, dirs, ys;
     std::vector<signed char> hidden;
     std::vector<uint32_t> hits;
-    uint64_t local = 0;
-    for (;;) {
-      std::size_t first = next.fetch_add(kBlock);
-      if (first >= n) break;
-      for (std::size_t i = first; i < std::min(n, first + kBlock); ++i) {
-        const auto& tri = mesh.patches[i];
-        dvec3 a(mesh.vertices[tri[0]]), b(mesh.vertices[tri[1]]), c(mesh.vertices[tri[2]]);
-        dvec3 nx(mesh.normal[i]);
-        dvec3 rho(mesh.reflectance(i));
-        // Per emitter: -1 the patch lies wholly behind it, 1 it mostly does not see it (fewer than
-        // half of kPilot segments from points on the patch to points on it are clear), 0 else.
-        // The pilot has its own random stream, so each batch's estimate stays unbiased whichever
-        // way it decides.
-        if (rho != dvec3(0.0)) {
-          hidden.assign(emitters.size(), 0);
-          for (std::size_t l = 0; l < emitters.size(); ++l) {
-            const Light& L = emitters[l];
-            if (glm::dot(L.normal, (a + b + c) / 3.0 - L.p[0]) <= 0.0 && glm::dot(L.normal, a - L.p[0]) <= 0.0 &&
-                glm::dot(L.normal, b - L.p[0]) <= 0.0 && glm::dot(L.normal, c - L.p[0]) <= 0.0) {
-              hidden[l] = -1;  // L shows the patch only its back
-              continue;
-            }
-            Rng prng(o.seed, i, l, 3);
-            stratified_square(kPilot, prng, pts);
-            stratified_square(kPilot, prng, ys);
-            int clear = 0;
-            for (int k = 0; k < kPilot; ++k) {
-              dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
-              dvec3 y = L.at(ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
-              if (glm::dot(nx, y - x) > 0.0 && glm::dot(L.normal, x - y) > 0.0 && !rays.blocked(x + nx * eps, y + L.normal * eps))
-                ++clear;
-            }
-            local += kPilot;
-            hidden[l] = 2 * clear < kPilot ? 1 : 0;
+    uint64_t cast = 0;
+  };
+  std::vector<Scratch> scratch(threads);
+
+  parallel_for(n, 16, threads, [&](std::size_t first, std::size_t last, unsigned worker) {
+    auto& [pts, dirs, ys, hidden, hits, local] = scratch[worker];
+    for (std::size_t i = first; i < last; ++i) {
+      const auto& tri = mesh.patches[i];
+      dvec3 a(mesh.vertices[tri[0]]), b(mesh.vertices[tri[1]]), c(mesh.vertices[tri[2]]);
+      dvec3 nx(mesh.normal[i]);
+      dvec3 rho(mesh.reflectance(i));
+      // Per emitter: -1 the patch lies wholly behind it, 1 it mostly does not see it (fewer than
+      // half of kPilot segments from points on the patch to points on it are clear), 0 else.
+      // The pilot has its own random stream, so each batch's estimate stays unbiased whichever
+      // way it decides.
+      if (rho != dvec3(0.0)) {
+        hidden.assign(emitters.size(), 0);
+        for (std::size_t l = 0; l < emitters.size(); ++l) {
+          const Light& L = emitters[l];
+          if (glm::dot(L.normal, (a + b + c) / 3.0 - L.p[0]) <= 0.0 && glm::dot(L.normal, a - L.p[0]) <= 0.0 &&
+              glm::dot(L.normal, b - L.p[0]) <= 0.0 && glm::dot(L.normal, c - L.p[0]) <= 0.0) {
+            hidden[l] = -1;  // L shows the patch only its back
+            continue;
           }
-        }
-        for (int bt = 0; bt < R; ++bt) {
-          // Indirect: cosine-distributed rays from stratified points; the hit counts / n_b are
-          // the row of F (emitters included: they carry their reflected part Y here).
-          Rng rng(o.seed, i, static_cast<uint64_t>(bt), 1);
-          stratified_square(rays_b, rng, pts);
-          stratified_square(rays_b, rng, dirs);
-          hits.clear();
-          for (int k = 0; k < rays_b; ++k) {
+          Rng prng(o.seed, i, l, 3);
+          stratified_square(kPilot, prng, pts);
+          stratified_square(kPilot, prng, ys);
+          int clear = 0;
+          for (int k = 0; k < kPilot; ++k) {
             dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
-            dvec3 d = cosine_direction(nx, dirs[static_cast<std::size_t>(k)][0], dirs[static_cast<std::size_t>(k)][1]);
-            int64_t j = rays.covered(static_cast<uint32_t>(i), x) ? -1 : rays.seen(x + nx * eps, d);
-            hits.push_back(j >= 0 ? static_cast<uint32_t>(j) : kBackground);
+            dvec3 y = L.at(ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
+            if (glm::dot(nx, y - x) > 0.0 && glm::dot(L.normal, x - y) > 0.0 && !rays.blocked(x + nx * eps, y + L.normal * eps))
+              ++clear;
           }
-          local += static_cast<uint64_t>(rays_b);
-          std::sort(hits.begin(), hits.end());
-          Row& row = rows[static_cast<std::size_t>(bt)][i];
-          row.entries.clear();
-          const float w = 1.0f / static_cast<float>(rays_b);
-          for (std::size_t k = 0; k < hits.size();) {
-            std::size_t e = k;
-            while (e < hits.size() && hits[e] == hits[k]) ++e;
-            float weight = w * static_cast<float>(e - k);
-            if (hits[k] == kBackground) row.background = weight;
-            else row.entries.emplace_back(hits[k], weight);
-            k = e;
-          }
-          // Direct, per emitting input triangle L (scene/emitters.h), y stratified on L, one per
-          // point and L. Where the patch sees L (the pilot above): the exact unoccluded form
-          // factor minus the visibility control variate A_L K(x, y) (1 - V(x, y)); E[A_L K (1 - V)]
-          // = F_analytic - F_visible, so the estimate is unbiased, and exact wherever nothing
-          // occludes. Where it mostly does not (a box lamp's lit inside, seen from the ceiling
-          // 1 cm over its lid): A_L K V alone, also unbiased, and 0 where L is wholly hidden,
-          // where the control variate would subtract K's sharp peak near L from its integral.
-          if (rho == dvec3(0.0) || emitters.empty()) continue;
-          Rng lrng(o.seed, i, static_cast<uint64_t>(bt), 2);
-          stratified_square(points_b, lrng, pts);
-          dvec3 sum(0.0);
-          for (std::size_t l = 0; l < emitters.size(); ++l) {
-            const Light& L = emitters[l];
-            if (hidden[l] < 0) continue;
-            const bool plain = hidden[l] > 0;
-            stratified_square(points_b, lrng, ys);
-            double f = 0.0;
-            for (int k = 0; k < points_b; ++k) {
-              dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
-              const double ahead = glm::dot(L.normal, x - L.p[0]);
-              if (ahead <= 0.0) continue;  // behind L (or in its plane)
-              // A point within eps of L's plane and parallel to it receives nothing from L, though
-              // rounding may put it a hair in front: on L's back (its twin, the other side of one
-              // two-sided face) L faces away; facing the way L faces (a ceiling around a flush
-              // lamp) L lies in its tangent plane, where the contour formula sees L's corners a
-              // hair above or below that plane and gives anything from 0 to 1.
-              if (std::abs(glm::dot(L.normal, nx)) > 0.9999 && ahead <= eps) continue;
-              if (rays.covered(static_cast<uint32_t>(i), x)) continue;  // under a coincident face
-              double fa = polygon_form_factor(x, nx, L.p.data(), L.corners);
-              if (fa <= 0.0) continue;
-              dvec3 y = L.at(ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
-              dvec3 r = y - x;
-              double r2 = glm::dot(r, r), cx = glm::dot(nx, r), cy = -glm::dot(L.normal, r);
-              if (!(cx > 0.0 && cy > 0.0 && r2 > 0.0)) {
-                if (!plain) f += fa;
-                continue;
-              }
-              ++local;
-              const bool blocked = rays.blocked(x + nx * eps, y + L.normal * eps);
-              const double k_y = L.area * cx * cy / (std::numbers::pi * r2 * r2);
-              if (plain) f += blocked ? 0.0 : k_y;
-              else f += blocked ? fa - k_y : fa;
-            }
-            sum += L.emission * (f / points_b);
-          }
-          direct[static_cast<std::size_t>(bt)][i] = rho * sum;
+          local += kPilot;
+          hidden[l] = 2 * clear < kPilot ? 1 : 0;
         }
       }
+      for (int bt = 0; bt < R; ++bt) {
+        // Indirect: cosine-distributed rays from stratified points; the hit counts / n_b are
+        // the row of F (emitters included: they carry their reflected part Y here).
+        Rng rng(o.seed, i, static_cast<uint64_t>(bt), 1);
+        stratified_square(rays_b, rng, pts);
+        stratified_square(rays_b, rng, dirs);
+        hits.clear();
+        for (int k = 0; k < rays_b; ++k) {
+          dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
+          dvec3 d = cosine_direction(nx, dirs[static_cast<std::size_t>(k)][0], dirs[static_cast<std::size_t>(k)][1]);
+          int64_t j = rays.covered(static_cast<uint32_t>(i), x) ? -1 : rays.seen(x + nx * eps, d);
+          hits.push_back(j >= 0 ? static_cast<uint32_t>(j) : kBackground);
+        }
+        local += static_cast<uint64_t>(rays_b);
+        std::sort(hits.begin(), hits.end());
+        Row& row = rows[static_cast<std::size_t>(bt)][i];
+        row.entries.clear();
+        const float w = 1.0f / static_cast<float>(rays_b);
+        for (std::size_t k = 0; k < hits.size();) {
+          std::size_t e = k;
+          while (e < hits.size() && hits[e] == hits[k]) ++e;
+          float weight = w * static_cast<float>(e - k);
+          if (hits[k] == kBackground) row.background = weight;
+          else row.entries.emplace_back(hits[k], weight);
+          k = e;
+        }
+        // Direct, per emitting input triangle L (scene/emitters.h), y stratified on L, one per
+        // point and L. Where the patch sees L (the pilot above): the exact unoccluded form
+        // factor minus the visibility control variate A_L K(x, y) (1 - V(x, y)); E[A_L K (1 - V)]
+        // = F_analytic - F_visible, so the estimate is unbiased, and exact wherever nothing
+        // occludes. Where it mostly does not (a box lamp's lit inside, seen from the ceiling
+        // 1 cm over its lid): A_L K V alone, also unbiased, and 0 where L is wholly hidden,
+        // where the control variate would subtract K's sharp peak near L from its integral.
+        if (rho == dvec3(0.0) || emitters.empty()) continue;
+        Rng lrng(o.seed, i, static_cast<uint64_t>(bt), 2);
+        stratified_square(points_b, lrng, pts);
+        dvec3 sum(0.0);
+        for (std::size_t l = 0; l < emitters.size(); ++l) {
+          const Light& L = emitters[l];
+          if (hidden[l] < 0) continue;
+          const bool plain = hidden[l] > 0;
+          stratified_square(points_b, lrng, ys);
+          double f = 0.0;
+          for (int k = 0; k < points_b; ++k) {
+            dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
+            const double ahead = glm::dot(L.normal, x - L.p[0]);
+            if (ahead <= 0.0) continue;  // behind L (or in its plane)
+            // A point within eps of L's plane and parallel to it receives nothing from L, though
+            // rounding may put it a hair in front: on L's back (its twin, the other side of one
+            // two-sided face) L faces away; facing the way L faces (a ceiling around a flush
+            // lamp) L lies in its tangent plane, where the contour formula sees L's corners a
+            // hair above or below that plane and gives anything from 0 to 1.
+            if (std::abs(glm::dot(L.normal, nx)) > 0.9999 && ahead <= eps) continue;
+            if (rays.covered(static_cast<uint32_t>(i), x)) continue;  // under a coincident face
+            double fa = polygon_form_factor(x, nx, L.p.data(), L.corners);
+            if (fa <= 0.0) continue;
+            dvec3 y = L.at(ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
+            dvec3 r = y - x;
+            double r2 = glm::dot(r, r), cx = glm::dot(nx, r), cy = -glm::dot(L.normal, r);
+            if (!(cx > 0.0 && cy > 0.0 && r2 > 0.0)) {
+              if (!plain) f += fa;
+              continue;
+            }
+            ++local;
+            const bool blocked = rays.blocked(x + nx * eps, y + L.normal * eps);
+            const double k_y = L.area * cx * cy / (std::numbers::pi * r2 * r2);
+            if (plain) f += blocked ? 0.0 : k_y;
+            else f += blocked ? fa - k_y : fa;
+          }
+          sum += L.emission * (f / points_b);
+        }
+        direct[static_cast<std::size_t>(bt)][i] = rho * sum;
+      }
     }
-    cast += local;
-  };
-  int threads = o.threads > 0 ? o.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  {
-    std::vector<std::jthread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(work);
-    work();
-  }
+  });
+  uint64_t cast = 0;
+  for (const Scratch& w : scratch) cast += w.cast;
 
   // Solve each batch: Y = D + rho (F Y + F_bg background), Gauss-Seidel until the largest
   // change is below 1e-12 of the largest value (the contraction is at most rho_max < 1 per sweep
@@ -247,38 +240,31 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
   std::vector<int> iterations(static_cast<std::size_t>(R), 0);
   std::vector<char> converged(static_cast<std::size_t>(R), 1);
   constexpr int kMaxSweeps = 20000;
-  std::atomic<int> next_batch{0};
-  auto solve = [&] {
-    for (int bt; (bt = next_batch.fetch_add(1)) < R;) {
-      const auto& F = rows[static_cast<std::size_t>(bt)];
-      const auto& D = direct[static_cast<std::size_t>(bt)];
-      std::vector<dvec3> y = D;
-      dvec3 bg(mesh.background);
-      int sweep = 0;
-      for (; sweep < kMaxSweeps; ++sweep) {
-        double change = 0.0, top = 1e-300;
-        for (std::size_t i = 0; i < n; ++i) {
-          dvec3 g = bg * static_cast<double>(F[i].background);
-          for (const auto& [j, w] : F[i].entries) g += y[j] * static_cast<double>(w);
-          dvec3 v = D[i] + dvec3(mesh.reflectance(i)) * g;
-          dvec3 dv = glm::abs(v - y[i]);
-          change = std::max({change, dv.x, dv.y, dv.z});
-          top = std::max({top, v.x, v.y, v.z});
-          y[i] = v;
-        }
-        if (change <= 1e-12 * top) break;
+  parallel_for(static_cast<std::size_t>(R), 1, threads, [&](std::size_t batch, std::size_t, unsigned) {
+    const int bt = static_cast<int>(batch);
+    const auto& F = rows[static_cast<std::size_t>(bt)];
+    const auto& D = direct[static_cast<std::size_t>(bt)];
+    std::vector<dvec3> y = D;
+    dvec3 bg(mesh.background);
+    int sweep = 0;
+    for (; sweep < kMaxSweeps; ++sweep) {
+      double change = 0.0, top = 1e-300;
+      for (std::size_t i = 0; i < n; ++i) {
+        dvec3 g = bg * static_cast<double>(F[i].background);
+        for (const auto& [j, w] : F[i].entries) g += y[j] * static_cast<double>(w);
+        dvec3 v = D[i] + dvec3(mesh.reflectance(i)) * g;
+        dvec3 dv = glm::abs(v - y[i]);
+        change = std::max({change, dv.x, dv.y, dv.z});
+        top = std::max({top, v.x, v.y, v.z});
+        y[i] = v;
       }
-      iterations[static_cast<std::size_t>(bt)] = sweep + 1;
-      if (sweep == kMaxSweeps) converged[static_cast<std::size_t>(bt)] = 0;
-      auto& out = s.batch_radiosity[static_cast<std::size_t>(bt)];
-      for (std::size_t i = 0; i < n; ++i) out[i] = dvec3(mesh.emission(i)) + y[i];
+      if (change <= 1e-12 * top) break;
     }
-  };
-  {
-    std::vector<std::jthread> pool;
-    for (int t = 1; t < std::min(threads, R); ++t) pool.emplace_back(solve);
-    solve();
-  }
+    iterations[static_cast<std::size_t>(bt)] = sweep + 1;
+    if (sweep == kMaxSweeps) converged[static_cast<std::size_t>(bt)] = 0;
+    auto& out = s.batch_radiosity[static_cast<std::size_t>(bt)];
+    for (std::size_t i = 0; i < n; ++i) out[i] = dvec3(mesh.emission(i)) + y[i];
+  });
 
   auto mean_se = [&](auto value, std::vector<dvec3>& mean, std::vector<dvec3>& se) {
     mean.assign(n, dvec3(0.0));
@@ -299,7 +285,7 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
   mean_se([&](int bt, std::size_t i) { return direct[static_cast<std::size_t>(bt)][i]; }, s.direct, s.direct_se);
   s.iterations = *std::max_element(iterations.begin(), iterations.end());
   s.converged = std::all_of(converged.begin(), converged.end(), [](char c) { return c != 0; });
-  s.rays = cast.load();
+  s.rays = cast;
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return s;
 }
