@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "util/check.h"
 #include "util/error.h"
 
 namespace sirad::cluster {
@@ -231,7 +232,7 @@ std::vector<uint32_t> exchange_chunks(uint32_t exchange, double fraction, uint32
 }
 
 Aggregate::Aggregate(std::vector<uint32_t> starts, uint32_t nodes) : starts_(std::move(starts)) {
-  if (starts_.size() < 2) fail("aggregate: no chunks");
+  SIRAD_CHECK(starts_.size() >= 2, "aggregate: no chunks");
   for (uint32_t p = 0; p < nodes; ++p) add_node();
 }
 
@@ -253,7 +254,7 @@ bool Aggregate::holds_nothing(uint32_t node) const {
 }
 
 Aggregate::Part Aggregate::state(uint32_t node, uint32_t chunk) const {
-  if (chunk >= chunks()) fail("aggregate: no chunk {}", chunk);
+  SIRAD_CHECK(chunk < chunks(), "aggregate: no chunk {}", chunk);
   Part out = zeros(chunk);
   if (const Held* h = held(node, chunk)) {
     for (std::size_t i = 0; i < out.sum.size(); ++i) out.sum[i] = h->sum(i);
@@ -263,7 +264,7 @@ Aggregate::Part Aggregate::state(uint32_t node, uint32_t chunk) const {
 }
 
 void Aggregate::check(uint32_t node, uint32_t chunk, const std::vector<double>& sum, uint64_t count) const {
-  if (node >= nodes()) fail("aggregate: no node {}", node);
+  SIRAD_CHECK(node < nodes(), "aggregate: no node {}", node);
   if (chunk >= chunks()) fail("node {}: no chunk {} (the run has {})", node, chunk, chunks());
   if (sum.size() != 3 * static_cast<std::size_t>(chunk_size(chunk)))
     fail("node {}: chunk {} has {} values, expected {}", node, chunk, sum.size(), 3 * chunk_size(chunk));
@@ -290,7 +291,7 @@ void Aggregate::set(uint32_t node, uint32_t chunk, std::vector<double> sum, uint
 }
 
 void Aggregate::clear(uint32_t node) {
-  if (node >= nodes()) fail("aggregate: no node {}", node);
+  SIRAD_CHECK(node < nodes(), "aggregate: no node {}", node);
   state_[node] = {};  // back to zeros, its memory freed
 }
 
@@ -356,7 +357,7 @@ double Aggregate::spread_error(const std::vector<double>& weight) const {
 
 double Aggregate::combined_error(const std::vector<double>& error, const std::vector<uint64_t>& bundles,
                                  const std::vector<double>& weight) const {
-  if (error.size() != nodes() || bundles.size() != nodes()) fail("combined error: {} estimates for {} nodes", error.size(), nodes());
+  SIRAD_CHECK(error.size() == nodes() && bundles.size() == nodes(), "combined error: {} estimates for {} nodes", error.size(), nodes());
   double acc = 0, total_w = 0;
   for (uint32_t c = 0; c < chunks(); ++c) {
     double w = 0;

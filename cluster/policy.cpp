@@ -9,6 +9,7 @@
 
 #include <fmt/format.h>
 
+#include "util/check.h"
 #include "util/error.h"
 
 namespace sirad::cluster {
@@ -127,7 +128,7 @@ PolicySnapshot Policy::snapshot() const {
 }
 
 void Policy::restore(const PolicySnapshot& s) {
-  if (nodes() != 0) fail("restore: the run already has nodes");
+  SIRAD_CHECK(nodes() == 0, "restore: the run already has nodes");
   if (s.exchange_every == kExchangeAuto || !(s.fraction > 0 && s.fraction <= 1)) fail("restore: invalid exchange setting");
   std::map<uint32_t, std::vector<Range>> done;
   for (uint32_t n = 0; n < s.nodes.size(); ++n) {
@@ -309,7 +310,7 @@ Orders Policy::schedule() {
     for (uint32_t n = 0; n < nodes(); ++n)
       if (!nodes_[n].dead && nodes_[n].ready) ready_nodes.push_back(n);
     ExchangeSetting s = config_.choose ? config_.choose(ready_nodes) : ExchangeSetting{0, 1.0, "no chooser: states at the end"};
-    if (s.exchange_every == kExchangeAuto || !(s.fraction > 0 && s.fraction <= 1)) fail("auto exchange chose an invalid setting");
+    SIRAD_CHECK(s.exchange_every != kExchangeAuto && s.fraction > 0 && s.fraction <= 1, "auto exchange chose an invalid setting");
     config_.exchange_every = s.exchange_every;
     config_.fraction = s.fraction;
     exchange_why_ = s.why;

@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "proto/codec.h"
+#include "util/check.h"
 #include "util/error.h"
 
 namespace sirad::cluster {
@@ -138,7 +139,7 @@ std::optional<uint64_t> TilePlan::take_here() {
 
 void TilePlan::place_here(uint64_t t, const GatherPasses& tile) {
   const TileRect r = grid_.rect(t);
-  if (tile.combined.width != r.x1 - r.x0 || tile.combined.height != r.y1 - r.y0) fail("tile {}: passes of another size", t);
+  SIRAD_CHECK(tile.combined.width == r.x1 - r.x0 && tile.combined.height == r.y1 - r.y0, "tile {}: passes of another size", t);
   ledger_.done(kHere, {t, t + 1});
   unpack_tile(pack_tile(tile), r, passes_);
 }

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "util/check.h"
 #include "util/error.h"
 
 namespace sirad {
@@ -60,7 +61,7 @@ class ClEngine final : public BundleEngine {
   }
 
   void run(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) override {
-    if (radiance.size() != n_) fail("bundle engine: {} radiance values for {} patches", radiance.size(), n_);
+    SIRAD_CHECK(radiance.size() == n_, "bundle engine: {} radiance values for {} patches", radiance.size(), n_);
     try {
       // A row whose crossings, or a band whose patches, do not fit the scratch make the bundle
       // run again with room for the largest (the result does not depend on the room).

@@ -10,6 +10,7 @@
 
 #include "cluster/exchange.h"
 #include "cluster/result.h"
+#include "util/check.h"
 #include "util/error.h"
 
 namespace sirad::cluster {
@@ -205,7 +206,7 @@ TEST(ClusterAggregate, CombinedErrorWeighsTheCountsHeld) {
   EXPECT_NEAR(agg.combined_error({0.1, 0.05}, {100, 300}, weight), std::sqrt((v0 + 3 * v1) / 4), 1e-12);
   EXPECT_NEAR(agg.combined_error({0.1, 0.05}, {100, 300}, {1, 1, 0, 0}), std::sqrt(v0), 1e-12);
   EXPECT_EQ(agg.combined_error({0.1, -1.0}, {100, 300}, weight), -1.0);
-  EXPECT_THROW(agg.combined_error({0.1}, {100}, weight), Error);
+  EXPECT_THROW(agg.combined_error({0.1}, {100}, weight), InvariantError);  // the policy gives one per node
 }
 
 // States are held as single-precision means (12 bytes per patch and node): every sum comes back
@@ -269,6 +270,14 @@ TEST(ClusterAggregate, RefusesImpossibleStates) {
   EXPECT_EQ(parse_exchange_every("end"), 0u);
   EXPECT_EQ(parse_exchange_every("16"), 16u);
   for (const char* bad : {"0", "-3", "often", "16x", "", "99999999999"}) EXPECT_THROW(parse_exchange_every(bad), Error) << bad;
+}
+
+// The coordinator's bookkeeping: a node index only the coordinator itself hands out is an
+// invariant; a chunk a node's message names is input.
+TEST(Invariants, TheAggregateTellsItsOwnIndicesFromANodesMessage) {
+  Aggregate aggregate({0, 2, 4}, 2);
+  EXPECT_THROW(aggregate.clear(5), InvariantError);
+  EXPECT_THROW(aggregate.check(0, 7, std::vector<double>(6, 0.0), 1), Error);
 }
 
 }  // namespace
