@@ -26,6 +26,7 @@
 #include "scene/encoding.h"
 #include "solver/error_estimate.h"
 #include "util/error.h"
+#include "util/limits.h"
 #include "util/log.h"
 
 namespace sirad::cluster {
@@ -381,7 +382,7 @@ class Coordinator {
         switch (m->command) {
           case Command::pixels: pixels(p, std::get<wire::Pixels>(m->header), m->bulk, plan); break;
           case Command::heartbeat: break;
-          case Command::error: fail("node: {}", peer_text(std::get<wire::Error>(m->header).reason(), 300));
+          case Command::error: fail("node: {}", peer_text(std::get<wire::Error>(m->header).reason(), kPeerTextBytes));
           default: fail("unexpected {} during the image", proto::command_name(m->command));
         }
       } catch (const Error& e) {
@@ -448,7 +449,7 @@ class Coordinator {
         }
         case Command::heartbeat: return;
         case Command::error:
-          log(p.id, "node: " + peer_text(std::get<wire::Error>(m.header).reason(), 300));
+          log(p.id, "node: " + peer_text(std::get<wire::Error>(m.header).reason(), kPeerTextBytes));
           return;
         default: fail("unexpected {} while joining the image", proto::command_name(m.command));
       }
@@ -828,8 +829,8 @@ class Coordinator {
       case Command::report: report(p, std::get<wire::Report>(m.header), m.bulk); break;
       case Command::final_state: final_state(p, std::get<wire::Report>(m.header), m.bulk); break;
       case Command::error:
-        if (config_.strict) fail("{}: {}", p.name, peer_text(std::get<wire::Error>(m.header).reason(), 300));
-        log(id, "node: " + peer_text(std::get<wire::Error>(m.header).reason(), 300));
+        if (config_.strict) fail("{}: {}", p.name, peer_text(std::get<wire::Error>(m.header).reason(), kPeerTextBytes));
+        log(id, "node: " + peer_text(std::get<wire::Error>(m.header).reason(), kPeerTextBytes));
         break;
       case Command::heartbeat: break;
       default: fail("unexpected {}", proto::command_name(m.command));

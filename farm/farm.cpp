@@ -25,6 +25,7 @@
 #include "scene/scene.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
+#include "util/limits.h"
 #include "util/log.h"
 
 namespace sirad::cli {
@@ -38,7 +39,6 @@ void say(logging::Level level, const std::string& message, nlohmann::json fields
 }
 
 // The largest scene file a job's folder may hold (decode_scene's own bound is the same).
-constexpr std::size_t kMaxSceneBytes = std::size_t{1} << 31;
 // The widest preview image of a running job (its height follows the job's aspect).
 constexpr int kPreviewWidth = 480;
 

@@ -28,6 +28,7 @@
 #include "scene/mesh.h"
 #include "solver/solver.h"
 #include "util/error.h"
+#include "util/limits.h"
 #include "util/log.h"
 
 namespace sirad::node {
@@ -290,7 +291,7 @@ class Node {
       case Command::heartbeat: break;
       case Command::error: {
         const wire::Error& e = std::get<wire::Error>(m.header);
-        const std::string reason = cluster::peer_text(e.reason(), 300);
+        const std::string reason = cluster::peer_text(e.reason(), kPeerTextBytes);
         // It does not know this node in its run (declared dead, or the coordinator restarted or
         // resumed from a checkpoint): leave the run and join again. The protocol's way, not a fault.
         if (e.rejoin()) {
@@ -370,7 +371,6 @@ class Node {
     if (!pending_ || c.offset() != scene_bytes_.size()) return error("SCENE out of order");
     // No scene file sirad reads is larger (scene/scene.cpp); a claim beyond it is refused before
     // the node buffers it.
-    constexpr uint64_t kMaxSceneBytes = uint64_t{1} << 31;
     if (c.total_bytes() > kMaxSceneBytes) {
       pending_.reset();
       return error(fmt::format("SCENE of {} bytes (at most {})", c.total_bytes(), kMaxSceneBytes));
@@ -383,7 +383,7 @@ class Node {
       std::string why;
       cache_.put(received, &why);
       if (!why.empty())
-        warn(fmt::format("scene not kept in {}: {}", options_.scene_cache, cluster::peer_text(why, 300)), {{"event", "cache"}});
+        warn(fmt::format("scene not kept in {}: {}", options_.scene_cache, cluster::peer_text(why, kPeerTextBytes)), {{"event", "cache"}});
     }
   }
 

@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "util/limits.h"
+
 namespace sirad::node {
 
 class SceneCache {
@@ -22,7 +24,6 @@ class SceneCache {
   static constexpr std::size_t kMaxMemoryScenes = 4;
   static constexpr std::size_t kMaxMemoryBytes = std::size_t{1} << 30;
   static constexpr std::size_t kMaxDiskScenes = 16;
-  static constexpr std::size_t kMaxSceneBytes = std::size_t{1} << 31;  // node.cpp refuses larger SCENEs
 
   // `dir` empty: memory only. The folder is created when missing; throws sirad::Error when it
   // cannot be (or is not a folder).
