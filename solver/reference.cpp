@@ -84,6 +84,153 @@ constexpr uint32_t kBackground = 0xffffffffu;
 // Segments per patch and emitter that decide how the direct light from that emitter is estimated.
 constexpr int kPilot = 8;
 
+// What one worker reuses from patch to patch, and the rays it cast.
+struct Scratch {
+  std::vector<std::array<double, 2>> pts, dirs, ys;
+  std::vector<signed char> hidden;
+  std::vector<uint32_t> hits;
+  uint64_t cast = 0;
+};
+
+// The batches' systems, sampled per patch: its row of F and its direct light in each batch.
+class Sampler {
+ public:
+  Sampler(const PatchMesh& mesh, const ReferenceOptions& o, const std::vector<Light>& emitters, const RayScene& rays, double eps)
+      : mesh_(mesh), o_(o), emitters_(emitters), rays_(rays), eps_(eps), rays_b_(o.rays_per_patch / o.batches),
+        points_b_(o.light_samples / o.batches) {}
+
+  // Patch i's row and direct light in every batch, into rows[batch][i] and direct[batch][i].
+  void patch(std::size_t i, Scratch& s, std::vector<std::vector<Row>>& rows, std::vector<std::vector<dvec3>>& direct) const {
+    const auto& tri = mesh_.patches[i];
+    const Patch p{dvec3(mesh_.vertices[tri[0]]), dvec3(mesh_.vertices[tri[1]]), dvec3(mesh_.vertices[tri[2]]), dvec3(mesh_.normal[i]),
+                  dvec3(mesh_.reflectance(i))};
+    if (p.rho != dvec3(0.0)) pilot(i, p, s);
+    for (int bt = 0; bt < o_.batches; ++bt) {
+      indirect_row(i, bt, p, s, rows[static_cast<std::size_t>(bt)][i]);
+      if (p.rho == dvec3(0.0) || emitters_.empty()) continue;
+      direct[static_cast<std::size_t>(bt)][i] = p.rho * direct_light(i, bt, p, s);
+    }
+  }
+
+ private:
+  struct Patch {
+    dvec3 a, b, c, nx, rho;
+  };
+
+  // Per emitter: -1 the patch lies wholly behind it, 1 it mostly does not see it (fewer than
+  // half of kPilot segments from points on the patch to points on it are clear), 0 else.
+  // The pilot has its own random stream, so each batch's estimate stays unbiased whichever
+  // way it decides.
+  void pilot(std::size_t i, const Patch& p, Scratch& s) const {
+    const auto& [a, b, c, nx, rho] = p;
+    s.hidden.assign(emitters_.size(), 0);
+    for (std::size_t l = 0; l < emitters_.size(); ++l) {
+      const Light& L = emitters_[l];
+      if (glm::dot(L.normal, (a + b + c) / 3.0 - L.p[0]) <= 0.0 && glm::dot(L.normal, a - L.p[0]) <= 0.0 &&
+          glm::dot(L.normal, b - L.p[0]) <= 0.0 && glm::dot(L.normal, c - L.p[0]) <= 0.0) {
+        s.hidden[l] = -1;  // L shows the patch only its back
+        continue;
+      }
+      Rng prng(o_.seed, i, l, 3);
+      stratified_square(kPilot, prng, s.pts);
+      stratified_square(kPilot, prng, s.ys);
+      int clear = 0;
+      for (int k = 0; k < kPilot; ++k) {
+        dvec3 x = on_triangle(a, b, c, s.pts[static_cast<std::size_t>(k)][0], s.pts[static_cast<std::size_t>(k)][1]);
+        dvec3 y = L.at(s.ys[static_cast<std::size_t>(k)][0], s.ys[static_cast<std::size_t>(k)][1]);
+        if (glm::dot(nx, y - x) > 0.0 && glm::dot(L.normal, x - y) > 0.0 && !rays_.blocked(x + nx * eps_, y + L.normal * eps_))
+          ++clear;
+      }
+      s.cast += kPilot;
+      s.hidden[l] = 2 * clear < kPilot ? 1 : 0;
+    }
+  }
+
+  // Indirect: cosine-distributed rays from stratified points; the hit counts / n_b are the row
+  // of F (emitters included: they carry their reflected part Y here).
+  void indirect_row(std::size_t i, int bt, const Patch& p, Scratch& s, Row& row) const {
+    const auto& [a, b, c, nx, rho] = p;
+    Rng rng(o_.seed, i, static_cast<uint64_t>(bt), 1);
+    stratified_square(rays_b_, rng, s.pts);
+    stratified_square(rays_b_, rng, s.dirs);
+    s.hits.clear();
+    for (int k = 0; k < rays_b_; ++k) {
+      dvec3 x = on_triangle(a, b, c, s.pts[static_cast<std::size_t>(k)][0], s.pts[static_cast<std::size_t>(k)][1]);
+      dvec3 d = cosine_direction(nx, s.dirs[static_cast<std::size_t>(k)][0], s.dirs[static_cast<std::size_t>(k)][1]);
+      int64_t j = rays_.covered(static_cast<uint32_t>(i), x) ? -1 : rays_.seen(x + nx * eps_, d);
+      s.hits.push_back(j >= 0 ? static_cast<uint32_t>(j) : kBackground);
+    }
+    s.cast += static_cast<uint64_t>(rays_b_);
+    std::sort(s.hits.begin(), s.hits.end());
+    row.entries.clear();
+    const float w = 1.0f / static_cast<float>(rays_b_);
+    for (std::size_t k = 0; k < s.hits.size();) {
+      std::size_t e = k;
+      while (e < s.hits.size() && s.hits[e] == s.hits[k]) ++e;
+      float weight = w * static_cast<float>(e - k);
+      if (s.hits[k] == kBackground) row.background = weight;
+      else row.entries.emplace_back(s.hits[k], weight);
+      k = e;
+    }
+  }
+
+  // Direct, per emitting input triangle L (scene/emitters.h), y stratified on L, one per point
+  // and L. Where the patch sees L (the pilot): the exact unoccluded form factor minus the
+  // visibility control variate A_L K(x, y) (1 - V(x, y)); E[A_L K (1 - V)] = F_analytic -
+  // F_visible, so the estimate is unbiased, and exact wherever nothing occludes. Where it mostly
+  // does not (a box lamp's lit inside, seen from the ceiling 1 cm over its lid): A_L K V alone,
+  // also unbiased, and 0 where L is wholly hidden, where the control variate would subtract K's
+  // sharp peak near L from its integral. The irradiance over pi, before the reflectance.
+  dvec3 direct_light(std::size_t i, int bt, const Patch& p, Scratch& s) const {
+    const auto& [a, b, c, nx, rho] = p;
+    Rng lrng(o_.seed, i, static_cast<uint64_t>(bt), 2);
+    stratified_square(points_b_, lrng, s.pts);
+    dvec3 sum(0.0);
+    for (std::size_t l = 0; l < emitters_.size(); ++l) {
+      const Light& L = emitters_[l];
+      if (s.hidden[l] < 0) continue;
+      const bool plain = s.hidden[l] > 0;
+      stratified_square(points_b_, lrng, s.ys);
+      double f = 0.0;
+      for (int k = 0; k < points_b_; ++k) {
+        dvec3 x = on_triangle(a, b, c, s.pts[static_cast<std::size_t>(k)][0], s.pts[static_cast<std::size_t>(k)][1]);
+        const double ahead = glm::dot(L.normal, x - L.p[0]);
+        if (ahead <= 0.0) continue;  // behind L (or in its plane)
+        // A point within eps of L's plane and parallel to it receives nothing from L, though
+        // rounding may put it a hair in front: on L's back (its twin, the other side of one
+        // two-sided face) L faces away; facing the way L faces (a ceiling around a flush
+        // lamp) L lies in its tangent plane, where the contour formula sees L's corners a
+        // hair above or below that plane and gives anything from 0 to 1.
+        if (std::abs(glm::dot(L.normal, nx)) > 0.9999 && ahead <= eps_) continue;
+        if (rays_.covered(static_cast<uint32_t>(i), x)) continue;  // under a coincident face
+        double fa = polygon_form_factor(x, nx, L.p.data(), L.corners);
+        if (fa <= 0.0) continue;
+        dvec3 y = L.at(s.ys[static_cast<std::size_t>(k)][0], s.ys[static_cast<std::size_t>(k)][1]);
+        dvec3 r = y - x;
+        double r2 = glm::dot(r, r), cx = glm::dot(nx, r), cy = -glm::dot(L.normal, r);
+        if (!(cx > 0.0 && cy > 0.0 && r2 > 0.0)) {
+          if (!plain) f += fa;
+          continue;
+        }
+        ++s.cast;
+        const bool blocked = rays_.blocked(x + nx * eps_, y + L.normal * eps_);
+        const double k_y = L.area * cx * cy / (std::numbers::pi * r2 * r2);
+        if (plain) f += blocked ? 0.0 : k_y;
+        else f += blocked ? fa - k_y : fa;
+      }
+      sum += L.emission * (f / points_b_);
+    }
+    return sum;
+  }
+
+  const PatchMesh& mesh_;
+  const ReferenceOptions& o_;
+  const std::vector<Light>& emitters_;
+  const RayScene& rays_;
+  const double eps_;
+  const int rays_b_, points_b_;
+};
+
 }  // namespace
 
 ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions& o) {
@@ -96,7 +243,6 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
 
   const std::size_t n = mesh.size();
   const int R = o.batches;
-  const int rays_b = o.rays_per_patch / R, points_b = o.light_samples / R;
   const std::vector<Light> emitters = input_triangle_lights(mesh);
   // Ray origins leave the surface along its normal by eps: a few hundred float ulps of the
   // scene's coordinates, so a ray never re-hits its own patch or the back-to-back twin of a
@@ -110,123 +256,10 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
   std::vector<std::vector<Row>> rows(static_cast<std::size_t>(R), std::vector<Row>(n));
   std::vector<std::vector<dvec3>> direct(static_cast<std::size_t>(R), std::vector<dvec3>(n, dvec3(0.0)));
   const unsigned threads = worker_threads(o.threads);
-  // Each worker's scratch and the rays it cast.
-  struct Scratch {
-    std::vector<std::array<double, 2>> pts, dirs, ys;
-    std::vector<signed char> hidden;
-    std::vector<uint32_t> hits;
-    uint64_t cast = 0;
-  };
   std::vector<Scratch> scratch(threads);
-
+  const Sampler sampler(mesh, o, emitters, rays, eps);
   parallel_for(n, 16, threads, [&](std::size_t first, std::size_t last, unsigned worker) {
-    auto& [pts, dirs, ys, hidden, hits, local] = scratch[worker];
-    for (std::size_t i = first; i < last; ++i) {
-      const auto& tri = mesh.patches[i];
-      dvec3 a(mesh.vertices[tri[0]]), b(mesh.vertices[tri[1]]), c(mesh.vertices[tri[2]]);
-      dvec3 nx(mesh.normal[i]);
-      dvec3 rho(mesh.reflectance(i));
-      // Per emitter: -1 the patch lies wholly behind it, 1 it mostly does not see it (fewer than
-      // half of kPilot segments from points on the patch to points on it are clear), 0 else.
-      // The pilot has its own random stream, so each batch's estimate stays unbiased whichever
-      // way it decides.
-      if (rho != dvec3(0.0)) {
-        hidden.assign(emitters.size(), 0);
-        for (std::size_t l = 0; l < emitters.size(); ++l) {
-          const Light& L = emitters[l];
-          if (glm::dot(L.normal, (a + b + c) / 3.0 - L.p[0]) <= 0.0 && glm::dot(L.normal, a - L.p[0]) <= 0.0 &&
-              glm::dot(L.normal, b - L.p[0]) <= 0.0 && glm::dot(L.normal, c - L.p[0]) <= 0.0) {
-            hidden[l] = -1;  // L shows the patch only its back
-            continue;
-          }
-          Rng prng(o.seed, i, l, 3);
-          stratified_square(kPilot, prng, pts);
-          stratified_square(kPilot, prng, ys);
-          int clear = 0;
-          for (int k = 0; k < kPilot; ++k) {
-            dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
-            dvec3 y = L.at(ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
-            if (glm::dot(nx, y - x) > 0.0 && glm::dot(L.normal, x - y) > 0.0 && !rays.blocked(x + nx * eps, y + L.normal * eps))
-              ++clear;
-          }
-          local += kPilot;
-          hidden[l] = 2 * clear < kPilot ? 1 : 0;
-        }
-      }
-      for (int bt = 0; bt < R; ++bt) {
-        // Indirect: cosine-distributed rays from stratified points; the hit counts / n_b are
-        // the row of F (emitters included: they carry their reflected part Y here).
-        Rng rng(o.seed, i, static_cast<uint64_t>(bt), 1);
-        stratified_square(rays_b, rng, pts);
-        stratified_square(rays_b, rng, dirs);
-        hits.clear();
-        for (int k = 0; k < rays_b; ++k) {
-          dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
-          dvec3 d = cosine_direction(nx, dirs[static_cast<std::size_t>(k)][0], dirs[static_cast<std::size_t>(k)][1]);
-          int64_t j = rays.covered(static_cast<uint32_t>(i), x) ? -1 : rays.seen(x + nx * eps, d);
-          hits.push_back(j >= 0 ? static_cast<uint32_t>(j) : kBackground);
-        }
-        local += static_cast<uint64_t>(rays_b);
-        std::sort(hits.begin(), hits.end());
-        Row& row = rows[static_cast<std::size_t>(bt)][i];
-        row.entries.clear();
-        const float w = 1.0f / static_cast<float>(rays_b);
-        for (std::size_t k = 0; k < hits.size();) {
-          std::size_t e = k;
-          while (e < hits.size() && hits[e] == hits[k]) ++e;
-          float weight = w * static_cast<float>(e - k);
-          if (hits[k] == kBackground) row.background = weight;
-          else row.entries.emplace_back(hits[k], weight);
-          k = e;
-        }
-        // Direct, per emitting input triangle L (scene/emitters.h), y stratified on L, one per
-        // point and L. Where the patch sees L (the pilot above): the exact unoccluded form
-        // factor minus the visibility control variate A_L K(x, y) (1 - V(x, y)); E[A_L K (1 - V)]
-        // = F_analytic - F_visible, so the estimate is unbiased, and exact wherever nothing
-        // occludes. Where it mostly does not (a box lamp's lit inside, seen from the ceiling
-        // 1 cm over its lid): A_L K V alone, also unbiased, and 0 where L is wholly hidden,
-        // where the control variate would subtract K's sharp peak near L from its integral.
-        if (rho == dvec3(0.0) || emitters.empty()) continue;
-        Rng lrng(o.seed, i, static_cast<uint64_t>(bt), 2);
-        stratified_square(points_b, lrng, pts);
-        dvec3 sum(0.0);
-        for (std::size_t l = 0; l < emitters.size(); ++l) {
-          const Light& L = emitters[l];
-          if (hidden[l] < 0) continue;
-          const bool plain = hidden[l] > 0;
-          stratified_square(points_b, lrng, ys);
-          double f = 0.0;
-          for (int k = 0; k < points_b; ++k) {
-            dvec3 x = on_triangle(a, b, c, pts[static_cast<std::size_t>(k)][0], pts[static_cast<std::size_t>(k)][1]);
-            const double ahead = glm::dot(L.normal, x - L.p[0]);
-            if (ahead <= 0.0) continue;  // behind L (or in its plane)
-            // A point within eps of L's plane and parallel to it receives nothing from L, though
-            // rounding may put it a hair in front: on L's back (its twin, the other side of one
-            // two-sided face) L faces away; facing the way L faces (a ceiling around a flush
-            // lamp) L lies in its tangent plane, where the contour formula sees L's corners a
-            // hair above or below that plane and gives anything from 0 to 1.
-            if (std::abs(glm::dot(L.normal, nx)) > 0.9999 && ahead <= eps) continue;
-            if (rays.covered(static_cast<uint32_t>(i), x)) continue;  // under a coincident face
-            double fa = polygon_form_factor(x, nx, L.p.data(), L.corners);
-            if (fa <= 0.0) continue;
-            dvec3 y = L.at(ys[static_cast<std::size_t>(k)][0], ys[static_cast<std::size_t>(k)][1]);
-            dvec3 r = y - x;
-            double r2 = glm::dot(r, r), cx = glm::dot(nx, r), cy = -glm::dot(L.normal, r);
-            if (!(cx > 0.0 && cy > 0.0 && r2 > 0.0)) {
-              if (!plain) f += fa;
-              continue;
-            }
-            ++local;
-            const bool blocked = rays.blocked(x + nx * eps, y + L.normal * eps);
-            const double k_y = L.area * cx * cy / (std::numbers::pi * r2 * r2);
-            if (plain) f += blocked ? 0.0 : k_y;
-            else f += blocked ? fa - k_y : fa;
-          }
-          sum += L.emission * (f / points_b);
-        }
-        direct[static_cast<std::size_t>(bt)][i] = rho * sum;
-      }
-    }
+    for (std::size_t i = first; i < last; ++i) sampler.patch(i, scratch[worker], rows, direct);
   });
   uint64_t cast = 0;
   for (const Scratch& w : scratch) cast += w.cast;
