@@ -71,14 +71,10 @@ std::vector<std::vector<ContactSegment>> contact_segments(const Scene& scene, do
       usable[i] = 1;
     }
   }
-  const auto emits = [&](std::size_t i) {
-    const glm::vec3 e = scene.materials[tris[i].material].emission;
-    return e.x > 0.0f || e.y > 0.0f || e.z > 0.0f;
-  };
   // Face g meets face f's plane in front of it: the segment where it does, within f.
   const auto meet = [&](std::size_t f, std::size_t g) {
     std::vector<ContactSegment>& mine = out[f];
-    if (!usable[f] || !usable[g] || mine.size() >= kMaxContactsPerFace || tris[f].unlit || emits(f)) return;
+    if (!usable[f] || !usable[g] || mine.size() >= kMaxContactsPerFace || tris[f].unlit || scene.materials[tris[f].material].emits()) return;
     const glm::dvec3& n = normal[f];
     if (std::abs(glm::dot(n, normal[g])) > kMaxParallel) return;
     const glm::dvec3 o(tris[f].p[0]);

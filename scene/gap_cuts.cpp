@@ -22,8 +22,6 @@ using Poly = std::vector<glm::dvec3>;
 // A face is cut into at most about this many pieces, whatever the emitters over it.
 constexpr std::size_t kMaxPiecesPerFace = 1024;
 
-bool emits(const Material& m) { return m.emission.x > 0.0f || m.emission.y > 0.0f || m.emission.z > 0.0f; }
-
 double area_of(const Poly& p) {
   glm::dvec3 s(0.0);
   for (std::size_t i = 1; i + 1 < p.size(); ++i) s += glm::cross(p[i] - p[0], p[i + 1] - p[0]);
@@ -80,7 +78,7 @@ void cut_near_emitters(Scene& scene) {
   std::vector<std::size_t> lights;
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
     const Triangle& t = scene.triangles[i];
-    if (!emits(scene.materials[t.material])) continue;
+    if (!scene.materials[t.material].emits()) continue;
     if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) continue;
     lights.push_back(i);
   }
@@ -242,7 +240,7 @@ void cut_near_emitters(Scene& scene) {
     const Triangle& t = scene.triangles[i];
     const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
     const glm::dvec3 cr = glm::cross(b - a, c - a);
-    if (emits(scene.materials[t.material]) || !(glm::length(cr) > 0.0)) {
+    if (scene.materials[t.material].emits() || !(glm::length(cr) > 0.0)) {
       if (emitter_of[i] != kNone) emitting.emplace_back(out.size(), emitter_of[i]);
       out.push_back(t);
       continue;

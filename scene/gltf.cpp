@@ -114,7 +114,7 @@ class GltfReader {
       fail("{}: scene has no triangles", path_);
     }
     bool emits = false;
-    for (const Material& mat : scene_.materials) emits = emits || mat.emission.x > 0 || mat.emission.y > 0 || mat.emission.z > 0;
+    for (const Material& mat : scene_.materials) emits = emits || mat.emits();
     if (!emits) fail("{}: scene has no emitter (no material with an emissiveFactor above 0)", path_);
     return scene_;
   }

@@ -55,10 +55,7 @@ struct PatchMesh {
   glm::vec3 reflectance(std::size_t j) const { return materials[material[j]].reflectance; }
   glm::vec3 emission(std::size_t j) const { return materials[material[j]].emission; }
   // Whether patch j emits (any channel above zero): the patches error measures leave out.
-  bool emits(std::size_t j) const {
-    glm::vec3 e = emission(j);
-    return e.x > 0.0f || e.y > 0.0f || e.z > 0.0f;
-  }
+  bool emits(std::size_t j) const { return materials[material[j]].emits(); }
 };
 
 // Meshes `scene`. Throws sirad::Error on nonsensical options (negative, NaN, both set, a

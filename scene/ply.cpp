@@ -346,7 +346,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
   }
   if (scene.triangles.empty()) fail("{}: scene has no triangles ({} skipped as degenerate)", path, skipped);
   bool emits = false;
-  for (const Material& m : scene.materials) emits = emits || m.emission.x > 0 || m.emission.y > 0 || m.emission.z > 0;
+  for (const Material& m : scene.materials) emits = emits || m.emits();
   if (!emits) fail("{}: scene has no emitter (no face with emission_r/g/b above 0)", path);
   return scene;
 }

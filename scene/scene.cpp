@@ -434,10 +434,7 @@ Scene ObjParser::finish(const MtlSource& source, const ImportOptions& options) {
     if (skipped > 0) fail("{}: scene has no triangles ({} skipped as degenerate)", name_, skipped);
     fail("{}: scene has no triangles", name_);
   }
-  const bool emits =
-      std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) {
-        return m.emission.x > 0.0f || m.emission.y > 0.0f || m.emission.z > 0.0f;
-      });
+  const bool emits = std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) { return m.emits(); });
   if (!emits) fail("{}: scene has no emitter (no material with Ke > 0)", name_);
   return scene;
 }

@@ -22,6 +22,8 @@ struct Material {
   // `sirad_two_sided 1`, or --two-sided for all): load_scene gives each such triangle a
   // reversed twin at the same place (DESIGN.md section 1, "Two-sided surfaces").
   bool two_sided = false;
+  // Whether it emits: any channel of its emission above zero.
+  bool emits() const { return emission.x > 0.0f || emission.y > 0.0f || emission.z > 0.0f; }
 };
 
 // A pinhole camera. `vfov_deg` is the full vertical field of view; the image aspect comes from
