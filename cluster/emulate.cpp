@@ -27,9 +27,9 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-// Every emulated node holds a solver's state: about 1 KB per patch (measured: 64 nodes at
-// 10,006 patches take 630 MB more than one). Refused up front when that would not fit in half
-// of this machine's memory, instead of failing an allocation halfway.
+// Every emulated node holds a solver's state: about 1 KB per patch (its estimates, sums and batch
+// means; bench/RESULTS.md, "Scale"). Refused up front when that would not fit in half of this
+// machine's memory, instead of failing an allocation halfway.
 void check_memory(uint32_t nodes, std::size_t patches) {
   constexpr double kBytesPerPatch = 1100;
   const double need = static_cast<double>(nodes) * static_cast<double>(patches) * kBytesPerPatch;

@@ -24,10 +24,10 @@ namespace {
 constexpr uint64_t kJitter = 1, kLight = 2, kGather = 3, kMore = 4, kRecordGather = 5, kRecordMore = 6;
 
 // A gather ray that lands closer than this many patch sizes (sqrt(2 area)) of the patch it hits
-// traces the light reflected there one bounce further instead of taking the solution (the
-// Cornell box at 512 x 512 against Cycles, 256 spp: 4 takes the bias from 1.42 to 1.23 % and the
-// error from 1.83 to 1.73 % in the same time; 6 and 10 add more noise than they remove bias,
-// and every gather ray bouncing once more 1.18 % bias but 2.1 % error; bench/RESULTS.md).
+// traces the light reflected there one bounce further instead of taking the solution: near a
+// corner the solution's patch is as large as the distance, so its value is the wrong one there.
+// Further out a bounce adds more noise than it removes bias (bench/RESULTS.md, "Images against
+// Cycles, fifth session", has the sweep over this distance).
 constexpr double kNear = 4.0;
 
 // The irradiance cache (gather.h): records at the raster points of a grid kCacheSpacing pixels
@@ -39,10 +39,10 @@ constexpr double kNear = 4.0;
 //   - lie further apart than kCacheWard of the least distance any of their rays went (Ward's
 //     criterion, with the least distance as Tabellion and Lamorlette take it: the indirect light
 //     changes over the distance to what reflects it; the harmonic mean misses a small bright
-//     surface among rays that leave the scene, 15 % off in the test of a lit square).
+//     surface among rays that leave the scene).
 // Blocks of kCacheAny pixels or fewer are taken at any distance (near walls the criterion would
-// split blocks down to kCacheLeast for a light that changes there nearly linearly: at 512 x 512
-// twice the records and 1.5 times the time for the same error against Cycles), if their corners
+// split blocks down to kCacheLeast for a light that changes there nearly linearly, twice the
+// records for no gain in error), if their corners
 // of one surface see each other (a thin wall between two corners on one floor; else split, and
 // at kCacheLeast no cache). A sample takes
 // the corners of its pixel's block if its own point faces their way and lies in their planes
@@ -60,12 +60,10 @@ constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCache
 // corners are not one surface) take nothing from the cache: their samples gather for themselves,
 // as do all samples that take nothing from it, with kEdgeRays gather rays each. The corners of
 // the sample's own surface lie up to 2 pixels away, and towards a concave edge the indirect
-// light changes fast: it left the Cornell box's blocks' sides a bias of 1.2-1.7 % against Cycles
-// at 512 x 512 (1,024 spp; 3.4 % on the whole image at 128 x 128, where 2 pixels are four times
-// as far). One gather ray a sample there is noisier than the cache's pixels by far; 8 make them as
-// quiet (at 1,024 spp the whole image's error 0.97 -> 0.73 % for a third more time). Below
-// kEdgeSpp the noise they add outweighs the bias they remove (36 and 64 spp: 4.01 -> 4.42 % and
-// 3.27 -> 3.48 %), and edges' samples take the corners of their own surface (bench/RESULTS.md).
+// light changes fast, so taking them biases an edge's pixels. One gather ray a sample there is
+// noisier than the cache's pixels by far; kEdgeRays make them as quiet. Below kEdgeSpp the
+// noise they add outweighs the bias they remove, and edges' samples take the corners of their
+// own surface (bench/RESULTS.md, "Images against Cycles, sixth session", has the figures).
 constexpr int kEdgeSpp = 256, kEdgeRays = 8;
 
 }  // namespace
@@ -342,8 +340,8 @@ struct FinalGather::Impl {
     gathered(origin, n, gather, more, depth, by_area.data(), direct, indirect, cast);
   }
 
-  // The gather rays of a cache record: 4 per sample of a pixel, within [256, 16384] (measured on
-  // the Cornell box at 512 x 512: the noise of the direct light stays the larger, bench/RESULTS.md).
+  // The gather rays of a cache record: 4 per sample of a pixel, within [256, 16384], so that the
+  // records' noise stays below the direct light's (bench/RESULTS.md, the irradiance cache).
   int record_rays() const { return std::clamp(4 * options.spp, 256, 16384); }
 
   // The cache record of raster point (gx, gy) of the view `frame`, `key` its key in the store.

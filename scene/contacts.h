@@ -2,9 +2,9 @@
 // wall meets an outer wall in the middle of its face; a table leg stands on a floor. A patch of
 // the face that straddles such a foot has one radiosity for its open part and its covered part
 // (or for the two rooms either side of a zero-thickness wall): it sends the covered part's
-// share into the wall, or one room's light into the other (bench/RESULTS.md, "what is left of
-// the image's bias near the lamp": the wall under a lamp 3-5 % dark, a room seen through a door
-// 10 % bright at 20k patches). The mesher splits such patches along the foot (scene/mesh.h).
+// share into the wall, or one room's light into the other: the wall under a lamp comes out dark,
+// a room seen through a door bright (bench/RESULTS.md, "what is left of the image's bias near
+// the lamp"). The mesher splits such patches along the foot (scene/mesh.h).
 #pragma once
 #include <array>
 #include <cstdint>
