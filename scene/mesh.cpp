@@ -363,10 +363,8 @@ void check_radiometry(const Scene& scene) {
     fail("{}: the brightest emission is {:.3g}, below {:.0e}: scale the scene's emission up", scene.name, brightest, kMinBrightest);
 }
 
-}  // namespace
-
-PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
-  // Step 1: options and input.
+// The options and the scene checked; each triangle's subdivision_length (0: it stays one patch).
+std::vector<double> checked_lengths(const Scene& scene, const MeshOptions& options) {
   if (std::isnan(options.max_edge) || options.max_edge < 0.0)
     fail("{}: max_edge {} must be a positive length", scene.name, options.max_edge);
   if (options.target_patches > 0 && options.max_edge > 0.0)
@@ -375,7 +373,7 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
     fail("{}: target of {} patches exceeds 2^31 - 1", scene.name, options.target_patches);
   if (scene.triangles.empty()) fail("{}: scene has no triangles", scene.name);
   check_radiometry(scene);
-  std::vector<double> lengths;  // each triangle's subdivision_length
+  std::vector<double> lengths;
   lengths.reserve(scene.triangles.size());
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
     const Triangle& t = scene.triangles[i];
@@ -387,6 +385,40 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
            scene.materials.size());
     lengths.push_back(t.unlit || t.whole ? 0.0 : subdivision_length(t));  // a face no light reaches, or a strip along a gap, stays one patch
   }
+  return lengths;
+}
+
+// What the mesh carries of its scene (materials, objects, the gap's marks, background, camera),
+// its bounds, and each patch's emitted power checked.
+void finish_mesh(const Scene& scene, PatchMesh& mesh) {
+  if (std::any_of(scene.triangles.begin(), scene.triangles.end(), [](const Triangle& t) { return t.in_gap; })) {
+    mesh.in_gap.resize(mesh.size());
+    for (std::size_t j = 0; j < mesh.size(); ++j) mesh.in_gap[j] = scene.triangles[mesh.source_triangle[j]].in_gap ? 1 : 0;
+  }
+  mesh.materials = scene.materials;
+  mesh.objects = scene.objects;
+  mesh.triangle_object.resize(scene.triangles.size());
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i)
+    mesh.triangle_object[i] = scene.triangles[i].object < scene.objects.size() ? scene.triangles[i].object : 0;
+  if (mesh.objects.empty()) mesh.objects.push_back("(unnamed)");
+  mesh.background = scene.background;
+  mesh.camera = scene.camera;
+  bound(mesh, scene.name);
+  // Each patch's emitted power within the float pipeline's range too (see check_radiometry).
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const glm::vec3& e = mesh.materials[mesh.material[j]].emission;
+    const double power = static_cast<double>(std::max({e.x, e.y, e.z})) * mesh.area[j];
+    if (power > kMaxPower)
+      fail("{}: patch {} emits {:.3g} (emission x area), more than {:.0e}: scale the scene's units or its emission down",
+           scene.name, j, power, kMaxPower);
+  }
+}
+
+}  // namespace
+
+PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
+  // Step 1: options and input.
+  const std::vector<double> lengths = checked_lengths(scene, options);
 
   // Step 2: where faces meet, along which patches are split (none when each face stays one
   // patch: the meshes of the load-time helpers, which must match their faces one to one).
@@ -444,27 +476,7 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
     fail("{}: split where faces meet, the meshing makes {} patches, more than {}", scene.name, mesh.size(), limit);
 
   // Step 4: scene data, bounds and the content hash.
-  if (std::any_of(scene.triangles.begin(), scene.triangles.end(), [](const Triangle& t) { return t.in_gap; })) {
-    mesh.in_gap.resize(mesh.size());
-    for (std::size_t j = 0; j < mesh.size(); ++j) mesh.in_gap[j] = scene.triangles[mesh.source_triangle[j]].in_gap ? 1 : 0;
-  }
-  mesh.materials = scene.materials;
-  mesh.objects = scene.objects;
-  mesh.triangle_object.resize(scene.triangles.size());
-  for (std::size_t i = 0; i < scene.triangles.size(); ++i)
-    mesh.triangle_object[i] = scene.triangles[i].object < scene.objects.size() ? scene.triangles[i].object : 0;
-  if (mesh.objects.empty()) mesh.objects.push_back("(unnamed)");
-  mesh.background = scene.background;
-  mesh.camera = scene.camera;
-  bound(mesh, scene.name);
-  // Each patch's emitted power within the float pipeline's range too (see check_radiometry).
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    const glm::vec3& e = mesh.materials[mesh.material[j]].emission;
-    const double power = static_cast<double>(std::max({e.x, e.y, e.z})) * mesh.area[j];
-    if (power > kMaxPower)
-      fail("{}: patch {} emits {:.3g} (emission x area), more than {:.0e}: scale the scene's units or its emission down",
-           scene.name, j, power, kMaxPower);
-  }
+  finish_mesh(scene, mesh);
   mesh.hash = content_hash(mesh);
   return mesh;
 }
