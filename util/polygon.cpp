@@ -21,6 +21,69 @@ std::vector<std::array<uint32_t, 3>> fan(std::size_t n) {
   return out;
 }
 
+// Refuses a face that crosses itself, which has no inside to tile: two edges that are not
+// neighbours and cross properly (each one's ends strictly on both sides of the other).
+void refuse_crossing_edges(const std::vector<glm::dvec2>& p, double eps) {
+  const std::size_t n = p.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::dvec2 a = p[i], b = p[(i + 1) % n];
+    for (std::size_t j = i + 2; j < n; ++j) {
+      if (i == 0 && j == n - 1) continue;
+      const glm::dvec2 c = p[j], d = p[(j + 1) % n];
+      const double c1 = cross(b - a, c - a), c2 = cross(b - a, d - a), c3 = cross(d - c, a - c), c4 = cross(d - c, b - c);
+      if (((c1 > eps && c2 < -eps) || (c1 < -eps && c2 > eps)) && ((c3 > eps && c4 < -eps) || (c3 < -eps && c4 > eps)))
+        fail("a face of {} corners that crosses itself (edges {} and {}; it cannot be cut into triangles)", n, i + 1, j + 1);
+    }
+  }
+}
+
+// Ear clipping: a corner that turns left and whose triangle holds no other corner (corners at
+// the same place as one of its three, as a hole's bridge leaves, do not count) is cut off. The
+// search goes on from the last cut, so a face is cut in O(n^2) steps in all but contrived cases.
+// Counter-clockwise corners `p` in their plane; turns below eps are straight.
+std::vector<std::array<uint32_t, 3>> ear_clip(const std::vector<glm::dvec2>& p, double eps) {
+  const std::size_t n = p.size();
+  auto turn = [&](uint32_t a, uint32_t b, uint32_t c) { return cross(p[b] - p[a], p[c] - p[b]); };
+  auto inside = [&](glm::dvec2 q, uint32_t a, uint32_t b, uint32_t c) {
+    return cross(p[b] - p[a], q - p[a]) >= -eps && cross(p[c] - p[b], q - p[b]) >= -eps &&
+           cross(p[a] - p[c], q - p[c]) >= -eps;
+  };
+  std::vector<uint32_t> ring(n);
+  for (std::size_t i = 0; i < n; ++i) ring[i] = static_cast<uint32_t>(i);
+  std::vector<std::array<uint32_t, 3>> out;
+  std::size_t k = 0, tried = 0;
+  while (ring.size() > 3) {
+    const std::size_t m = ring.size();
+    if (tried == m) fail("a face of {} corners that crosses itself (it cannot be cut into triangles)", n);
+    k %= m;
+    const uint32_t a = ring[(k + m - 1) % m], b = ring[k], c = ring[(k + 1) % m];
+    const double t = turn(a, b, c);
+    bool ear = std::fabs(t) <= eps;  // straight (or a spike): b is dropped, no triangle
+    if (!ear && t > 0.0) {
+      ear = true;
+      for (uint32_t q : ring) {
+        if (q == a || q == b || q == c || p[q] == p[a] || p[q] == p[b] || p[q] == p[c]) continue;
+        if (inside(p[q], a, b, c)) {
+          ear = false;
+          break;
+        }
+      }
+      if (ear) out.push_back({a, b, c});
+    }
+    if (ear) {
+      ring.erase(ring.begin() + static_cast<std::ptrdiff_t>(k));
+      if (k > 0) --k;
+      tried = 0;
+    } else {
+      ++k;
+      ++tried;
+    }
+  }
+  if (std::fabs(turn(ring[0], ring[1], ring[2])) > eps) out.push_back({ring[0], ring[1], ring[2]});
+  if (out.empty()) return fan(n);
+  return out;
+}
+
 }  // namespace
 
 std::vector<std::array<uint32_t, 3>> triangulate_polygon(std::span<const glm::vec3> corners) {
@@ -73,60 +136,8 @@ std::vector<std::array<uint32_t, 3>> triangulate_polygon(std::span<const glm::ve
     convex = cross(p[i] - p[0], p[i + 1] - p[0]) > eps;
   if (convex) return fan(n);
   if (n > kMaxConcaveCorners) fail("a concave face of {} corners (at most {} are cut into triangles)", n, kMaxConcaveCorners);
-  // A face that crosses itself has no inside to tile: two edges that are not neighbours and
-  // cross properly (each one's ends strictly on both sides of the other) refuse it.
-  for (std::size_t i = 0; i < n; ++i) {
-    const glm::dvec2 a = p[i], b = p[(i + 1) % n];
-    for (std::size_t j = i + 2; j < n; ++j) {
-      if (i == 0 && j == n - 1) continue;
-      const glm::dvec2 c = p[j], d = p[(j + 1) % n];
-      const double c1 = cross(b - a, c - a), c2 = cross(b - a, d - a), c3 = cross(d - c, a - c), c4 = cross(d - c, b - c);
-      if (((c1 > eps && c2 < -eps) || (c1 < -eps && c2 > eps)) && ((c3 > eps && c4 < -eps) || (c3 < -eps && c4 > eps)))
-        fail("a face of {} corners that crosses itself (edges {} and {}; it cannot be cut into triangles)", n, i + 1, j + 1);
-    }
-  }
-
-  // Ear clipping: a corner that turns left and whose triangle holds no other corner (corners at
-  // the same place as one of its three, as a hole's bridge leaves, do not count) is cut off. The
-  // search goes on from the last cut, so a face is cut in O(n^2) steps in all but contrived cases.
-  auto inside = [&](glm::dvec2 q, uint32_t a, uint32_t b, uint32_t c) {
-    return cross(p[b] - p[a], q - p[a]) >= -eps && cross(p[c] - p[b], q - p[b]) >= -eps &&
-           cross(p[a] - p[c], q - p[c]) >= -eps;
-  };
-  std::vector<uint32_t> ring(n);
-  for (std::size_t i = 0; i < n; ++i) ring[i] = static_cast<uint32_t>(i);
-  std::vector<std::array<uint32_t, 3>> out;
-  std::size_t k = 0, tried = 0;
-  while (ring.size() > 3) {
-    const std::size_t m = ring.size();
-    if (tried == m) fail("a face of {} corners that crosses itself (it cannot be cut into triangles)", n);
-    k %= m;
-    const uint32_t a = ring[(k + m - 1) % m], b = ring[k], c = ring[(k + 1) % m];
-    const double t = turn(a, b, c);
-    bool ear = std::fabs(t) <= eps;  // straight (or a spike): b is dropped, no triangle
-    if (!ear && t > 0.0) {
-      ear = true;
-      for (uint32_t q : ring) {
-        if (q == a || q == b || q == c || p[q] == p[a] || p[q] == p[b] || p[q] == p[c]) continue;
-        if (inside(p[q], a, b, c)) {
-          ear = false;
-          break;
-        }
-      }
-      if (ear) out.push_back({a, b, c});
-    }
-    if (ear) {
-      ring.erase(ring.begin() + static_cast<std::ptrdiff_t>(k));
-      if (k > 0) --k;
-      tried = 0;
-    } else {
-      ++k;
-      ++tried;
-    }
-  }
-  if (std::fabs(turn(ring[0], ring[1], ring[2])) > eps) out.push_back({ring[0], ring[1], ring[2]});
-  if (out.empty()) return fan(n);
-  return out;
+  refuse_crossing_edges(p, eps);
+  return ear_clip(p, eps);
 }
 
 std::vector<std::size_t> convex_hull(std::span<const glm::dvec2> q, double flat) {
