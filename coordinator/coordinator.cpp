@@ -280,14 +280,7 @@ class Coordinator {
     const GatherOptions& o = config_.final_gather;
     TilePlan plan(o.width, o.height, kTileSide);
     image_tiles_ = plan.grid().count();
-    wire::Image h;
-    h.set_run_id(run_.run_id());
-    h.set_camera(camera_spec(*mesh_.camera));
-    h.set_width(static_cast<uint32_t>(o.width));
-    h.set_height(static_cast<uint32_t>(o.height));
-    h.set_spp(static_cast<uint32_t>(o.spp));
-    h.set_seed(o.seed);
-    h.set_tile(static_cast<uint32_t>(kTileSide));
+    const wire::Image h = image_header();
     std::vector<double> solution;
     solution.reserve(3 * mesh_.size());
     for (const glm::vec3& b : result.radiosity) solution.insert(solution.end(), {b.x, b.y, b.z});
@@ -304,11 +297,7 @@ class Coordinator {
         {{"event", "image"}, {"tiles", plan.grid().count()}, {"nodes", imaging_peers()}});
     image_solution_ = &result.radiosity;
     spot_rng_.seed(std::random_device{}());
-    // The spot checks' absolute floor: 1e-6 of the scene's largest radiance (an emission, the
-    // background).
-    spot_floor_ = std::max({mesh_.background.x, mesh_.background.y, mesh_.background.z});
-    for (const Material& m : mesh_.materials) spot_floor_ = std::max(spot_floor_, static_cast<double>(std::max({m.emission.x, m.emission.y, m.emission.z})));
-    spot_floor_ *= 1e-6;
+    spot_floor_ = spot_floor();
     bool rendering_here = false, waiting_for_lost = false;
     // A resumed run none of whose nodes is here to render: min_nodes to join before the first tile.
     bool waiting = imaging_peers() == 0 && config_.resume != nullptr;
@@ -355,39 +344,7 @@ class Coordinator {
         }
       }
       std::string key;
-      auto in = next(now, key, here_now);
-      if (!in) continue;
-      const std::string id = in->frames.front();
-      std::optional<Message> m = decoded(*in);
-      if (!m) continue;
-      if (m->command == Command::hello) {
-        join_image(id, key, in->address, *m);
-        continue;
-      }
-      auto it = peers_.find(id);
-      if (it != peers_.end() && it->second.image_joiner && !it->second.imaging && it->second.key == key &&
-          !policy_.node(it->second.index).dead) {
-        joiner(it->second, *m, h, bulk);
-        continue;
-      }
-      // Nodes dropped from the image, or done with it, have nothing to say to it.
-      if (it == peers_.end() || !it->second.imaging || it->second.key != key) {
-        if (m->command != Command::heartbeat)
-          log(id, fmt::format("{} during the image, from no node rendering it: ignored", proto::command_name(m->command)));
-        continue;
-      }
-      Peer& p = it->second;
-      p.last_seen = Clock::now();
-      try {
-        switch (m->command) {
-          case Command::pixels: pixels(p, std::get<wire::Pixels>(m->header), m->bulk, plan); break;
-          case Command::heartbeat: break;
-          case Command::error: fail("node: {}", peer_text(std::get<wire::Error>(m->header).reason(), kPeerTextBytes));
-          default: fail("unexpected {} during the image", proto::command_name(m->command));
-        }
-      } catch (const Error& e) {
-        drop_from_image(p, plan, e.what());
-      }
+      if (auto in = next(now, key, here_now)) image_message(*in, key, h, bulk, plan);
     }
     for (auto& [id, p] : peers_)
       if (p.imaging) end_image(p);
@@ -397,6 +354,61 @@ class Coordinator {
     result.image_seconds = seconds(Clock::now() - began);
     say(logging::Level::info, fmt::format("image done: {} tiles in {:.2f} s", result.image_tiles, result.image_seconds),
         {{"event", "image done"}, {"tiles", result.image_tiles}, {"seconds", result.image_seconds}, {"here", result.tiles_here}});
+  }
+
+  // The IMAGE message every node that renders tiles gets (with the solution as its bulk).
+  wire::Image image_header() const {
+    const GatherOptions& o = config_.final_gather;
+    wire::Image h;
+    h.set_run_id(run_.run_id());
+    h.set_camera(camera_spec(*mesh_.camera));
+    h.set_width(static_cast<uint32_t>(o.width));
+    h.set_height(static_cast<uint32_t>(o.height));
+    h.set_spp(static_cast<uint32_t>(o.spp));
+    h.set_seed(o.seed);
+    h.set_tile(static_cast<uint32_t>(kTileSide));
+    return h;
+  }
+
+  // The spot checks' absolute floor: 1e-6 of the scene's largest radiance (an emission, the
+  // background).
+  double spot_floor() const {
+    double top = std::max({mesh_.background.x, mesh_.background.y, mesh_.background.z});
+    for (const Material& m : mesh_.materials) top = std::max(top, static_cast<double>(std::max({m.emission.x, m.emission.y, m.emission.z})));
+    return top * 1e-6;
+  }
+
+  // A message during the image: a HELLO joins (join_image), a node joining the image goes on
+  // with it (joiner), a node rendering tiles sends PIXELS; what else comes is ignored, and what a
+  // rendering node sends that does not fit drops it from the image.
+  void image_message(const proto::Received& in, const std::string& key, const wire::Image& h, const std::vector<std::string>& bulk,
+                     TilePlan& plan) {
+    const std::string id = in.frames.front();
+    std::optional<Message> m = decoded(in);
+    if (!m) return;
+    if (m->command == Command::hello) return join_image(id, key, in.address, *m);
+    auto it = peers_.find(id);
+    if (it != peers_.end() && it->second.image_joiner && !it->second.imaging && it->second.key == key &&
+        !policy_.node(it->second.index).dead)
+      return joiner(it->second, *m, h, bulk);
+    // Nodes dropped from the image, or done with it, have nothing to say to it.
+    if (it == peers_.end() || !it->second.imaging || it->second.key != key) {
+      if (m->command != Command::heartbeat)
+        log(id, fmt::format("{} during the image, from no node rendering it: ignored", proto::command_name(m->command)));
+      return;
+    }
+    Peer& p = it->second;
+    p.last_seen = Clock::now();
+    try {
+      switch (m->command) {
+        case Command::pixels: pixels(p, std::get<wire::Pixels>(m->header), m->bulk, plan); break;
+        case Command::heartbeat: break;
+        case Command::error: fail("node: {}", peer_text(std::get<wire::Error>(m->header).reason(), kPeerTextBytes));
+        default: fail("unexpected {} during the image", proto::command_name(m->command));
+      }
+    } catch (const Error& e) {
+      drop_from_image(p, plan, e.what());
+    }
   }
 
   // A HELLO during the image: a new node (or one that lost its run) joins as during the bundles
