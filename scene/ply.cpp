@@ -128,24 +128,29 @@ class Body {
   int format_;  // 0 ascii, 1 little endian, 2 big endian
 };
 
-}  // namespace
+// The header: its elements and their properties, the format, sirad's comments (camera,
+// background), and where the body starts.
+struct Header {
+  std::vector<Element> elements;
+  int format = -1;  // 0 ascii, 1 little endian, 2 big endian
+  std::optional<Camera> camera;
+  glm::vec3 background{0.0f};
+  std::size_t body = 0;
+};
 
-Scene import_ply(const std::string& path, const ImportOptions& options, std::vector<glm::vec3>* radiosity) {
-  const std::string data = import::read_file(path, path);
+Header read_header(const std::string& path, const std::string& data) {
   const std::size_t file_size = data.size();
-
-  // The header.
   const std::size_t end = data.find("end_header");
   if (data.rfind("ply", 0) != 0 || end == std::string::npos || end > 1 << 20) fail("{}: not a PLY file (no ply ... end_header)", path);
-  std::size_t body = data.find('\n', end);
-  if (body == std::string::npos) fail("{}: nothing after end_header", path);
-  ++body;
+  Header out;
+  out.body = data.find('\n', end);
+  if (out.body == std::string::npos) fail("{}: nothing after end_header", path);
+  ++out.body;
   std::istringstream header(data.substr(0, end));
   std::string line;
-  int format = -1, line_no = 0;
-  std::vector<Element> elements;
-  std::optional<Camera> camera;
-  glm::vec3 background(0.0f);
+  int line_no = 0;
+  std::vector<Element>& elements = out.elements;
+  int& format = out.format;
   while (std::getline(header, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -161,13 +166,13 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
       std::string rest;
       std::getline(words, rest);
       try {
-        if (word == "camera") camera = parse_camera(rest);
+        if (word == "camera") out.camera = parse_camera(rest);
         if (word == "background") {
           std::istringstream rgb(rest);
           glm::vec3 bg;
           if (!(rgb >> bg.x >> bg.y >> bg.z) || !(bg.x >= 0 && bg.y >= 0 && bg.z >= 0 && bg.x < 3e38f && bg.y < 3e38f && bg.z < 3e38f))
             fail("three finite non-negative numbers expected");
-          background = bg;
+          out.background = bg;
         }
       } catch (const Error& e) {
         bad(fmt::format("sirad {}: {}", clean(word), e.what()));
@@ -209,18 +214,25 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
   }
   if (format < 0) fail("{}: no format line", path);
 
-  // The body, element by element; only vertex and face are kept.
-  Body reader(path, data, body, format);
-  std::vector<glm::vec3> positions, vertex_colour;
+  return out;
+}
+
+// A face as the body gives it: its vertices, and its properties (reflectance -1: none given).
+struct Face {
+  std::vector<uint32_t> v;
+  glm::vec3 reflectance{-1.0f}, emission{0.0f}, radiosity{0.0f};
+  bool in_gap = false;
+};
+
+// The body, element by element; only vertex and face are kept. `solution`: the faces must carry
+// radiosity_r/g/b.
+void read_body(const std::string& path, const std::string& data, const Header& h, bool solution,
+               std::vector<glm::vec3>& positions, std::vector<Face>& faces) {
+  Body reader(path, data, h.body, h.format);
+  std::vector<glm::vec3> vertex_colour;
   bool vertex_has_colour = false;
-  struct Face {
-    std::vector<uint32_t> v;
-    glm::vec3 reflectance{-1.0f}, emission{0.0f}, radiosity{0.0f};
-    bool in_gap = false;
-  };
-  std::vector<Face> faces;
   std::size_t triangles = 0;
-  for (const Element& e : elements) {
+  for (const Element& e : h.elements) {
     const bool is_vertex = e.name == "vertex", is_face = e.name == "face";
     const int x = e.find("x"), y = e.find("y"), z = e.find("z");
     const int r = e.find("red"), g = e.find("green"), b = e.find("blue");
@@ -236,7 +248,7 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
     }
     if (is_face) {
       if (idx < 0 || !e.properties[static_cast<std::size_t>(idx)].list) fail("{}: the face element has no vertex_indices list", path);
-      if (radiosity && (rad[0] < 0 || rad[1] < 0 || rad[2] < 0))
+      if (solution && (rad[0] < 0 || rad[1] < 0 || rad[2] < 0))
         fail("{}: not a solution: its faces have no radiosity_r/g/b (a PLY that sirad wrote has them)", path);
     }
     for (std::size_t i = 0; i < e.count; ++i) {
@@ -299,11 +311,22 @@ Scene import_ply(const std::string& path, const ImportOptions& options, std::vec
   }
   if (positions.empty() || faces.empty()) fail("{}: no vertex and face elements", path);
 
+}
+
+}  // namespace
+
+Scene import_ply(const std::string& path, const ImportOptions& options, std::vector<glm::vec3>* radiosity) {
+  const std::string data = import::read_file(path, path);
+  const Header header = read_header(path, data);
+  std::vector<glm::vec3> positions;
+  std::vector<Face> faces;
+  read_body(path, data, header, radiosity != nullptr, positions, faces);
+
   Scene scene;
   scene.name = path;
   scene.objects = {std::filesystem::path(path).stem().string()};
-  scene.camera = camera;
-  scene.background = background;
+  scene.camera = header.camera;
+  scene.background = header.background;
   std::map<std::tuple<float, float, float, float, float, float>, uint32_t> material_of;
   std::size_t skipped = 0;
   std::vector<glm::vec3> corners;
