@@ -62,19 +62,28 @@ Poly convex_outline(const std::vector<Triangle>& triangles, const std::vector<st
   return out;
 }
 
-}  // namespace
+// An emitter as the cuts see it: its outline, its normal, and the box within its reach.
+struct Emitter {
+  Poly p;  // a convex outline, counter-clockwise seen from the front
+  glm::dvec3 n;
+  double extent;  // the outline's longest extent
+  double reach;   // the largest gap cut for: kGapCut x its extent
+  glm::dvec3 lo, hi;
+};
 
-void cut_near_emitters(Scene& scene) {
-  struct Emitter {
-    Poly p;  // a convex outline, counter-clockwise seen from the front
-    glm::dvec3 n;
-    double extent;  // the outline's longest extent
-    double reach;   // the largest gap cut for: kGapCut x its extent
-    glm::dvec3 lo, hi;
-  };
-  // Emitting triangles grouped: one material, one plane (normals within 1e-4 rad, offsets within
-  // 1e-6 of their extent), joined where they share a corner. A group that fills its convex hull
-  // (a panel of two triangles, a disc cut into a fan) is one outline; else each triangle is one.
+constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+
+// The scene's emitters as outlines, and each emitting triangle's outline (kNone: none).
+struct Outlines {
+  std::vector<Emitter> emitters;
+  std::vector<std::size_t> emitter_of;
+};
+
+// Emitting triangles grouped: one material, one plane (normals within 1e-4 rad, offsets within
+// 1e-6 of their extent), joined where they share a corner. A group that fills its convex hull
+// (a panel of two triangles, a disc cut into a fan) is one outline; else each triangle is one.
+// None when the scene has more pairs of emitting and other triangles than kMaxGapCutPairs.
+Outlines emitter_outlines(const Scene& scene) {
   std::vector<std::size_t> lights;
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
     const Triangle& t = scene.triangles[i];
@@ -82,8 +91,8 @@ void cut_near_emitters(Scene& scene) {
     if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) continue;
     lights.push_back(i);
   }
-  if (lights.empty()) return;
-  if (static_cast<double>(lights.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return;
+  if (lights.empty()) return {};
+  if (static_cast<double>(lights.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return {};
   auto normal_of = [&](std::size_t i) {
     const Triangle& t = scene.triangles[i];
     return glm::normalize(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0])));
@@ -114,9 +123,10 @@ void cut_near_emitters(Scene& scene) {
   }
   std::map<std::size_t, std::vector<std::size_t>> groups;
   for (std::size_t a = 0; a < lights.size(); ++a) groups[find(a)].push_back(lights[a]);
-  std::vector<Emitter> emitters;
-  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
-  std::vector<std::size_t> emitter_of(scene.triangles.size(), kNone);  // emitting triangle -> its outline in `emitters`
+  Outlines out;
+  std::vector<Emitter>& emitters = out.emitters;
+  std::vector<std::size_t>& emitter_of = out.emitter_of;
+  emitter_of.assign(scene.triangles.size(), kNone);
   auto add = [&](Poly outline, const glm::dvec3& n) {
     Emitter em{std::move(outline), n, 0.0, 0.0, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
     for (const glm::dvec3& a : em.p)
@@ -141,22 +151,28 @@ void cut_near_emitters(Scene& scene) {
       emitter_of[i] = emitters.size() - 1;
     }
   }
-  if (emitters.empty()) return;
-  // Pairs looked at are bounded: a scene of very many emitters and faces is left uncut.
-  if (static_cast<double>(emitters.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return;
+  return out;
+}
 
-  std::vector<Poly> pending, pieces;
-  std::vector<uint8_t> pending_over, over;
-  Poly inside, part_in, part_out;
-  // Each piece's marks: kOver, it lies over an emitter's outline (Triangle::in_gap); kStrip, it
-  // lies in a strip along the outline (Triangle::whole).
-  constexpr uint8_t kOver = 1, kStrip = 2;
+// Each piece's marks: kOver, it lies over an emitter's outline (Triangle::in_gap); kStrip, it
+// lies in a strip along the outline (Triangle::whole).
+constexpr uint8_t kOver = 1, kStrip = 2;
+
+// One face's pieces as the cuts along emitters' outlines leave them, with their marks.
+class Cutter {
+ public:
+  // Starts a face: one piece, with `marks`.
+  void start(Poly piece, uint8_t marks) {
+    pieces.assign(1, std::move(piece));
+    over.assign(1, marks);
+  }
+
   // Cuts `pieces` (convex, on a plane parallel to em's, `gap` from it along em.n) along em's
   // outline moved outward by `offset` (inward where negative: each edge's line moved, so the
   // corners are mitred). The marks of the pieces inside become (marks | set) & ~clear; the others
   // keep theirs. A cut that would leave a part of less than `least` area is not made: the part
   // stays with the larger side. Returns whether any piece lies partly or wholly inside.
-  auto cut_pieces = [&](const Emitter& em, double gap, double offset, uint8_t set, uint8_t clear, double tiny, double least) {
+  bool cut(const Emitter& em, double gap, double offset, uint8_t set, uint8_t clear, double tiny, double least) {
     std::swap(pending, pieces);
     std::swap(pending_over, over);
     pieces.clear();
@@ -195,10 +211,11 @@ void cut_near_emitters(Scene& scene) {
       }
     }
     return overlaps;
-  };
+  }
+
   // Appends triangle t's pieces as triangles (with their marks) to `into`, or t itself where
   // rounding left a piece not quite convex.
-  auto emit_pieces = [&](const Triangle& t, const glm::dvec3& n, double tiny, std::vector<Triangle>& into) {
+  void emit(const Triangle& t, const glm::dvec3& n, double tiny, const std::string& scene_name, std::vector<Triangle>& into) const {
     if (pieces.size() == 1) {
       Triangle u = t;
       u.in_gap = (over[0] & kOver) != 0;
@@ -227,8 +244,27 @@ void cut_near_emitters(Scene& scene) {
         into.push_back(u);
       }
     }
-    if (into.size() > import::kMaxTriangles) fail("{}: more than {} triangles once cut along emitters", scene.name, import::kMaxTriangles);
-  };
+    if (into.size() > import::kMaxTriangles) fail("{}: more than {} triangles once cut along emitters", scene_name, import::kMaxTriangles);
+  }
+
+ std::size_t pieces_count() const { return pieces.size(); }
+
+ private:
+  std::vector<Poly> pending, pieces;
+  std::vector<uint8_t> pending_over, over;
+  Poly inside, part_in, part_out;
+};
+
+}  // namespace
+
+void cut_near_emitters(Scene& scene) {
+  const Outlines outlines = emitter_outlines(scene);
+  const std::vector<Emitter>& emitters = outlines.emitters;
+  const std::vector<std::size_t>& emitter_of = outlines.emitter_of;
+  if (emitters.empty()) return;
+  // Pairs looked at are bounded: a scene of very many emitters and faces is left uncut.
+  if (static_cast<double>(emitters.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return;
+  Cutter cutter;
 
   // Faces across a gap from an emitter: cut along its outline, and along the strips on both
   // sides of it where the gap is wide enough to matter.
@@ -248,25 +284,24 @@ void cut_near_emitters(Scene& scene) {
     const glm::dvec3 n = glm::normalize(cr);
     const glm::dvec3 lo = glm::min(a, glm::min(b, c)), hi = glm::max(a, glm::max(b, c));
     const double tiny = 1e-9 * glm::length(cr);
-    pieces.assign(1, Poly{a, b, c});
-    over.assign(1, static_cast<uint8_t>((t.in_gap ? kOver : 0) | (t.whole ? kStrip : 0)));
+    cutter.start(Poly{a, b, c}, static_cast<uint8_t>((t.in_gap ? kOver : 0) | (t.whole ? kStrip : 0)));
     for (std::size_t e = 0; e < emitters.size(); ++e) {
       const Emitter& em = emitters[e];
-      if (pieces.size() > kMaxPiecesPerFace) break;  // many emitters over one face: cut no further
+      if (cutter.pieces_count() > kMaxPiecesPerFace) break;  // many emitters over one face: cut no further
       if (glm::any(glm::lessThan(hi, em.lo)) || glm::any(glm::greaterThan(lo, em.hi))) continue;
       if (!(glm::dot(n, em.n) < -0.9999)) continue;  // facing the emitter, parallel
       const double gap = glm::dot(a - em.p[0], em.n);
       if (!(gap > 0.0 && gap <= em.reach)) continue;
-      if (!cut_pieces(em, gap, 0.0, kOver, 0, tiny, 0.0)) continue;  // not over the emitter
+      if (!cutter.cut(em, gap, 0.0, kOver, 0, tiny, 0.0)) continue;  // not over the emitter
       nearest[e] = std::min(nearest[e], gap);
       if (gap < kGapStripsFrom * em.extent) continue;
       const double least = kGapStripLeast * gap * em.extent;
-      cut_pieces(em, gap, kGapStripsOut.back() * gap, kStrip, 0, tiny, least);  // the strips' outer edge
-      for (std::size_t k = 0; k + 1 < kGapStripsOut.size(); ++k) cut_pieces(em, gap, kGapStripsOut[k] * gap, 0, 0, tiny, least);
-      for (std::size_t k = 0; k + 1 < kGapStripsIn.size(); ++k) cut_pieces(em, gap, -kGapStripsIn[k] * gap, 0, 0, tiny, least);
-      cut_pieces(em, gap, -kGapStripsIn.back() * gap, 0, kStrip, tiny, least);  // their inner edge
+      cutter.cut(em, gap, kGapStripsOut.back() * gap, kStrip, 0, tiny, least);  // the strips' outer edge
+      for (std::size_t k = 0; k + 1 < kGapStripsOut.size(); ++k) cutter.cut(em, gap, kGapStripsOut[k] * gap, 0, 0, tiny, least);
+      for (std::size_t k = 0; k + 1 < kGapStripsIn.size(); ++k) cutter.cut(em, gap, -kGapStripsIn[k] * gap, 0, 0, tiny, least);
+      cutter.cut(em, gap, -kGapStripsIn.back() * gap, 0, kStrip, tiny, least);  // their inner edge
     }
-    emit_pieces(t, n, tiny, out);
+    cutter.emit(t, n, tiny, scene.name, out);
   }
   // The emitters' own strips along their rims, where a face lies across a gap from them.
   std::vector<Triangle> done;
@@ -288,14 +323,13 @@ void cut_near_emitters(Scene& scene) {
     const glm::dvec3 a(t.p[0]), b(t.p[1]), c(t.p[2]);
     const glm::dvec3 cr = glm::cross(b - a, c - a);
     const double tiny = 1e-9 * glm::length(cr);
-    pieces.assign(1, Poly{a, b, c});
-    over.assign(1, kStrip);
+    cutter.start(Poly{a, b, c}, kStrip);
     // On the emitter's own plane (its outline is em.p, so the distance along its normal is ~0).
     const double on = glm::dot(a - em.p[0], em.n);
     const double least = kGapStripLeast * gap * em.extent;
-    for (std::size_t k = 0; k + 1 < kGapStripsEmitter.size(); ++k) cut_pieces(em, on, -kGapStripsEmitter[k] * gap, 0, 0, tiny, least);
-    cut_pieces(em, on, -kGapStripsEmitter.back() * gap, 0, kStrip, tiny, least);
-    emit_pieces(t, glm::normalize(cr), tiny, done);
+    for (std::size_t k = 0; k + 1 < kGapStripsEmitter.size(); ++k) cutter.cut(em, on, -kGapStripsEmitter[k] * gap, 0, 0, tiny, least);
+    cutter.cut(em, on, -kGapStripsEmitter.back() * gap, 0, kStrip, tiny, least);
+    cutter.emit(t, glm::normalize(cr), tiny, scene.name, done);
   }
   scene.triangles = std::move(done);
 }
