@@ -19,8 +19,8 @@ namespace sirad::cli {
 
 struct RenderArgs {
   std::string scene;
-  cli::RunFlags run;
-  cli::OutputFlags output;
+  RunFlags run;
+  OutputFlags output;
   std::string device;
   bool quiet = false;
   // The embedded cluster: N local nodes over ZeroMQ inproc (0: the plain single-node solver).
@@ -76,7 +76,7 @@ struct ReferenceArgs {
   std::optional<int64_t> patches;
   std::optional<double> max_edge;
   ReferenceOptions options;
-  cli::OutputFlags output;
+  OutputFlags output;
   bool quiet = false;
 };
 

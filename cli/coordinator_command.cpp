@@ -2,15 +2,14 @@
 #include "cli/coordinator_command.h"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
 
 #include <fmt/format.h>
 
+#include "cli/stop_signals.h"
 #include "cluster/checkpoint.h"
 #include "cluster/live_view.h"
 #include "cluster/policy.h"
@@ -22,12 +21,6 @@
 #include "util/error.h"
 
 namespace sirad::cli {
-namespace {
-
-std::atomic<bool> interrupted{false};
-void on_signal(int) { interrupted = true; }
-
-}  // namespace
 
 int coordinate_command(CoordinatorArgs a) {
   if (a.scene.empty()) fail("a scene is required (or --serve DIR)");
@@ -91,9 +84,7 @@ int coordinate_command(CoordinatorArgs a) {
   coordinator::Listener listener(context, a.listen, keys, allow, mesh.size(), a.insecure, a.endpoint_file,
                     fmt::format("{}: {} patches, {} bundles", a.scene, mesh.size(), rc.bundles));
   zmq::socket_t& router = listener.router;
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
-  rc.interrupt = &interrupted;
+  rc.interrupt = &stop_on_signals();
   auto start = std::chrono::steady_clock::now();
   cluster::RunResult result = cluster::coordinate(router, rc, mesh, &*listener.bytes);
   reporter.finish();

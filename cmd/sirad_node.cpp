@@ -2,13 +2,14 @@
 //   sirad-node --connect tcp://HOST:5555 [--device D] [--name NAME] [--check-config]
 //     [--curve-secret FILE --server-key FILE | --insecure]   (one of them over tcp://)
 //     [--scene-cache DIR] [--max-patches N]
-#include <csignal>
+#include <atomic>
 #include <cstdio>
 
 #include <CLI/CLI.hpp>
 #include <unistd.h>
 
 #include "cli/log_flags.h"
+#include "cli/stop_signals.h"
 #include "engine/opencl.h"
 #include "engine/version.h"
 #include "node/node.h"
@@ -16,11 +17,6 @@
 #include "proto/transport.h"
 #include "util/error.h"
 #include "util/log.h"
-
-namespace {
-std::atomic<bool> stop{false};
-void on_signal(int) { stop = true; }
-}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"sirad-node: runs bundles for a sirad coordinator"};
@@ -81,8 +77,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "sirad-node: error: %s\n", e.what());
     return 1;
   }
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
+  const std::atomic<bool>& stop = sirad::cli::stop_on_signals();
   if (insecure)
     sirad::logging::write(sirad::logging::Level::warn, "sirad-node", sirad::proto::insecure_warning(endpoint), {{"event", "insecure"}});
   options.name = name;

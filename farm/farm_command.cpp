@@ -2,13 +2,12 @@
 #include "farm/farm_command.h"
 
 #include <algorithm>
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 
 #include <fmt/format.h>
 
+#include "cli/stop_signals.h"
 #include "coordinator/listener.h"
 #include "farm/farm.h"
 #include "farm/farm_http.h"
@@ -17,12 +16,6 @@
 #include "util/log.h"
 
 namespace sirad::cli {
-namespace {
-
-std::atomic<bool> interrupted{false};
-void on_signal(int) { interrupted = true; }
-
-}  // namespace
 
 int serve_farm_command(const CoordinatorArgs& a, const std::string& dir, const std::string& http, const std::string& token_file) {
   const auto [keys, allow] = coordinator::server_keys(a.listen, a.curve_secret, a.allow_file, a.insecure);
@@ -48,13 +41,11 @@ int serve_farm_command(const CoordinatorArgs& a, const std::string& dir, const s
   write_file_atomic((std::filesystem::path(dir) / "http").string(), url);
   logging::write(logging::Level::info, "sirad-coordinator", fmt::format("farm {}: web page and API on {}", dir, url),
                  {{"event", "http"}, {"url", url}});
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
   FarmOptions options;
   options.process.heartbeat_ms = static_cast<uint32_t>(a.heartbeat_ms);
   options.process.liveness = static_cast<uint32_t>(a.liveness);
   options.process.checkpoint_every_s = a.checkpoint_every;
-  options.stop = &interrupted;
+  options.stop = &stop_on_signals();
   options.peer_bytes = &*listener.bytes;
   serve_farm(context, listener.router, store, options, view);
   server.stop();

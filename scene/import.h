@@ -12,7 +12,6 @@
 
 namespace sirad::import {
 
-inline constexpr std::uintmax_t kMaxFileBytes = kMaxInputFileBytes;
 inline constexpr std::size_t kMaxVertices = std::size_t{1} << 26;
 // A scene's triangles, the twins of two-sided materials and the pieces cut along emitters
 // included: 52 bytes each, 870 MB at the bound, whatever a small file names (a glTF mesh used by

@@ -37,7 +37,6 @@ namespace fs = std::filesystem;
 
 // Limits against hostile input. Real radiosity scenes are orders of magnitude smaller.
 using import::kDefaultReflectance;
-using import::kMaxFileBytes;
 using import::kMaxTriangles;
 using import::kMaxVertices;
 using import::printable;
@@ -186,7 +185,7 @@ class ObjParser {
   explicit ObjParser(std::string name) : name_(std::move(name)) {}
 
   void parse(std::string_view text) {
-    if (text.size() > kMaxFileBytes) fail("{}: file is larger than 2 GiB", name_);
+    if (text.size() > kMaxInputFileBytes) fail("{}: file is larger than 2 GiB", name_);
     std::size_t pos = 0;
     while (pos < text.size()) {
       std::size_t end = text.find_first_of("\r\n", pos);
@@ -465,7 +464,7 @@ Scene import_obj(const std::string& name, std::string_view text, const MtlSource
 namespace import {
 
 std::string read_file(const std::filesystem::path& path, const std::string& label) {
-  return read_regular_file(path.string(), label, kMaxFileBytes, "file is larger than 2 GiB");
+  return read_regular_file(path.string(), label, kMaxInputFileBytes, "file is larger than 2 GiB");
 }
 
 std::string printable(std::string_view s) {
