@@ -15,7 +15,9 @@
 #include <fmt/format.h>
 
 #include "cluster/checkpoint.h"
+#include "cluster/deadlines.h"
 #include "cluster/exchange_choice.h"
+#include "cluster/image_phase.h"
 #include "cluster/rate_limit.h"
 #include "cluster/status.h"
 #include "cluster/tiles.h"
@@ -44,22 +46,9 @@ class ImageFailed : public Error {
   using Error::Error;
 };
 
-// What a grant given before a node's first report may take beyond its bound: PoCL compiles a
-// kernel for its work-group size at its first use (3 s for a whole 20-bundle render here, with
-// an empty POCL_CACHE_DIR and an idle machine; several times that under load).
-constexpr double kFirstGrantS = 30;
-// The least a grant's due time allows beyond its bound (Coordinator::grant_slack).
-constexpr double kGrantSlackS = 10;
-// The image phase's tile side in pixels (PROTOCOL.md section 3.4): 1,024 pixels a tile, so a
-// 512 x 512 image has 256 tiles to spread and a tile's PIXELS is 36 KiB.
-constexpr int kTileSide = 32;
 // Pixels of each tile a node sends that the coordinator renders too and compares
 // (Coordinator::spot_check): 2 of 1,024, so the checks cost a node's image 0.2 %.
 constexpr int kSpotChecks = 2;
-// Once a node has measured how long its first grant took (compilation included), or its time per
-// tile, the first grants, or tiles, of the nodes that have sent none are due this many times
-// that (Coordinator::tighten_first_grants, tighten_first_tiles).
-constexpr double kUnequalFirst = 16;
 
 // Joins (HELLOs that make a new node entry) per CURVE key or address in any 10 s: enough for a
 // farm of 256 nodes behind one address (a NAT, one host) to start at once.
@@ -69,6 +58,14 @@ constexpr double kJoinWindowS = 10;
 // Messages read one after another before the socket counts as read up to date even though more
 // are waiting (a peer that floods would otherwise keep every silence from being judged).
 constexpr uint32_t kReadUpToDateAfter = 4096;
+
+// The rules of grants' due times (cluster/deadlines.h): the slack is the liveness window
+// (heartbeat_ms x liveness), and at least the rules' default.
+DeadlineRules deadline_rules(const RunConfig& c) {
+  DeadlineRules r;
+  r.slack_s = std::max(r.slack_s, c.heartbeat_ms * 1e-3 * c.liveness);
+  return r;
+}
 
 // Refused because the coordinator does not know the sender in its run (never joined, declared
 // dead, or this coordinator was restarted): the ERROR asks it to say HELLO again.
@@ -91,18 +88,12 @@ struct Peer {
   Clock::time_point first_grant_at{};  // when its first grant went out (none yet: the epoch)
   Clock::time_point last_seen = Clock::now(), last_sent = Clock::now(), ready_at{};
   proto::ShapedLink down;     // the coordinator -> node link (shaped by the profile)
-  // Its outstanding grants, oldest first, and when each is due (Policy::grant_time_bound after
-  // the one before it, plus grant_slack): a grant past due declares the node dead.
-  std::vector<std::pair<uint64_t, Clock::time_point>> due;
   bool unreachable = false;   // a send to it failed (gone, or its queue stayed full): dead
   std::string dead_why;       // why it was declared dead (the status's "why" of a dead node)
   bool from_checkpoint = false;  // a node of the run before this process resumed it
-  bool imaging = false;         // renders tiles of the run's image (section 3.4)
   bool image_joiner = false;    // joined during the image: its READY gets a STOP, its FINAL the IMAGE
   bool image_stop_sent = false; // that STOP went out
   bool asked_rejoin = false;    // after its FINAL, asked to rejoin: the run had bundles again
-  uint64_t tiles = 0;           // tiles of the image it sent
-  double tile_s = 0;            // its longest time per tile so far
 };
 
 class Coordinator {
@@ -110,7 +101,7 @@ class Coordinator {
   Coordinator(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh, proto::PeerBytes* peer_bytes)
       : router_(router), peer_bytes_(peer_bytes), config_(config), mesh_(mesh),
         policy_(make_policy(config, mesh, config.min_nodes, [this](const std::vector<uint32_t>& ready) { return choose(ready); })),
-        scene_bytes_(encode_scene(config.scene)) {
+        scene_bytes_(encode_scene(config.scene)), grants_(deadline_rules(config)) {
     // A reconnecting node keeps its routing id; the new connection takes it over.
     router_.set(zmq::sockopt::router_handover, 1);
     proto::harden(router_, proto::max_frame_bytes(mesh.size()));
@@ -181,8 +172,7 @@ class Coordinator {
       try {
         image_phase(result);
       } catch (const ImageFailed& e) {  // the solution stays good: the caller keeps it
-        for (auto& [id, p] : peers_)
-          if (p.imaging) end_image(p);
+        end_image();
         result.image.reset();
         result.image_error = e.what();
         say(logging::Level::error, fmt::format("image failed: {}", e.what()), {{"event", "image failed"}, {"error", e.what()}});
@@ -194,7 +184,7 @@ class Coordinator {
     if (config_.status) config_.status(snapshot(true));
     for (const Peer* p : all_peers()) {
       const NodeState& n = policy_.node(p->index);
-      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why, p->from_checkpoint, p->tiles});
+      result.nodes.push_back({p->name, n.bundles, n.exchanges, p->busy_s, p->idle_s, n.dead, n.why, p->from_checkpoint, tiles_by(*p)});
       for (const Range& r : policy_.ledger().done_by(p->index)) result.ledger.push_back({p->index, p->name, r});
     }
     result.exchange_bytes_in = record_.bytes_in;
@@ -264,75 +254,68 @@ class Coordinator {
   }
 
   bool imaging() const { return config_.final_gather.spp > 0 && mesh_.camera.has_value(); }
+  // Whether `p` renders tiles of the run's image now.
+  bool rendering(const Peer& p) const { return image_ && image_->rendering(p.index); }
 
-  // The image phase (PROTOCOL.md section 3.4): the final gather of the solution, in tiles
-  // (cluster/tiles.h) granted to the nodes that sent their FINAL, two grants each at a time; a
-  // node that falls silent, misses a deadline or sends what does not fit is dropped and its
-  // tiles are granted again. Nodes join during the image as during the bundles (image_joiner):
-  // HELLO, WELCOME, READY, then at once a STOP that says the image follows, their FINAL (no
-  // bundles; the solution was final before the image began: not taken) and the IMAGE. A
-  // resumed run none of whose nodes is here (its checkpoint was written during its image)
-  // waits for --min-nodes of them to join before its first tile, as a run waits before its
-  // first grant. With no node left otherwise, the coordinator renders the rest itself, reading
-  // messages between its tiles: a node that joins takes tiles from the next one.
+  // The image phase (PROTOCOL.md section 3.4): the final gather of the solution, in tiles that
+  // the ImagePhase (cluster/image_phase.h) grants to the nodes that sent their FINAL, two grants
+  // each at a time; a node that falls silent, misses a deadline or sends what does not fit is
+  // dropped and its tiles are granted again. Nodes join during the image as during the bundles
+  // (image_joiner): HELLO, WELCOME, READY, then at once a STOP that says the image follows,
+  // their FINAL (no bundles; the solution was final before the image began: not taken) and the
+  // IMAGE. A resumed run none of whose nodes is here (its checkpoint was written during its
+  // image) waits for --min-nodes of them to join before its first tile, as a run waits before
+  // its first grant. With no node left otherwise, the coordinator renders the rest itself,
+  // reading messages between its tiles: a node that joins takes tiles from the next one.
   void image_phase(RunResult& result) {
     const auto began = Clock::now();
     const GatherOptions& o = config_.final_gather;
-    TilePlan plan(o.width, o.height, kTileSide);
-    image_tiles_ = plan.grid().count();
+    // A resumed run none of whose nodes is here to render: min_nodes to join before the first tile.
+    const bool none_here = std::none_of(peers_.begin(), peers_.end(), [&](const auto& e) { return may_render(e.second); });
+    const bool wait = none_here && config_.resume != nullptr;
+    image_ = std::make_unique<ImagePhase>(o.width, o.height, o.spp, deadline_rules(config_), wait ? config_.min_nodes : 0);
     const wire::Image h = image_header();
     std::vector<double> solution;
     solution.reserve(3 * mesh_.size());
     for (const glm::vec3& b : result.radiosity) solution.insert(solution.end(), {b.x, b.y, b.z});
     const std::vector<std::string> bulk{proto::pack(solution)};
-    for (auto& [id, p] : peers_) {
-      const NodeState& n = policy_.node(p.index);
-      if (n.dead || n.quarantined || !n.final_in) continue;
-      p.imaging = true;
-      p.due.clear();
-      send(p, {Command::image, h, bulk});
-    }
+    for (auto& [id, p] : peers_)
+      if (may_render(p)) start_image(p, h, bulk);
     say(logging::Level::info, fmt::format("image: {}x{}, {} spp, {} tiles of {} px for {} nodes", o.width, o.height, o.spp,
-                                          plan.grid().count(), kTileSide, imaging_peers()),
-        {{"event", "image"}, {"tiles", plan.grid().count()}, {"nodes", imaging_peers()}});
+                                          image_->tiles(), ImagePhase::kTileSide, image_->rendering_nodes()),
+        {{"event", "image"}, {"tiles", image_->tiles()}, {"nodes", image_->rendering_nodes()}});
     image_solution_ = &result.radiosity;
     spot_rng_.seed(std::random_device{}());
     spot_floor_ = spot_floor();
     bool rendering_here = false, waiting_for_lost = false;
-    // A resumed run none of whose nodes is here to render: min_nodes to join before the first tile.
-    bool waiting = imaging_peers() == 0 && config_.resume != nullptr;
-    if (waiting)
+    if (wait)
       say(logging::Level::info, fmt::format("image: waiting for {} node{} to join", config_.min_nodes, config_.min_nodes == 1 ? "" : "s"),
           {{"event", "image waits"}, {"nodes", config_.min_nodes}});
     auto last_status = Clock::now();
-    while (!plan.finished()) {
+    while (!image_->finished()) {
       auto now = Clock::now();
-      image_done_ = plan.done_count();
       if (past_time_limit(now))
         throw ImageFailed(fmt::format("the run's time limit of {} s was reached with {} of {} tiles done", config_.timeout_s,
-                                      plan.done_count(), plan.grid().count()));
+                                      image_->tiles_done(), image_->tiles()));
       ends_now(now);
       if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
         last_status = now;
         config_.status(snapshot());
       }
-      image_keep_alive(now, plan);
-      for (auto& [id, p] : peers_)
-        if (p.imaging)
-          for (const TileGrant& g : plan.top_up(p.index)) grant_tiles(p, g, plan);
-      if (waiting && imaging_peers() >= config_.min_nodes) waiting = false;
-      const bool here_now = imaging_peers() == 0 && !waiting;
+      image_keep_alive(now);
+      for (ImagePhase::Order& g : image_->next_work(clock(now))) grant_tiles(peer(g.node), g.grant);
+      const bool here_now = image_->render_here();
       if (here_now) {
         if (!rendering_here) {
           rendering_here = true;
           say(logging::Level::warn, fmt::format("image: no node left; the coordinator renders the {} tiles left",
-                                                plan.grid().count() - plan.done_count()),
+                                                image_->tiles() - image_->tiles_done()),
               {{"event", "image"}, {"here", true}});
         }
-        if (std::optional<uint64_t> t = plan.take_here()) {
-          const TileRect r = plan.grid().rect(*t);
+        if (std::optional<uint64_t> t = image_->take_here()) {
+          const TileRect r = image_->grid().rect(*t);
           try {
-            plan.place_here(*t, here().render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
+            image_->place_here(*t, here().render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
           } catch (const Error& e) {
             throw ImageFailed(fmt::format("tile {} rendered here: {}", *t, e.what()));
           }
@@ -344,16 +327,27 @@ class Coordinator {
         }
       }
       std::string key;
-      if (auto in = next(now, key, here_now)) image_message(*in, key, h, bulk, plan);
+      if (auto in = next(now, key, here_now)) image_message(*in, key, h, bulk);
     }
-    for (auto& [id, p] : peers_)
-      if (p.imaging) end_image(p);
-    image_done_ = plan.done_count();
-    result.image = std::move(plan.passes());
-    result.image_tiles = plan.grid().count();
+    end_image();
+    result.image = std::move(image_->passes());
+    result.image_tiles = image_->tiles();
     result.image_seconds = seconds(Clock::now() - began);
     say(logging::Level::info, fmt::format("image done: {} tiles in {:.2f} s", result.image_tiles, result.image_seconds),
         {{"event", "image done"}, {"tiles", result.image_tiles}, {"seconds", result.image_seconds}, {"here", result.tiles_here}});
+  }
+
+  // Whether `p` renders the image when it begins: its FINAL is in, and it is live.
+  bool may_render(const Peer& p) const {
+    const NodeState& n = policy_.node(p.index);
+    return !n.dead && !n.quarantined && n.final_in;
+  }
+
+  // `p` renders tiles from now: the IMAGE, with the solution as its bulk.
+  void start_image(Peer& p, const wire::Image& h, const std::vector<std::string>& bulk) {
+    grants_.clear(p.index);
+    image_->join(p.index);
+    send(p, {Command::image, h, bulk});
   }
 
   // The IMAGE message every node that renders tiles gets (with the solution as its bulk).
@@ -366,7 +360,7 @@ class Coordinator {
     h.set_height(static_cast<uint32_t>(o.height));
     h.set_spp(static_cast<uint32_t>(o.spp));
     h.set_seed(o.seed);
-    h.set_tile(static_cast<uint32_t>(kTileSide));
+    h.set_tile(static_cast<uint32_t>(ImagePhase::kTileSide));
     return h;
   }
 
@@ -381,18 +375,17 @@ class Coordinator {
   // A message during the image: a HELLO joins (join_image), a node joining the image goes on
   // with it (joiner), a node rendering tiles sends PIXELS; what else comes is ignored, and what a
   // rendering node sends that does not fit drops it from the image.
-  void image_message(const proto::Received& in, const std::string& key, const wire::Image& h, const std::vector<std::string>& bulk,
-                     TilePlan& plan) {
+  void image_message(const proto::Received& in, const std::string& key, const wire::Image& h, const std::vector<std::string>& bulk) {
     const std::string id = in.frames.front();
     std::optional<Message> m = decoded(in);
     if (!m) return;
     if (m->command == Command::hello) return join_image(id, key, in.address, *m);
     auto it = peers_.find(id);
-    if (it != peers_.end() && it->second.image_joiner && !it->second.imaging && it->second.key == key &&
+    if (it != peers_.end() && it->second.image_joiner && !rendering(it->second) && it->second.key == key &&
         !policy_.node(it->second.index).dead)
       return joiner(it->second, *m, h, bulk);
     // Nodes dropped from the image, or done with it, have nothing to say to it.
-    if (it == peers_.end() || !it->second.imaging || it->second.key != key) {
+    if (it == peers_.end() || !rendering(it->second) || it->second.key != key) {
       if (m->command != Command::heartbeat)
         log(id, fmt::format("{} during the image, from no node rendering it: ignored", proto::command_name(m->command)));
       return;
@@ -401,13 +394,13 @@ class Coordinator {
     p.last_seen = Clock::now();
     try {
       switch (m->command) {
-        case Command::pixels: pixels(p, std::get<wire::Pixels>(m->header), m->bulk, plan); break;
+        case Command::pixels: pixels(p, std::get<wire::Pixels>(m->header), m->bulk); break;
         case Command::heartbeat: break;
         case Command::error: fail("node: {}", peer_text(std::get<wire::Error>(m->header).reason(), kPeerTextBytes));
         default: fail("unexpected {} during the image", proto::command_name(m->command));
       }
     } catch (const Error& e) {
-      drop_from_image(p, plan, e.what());
+      drop_from_image(p, e.what());
     }
   }
 
@@ -453,9 +446,7 @@ class Coordinator {
         case Command::final_state: {
           if (!p.image_stop_sent) fail("FINAL without STOP");
           if (std::get<wire::Report>(m.header).run_id() != run_.run_id()) fail("FINAL for another run");
-          p.imaging = true;
-          p.due.clear();
-          send(p, {Command::image, h, bulk});
+          start_image(p, h, bulk);
           say(logging::Level::info, fmt::format("{} joined the image", p.name), {{"event", "image joined"}, {"peer", p.name}});
           return;
         }
@@ -475,107 +466,63 @@ class Coordinator {
     policy_.dead(p.index);  // it holds no bundles: it joined during the image
     p.dead_why = why;
     p.down.clear();
-    p.due.clear();
+    grants_.clear(p.index);
     log(p.id, fmt::format("dropped while joining the image ({})", why));
     error(p.id, why, true);
   }
 
-  std::size_t imaging_peers() const {
-    return static_cast<std::size_t>(std::count_if(peers_.begin(), peers_.end(), [](const auto& e) { return e.second.imaging; }));
-  }
-
-  // A TILES grant to `p`, due (as a bundle grant is) after its bound: 8 times the node's
-  // measured time per tile, or before its first PIXELS the set-up's kFirstGrantS and 20 us a
-  // sample; plus grant_slack().
-  void grant_tiles(Peer& p, const TileGrant& g, const TilePlan& plan) {
+  // A TILES grant to `p` (its due time is the ImagePhase's).
+  void grant_tiles(Peer& p, const TileGrant& g) {
     wire::Grant w;
     w.set_run_id(run_.run_id());
     w.set_grant_id(g.id);
-    uint64_t pixels = 0;
     for (const Range& r : g.tiles) {
       auto* wr = w.add_ranges();
       wr->set_first(r.first);
       wr->set_last(r.last);
-      for (uint64_t t = r.first; t < r.last; ++t) pixels += plan.grid().rect(t).pixels();
     }
-    const auto now = Clock::now();
-    const auto from = p.due.empty() ? now : std::max(now, p.due.back().second - grant_slack());  // queued behind
-    const double bound = p.tiles > 0 ? 8.0 * p.tile_s : kFirstGrantS + 20e-6 * static_cast<double>(pixels) * config_.final_gather.spp;
-    p.due.emplace_back(g.id, from + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bound)) + grant_slack());
     send(p, {Command::tiles, w, {}});
   }
 
-  void pixels(Peer& p, const wire::Pixels& px, const std::vector<std::string>& bulk, TilePlan& plan) {
+  void pixels(Peer& p, const wire::Pixels& px, const std::vector<std::string>& bulk) {
     if (px.run_id() != run_.run_id()) fail("PIXELS for run {:x}, not this run", px.run_id());
     std::vector<Range> done;
     for (const auto& r : px.done()) done.push_back({r.first(), r.last()});
-    plan.accept(p.index, px.grant_id(), done, bulk, [&](const TileRect& r, const std::vector<float>& v) { spot_check(r, v); });
-    std::erase_if(p.due, [&](const auto& d) { return d.first == px.grant_id(); });
+    const std::optional<double> tile_s =
+        image_->take_result(p.index, px.grant_id(), done, bulk, px.busy_s(), kMaxSeconds, clock(Clock::now()),
+                            [&](const TileRect& r, const std::vector<float>& v) { spot_check(r, v); });
     for (const std::string& f : bulk) p.bytes_in += f.size();
-    // Its time per tile (its own word, within [0, kMaxSeconds]), for the next deadlines. Accepted,
-    // the PIXELS holds one frame per tile.
-    if (px.busy_s() >= 0 && px.busy_s() <= kMaxSeconds)
-      p.tile_s = std::max(p.tile_s, px.busy_s() / static_cast<double>(std::max<std::size_t>(1, bulk.size())));
-    p.tiles += bulk.size();
-    tighten_first_tiles(p);
+    if (tile_s)
+      say(logging::Level::info, fmt::format("image: first tiles now due within {:.1f} s of now ({} times {}'s {:.3f} s a tile)",
+                                            grants_.rules().slack_s + grants_.rules().unequal_first * *tile_s,
+                                            grants_.rules().unequal_first, p.name, *tile_s),
+          {{"event", "first tiles due"}, {"tile_s", *tile_s}});
   }
 
-  // What a node's first grant may take beyond its bound (PoCL compiling its kernels at their first
-  // use): kFirstGrantS, or, once a node has reported its first grant, kUnequalFirst times the
-  // quickest such grant took, compilation included, if that is less.
-  double first_grant_allowance() const {
-    return std::min(kFirstGrantS, kUnequalFirst * first_grant_s_);
-  }
-
-  // A node's first grant is due its bound, the first_grant_allowance and the grant slack after
-  // it went out: before any node has reported, 30 s and more. Once `measured` has reported its
-  // first grant (it took t s from going out, compilation included), the k-th outstanding grant
-  // of each node that has reported none is due (k + 1) kUnequalFirst t from now (plus the grant
-  // slack), if that is sooner: a node that heartbeats but never reports, or runs sixteen times
+  // Once `measured` has reported its first grant (it took t s from going out, compilation
+  // included), the first grants of the nodes that have reported none are due by t
+  // (Deadlines::tighten): a node that heartbeats but never reports, or runs sixteen times
   // slower, is declared dead then and its bundles granted again, not after the allowance.
   void tighten_first_grants(const Peer& measured) {
     const auto now = Clock::now();
     const double t = seconds(now - measured.first_grant_at);
     if (measured.first_grant_at == Clock::time_point{} || !(t < first_grant_s_)) return;
     first_grant_s_ = t;
-    bool tightened = false;
-    for (auto& [id, q] : peers_) {
-      if (q.imaging || policy_.node(q.index).bundles > 0 || policy_.node(q.index).dead) continue;
-      for (std::size_t k = 0; k < q.due.size(); ++k) {
-        const auto due = now + grant_slack() +
-                         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(static_cast<double>(k + 1) * kUnequalFirst * t));
-        if (due < q.due[k].second) q.due[k].second = due, tightened = true;
-      }
-    }
-    if (tightened)
+    std::vector<uint32_t> unmeasured;
+    for (const auto& [id, q] : peers_)
+      if (!rendering(q) && policy_.node(q.index).bundles == 0 && !policy_.node(q.index).dead) unmeasured.push_back(q.index);
+    if (grants_.tighten(unmeasured, clock(now), t))
       say(logging::Level::info, fmt::format("first grants now due within {:.1f} s of now ({} times {}'s first grant, {:.3f} s)",
-                                            seconds(grant_slack()) + kUnequalFirst * t, kUnequalFirst, measured.name, t),
+                                            grants_.rules().slack_s + grants_.rules().unequal_first * t,
+                                            grants_.rules().unequal_first, measured.name, t),
           {{"event", "first grants due"}, {"first_grant_s", t}});
   }
 
-  // A node's first tiles are due kFirstGrantS and 20 us a sample after their grant: a bound for
-  // the slowest start, minutes at many samples. Once `measured` has sent tiles, the k-th
-  // outstanding grant of each node that has sent none is due (k + 1) kUnequalFirst times its time
-  // per tile from now (plus the grant slack), if that is sooner: a node that holds tiles without
-  // rendering them, or renders them sixteen times slower, is dropped then and its tiles granted
-  // again, not minutes later.
-  void tighten_first_tiles(const Peer& measured) {
-    const auto now = Clock::now();
-    bool tightened = false;
-    for (auto& [id, q] : peers_) {
-      if (!q.imaging || q.tiles > 0) continue;
-      for (std::size_t k = 0; k < q.due.size(); ++k) {
-        const auto due = now + grant_slack() +
-                         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
-                             static_cast<double>(k + 1) * kUnequalFirst * measured.tile_s));
-        if (due < q.due[k].second) q.due[k].second = due, tightened = true;
-      }
-    }
-    if (tightened)
-      say(logging::Level::info, fmt::format("image: first tiles now due within {:.1f} s of now ({} times {}'s {:.3f} s a tile)",
-                                            seconds(grant_slack()) + kUnequalFirst * measured.tile_s, kUnequalFirst, measured.name,
-                                            measured.tile_s),
-          {{"event", "first tiles due"}, {"tile_s", measured.tile_s}});
+  // What a node's first grant may take beyond its bound (PoCL compiling its kernels at their first
+  // use): the rules' first_grant_s, or, once a node has reported its first grant, unequal_first
+  // times the quickest such grant took, compilation included, if that is less.
+  double first_grant_allowance() const {
+    return std::min(grants_.rules().first_grant_s, grants_.rules().unequal_first * first_grant_s_);
   }
 
   // The final gather on this machine, made at its first use (a spot check, or tiles no node is
@@ -600,10 +547,10 @@ class Coordinator {
 
   // The image phase's liveness: as keep_alive's, for the nodes rendering tiles and those joining
   // the image (watched from their READY, as in a run).
-  void image_keep_alive(Clock::time_point now, TilePlan& plan) {
+  void image_keep_alive(Clock::time_point now) {
     for (auto& [id, p] : peers_) {
-      if (p.imaging) {
-        if (std::string why = gone(p, true); !why.empty()) drop_from_image(p, plan, why);
+      if (rendering(p)) {
+        if (std::string why = gone(p, true, image_->overdue(p.index, clock(read_up_to_))); !why.empty()) drop_from_image(p, why);
         else keep_in_touch(p, now);
       } else if (p.image_joiner && !policy_.node(p.index).dead) {
         if (std::string why = gone(p, p.image_stop_sent); !why.empty()) drop_joiner(p, why);
@@ -613,20 +560,27 @@ class Coordinator {
   }
 
   // `p` renders no more of the image: its outstanding tiles go back (those it sent stay).
-  void drop_from_image(Peer& p, TilePlan& plan, const std::string& why) {
-    plan.abandon(p.index);
-    p.due.clear();
+  void drop_from_image(Peer& p, const std::string& why) {
+    image_->drop(p.index);
     log(p.id, fmt::format("dropped from the image ({}); its outstanding tiles are granted again", why));
-    end_image(p);
-    if (std::optional<uint64_t> t = plan.poisoned())
+    stop_image(p);
+    if (std::optional<uint64_t> t = image_->poisoned())
       throw ImageFailed(fmt::format("tile {} was lost with {} nodes, each gone while it rendered the tile: it may crash whoever "
                                     "renders it, so it is not handed out again",
                                     *t, TilePlan::kMaxTileLosses));
   }
 
+  // The image is over (done, or failed): every node still rendering it is told so.
+  void end_image() {
+    for (auto& [id, p] : peers_)
+      if (rendering(p)) {
+        image_->drop(p.index);
+        stop_image(p);
+      }
+  }
+
   // The image's STOP (without image_follows): the node forgets the run.
-  void end_image(Peer& p) {
-    p.imaging = false;
+  void stop_image(Peer& p) {
     wire::Stop s;
     s.set_run_id(run_.run_id());
     send(p, {Command::stop, s, {}});
@@ -671,8 +625,8 @@ class Coordinator {
     auto now = Clock::now();
     Status s = policy_status(policy_, config_, last);
     s.elapsed_s = seconds(now - start_);
-    s.image_tiles = image_tiles_;
-    s.image_tiles_done = image_done_;
+    s.image_tiles = image_ ? image_->tiles() : 0;
+    s.image_tiles_done = image_ ? image_->tiles_done() : 0;
     s.bytes_in = record_.bytes_in;
     s.bytes_out = record_.bytes_out;
     s.scenes_sent = scenes_sent_;
@@ -689,9 +643,9 @@ class Coordinator {
       n.idle_s = p->idle_s;
       n.bytes_in = p->bytes_in;
       n.bytes_out = p->bytes_out;
-      n.tiles = p->tiles;
+      n.tiles = tiles_by(*p);
       if (ns.dead && !ns.quarantined) n.why = p->dead_why;
-      if (p->image_joiner && !ns.dead && p->imaging) n.state = "done";  // its FINAL is in (not taken)
+      if (p->image_joiner && !ns.dead && rendering(*p)) n.state = "done";  // its FINAL is in (not taken)
       if (p->from_checkpoint) {  // not dead: it ran in the run before this process resumed it
         n.state = "before resume";
         n.rate = 0;
@@ -730,15 +684,17 @@ class Coordinator {
 
   // Why `p` is gone, or "": a message to it could not be sent, it has been silent for the
   // liveness window (when `watched`: a node is not before its READY), or its oldest grant is
-  // past due. Silence and deadlines are judged at read_up_to_ (keep_alive says why).
-  std::string gone(const Peer& p, bool watched) const {
+  // past due (`overdue`: the image's word; by default its bundles'). Silence and deadlines are
+  // judged at read_up_to_ (keep_alive says why).
+  std::string gone(const Peer& p, bool watched, std::optional<std::string> overdue = std::nullopt) const {
     if (p.unreachable || p.down.failed() > 0) return "a message to it could not be sent";
-    if (watched && read_up_to_ - p.last_seen > std::chrono::milliseconds(config_.heartbeat_ms) * config_.liveness)
+    if (watched && read_up_to_ - p.last_seen > liveness_window())
       return fmt::format("silent for {:.1f} s", seconds(read_up_to_ - p.last_seen));
-    if (!p.due.empty() && read_up_to_ > p.due.front().second)
-      return fmt::format("grant {} overdue by {:.1f} s", p.due.front().first, seconds(read_up_to_ - p.due.front().second));
-    return "";
+    return overdue ? *overdue : grants_.overdue(p.index, clock(read_up_to_));
   }
+
+  // The tiles of the image `p` sent.
+  uint64_t tiles_by(const Peer& p) const { return image_ ? image_->tiles_by(p.index) : 0; }
 
   // A HEARTBEAT to `p` if nothing went to it for an interval, and its emulated link's due messages.
   void keep_in_touch(Peer& p, Clock::time_point now) {
@@ -748,12 +704,6 @@ class Coordinator {
 
   // How long a peer may be silent (heartbeat_ms x liveness).
   Clock::duration liveness_window() const { return std::chrono::milliseconds(config_.heartbeat_ms) * config_.liveness; }
-  // What a grant's due time allows beyond its bound: the liveness window, and at least
-  // kGrantSlackS (a loaded machine can stall an honest node for seconds; a node declared dead
-  // for it rejoins, but its grant would run twice).
-  Clock::duration grant_slack() const {
-    return std::max<Clock::duration>(liveness_window(), std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(kGrantSlackS)));
-  }
 
   // `p` is dead for `why`. `gone` (silent, unreachable, past due, and not an emulated
   // disconnect): it may have crashed on its bundles, which count a loss by its CURVE key, else
@@ -764,7 +714,7 @@ class Coordinator {
                                                               : policy_.dead(p.index);
     p.dead_why = why;
     p.down.clear();
-    p.due.clear();
+    grants_.clear(p.index);
     log(p.id, fmt::format("declared dead ({}); {} granted bundles return to the budget", why, back));
     if (!poisoned_before && policy_.ledger().poisoned(Policy::kMaxBundleLosses))
       say(logging::Level::error, policy_.ended_by(), {{"event", "bundles lost"}});
@@ -953,12 +903,10 @@ class Coordinator {
       uint64_t bundles = 0;
       for (const Range& r : o.ranges) bundles += r.size();
       const auto now = Clock::now();
-      const auto from = p.due.empty() ? now : std::max(now, p.due.back().second - grant_slack());  // queued behind
       const double bound = policy_.grant_time_bound(p.index, bundles, p.ms_per_bundle / 1e3);
       const double first = policy_.node(p.index).bundles == 0 ? first_grant_allowance() : 0.0;
       if (p.first_grant_at == Clock::time_point{}) p.first_grant_at = now;
-      p.due.emplace_back(o.id, from + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bound + first)) +
-                                   grant_slack());
+      grants_.add(p.index, o.id, clock(now), bound + first);
       send(p, {Command::grant, g, {}});
     }
     for (uint32_t n : orders.stops) {
@@ -1008,7 +956,7 @@ class Coordinator {
       if (r.run_id() != run_.run_id() && !n.grants.empty() && r.grant_id() == n.grants.front()) {
         const std::string why = fmt::format("REPORT for grant {} names run {:x}, not this run", r.grant_id(), r.run_id());
         policy_.quarantine(p.index, why);
-        p.due.clear();
+        grants_.clear(p.index);
         fail("{}: quarantined", why);
       }
       if (!n.grants.empty() && r.grant_id() == n.grants.front()) {
@@ -1020,7 +968,7 @@ class Coordinator {
         }
       }
       x = policy_.report(p.index, r.grant_id(), done, std::move(chunks), refused.empty() ? r.error_estimate() : 0.0);
-      if (!p.due.empty() && p.due.front().first == r.grant_id()) p.due.erase(p.due.begin());
+      grants_.settle(p.index, r.grant_id());
       if (!refused.empty()) throw Error(refused);
       record_.bytes_in += bytes;
       p.bytes_in += bytes;
@@ -1126,7 +1074,8 @@ class Coordinator {
   // kReadUpToDateAfter messages were read in a row), and how many were read since.
   Clock::time_point read_up_to_ = Clock::now();
   uint32_t read_in_a_row_ = 0;
-  uint64_t image_tiles_ = 0, image_done_ = 0;  // the image's tiles, and those placed (the status)
+  Deadlines grants_;                   // when each node's bundle grants are due (clock())
+  std::unique_ptr<ImagePhase> image_;  // the image phase's decisions, once it has begun
   double first_grant_s_ = std::numeric_limits<double>::infinity();  // the quickest first grant reported (tighten_first_grants)
   const std::vector<glm::vec3>* image_solution_ = nullptr;  // the solution the image is gathered from
   std::unique_ptr<FinalGather> here_;                       // here(): made at its first use
