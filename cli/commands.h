@@ -36,6 +36,7 @@ int render(RenderArgs a);
 struct EmulateArgs {
   RenderArgs run;
   double bundle_ms = 0;
+  double tile_ms = 0;  // --tile-ms (0: measured)
   std::string nodes_csv, timeline;
 };
 

@@ -244,6 +244,8 @@ int emulate(EmulateArgs& e) {
   ec.run.profile = std::move(profile);
   ec.nodes = static_cast<uint32_t>(a.nodes);
   ec.bundle_s = e.bundle_ms / 1e3;
+  ec.tile_s = e.tile_ms / 1e3;
+  ec.run.final_gather = final_gather_of(cli::result_options(a.output));  // the image's tiles rendered by the emulated nodes
   cluster::check_emulation(ec, mesh.size());
   auto engine = make_cl_engine(mesh, {.device = a.device});
   std::unique_ptr<ShotEngine> shots;
@@ -259,7 +261,7 @@ int emulate(EmulateArgs& e) {
   attrs.emplace_back("sirad.virtual_wall_s", r.wall_s);
   attrs.emplace_back("sirad.bundle_s", r.bundle_s);
   if (r.error_estimate >= 0) attrs.emplace_back("sirad.error_estimate", r.error_estimate);
-  write_outputs(a.output, out, mesh, r.run.radiosity, attrs, m.camera_from);
+  write_outputs(a.output, out, mesh, r.run.radiosity, attrs, m.camera_from, r.run.image ? &*r.run.image : nullptr);
   if (!e.nodes_csv.empty()) write_file_atomic(e.nodes_csv, cluster::nodes_csv(r));
   if (!e.timeline.empty()) write_file_atomic(e.timeline, cluster::timeline_csv(r));
   // Every node up to 32; beyond, the spread of their utilisation.
@@ -277,6 +279,9 @@ int emulate(EmulateArgs& e) {
   std::printf("virtual wall time %.3f s for %llu bundles (%.3f ms per bundle at speed 1), error estimate %s; emulated in %.2f s\n",
               r.wall_s, static_cast<unsigned long long>(r.run.bundles), r.bundle_s * 1e3,
               r.error_estimate >= 0 ? fmt::format("{:.4f}", r.error_estimate).c_str() : "n/a", r.real_s);
+  if (r.run.image)
+    std::printf("image: %llu tiles in %.3f s of virtual time (%.3f ms a tile at speed 1)\n",
+                static_cast<unsigned long long>(r.run.image_tiles), r.run.image_seconds, r.tile_s * 1e3);
   if (r.run.ended_by != "budget") std::printf("ended early: %s\n", r.run.ended_by.c_str());
   if (!r.exchange_why.empty()) std::printf("--exchange-every auto: %s\n", r.exchange_why.c_str());
   return 0;

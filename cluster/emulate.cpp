@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "cluster/exchange_choice.h"
+#include "cluster/image_phase.h"
 #include "cluster/worker.h"
 #include "scene/encoding.h"
 #include "solver/solver.h"
@@ -50,9 +51,10 @@ std::size_t message_bytes(std::size_t patches) { return kHeaderBytes + 24 * patc
 
 // A message on its way to a node.
 struct ToNode {
-  enum Kind { grant, update, stop } kind = grant;
+  enum Kind { grant, update, stop, tiles } kind = grant;
   GrantOrder grant_order;
   Exchange exchange;
+  TileGrant tile_grant;
 };
 
 struct VNode {
@@ -113,9 +115,9 @@ class Emulator {
       e.fn();
     }
     if (!policy_.done()) fail("emulate: the run stalled at {:.3f} s with {} of {} bundles done", now_, policy_.ledger().done_count(), run_.bundles);
+    const double solved_s = now_;
 
-    result_.wall_s = now_;
-    result_.real_s = seconds_since(real_start);
+    result_.wall_s = solved_s;
     result_.error_estimate = policy_.error_estimate();
     RunResult& r = result_.run;
     RunResult known = policy_result(policy_, run_grid(run_, mesh_));
@@ -123,16 +125,18 @@ class Emulator {
     known.exchange_bytes_out = r.exchange_bytes_out;
     known.final_bytes = r.final_bytes;
     known.crossings = r.crossings;
-    known.seconds = now_;
+    known.seconds = solved_s;
     r = std::move(known);
+    if (run_.final_gather.spp > 0 && mesh_.camera) image();
     for (uint32_t n = 0; n < P; ++n) {
       EmulatedNode& f = nodes_[n].figures;
       f.bundles = policy_.node(n).bundles;
       f.exchanges = policy_.node(n).exchanges;
       f.utilisation = result_.wall_s > 0 ? f.busy_s / result_.wall_s : 0.0;
-      r.nodes.push_back({f.name, f.bundles, f.exchanges, f.busy_s, f.idle_s, false});
+      r.nodes.push_back({f.name, f.bundles, f.exchanges, f.busy_s, f.idle_s, false, "", false, f.tiles});
       result_.nodes.push_back(f);
     }
+    result_.real_s = seconds_since(real_start);
     return std::move(result_);
   }
 
@@ -199,13 +203,18 @@ class Emulator {
     });
   }
 
-  // Handles the node's messages in order until it runs a grant, stops, or has none left.
+  // Handles the node's messages in order until it runs a grant, stops, or has none left; once
+  // stopped, only the image's.
   void work(uint32_t n) {
     VNode& v = nodes_[n];
-    while (!v.running && !v.stopped && !v.inbox.empty()) {
+    while (!v.running && !v.inbox.empty()) {
       ToNode m = std::move(v.inbox.front());
       v.inbox.pop_front();
-      if (m.kind == ToNode::update) {
+      if (m.kind == ToNode::tiles) {
+        render_tiles(n, std::move(m.tile_grant));
+      } else if (v.stopped) {
+        continue;  // the solve's, after its FINAL: nothing to do
+      } else if (m.kind == ToNode::update) {
         for (std::size_t i = 0; i < m.exchange.chunks.size(); ++i) {
           const Aggregate::Part& part = m.exchange.parts[i];
           v.worker->absorb(m.exchange.chunks[i], part.sum, part.count);
@@ -248,7 +257,80 @@ class Emulator {
     });
   }
 
+  // The grant's tiles are rendered now, for real; the PIXELS leaves when their virtual time is up.
+  void render_tiles(uint32_t n, TileGrant g) {
+    VNode& v = nodes_[n];
+    v.running = true;
+    std::vector<std::string> frames;
+    double busy = 0;
+    for (const Range& r : g.tiles)
+      for (uint64_t t = r.first; t < r.last; ++t) {
+        const TileRect rect = image_->grid().rect(t);
+        frames.push_back(pack_tile(gather_->render(*mesh_.camera, rect.x0, rect.y0, rect.x1, rect.y1)));
+        const double whole = static_cast<double>(ImagePhase::kTileSide) * ImagePhase::kTileSide;
+        busy += result_.tile_s * v.slowdown * static_cast<double>(rect.pixels()) / whole;
+      }
+    at(now_ + busy, [this, n, g = std::move(g), frames = std::move(frames), busy]() mutable {
+      VNode& v = nodes_[n];
+      v.running = false;
+      v.figures.tile_busy_s += busy;
+      std::size_t bytes = kHeaderBytes + 16 * g.tiles.size();
+      for (const std::string& f : frames) bytes += f.size();
+      at(to_coordinator_link(n, bytes), [this, n, g = std::move(g), frames = std::move(frames), busy]() mutable {
+        pixels(n, g, frames, busy);
+      });
+      work(n);
+    });
+  }
+
   // --- the coordinator side ---
+
+  // The image phase, after every FINAL is in: the nodes get the IMAGE (the solution) and tiles
+  // as the real coordinator grants them, until every tile is placed.
+  void image() {
+    const GatherOptions& o = run_.final_gather;
+    RunResult& r = result_.run;
+    gather_ = std::make_unique<FinalGather>(mesh_, r.radiosity, o);
+    result_.tile_s = config_.tile_s > 0 ? config_.tile_s : measure_tile_seconds(*gather_, *mesh_.camera);
+    image_ = std::make_unique<ImagePhase>(o.width, o.height, o.spp, DeadlineRules{}, 0);
+    const double began = now_;
+    for (uint32_t n = 0; n < nodes_.size(); ++n) {
+      log(n, "image", 0);
+      image_->join(n);
+      nodes_[n].down.deliver(now_, message_bytes(mesh_.size()));  // the IMAGE takes its place on the link
+      coordinator_out_.deliver(now_, message_bytes(mesh_.size()));
+    }
+    grant_tiles();
+    while (!events_.empty() && !image_->finished()) {
+      Event e = events_.top();
+      events_.pop();
+      now_ = e.t;
+      e.fn();
+    }
+    if (!image_->finished()) fail("emulate: the image stalled at {:.3f} s with {} of {} tiles done", now_, image_->tiles_done(), image_->tiles());
+    r.image = std::move(image_->passes());
+    r.image_tiles = image_->tiles();
+    r.image_seconds = now_ - began;
+    for (uint32_t n = 0; n < nodes_.size(); ++n) nodes_[n].figures.tiles = image_->tiles_by(n);
+  }
+
+  void grant_tiles() {
+    for (ImagePhase::Order& o : image_->next_work(now_)) {
+      uint64_t tiles = 0;
+      for (const Range& r : o.grant.tiles) tiles += r.size();
+      log(o.node, "tiles", tiles);
+      const std::size_t bytes = kHeaderBytes + 16 * o.grant.tiles.size();
+      ToNode m{.kind = ToNode::tiles};
+      m.tile_grant = std::move(o.grant);
+      to_node(o.node, std::move(m), bytes);
+    }
+  }
+
+  void pixels(uint32_t n, const TileGrant& g, const std::vector<std::string>& frames, double busy) {
+    log(n, "pixels", frames.size());
+    image_->take_result(n, g.id, g.tiles, frames, busy, kMaxSeconds, now_, nullptr);
+    grant_tiles();
+  }
 
   void ready(uint32_t n) {
     log(n, "ready", 0);
@@ -301,6 +383,8 @@ class Emulator {
   uint64_t seq_ = 0;
   double now_ = 0;
   EmulateResult result_;
+  std::unique_ptr<FinalGather> gather_;  // the image's, shared by the nodes (a pixel depends on its place only)
+  std::unique_ptr<ImagePhase> image_;
 };
 
 }  // namespace
@@ -330,6 +414,22 @@ double measure_bundle_seconds(const PatchMesh& mesh, BundleEngine& engine, ShotE
   }
   std::nth_element(t.begin(), t.begin() + t.size() / 2, t.end());
   return t[t.size() / 2];
+}
+
+double measure_tile_seconds(const FinalGather& gather, const Camera& camera, int renders) {
+  const GatherOptions& o = gather.options();
+  const int side = ImagePhase::kTileSide;
+  const int x0 = std::max(0, o.width / 2 - side / 2), y0 = std::max(0, o.height / 2 - side / 2);
+  const int x1 = std::min(o.width, x0 + side), y1 = std::min(o.height, y0 + side);
+  std::vector<double> t;
+  for (int i = 0; i < std::max(1, renders); ++i) {
+    auto t0 = Clock::now();
+    gather.render(camera, x0, y0, x1, y1);
+    t.push_back(seconds_since(t0));
+  }
+  std::nth_element(t.begin(), t.begin() + t.size() / 2, t.end());
+  // A tile cut at the image's edge: scaled to a whole one.
+  return t[t.size() / 2] * static_cast<double>(side) * side / (static_cast<double>(x1 - x0) * (y1 - y0));
 }
 
 EmulateResult emulate(const EmulateConfig& config, const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots) {

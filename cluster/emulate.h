@@ -12,9 +12,13 @@
 // bundles), grants run back to back, a node's messages handled in arrival order between grants
 // (as node/node.cpp does), the coordinator's own link when the profile gives one (shared by every
 // node's messages), REPORT / UPDATE / FINAL sizes of 24 bytes per patch of each chunk
-// plus a 64-byte header (proto/PROTOCOL.md), the coordinator answering at once. Not modelled:
-// the coordinator's own processing time, heartbeats, and disconnects (a profile with
-// disconnect_at_s is refused: liveness belongs to real runs).
+// plus a 64-byte header (proto/PROTOCOL.md), the coordinator answering at once. With a final
+// gather (RunConfig::final_gather) the image follows as on a real cluster: the same ImagePhase
+// (cluster/image_phase.h) grants the tiles, each node renders them for real, one grant at a
+// time, and a tile costs the tile time x the node's slowdown x its share of a whole tile's
+// pixels; IMAGE carries the solution (24 bytes a patch), PIXELS 36 bytes a pixel. Not
+// modelled: the coordinator's own processing time, heartbeats, the coordinator's spot checks,
+// and disconnects (a profile with disconnect_at_s is refused: liveness belongs to real runs).
 #pragma once
 #include <cstdint>
 #include <string>
@@ -24,6 +28,7 @@
 #include "cluster/settings.h"
 #include "engine/bundle.h"
 #include "engine/shot.h"
+#include "render/gather.h"
 #include "solver/solver.h"
 
 namespace sirad::cluster {
@@ -35,13 +40,16 @@ struct EmulateConfig {
   uint32_t nodes = 0;      // P emulated nodes, named emu-0, emu-1, ...
   double bundle_s = 0;     // seconds of one bundle (a solver step) at slowdown 1; 0: measure
                            // it (measure_bundle_seconds) before the run
+  double tile_s = 0;       // with a final gather: seconds of one whole tile at slowdown 1; 0:
+                           // measure it (measure_tile_seconds) once the solution is in
 };
 
 // One event of the virtual timeline (for --timeline and the determinism test).
 struct TimelineEvent {
   double t = 0;            // virtual seconds since the start
   uint32_t node = 0;
-  std::string what;        // ready | grant | report | update | stop | final
+  std::string what;        // ready | grant | report | update | stop | final; the image's:
+                           // image | tiles | pixels (bundles: the tiles of the grant)
   uint64_t bundles = 0;    // grant and report: bundles of the grant; update/final: chunks
   bool operator==(const TimelineEvent&) const = default;
 };
@@ -56,12 +64,16 @@ struct EmulatedNode {
   double idle_s = 0;       // waiting for work between its first grant and its STOP
   double end_s = 0;        // when its FINAL reached the coordinator
   double utilisation = 0;  // busy_s over the run's virtual wall time
+  uint64_t tiles = 0;      // tiles of the image it rendered
+  double tile_busy_s = 0;  // rendering them
 };
 
 struct EmulateResult {
   RunResult run;           // as a real run reports it (busy/idle in virtual seconds)
   double bundle_s = 0;     // the bundle time used
-  double wall_s = 0;       // virtual wall time: until the last FINAL is in
+  double wall_s = 0;       // virtual wall time: until the last FINAL is in (the image's own
+                           // virtual time is run.image_seconds)
+  double tile_s = 0;       // the tile time used (0: no image)
   double real_s = 0;       // real seconds the emulation took
   double error_estimate = -1;  // the run's own estimate at the end (Policy::error_estimate)
   std::string exchange_why;    // --exchange-every auto: what it chose and why
@@ -77,6 +89,9 @@ void check_emulation(const EmulateConfig& config, std::size_t patches);
 // solver's burn-in, which is not counted).
 double measure_bundle_seconds(const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots,
                               const SolverOptions& options, int steps = 9);
+// Median seconds of rendering one whole tile (ImagePhase::kTileSide a side, from the image's
+// middle, cut at its edges) of `camera` with `gather`, over `renders` renders.
+double measure_tile_seconds(const FinalGather& gather, const Camera& camera, int renders = 3);
 
 // Runs the emulated cluster on `mesh` (meshed from config.run.scene). `shots` is needed when
 // the run has a first shot. Throws sirad::Error for settings the emulation cannot model.

@@ -125,8 +125,12 @@ int run(int argc, char** argv) {
   emulate_cmd->add_option("--bundle-ms", e.bundle_ms,
                           "Milliseconds of one bundle at speed 1 (default: measured before the run; fix it for a reproducible timeline)")
       ->check(cli::positive());
+  emulate_cmd->add_option("--tile-ms", e.tile_ms,
+                          "With --final-gather: milliseconds of one 32 x 32 tile at speed 1 (default: measured once the "
+                          "solution is in; fix it for a reproducible timeline)")
+      ->check(cli::positive());
   emulate_cmd->add_option("--nodes-csv", e.nodes_csv, "Write the per-node figures (bundles, busy, idle, utilisation) as CSV");
-  emulate_cmd->add_option("--timeline", e.timeline, "Write the virtual timeline (every grant, report, update, stop) as CSV");
+  emulate_cmd->add_option("--timeline", e.timeline, "Write the virtual timeline (every grant, report, update, stop; the image's tiles and pixels) as CSV");
   ReferenceArgs ref_args;
   auto* reference_cmd = add_reference_command(app, ref_args);
   ModelArgs model_args;

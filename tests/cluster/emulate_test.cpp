@@ -194,6 +194,56 @@ TEST(Emulate, TheCoordinatorsLinkCarriesEveryNodesMessagesInTurn) {
   }
 }
 
+// The image after the solve, as on a real cluster: the same ImagePhase grants the tiles, the
+// emulated nodes render them for real, and the image is the one FinalGather renders of the
+// solution on one machine, bit for bit (a pixel depends only on the seed and its place). With
+// free links and a fixed tile time t, the virtual time is exact arithmetic: 2 nodes at speed 1
+// and 4 whole tiles take 2 t; a node at half speed (slowdown 2) beside one at speed 1 takes
+// tiles as it frees its grants, so the image takes longer and it renders fewer.
+TEST(Emulate, TheImageFollowsInTilesThatTheNodesRender) {
+  EmulateConfig c = furnace_on(2, 32, 0, 0.001);
+  c.run.scene = builtin_cornell();
+  c.run.final_gather = {.width = 64, .height = 64, .spp = 4, .seed = 3, .threads = 1};
+  c.tile_s = 0.5;
+  Bench b = bench_for(c.run);
+  b.mesh.camera = default_camera(c.run.scene);
+  EmulateResult r = run(c, b);
+  ASSERT_TRUE(r.run.image);
+  EXPECT_EQ(r.run.image_tiles, 4u);
+  EXPECT_DOUBLE_EQ(r.tile_s, 0.5);
+  EXPECT_NEAR(r.run.image_seconds, 2 * 0.5, 1e-9) << "each node renders its two tiles, one after the other";
+  ASSERT_EQ(r.run.nodes.size(), 2u);
+  EXPECT_EQ(r.run.nodes[0].tiles, 2u);
+  EXPECT_EQ(r.run.nodes[1].tiles, 2u);
+  const GatherPasses one = FinalGather(b.mesh, r.run.radiosity, c.run.final_gather).render(*b.mesh.camera);
+  EXPECT_EQ(r.run.image->combined.pixels, one.combined.pixels);
+  EXPECT_EQ(r.run.image->direct.pixels, one.direct.pixels);
+  EXPECT_EQ(r.run.image->indirect.pixels, one.indirect.pixels);
+  uint64_t tiles = 0, pixels = 0;
+  for (const TimelineEvent& e : r.timeline) {
+    if (e.what == "tiles") tiles += e.bundles;
+    if (e.what != "pixels") continue;
+    pixels += e.bundles;
+    EXPECT_GE(e.t, r.wall_s + 0.5) << "no PIXELS before a tile's time";
+  }
+  EXPECT_EQ(tiles, 4u);
+  EXPECT_EQ(pixels, 4u);
+
+  // 128 x 64: 8 tiles. Node 1 at half speed renders a tile in 1 s, node 0 in 0.5 s; each holds
+  // two grants of one tile, topped up as its PIXELS come in. Node 0: tiles 0, 1, then 4 (granted
+  // at 0.5), 6 (at 1) and 7 (at 1.5), done at 2.5; node 1: tiles 2, 3, then 5 (granted at 1, when
+  // its first PIXELS left it one grant), done at 3 s: the image waits on the slow node's last
+  // tile, as on a real cluster.
+  c.run.final_gather.width = 128;
+  c.run.profile = emulation::parse_profile("nodes:\n  - {index: 1, speed: 0.5}\n", "half");
+  EmulateResult h = run(c, b);
+  ASSERT_TRUE(h.run.image);
+  EXPECT_EQ(h.run.nodes[0].tiles, 5u);
+  EXPECT_EQ(h.run.nodes[1].tiles, 3u);
+  EXPECT_NEAR(h.run.image_seconds, 3.0, 1e-9);
+  EXPECT_EQ(h.run.image->combined.pixels, FinalGather(b.mesh, h.run.radiosity, c.run.final_gather).render(*b.mesh.camera).combined.pixels);
+}
+
 TEST(Emulate, ADisconnectingProfileIsRefused) {
   EmulateConfig c = furnace_on(2, 16, 0, 0.01);
   c.run.mesh_options.target_patches = 50;
