@@ -114,51 +114,9 @@ class Coordinator {
 
   RunResult run() {
     start_ = Clock::now() - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(record_.elapsed_s));
-    auto last_status = Clock::now(), last_checkpoint = Clock::now(), last_preview = Clock::now();
-    while (!policy_.done()) {
-      auto now = Clock::now();
-      ends_now(now);
-      if (!config_.checkpoint.empty() && seconds(now - last_checkpoint) >= config_.checkpoint_every_s) {
-        last_checkpoint = now;
-        try {
-          checkpoint();
-        } catch (const Error& e) {  // a full disk must not end the run; the last good file stays
-          say(logging::Level::warn, fmt::format("checkpoint not written: {}; the run goes on", e.what()), {{"event", "checkpoint"}});
-        }
-      }
-      if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
-        last_status = now;
-        config_.status(snapshot());
-      }
-      if (config_.preview && seconds(now - last_preview) >= config_.preview_every_s && holds_states()) {
-        last_preview = now;
-        config_.preview(policy_.radiosity());
-      }
-      keep_alive(now);
-      if ((config_.close && config_.close->load() && policy_.close("interrupted")) ||
-          policy_.check_close(seconds(now - start_))) {
-        say(logging::Level::info,
-            fmt::format("{} reached after {} bundles: finishing the outstanding grants", policy_.ended_by(), policy_.ledger().done_count()),
-            {{"event", "closing"}, {"ended_by", policy_.ended_by()}, {"bundles", policy_.ledger().done_count()}});
-        schedule();
-      }
-      std::string key;
-      auto in = next(now, key);
-      if (!in) continue;
-      const std::vector<std::string>& frames = in->frames;
-      std::string id = frames.front();
-      std::optional<Message> m = decoded(*in);
-      if (!m) continue;
-      try {
-        handle(id, key, in->address, *m);
-      } catch (const Error& e) {
-        if (config_.strict) throw;
-        log(id, e.what());
-        error(id, e.what(), dynamic_cast<const Rejoin*>(&e) != nullptr);
-        // A quarantine sticks to the node's key (under CURVE), not only to its routing id.
-        if (auto it = peers_.find(id); it != peers_.end() && policy_.node(it->second.index).quarantined && !key.empty())
-          record_.quarantined_keys.insert(key);
-      }
+    {
+      SolveStage solve(*this);
+      loop(solve);
     }
     for (const auto& [id, held] : log_limit_.held()) {
       auto it = peers_.find(id);
@@ -170,7 +128,9 @@ class Coordinator {
     RunResult result = policy_result(policy_, static_cast<int>(run_.grid()));
     if (imaging()) {
       try {
-        image_phase(result);
+        ImageStage image(*this, result);
+        loop(image);
+        image.finish();
       } catch (const ImageFailed& e) {  // the solution stays good: the caller keeps it
         end_image();
         result.image.reset();
@@ -198,23 +158,208 @@ class Coordinator {
   }
 
  private:
+  // One phase of the run as the loop drives it: its socket side. Its decisions are a socket-free
+  // object's (the solve's Policy, the image's ImagePhase); a stage turns them into messages and
+  // the messages it is sent into calls on them.
+  class Stage {
+   public:
+    virtual ~Stage() = default;
+    virtual bool finished() const = 0;
+    // The run's time limit (--timeout) is reached during this phase: throws what ends it.
+    [[noreturn]] virtual void out_of_time() = 0;
+    // One turn at `now`: what the phase watches (liveness, due times, closing) and the work it
+    // sends; true when it works here, so the loop only takes what is in already.
+    virtual bool turn(Clock::time_point now) = 0;
+    // A message read during the phase (its routing id first; `key` the sender's CURVE key).
+    virtual void message(const proto::Received& in, const std::string& key) = 0;
+  };
+  class SolveStage;
+  class ImageStage;
+
+  // The one loop of every phase: each turn, what ends the run from outside (the time limit,
+  // ends_now), the status on its period, the stage's turn, then one message, waited for up to
+  // wait_ms.
+  void loop(Stage& stage) {
+    auto last_status = Clock::now();
+    while (!stage.finished()) {
+      auto now = Clock::now();
+      if (past_time_limit(now)) stage.out_of_time();
+      ends_now();
+      if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
+        last_status = now;
+        config_.status(snapshot());
+      }
+      const bool here = stage.turn(now);
+      std::string key;
+      if (auto in = next(now, key, here)) stage.message(*in, key);
+    }
+  }
+
+  // The solve (PROTOCOL.md section 3): the bundles of the Policy's grants. Each turn writes the
+  // checkpoint and the preview on their periods, judges liveness and grants' due times
+  // (keep_alive) and closes the run when the policy says; each message goes to handle(), and
+  // one it refuses is answered by an ERROR and logged: the run goes on.
+  class SolveStage final : public Stage {
+   public:
+    explicit SolveStage(Coordinator& c) : c_(c) {}
+    bool finished() const override { return c_.policy_.done(); }
+    [[noreturn]] void out_of_time() override {
+      fail("run did not finish within {} s ({} of {} bundles done)", c_.config_.timeout_s, c_.policy_.ledger().done_count(),
+           c_.config_.bundles);
+    }
+
+    bool turn(Clock::time_point now) override {
+      const RunConfig& config = c_.config_;
+      if (!config.checkpoint.empty() && seconds(now - last_checkpoint_) >= config.checkpoint_every_s) {
+        last_checkpoint_ = now;
+        try {
+          c_.checkpoint();
+        } catch (const Error& e) {  // a full disk must not end the run; the last good file stays
+          c_.say(logging::Level::warn, fmt::format("checkpoint not written: {}; the run goes on", e.what()), {{"event", "checkpoint"}});
+        }
+      }
+      if (config.preview && seconds(now - last_preview_) >= config.preview_every_s && c_.holds_states()) {
+        last_preview_ = now;
+        config.preview(c_.policy_.radiosity());
+      }
+      c_.keep_alive(now);
+      Policy& policy = c_.policy_;
+      if ((config.close && config.close->load() && policy.close("interrupted")) || policy.check_close(seconds(now - c_.start_))) {
+        c_.say(logging::Level::info,
+               fmt::format("{} reached after {} bundles: finishing the outstanding grants", policy.ended_by(), policy.ledger().done_count()),
+               {{"event", "closing"}, {"ended_by", policy.ended_by()}, {"bundles", policy.ledger().done_count()}});
+        c_.schedule();
+      }
+      return false;
+    }
+
+    void message(const proto::Received& in, const std::string& key) override {
+      const std::string& id = in.frames.front();
+      std::optional<Message> m = c_.decoded(in);
+      if (!m) return;
+      try {
+        c_.handle(id, key, in.address, *m);
+      } catch (const Error& e) {
+        if (c_.config_.strict) throw;
+        c_.log(id, e.what());
+        c_.error(id, e.what(), dynamic_cast<const Rejoin*>(&e) != nullptr);
+        // A quarantine sticks to the node's key (under CURVE), not only to its routing id.
+        if (auto it = c_.peers_.find(id); it != c_.peers_.end() && c_.policy_.node(it->second.index).quarantined && !key.empty())
+          c_.record_.quarantined_keys.insert(key);
+      }
+    }
+
+   private:
+    Coordinator& c_;
+    Clock::time_point last_checkpoint_ = Clock::now(), last_preview_ = Clock::now();
+  };
+
+  // The image (PROTOCOL.md section 3.4): the final gather of the solution, in tiles that the
+  // ImagePhase (cluster/image_phase.h) grants to the nodes that sent their FINAL, two grants
+  // each at a time; a node that falls silent, misses a deadline or sends what does not fit is
+  // dropped and its tiles are granted again. Nodes join during the image as during the bundles
+  // (image_joiner): HELLO, WELCOME, READY, then at once a STOP that says the image follows,
+  // their FINAL (no bundles; the solution was final before the image began: not taken) and the
+  // IMAGE. A resumed run none of whose nodes is here (its checkpoint was written during its
+  // image) waits for --min-nodes of them to join before its first tile, as a run waits before
+  // its first grant. With no node left otherwise, the coordinator renders the rest itself,
+  // reading messages between its tiles: a node that joins takes tiles from the next one.
+  // Throws ImageFailed when the image cannot be made (the solution stays good).
+  class ImageStage final : public Stage {
+   public:
+    ImageStage(Coordinator& c, RunResult& result) : c_(c), result_(result), began_(Clock::now()), header_(c.image_header()) {
+      const GatherOptions& o = c_.config_.final_gather;
+      // A resumed run none of whose nodes is here to render: min_nodes to join before the first tile.
+      const bool none_here = std::none_of(c_.peers_.begin(), c_.peers_.end(), [&](const auto& e) { return c_.may_render(e.second); });
+      const bool wait = none_here && c_.config_.resume != nullptr;
+      c_.image_ = std::make_unique<ImagePhase>(o.width, o.height, o.spp, deadline_rules(c_.config_), wait ? c_.config_.min_nodes : 0);
+      std::vector<double> solution;
+      solution.reserve(3 * c_.mesh_.size());
+      for (const glm::vec3& b : result.radiosity) solution.insert(solution.end(), {b.x, b.y, b.z});
+      bulk_ = {proto::pack(solution)};
+      for (auto& [id, p] : c_.peers_)
+        if (c_.may_render(p)) c_.start_image(p, header_, bulk_);
+      const ImagePhase& phase = *c_.image_;
+      c_.say(logging::Level::info, fmt::format("image: {}x{}, {} spp, {} tiles of {} px for {} nodes", o.width, o.height, o.spp,
+                                               phase.tiles(), ImagePhase::kTileSide, phase.rendering_nodes()),
+             {{"event", "image"}, {"tiles", phase.tiles()}, {"nodes", phase.rendering_nodes()}});
+      c_.image_solution_ = &result.radiosity;
+      c_.spot_rng_.seed(std::random_device{}());
+      c_.spot_floor_ = c_.spot_floor();
+      if (wait)
+        c_.say(logging::Level::info,
+               fmt::format("image: waiting for {} node{} to join", c_.config_.min_nodes, c_.config_.min_nodes == 1 ? "" : "s"),
+               {{"event", "image waits"}, {"nodes", c_.config_.min_nodes}});
+    }
+
+    bool finished() const override { return c_.image_->finished(); }
+    [[noreturn]] void out_of_time() override {
+      throw ImageFailed(fmt::format("the run's time limit of {} s was reached with {} of {} tiles done", c_.config_.timeout_s,
+                                    c_.image_->tiles_done(), c_.image_->tiles()));
+    }
+
+    bool turn(Clock::time_point now) override {
+      ImagePhase& phase = *c_.image_;
+      c_.image_keep_alive(now);
+      for (ImagePhase::Order& g : phase.next_work(c_.clock(now))) c_.grant_tiles(c_.peer(g.node), g.grant);
+      if (!phase.render_here()) return false;
+      if (!rendering_here_) {
+        rendering_here_ = true;
+        c_.say(logging::Level::warn, fmt::format("image: no node left; the coordinator renders the {} tiles left", phase.tiles() - phase.tiles_done()),
+               {{"event", "image"}, {"here", true}});
+      }
+      if (std::optional<uint64_t> t = phase.take_here()) {
+        const TileRect r = phase.grid().rect(*t);
+        try {
+          phase.place_here(*t, c_.here().render(*c_.mesh_.camera, r.x0, r.y0, r.x1, r.y1));
+        } catch (const Error& e) {
+          throw ImageFailed(fmt::format("tile {} rendered here: {}", *t, e.what()));
+        }
+        ++result_.tiles_here;
+      } else if (!waiting_for_lost_) {
+        waiting_for_lost_ = true;
+        c_.say(logging::Level::warn, "image: the tiles left were lost with nodes, so they wait for a node (never rendered here)",
+               {{"event", "image waits"}, {"lost", true}});
+      }
+      return true;
+    }
+
+    void message(const proto::Received& in, const std::string& key) override { c_.image_message(in, key, header_, bulk_); }
+
+    // The image is done: the nodes rendering it are told so, and it goes into the result.
+    void finish() {
+      c_.end_image();
+      result_.image = std::move(c_.image_->passes());
+      result_.image_tiles = c_.image_->tiles();
+      result_.image_seconds = seconds(Clock::now() - began_);
+      c_.say(logging::Level::info, fmt::format("image done: {} tiles in {:.2f} s", result_.image_tiles, result_.image_seconds),
+             {{"event", "image done"}, {"tiles", result_.image_tiles}, {"seconds", result_.image_seconds}, {"here", result_.tiles_here}});
+    }
+
+   private:
+    Coordinator& c_;
+    RunResult& result_;
+    Clock::time_point began_;
+    wire::Image header_;            // the IMAGE every node that renders gets
+    std::vector<std::string> bulk_; // and its bulk: the solution
+    bool rendering_here_ = false, waiting_for_lost_ = false;  // each said once
+  };
+
   static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
   double clock(Clock::time_point t) const { return seconds(t - start_); }
 
-  // What ends the run from outside, checked each turn of a loop: an interrupt (a checkpoint,
-  // then the run fails), the timeout, a local node's failure.
+  // Whether the run's time limit (--timeout) is reached (the loop asks the stage what that ends).
   bool past_time_limit(Clock::time_point now) const { return config_.timeout_s > 0 && seconds(now - start_) > config_.timeout_s; }
 
-  void ends_now(Clock::time_point now) {
+  // What else ends the run from outside, checked each turn of the loop: an interrupt (a
+  // checkpoint, then the run fails), a local node's failure.
+  void ends_now() {
     if (config_.interrupt && config_.interrupt->load()) {
       if (config_.checkpoint.empty()) fail("interrupted after {} bundles (no --checkpoint)", policy_.ledger().done_count());
       checkpoint();
       fail("interrupted after {} bundles; checkpoint in {}: continue with --resume {}", policy_.ledger().done_count(),
            config_.checkpoint, config_.checkpoint);
     }
-    if (past_time_limit(now))
-      fail("run did not finish within {} s ({} of {} bundles done{})", config_.timeout_s, policy_.ledger().done_count(),
-           config_.bundles, policy_.done() ? ", the image not" : "");
     if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
   }
 
@@ -256,86 +401,6 @@ class Coordinator {
   bool imaging() const { return config_.final_gather.spp > 0 && mesh_.camera.has_value(); }
   // Whether `p` renders tiles of the run's image now.
   bool rendering(const Peer& p) const { return image_ && image_->rendering(p.index); }
-
-  // The image phase (PROTOCOL.md section 3.4): the final gather of the solution, in tiles that
-  // the ImagePhase (cluster/image_phase.h) grants to the nodes that sent their FINAL, two grants
-  // each at a time; a node that falls silent, misses a deadline or sends what does not fit is
-  // dropped and its tiles are granted again. Nodes join during the image as during the bundles
-  // (image_joiner): HELLO, WELCOME, READY, then at once a STOP that says the image follows,
-  // their FINAL (no bundles; the solution was final before the image began: not taken) and the
-  // IMAGE. A resumed run none of whose nodes is here (its checkpoint was written during its
-  // image) waits for --min-nodes of them to join before its first tile, as a run waits before
-  // its first grant. With no node left otherwise, the coordinator renders the rest itself,
-  // reading messages between its tiles: a node that joins takes tiles from the next one.
-  void image_phase(RunResult& result) {
-    const auto began = Clock::now();
-    const GatherOptions& o = config_.final_gather;
-    // A resumed run none of whose nodes is here to render: min_nodes to join before the first tile.
-    const bool none_here = std::none_of(peers_.begin(), peers_.end(), [&](const auto& e) { return may_render(e.second); });
-    const bool wait = none_here && config_.resume != nullptr;
-    image_ = std::make_unique<ImagePhase>(o.width, o.height, o.spp, deadline_rules(config_), wait ? config_.min_nodes : 0);
-    const wire::Image h = image_header();
-    std::vector<double> solution;
-    solution.reserve(3 * mesh_.size());
-    for (const glm::vec3& b : result.radiosity) solution.insert(solution.end(), {b.x, b.y, b.z});
-    const std::vector<std::string> bulk{proto::pack(solution)};
-    for (auto& [id, p] : peers_)
-      if (may_render(p)) start_image(p, h, bulk);
-    say(logging::Level::info, fmt::format("image: {}x{}, {} spp, {} tiles of {} px for {} nodes", o.width, o.height, o.spp,
-                                          image_->tiles(), ImagePhase::kTileSide, image_->rendering_nodes()),
-        {{"event", "image"}, {"tiles", image_->tiles()}, {"nodes", image_->rendering_nodes()}});
-    image_solution_ = &result.radiosity;
-    spot_rng_.seed(std::random_device{}());
-    spot_floor_ = spot_floor();
-    bool rendering_here = false, waiting_for_lost = false;
-    if (wait)
-      say(logging::Level::info, fmt::format("image: waiting for {} node{} to join", config_.min_nodes, config_.min_nodes == 1 ? "" : "s"),
-          {{"event", "image waits"}, {"nodes", config_.min_nodes}});
-    auto last_status = Clock::now();
-    while (!image_->finished()) {
-      auto now = Clock::now();
-      if (past_time_limit(now))
-        throw ImageFailed(fmt::format("the run's time limit of {} s was reached with {} of {} tiles done", config_.timeout_s,
-                                      image_->tiles_done(), image_->tiles()));
-      ends_now(now);
-      if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
-        last_status = now;
-        config_.status(snapshot());
-      }
-      image_keep_alive(now);
-      for (ImagePhase::Order& g : image_->next_work(clock(now))) grant_tiles(peer(g.node), g.grant);
-      const bool here_now = image_->render_here();
-      if (here_now) {
-        if (!rendering_here) {
-          rendering_here = true;
-          say(logging::Level::warn, fmt::format("image: no node left; the coordinator renders the {} tiles left",
-                                                image_->tiles() - image_->tiles_done()),
-              {{"event", "image"}, {"here", true}});
-        }
-        if (std::optional<uint64_t> t = image_->take_here()) {
-          const TileRect r = image_->grid().rect(*t);
-          try {
-            image_->place_here(*t, here().render(*mesh_.camera, r.x0, r.y0, r.x1, r.y1));
-          } catch (const Error& e) {
-            throw ImageFailed(fmt::format("tile {} rendered here: {}", *t, e.what()));
-          }
-          ++result.tiles_here;
-        } else if (!waiting_for_lost) {
-          waiting_for_lost = true;
-          say(logging::Level::warn, "image: the tiles left were lost with nodes, so they wait for a node (never rendered here)",
-              {{"event", "image waits"}, {"lost", true}});
-        }
-      }
-      std::string key;
-      if (auto in = next(now, key, here_now)) image_message(*in, key, h, bulk);
-    }
-    end_image();
-    result.image = std::move(image_->passes());
-    result.image_tiles = image_->tiles();
-    result.image_seconds = seconds(Clock::now() - began);
-    say(logging::Level::info, fmt::format("image done: {} tiles in {:.2f} s", result.image_tiles, result.image_seconds),
-        {{"event", "image done"}, {"tiles", result.image_tiles}, {"seconds", result.image_seconds}, {"here", result.tiles_here}});
-  }
 
   // Whether `p` renders the image when it begins: its FINAL is in, and it is live.
   bool may_render(const Peer& p) const {

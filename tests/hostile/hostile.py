@@ -266,7 +266,7 @@ class Run:
     stalls (a process not scheduled, a slow disk) stay well inside, since an honest node declared
     dead fails every case."""
 
-    def __init__(self, build, work, bundles, min_nodes, extra=(), insecure=True, size=(16, 16)):
+    def __init__(self, build, work, bundles, min_nodes, extra=(), insecure=True, size=(16, 16), timeout=300):
         self.build, self.work, self.bundles = build, work, bundles
         self.endpoint_file = os.path.join(work, "endpoint")
         self.out = os.path.join(work, "furnace")
@@ -276,7 +276,7 @@ class Run:
                (["--insecure"] if insecure else []) + ["--endpoint-file", self.endpoint_file, "--bundles", str(bundles), "--patches", "300",
                 "--min-nodes", str(min_nodes), "--control-variate", "off", "--directions", "random",
                 "--shots-per-bundle", "0", "--exchange-every", "16", "--out", self.out, "--width", str(size[0]),
-                "--height", str(size[1]), "--ledger", self.ledger, "--status-json", self.status, "--timeout", "300",
+                "--height", str(size[1]), "--ledger", self.ledger, "--status-json", self.status, "--timeout", str(timeout),
                 "--heartbeat-ms", "200", "--liveness", "25", "-q"] + list(extra)
         self.coordinator = Proc(args, os.path.join(work, "coordinator.log"))
         wait_until("the endpoint file", lambda: os.path.exists(self.endpoint_file) and os.path.getsize(self.endpoint_file) > 0,
@@ -958,6 +958,33 @@ def case_pixels_withheld(build, work, ctx):
     check(status.get("image_tiles_done") == 6, f"the image's tiles: {status}")
     honest = [n for n in status["nodes"] if n["name"] == "h0"]
     check(honest and honest[0].get("tiles") == 6, f"the honest node did not render every tile: {status['nodes']}")
+
+
+def case_image_time_limit(build, work, ctx):
+    """Issue 35: the run's time limit reached during the image (its only node withholds every
+    PIXELS, as pixels_withheld's liar: its first tiles are due after 30 s and more, past the
+    limit of 25 s; the solve of 256 bundles takes a second or two of it). The image fails, not
+    the run: the solution is kept (NAME.ply, NAME.glb, the ledger), no image is written, the
+    exit status is 1 and the error names the limit and the tiles done."""
+    pixels_cmd = CMD["pixels"]
+
+    def withhold(frames):
+        if len(frames) < 3 or frames[0] != SIG or frames[1][0] != pixels_cmd:
+            return None
+        return [SIG, bytes([CMD["heartbeat"]]) + frames[1][1:], b""]
+
+    run = Run(build, work, 256, 1, ["--final-gather", "4"], size=(96, 64), timeout=25)
+    proxy = run_with_liar(run, ctx, withhold, 0)
+    log = run.coordinator.log()
+    check(run.coordinator.rc == 1, f"coordinator exit {run.coordinator.rc}, not 1:\n{log[-4000:]}")
+    check(proxy.lied >= 1, "the liar withheld no PIXELS (it was granted no tiles?)")
+    check("the run's time limit of 25 s was reached with 0 of 6 tiles done" in log, f"the image did not fail at the limit:\n{log[-4000:]}")
+    check("the solution is kept in" in log, f"the error does not say the solution was kept:\n{log[-4000:]}")
+    for ext in (".exr", ".png"):
+        check(not os.path.exists(run.out + ext), f"{run.out + ext} was written without an image")
+    check(os.path.getsize(run.out + ".ply") > 0 and os.path.getsize(run.out + ".glb") > 0, "the solution was not kept")
+    rows = ledger_ranges(run.ledger)
+    check(sum(last - first for _, _, first, last in rows) == 256, f"the ledger does not hold the 256 bundles: {rows}")
 
 
 def case_pixels_wrong(build, work, ctx):
