@@ -10,6 +10,7 @@
 #include <random>
 #include <set>
 #include <thread>
+#include <variant>
 
 #include <fmt/format.h>
 
@@ -78,6 +79,21 @@ struct ImageState {
   double busy_s = 0;
 };
 
+// Where the node is in a run, one phase at a time (PROTOCOL.md section 3): none (saying HELLO
+// until a coordinator has a run for it); joining (WELCOME in: the scene arriving, or meshed
+// from the cache); solving (READY sent: grants, updates, the STOP that asks for its FINAL);
+// imaging (after a STOP whose image follows: IMAGE, tiles, the STOP that ends the image).
+struct Joining {
+  RunState run;
+};
+struct Solving {
+  RunState run;
+};
+struct Imaging {
+  ImageState image;
+};
+using Phase = std::variant<std::monostate, Joining, Solving, Imaging>;
+
 class Node {
  public:
   Node(zmq::context_t& context, const std::string& endpoint, const NodeOptions& options)
@@ -119,10 +135,10 @@ class Node {
       auto waiting = Clock::now();
       // A message is copied only within its command's bound for this node's run (none before
       // WELCOME: headers alone, a SCENE frame).
-      const RunState* run = state_ ? state_.get() : pending_.get();
-      const std::size_t patches = run ? run->run.patches() : image_ ? image_->mesh.size() : 0;
+      const RunState* run = this->run();
+      const std::size_t patches = run ? run->run.patches() : imaging() ? imaging()->mesh.size() : 0;
       auto in = proto::receive(*socket_, poll_ms(), 0, patches, run ? run->run.chunk_starts_size() : 0);
-      if (state_ && granted_) idle_s_ += seconds(Clock::now() - waiting);  // blocked with nothing to run
+      if (solving() && granted_) idle_s_ += seconds(Clock::now() - waiting);  // blocked with nothing to run
       if (!in) {
         coordinator_liveness();
         silence_warning();
@@ -154,10 +170,33 @@ class Node {
  private:
   bool stopping() const { return options_.stop && options_.stop->load(); }
 
+  // The current phase's state, or null in another phase.
+  RunState* joining() {
+    auto* j = std::get_if<Joining>(&phase_);
+    return j ? &j->run : nullptr;
+  }
+  RunState* solving() {
+    auto* s = std::get_if<Solving>(&phase_);
+    return s ? &s->run : nullptr;
+  }
+  const RunState* solving() const {
+    auto* s = std::get_if<Solving>(&phase_);
+    return s ? &s->run : nullptr;
+  }
+  ImageState* imaging() {
+    auto* i = std::get_if<Imaging>(&phase_);
+    return i ? &i->image : nullptr;
+  }
+  // The run being joined or solved, or null.
+  const RunState* run() const {
+    if (auto* j = std::get_if<Joining>(&phase_)) return &j->run;
+    return solving();
+  }
+
   // The operator's log (util/log.h): "sirad-node NAME: ...", or a JSON line with the fields.
   void log(logging::Level level, const std::string& message, nlohmann::json fields) const {
     fields["node"] = options_.name;
-    if (const RunState* r = state_ ? state_.get() : pending_.get()) fields["run"] = fmt::format("{:016x}", r->run.run_id());
+    if (const RunState* r = run()) fields["run"] = fmt::format("{:016x}", r->run.run_id());
     logging::write(level, "sirad-node " + options_.name, message, fields);
   }
   void info(const std::string& message, nlohmann::json fields) const { log(logging::Level::info, message, std::move(fields)); }
@@ -234,7 +273,7 @@ class Node {
     up_.flush(*socket_, seconds(now - epoch_));
     if (!in_run()) return true;
     if (now - last_sent_ >= heartbeat_) send({Command::heartbeat, {}, {}});
-    return !(state_ && emulation_.disconnect_at_s() >= 0 && seconds(now - ready_at_) >= emulation_.disconnect_at_s());
+    return !(solving() && emulation_.disconnect_at_s() >= 0 && seconds(now - ready_at_) >= emulation_.disconnect_at_s());
   }
 
   // The emulated disconnect: the socket goes (with whatever it had queued), and so does the
@@ -243,10 +282,9 @@ class Node {
     double after = emulation_.reconnect_after_s();
     warn(fmt::format("disconnected by the emulation profile{}", after >= 0 ? fmt::format("; back in {} s", after) : " for good"),
          {{"event", "left"}, {"why", "emulated disconnect"}});
-    disconnected_runs_.insert((state_ ? state_ : pending_)->run.run_id());
+    if (const RunState* r = run()) disconnected_runs_.insert(r->run.run_id());
     socket_.reset();
-    state_.reset();
-    pending_.reset();
+    phase_ = std::monostate{};
     emulation_ = no_emulation();
     up_ = {};
     if (after < 0) return false;
@@ -269,12 +307,10 @@ class Node {
   }
 
   // In a run: joining it, running it, or after it rendering its image.
-  bool in_run() const { return state_ || pending_ || image_; }
+  bool in_run() const { return !std::holds_alternative<std::monostate>(phase_); }
 
   void leave_run() {
-    state_.reset();
-    pending_.reset();
-    image_.reset();
+    phase_ = std::monostate{};
     emulation_ = no_emulation();
     up_ = {};
   }
@@ -323,11 +359,9 @@ class Node {
     } catch (const Error& e) {
       return error(fmt::format("WELCOME refused: {}", e.what()));
     }
-    state_.reset();
-    image_.reset();
-    pending_ = std::make_unique<RunState>();
-    pending_->run = w.run();
-    pending_->index = w.node_index();
+    RunState& joining = phase_.emplace<Joining>().run;
+    joining.run = w.run();
+    joining.index = w.node_index();
     scene_bytes_.clear();
     heartbeat_ = std::chrono::milliseconds(std::clamp<uint32_t>(w.heartbeat_ms(), 10, 60000));
     liveness_ = std::clamp<uint32_t>(w.liveness(), 1, 100);
@@ -368,11 +402,11 @@ class Node {
 
   // Scene chunks in order; the last one completes the scene: mesh it, check the hash, start.
   void scene(const wire::SceneChunk& c, const std::string& bytes) {
-    if (!pending_ || c.offset() != scene_bytes_.size()) return error("SCENE out of order");
+    if (!joining() || c.offset() != scene_bytes_.size()) return error("SCENE out of order");
     // No scene file sirad reads is larger (scene/scene.cpp); a claim beyond it is refused before
     // the node buffers it.
     if (c.total_bytes() > kMaxSceneBytes) {
-      pending_.reset();
+      phase_ = std::monostate{};
       return error(fmt::format("SCENE of {} bytes (at most {})", c.total_bytes(), kMaxSceneBytes));
     }
     scene_bytes_ += bytes;
@@ -392,37 +426,38 @@ class Node {
   // `label` names where the bytes came from in an error.
   bool set_up(const std::string& scene_bytes, const std::string& label) {
     try {
-      const wire::Run& run = pending_->run;
+      RunState& joining = *this->joining();
+      const wire::Run& run = joining.run;
       const cluster::RunSettings settings = cluster::from_wire(run);  // as the coordinator has them
       Scene scene = decode_scene(scene_bytes, label);
       MeshOptions mesh_options = settings.mesh_options;
       mesh_options.max_patches = run.patches();  // no more than the run says it has
-      pending_->mesh = mesh_scene(scene, mesh_options);
-      if (pending_->mesh.hash != run.scene_hash())
-        fail("meshed scene hash {} differs from the run's {}", pending_->mesh.hash, run.scene_hash());
-      pending_->engine = make_cl_engine(pending_->mesh, {.device = options_.device});
-      if (settings.shots_per_bundle > 0) pending_->shots = make_cl_shot_engine(pending_->mesh, options_.device);
+      joining.mesh = mesh_scene(scene, mesh_options);
+      if (joining.mesh.hash != run.scene_hash())
+        fail("meshed scene hash {} differs from the run's {}", joining.mesh.hash, run.scene_hash());
+      joining.engine = make_cl_engine(joining.mesh, {.device = options_.device});
+      if (settings.shots_per_bundle > 0) joining.shots = make_cl_shot_engine(joining.mesh, options_.device);
       auto t0 = Clock::now();
       const std::vector<uint32_t> starts(run.chunk_starts().begin(), run.chunk_starts().end());
       // The burn-in can be long (up to 2^20 bundles): a stop ends it.
-      pending_->worker = std::make_unique<cluster::Worker>(pending_->mesh, *pending_->engine, pending_->shots.get(), settings,
-                                                           pending_->index, starts, [this] { return stopping(); });
-      double ms = seconds(Clock::now() - t0) * 1e3 / std::max(1, pending_->worker->solver().burn_in());
-      state_ = std::move(pending_);
+      joining.worker = std::make_unique<cluster::Worker>(joining.mesh, *joining.engine, joining.shots.get(), settings,
+                                                         joining.index, starts, [this] { return stopping(); });
+      double ms = seconds(Clock::now() - t0) * 1e3 / std::max(1, joining.worker->solver().burn_in());
+      RunState& state = phase_.emplace<Solving>(Solving{std::move(joining)}).run;
       wire::Ready ready;
-      ready.set_run_id(state_->run.run_id());
-      ready.set_scene_hash(state_->mesh.hash);
+      ready.set_run_id(state.run.run_id());
+      ready.set_scene_hash(state.mesh.hash);
       ready.set_ms_per_bundle(ms * emulation_.slowdown());
       send({Command::ready, ready, {}});
       last_heard_ = ready_at_ = Clock::now();  // setup blocked the loop; count from now
-      info(fmt::format("ready: {} patches ({}), burn-in {} bundles, {:.2f} ms per bundle on {}", state_->mesh.size(), label,
-                       state_->worker->solver().burn_in(), ms * emulation_.slowdown(), device_.device_name),
-           {{"event", "ready"}, {"patches", state_->mesh.size()}, {"burn_in", state_->worker->solver().burn_in()},
+      info(fmt::format("ready: {} patches ({}), burn-in {} bundles, {:.2f} ms per bundle on {}", state.mesh.size(), label,
+                       state.worker->solver().burn_in(), ms * emulation_.slowdown(), device_.device_name),
+           {{"event", "ready"}, {"patches", state.mesh.size()}, {"burn_in", state.worker->solver().burn_in()},
             {"ms_per_bundle", ms * emulation_.slowdown()}, {"device", device_.device_name}});
       return true;
     } catch (const Error& e) {
       error(e.what());
-      pending_.reset();
+      phase_ = std::monostate{};
       return false;
     }
   }
@@ -430,13 +465,14 @@ class Node {
   // Run the granted bundles (each taking `slowdown` times its real time under emulation), then
   // report the chunks the grant names.
   void grant(const wire::Grant& g) {
-    if (!state_ || g.run_id() != state_->run.run_id()) return error("GRANT for no run of mine");
+    RunState* state = solving();
+    if (!state || g.run_id() != state->run.run_id()) return error("GRANT for no run of mine");
     auto start = Clock::now();
     granted_ = true;
     wire::Report report;
     report.set_run_id(g.run_id());
     report.set_grant_id(g.grant_id());
-    cluster::Worker& worker = *state_->worker;
+    cluster::Worker& worker = *state->worker;
     const uint64_t crossings = worker.solver().crossings();
     std::vector<cluster::Range> ranges;
     uint64_t count = 0;
@@ -460,7 +496,7 @@ class Node {
       return !stopping();
     });
     if (!whole) return;
-    state_->bundles += count;
+    state->bundles += count;
     for (const auto& r : g.ranges()) *report.add_done() = r;
     report.set_crossings(worker.solver().crossings() - crossings);
     busy_s_ += seconds(Clock::now() - start);
@@ -495,9 +531,10 @@ class Node {
   // IMAGE: the view and the solution to gather from; every field checked before the gather
   // is made (its rays over this node's mesh: Embree, on the CPU).
   void image(const wire::Image& h, const std::string& solution) {
-    if (!image_ || h.run_id() != image_->run_id) return error("IMAGE for no run of mine");
+    ImageState* image = imaging();
+    if (!image || h.run_id() != image->run_id) return error("IMAGE for no run of mine");
     try {
-      ImageState& im = *image_;
+      ImageState& im = *image;
       constexpr uint32_t kMaxSide = 1u << 20;  // beyond any image: TileGrid refuses it by name
       const int width = static_cast<int>(std::min(h.width(), kMaxSide)), height = static_cast<int>(std::min(h.height(), kMaxSide));
       im.grid.emplace(width, height, static_cast<int>(std::min(h.tile(), kMaxSide)));
@@ -518,7 +555,7 @@ class Node {
       info(fmt::format("image: {}x{}, {} spp, {} tiles, {} threads", width, height, spp, im.grid->count(), threads),
            {{"event", "image"}, {"width", width}, {"height", height}, {"spp", spp}, {"threads", threads}});
     } catch (const Error& e) {
-      image_->gather.reset();
+      image->gather.reset();
       return error(fmt::format("IMAGE refused: {}", e.what()));
     }
   }
@@ -526,8 +563,9 @@ class Node {
   // TILES: render the granted tiles (on every core; the heartbeat between this thread's rows),
   // then PIXELS.
   void tiles(const wire::Grant& g) {
-    if (!image_ || !image_->gather || g.run_id() != image_->run_id) return error("TILES for no image of mine");
-    ImageState& im = *image_;
+    ImageState* image = imaging();
+    if (!image || !image->gather || g.run_id() != image->run_id) return error("TILES for no image of mine");
+    ImageState& im = *image;
     const auto start = Clock::now();
     wire::Pixels px;
     px.set_run_id(g.run_id());
@@ -561,10 +599,11 @@ class Node {
   }
 
   void update(const wire::Update& u, const std::vector<std::string>& bulk) {
-    if (!state_ || u.run_id() != state_->run.run_id()) return;
+    RunState* state = solving();
+    if (!state || u.run_id() != state->run.run_id()) return;
     for (int i = 0; i < u.chunks_size(); ++i) {
       try {
-        state_->worker->absorb(u.chunks(i), proto::unpack(bulk[i]), u.counts(i));
+        state->worker->absorb(u.chunks(i), proto::unpack(bulk[i]), u.counts(i));
       } catch (const Error& e) {
         return error(fmt::format("UPDATE: {}", e.what()));
       }
@@ -574,33 +613,36 @@ class Node {
   // STOP: the run's end (FINAL back; with image_follows the mesh is kept for the image), or
   // after the image, its end.
   void stop(const wire::Stop& s) {
-    if (!state_ && image_ && s.run_id() == image_->run_id) {
-      info(fmt::format("image done: {} tiles here, busy {:.2f} s", image_->tiles, image_->busy_s),
-           {{"event", "image done"}, {"tiles", image_->tiles}, {"busy_s", image_->busy_s}});
-      image_.reset();
+    if (ImageState* image = imaging(); image && s.run_id() == image->run_id) {
+      info(fmt::format("image done: {} tiles here, busy {:.2f} s", image->tiles, image->busy_s),
+           {{"event", "image done"}, {"tiles", image->tiles}, {"busy_s", image->busy_s}});
+      phase_ = std::monostate{};
       return;
     }
-    if (!state_) return;
+    RunState* state = solving();
+    if (!state) return;
     wire::Report final_state;
-    final_state.set_run_id(state_->run.run_id());
+    final_state.set_run_id(state->run.run_id());
     final_state.set_busy_s(busy_s_);
     final_state.set_idle_s(idle_s_);
-    Message m{Command::final_state, {}, chunk_frames(state_->worker->all_states(), final_state)};
+    Message m{Command::final_state, {}, chunk_frames(state->worker->all_states(), final_state)};
     m.header = final_state;
     send(m);
-    info(fmt::format("run done: {} bundles here, busy {:.2f} s, idle {:.2f} s; final state sent{}", state_->bundles, busy_s_, idle_s_,
+    info(fmt::format("run done: {} bundles here, busy {:.2f} s, idle {:.2f} s; final state sent{}", state->bundles, busy_s_, idle_s_,
                      s.image_follows() ? "; the image follows" : ""),
-         {{"event", "done"}, {"bundles", state_->bundles}, {"busy_s", busy_s_}, {"idle_s", idle_s_}});
+         {{"event", "done"}, {"bundles", state->bundles}, {"busy_s", busy_s_}, {"idle_s", idle_s_}});
     if (s.image_follows()) {
       // The engines go first (they were made on the mesh), then the mesh moves to the image.
-      state_->worker.reset();
-      state_->shots.reset();
-      state_->engine.reset();
-      image_ = std::make_unique<ImageState>();
-      image_->run_id = state_->run.run_id();
-      image_->mesh = std::move(state_->mesh);
+      state->worker.reset();
+      state->shots.reset();
+      state->engine.reset();
+      Imaging next;
+      next.image.run_id = state->run.run_id();
+      next.image.mesh = std::move(state->mesh);
+      phase_ = std::move(next);
+    } else {
+      phase_ = std::monostate{};
     }
-    state_.reset();
     // The FINAL leaves through the emulated link; the next run brings its own.
     while (!up_.empty() && !stopping()) {
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -615,8 +657,7 @@ class Node {
   NodeOptions options_;
   DeviceInfo device_;
   std::unique_ptr<zmq::socket_t> socket_;
-  std::unique_ptr<RunState> pending_, state_;
-  std::unique_ptr<ImageState> image_;
+  Phase phase_;
   std::string scene_bytes_;
   SceneCache cache_;
   std::set<std::string> said_held_;  // the scene hashes of the last HELLO
