@@ -111,7 +111,7 @@ int fig6(const Common& c, int seeds, const std::string& totals_s, const std::str
   } else {
     base.rule = UpdateRule::chain;
     base.directions = Directions::stratified;
-    base.shots_per_bundle = cli::kDefaultShotsPerBundle;
+    base.shots_per_bundle = cli::settings_from({}, {}).shots_per_bundle;
   }
   base.mode = cluster::Mode::sync;
   if (!profile.empty()) base.profile = emulation::load_profile(profile);
@@ -160,7 +160,7 @@ int hetero(const Common& c, const std::string& profile_path, double target, int 
   base.scene = s.scene;
   base.mesh_options.target_patches = static_cast<std::size_t>(c.patches);
   base.directions = Directions::stratified;
-  base.shots_per_bundle = cli::kDefaultShotsPerBundle;
+  base.shots_per_bundle = cli::settings_from({}, {}).shots_per_bundle;
   base.target_error = target;
   base.bundles = cap;
   base.profile = profile;

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "cluster/exchange.h"
 #include "util/error.h"
@@ -46,61 +47,37 @@ CLI::Validator finite_in(double lo, double hi) {
 }
 
 std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
-  std::vector<CLI::Option*> options = {
-      cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
-          ->check(CLI::Range(int64_t{1}, int64_t{1} << 31)),
-      cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(positive()),
-      cmd->add_option("--bundles", r.bundles,
-                      "Bundles (random directions) to run; the cap with --target-error (default there: 1000000)")
-          ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))
-          ->capture_default_str(),
-      cmd->add_option("--grid", r.grid, "Lines per side of a bundle (default: from the patch sizes)")->check(CLI::Range(2, 8192)),
-      cmd->add_option("--seed", r.seed, "Run seed")->capture_default_str(),
-      cmd->add_option("--rule", r.rule, "Update rule: chain (default) or average (the paper's)")
-          ->check(CLI::IsMember({"chain", "average"})),
-      cmd->add_option("--directions", r.directions,
-                      "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified")
-          ->check(CLI::IsMember({"auto", "random", "stratified"}))
-          ->capture_default_str(),
-      cmd->add_option("--control-variate", r.control_variate,
-                      "The transport's constant control variate: on (default) or off (the plain estimator)")
-          ->check(CLI::IsMember({"on", "off"}))
-          ->capture_default_str(),
-      cmd->add_option("--burn-in", r.burn_in, "Chain bundles run before counting (default: auto)")->check(CLI::Range(0, 1 << 20)),
-      cmd->add_option("--shots-per-bundle", r.shots_per_bundle,
-                      "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)")
-          ->check(finite_in(0.0, 1024.0))
-          ->capture_default_str(),
-      cmd->add_option("--shot-resolution", r.shot_resolution, "First shot: hemicube side in pixels (0: from the mesh)")
-          ->check(CLI::Range(0, 2048))
-          ->capture_default_str(),
-      cmd->add_option("--exchange-every", r.exchange_every,
-                      "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)")
-          ->capture_default_str(),
-      cmd->add_option("--exchange-fraction", r.exchange_fraction, "Fraction S of chunks per exchange")
-          ->check(finite_in(1e-9, 1.0))
-          ->capture_default_str(),
-      cmd->add_option("--topology", r.topology, "star or ring")->check(CLI::IsMember({"star", "ring"}))->capture_default_str(),
-      cmd->add_option("--mode", r.mode, "sync or async")->check(CLI::IsMember({"sync", "async"}))->capture_default_str(),
-      cmd->add_option("--balance", r.balance,
-                      "Grants sized to each node's speed, so unequal nodes finish them together: on or off (every grant I bundles)")
-          ->check(CLI::IsMember({"on", "off"}))
-          ->capture_default_str(),
-      cmd->add_option("--time-limit", r.time_limit, "End the run early after this long (seconds)")->check(non_negative()),
-      cmd->add_option("--target-error", r.target_error,
-                      "End the run at this relative error estimate (one node: batch means; 2+ nodes with --exchange-every: the "
-                      "nodes' spread)")
-          ->check(finite_in(0.0, 1.0)),
-      cmd->add_option("--chunks", r.chunks, "Chunks of patches exchanged separately")->check(CLI::Range(1, 4096))->capture_default_str(),
-  };
   std::vector<std::string> names;
-  for (const CLI::Option* o : options) names.push_back("--" + o->get_lnames().front());
+  for (const cluster::SettingRow& row : cluster::setting_rows()) {
+    const std::string flag(row.flag);
+    CLI::Option* o = cmd->add_option("--" + flag, r.text[flag], std::string(row.help));
+    // Its row's parse on the defaults: the value's own bounds (--directions stratified under
+    // --rule average is settings_from's, where the rule is known).
+    o->check(CLI::Validator(
+        [&row](std::string& text) -> std::string {
+          cluster::RunSettings scratch;
+          try {
+            row.parse(scratch, text);
+          } catch (const Error& e) {
+            return e.what();
+          }
+          return "";
+        },
+        row.choices.empty() ? "" : fmt::format("{{{}}}", fmt::join(row.choices, ","))));
+    o->type_name(std::string(row.type));
+    if (row.show_default) o->default_str(std::string(row.default_text));
+    names.push_back("--" + flag);
+  }
   return names;
 }
 
 const std::vector<std::string>& cluster_flag_names() {
-  static const std::vector<std::string> names = {"--exchange-every", "--exchange-fraction", "--topology", "--mode", "--balance",
-                                                 "--chunks"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> out;
+    for (const cluster::SettingRow& row : cluster::setting_rows())
+      if (row.cluster) out.push_back("--" + std::string(row.flag));
+    return out;
+  }();
   return names;
 }
 
@@ -111,7 +88,7 @@ std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
       cmd->add_option("--height", o.height, "Image height (default: 512, or the width over the camera's aspect)")->check(CLI::Range(1, kMaxImageSide)),
       cmd->add_option("--exposure", o.exposure, "PNG exposure in stops")->check(finite_in(-64.0, 64.0)),
       cmd->add_flag("--flat", o.flat, "Flat-shaded image (one value per patch) instead of Gouraud"),
-      cmd->add_option("--final-gather", o.final_gather,
+      cmd->add_option("--final-gather", o.final_gather_spp,
                       "Image the view by a final gather with this many samples per pixel (direct light traced, indirect "
                       "from the solution; EXR passes direct, indirect) instead of drawing the patches (0: draw them)")
           ->check(CLI::Range(0, 65536)),
@@ -137,7 +114,7 @@ std::vector<std::string> output_args(const OutputFlags& o) {
   if (o.height > 0) a.insert(a.end(), {"--height", std::to_string(o.height)});
   if (o.exposure != 0.0f) a.insert(a.end(), {"--exposure", fmt::format("{}", o.exposure)});  // shortest exact form
   if (o.flat) a.push_back("--flat");
-  if (o.final_gather > 0) a.insert(a.end(), {"--final-gather", std::to_string(o.final_gather)});
+  if (o.final_gather_spp > 0) a.insert(a.end(), {"--final-gather", std::to_string(o.final_gather_spp)});
   if (o.skip_degenerate) a.push_back("--skip-degenerate");
   if (o.two_sided) a.push_back("--two-sided");
   if (o.outside_uris) a.push_back("--allow-outside-uris");
@@ -179,34 +156,20 @@ MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<doub
 }
 
 cluster::RunSettings settings_from(const RunFlags& f, const std::set<std::string>& given) {
+  if (given.count("--patches") && given.count("--max-edge")) fail("--patches and --max-edge exclude each other");
   cluster::RunSettings s;
-  s.mesh_options = mesh_options_from(f.patches, f.max_edge);
-  s.rule = parse_update_rule(f.rule);
-  // "auto": stratified under the chain rule, random under average (where stratification
-  // biases: engine/bundle.cpp).
-  s.directions = f.directions == "auto" ? (s.rule == UpdateRule::chain ? Directions::stratified : Directions::random)
-                                        : parse_directions(f.directions);
-  if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
-    fail("--directions stratified needs --rule chain (under average it biases the estimate: engine/bundle.cpp)");
-  s.bundles = static_cast<uint64_t>(f.target_error > 0 && !given.count("--bundles") ? kTargetErrorCap : f.bundles);
-  s.seed = f.seed;
-  s.grid = f.grid.value_or(0);
-  s.burn_in = f.burn_in.value_or(-1);
-  s.control_variate = f.control_variate == "on";
-  // --shots-per-bundle's range is its flag's (CLI::Range); the resolution's evenness is not a
-  // range, so it is checked here, naming the flag (cluster::check repeats it without the name).
-  if (f.shot_resolution != 0 && (f.shot_resolution < 4 || f.shot_resolution % 2 != 0 || f.shot_resolution > 2048))
-    fail("--shot-resolution must be 0 (auto) or even in [4, 2048] (got {})", f.shot_resolution);
-  s.shots_per_bundle = f.shots_per_bundle;
-  s.shot_resolution = f.shot_resolution;
-  s.exchange_every = cluster::parse_exchange_every(f.exchange_every);
-  s.fraction = f.exchange_fraction;
-  s.topology = cluster::parse_topology(f.topology);
-  s.mode = cluster::parse_mode(f.mode);
-  s.chunks = static_cast<uint32_t>(f.chunks);
-  s.balance = f.balance == "on";
-  s.time_limit_s = f.time_limit;
-  s.target_error = f.target_error;
+  for (const cluster::SettingRow& row : cluster::setting_rows()) {
+    const std::string flag = "--" + std::string(row.flag);
+    auto typed = f.text.find(std::string(row.flag));
+    const bool is_given = given.count(flag) && typed != f.text.end();
+    if (!is_given && row.default_text.empty()) continue;  // the setting's own default (auto, none)
+    try {
+      row.parse(s, is_given ? typed->second : std::string(row.default_text));
+    } catch (const Error& e) {
+      fail("{}: {}", flag, e.what());
+    }
+  }
+  if (s.target_error > 0 && !given.count("--bundles")) s.bundles = static_cast<uint64_t>(kTargetErrorCap);
   cluster::check(s);
   return s;
 }
@@ -241,7 +204,7 @@ ResultOptions result_options(const OutputFlags& flags) {
   ro.height = flags.height;
   ro.exposure = flags.exposure;
   ro.shading = flags.flat ? Shading::flat : Shading::gouraud;
-  ro.gather_spp = flags.final_gather;
+  ro.final_gather_spp = flags.final_gather_spp;
   return ro;
 }
 

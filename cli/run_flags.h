@@ -1,9 +1,12 @@
-// sirad: the one declaration of the flags that define a run, and of the output flags, shared by
-// `sirad render`, `sirad emulate` and `sirad-coordinator` (and by the coordinator's --resume,
-// which refuses every run flag: a resumed run keeps its checkpoint's settings). The flags hold
-// what was typed; settings_from turns them into the run's cluster::RunSettings, checked.
+// sirad: the flags that define a run, made from the table of a run's settings
+// (cluster::setting_rows: each row's flag, help, default and parsing), and the output flags;
+// shared by `sirad render`, `sirad emulate`, `sirad-coordinator` and the farm's job files (and by
+// the coordinator's --resume, which refuses every run flag: a resumed run keeps its
+// checkpoint's settings). The flags hold what was typed; settings_from turns them into the
+// run's cluster::RunSettings, checked.
 #pragma once
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -18,30 +21,13 @@
 
 namespace sirad::cli {
 
-// The command lines' default first shot: shots per bundle.
-inline constexpr double kDefaultShotsPerBundle = 0.25;
 // --target-error without --bundles: the cap it lifts the default of 1000 bundles to.
 inline constexpr int64_t kTargetErrorCap = 1000000;
 
+// The run flags as typed: each given flag's text, by its long name without "--" (the rows'
+// `flag`); which were given is the command line's (given_flags).
 struct RunFlags {
-  std::optional<int64_t> patches;
-  std::optional<double> max_edge;
-  int64_t bundles = 1000;
-  std::optional<int> grid;
-  uint64_t seed = 1;
-  std::string rule = "chain";
-  std::string directions = "auto";
-  std::string control_variate = "on";
-  std::optional<int> burn_in;
-  double shots_per_bundle = kDefaultShotsPerBundle;
-  int shot_resolution = 0;
-  std::string exchange_every = "end";
-  double exchange_fraction = 1.0;
-  std::string topology = "star";
-  std::string mode = "async";
-  std::string balance = "on";
-  int chunks = 16;
-  double time_limit = 0, target_error = 0;
+  std::map<std::string, std::string> text;
 };
 
 struct OutputFlags {
@@ -49,7 +35,7 @@ struct OutputFlags {
   int width = 0, height = 0;  // 0: settle_image_size gives them from the camera's aspect
   float exposure = 0.0f;
   bool flat = false;
-  int final_gather = 0;  // samples per pixel of a final gather image (0: the patches drawn)
+  int final_gather_spp = 0;  // --final-gather: samples per pixel of a final gather image (0: the patches drawn)
   bool skip_degenerate = false;
   bool two_sided = false;
   bool outside_uris = false;  // --allow-outside-uris (ImportOptions::outside_uris)
@@ -59,7 +45,8 @@ struct OutputFlags {
 
 // The SCENE argument (a built-in name or a scene file).
 void add_scene_argument(CLI::App* cmd, std::string& scene);
-// The run flags, the cluster's among them; returns their long names ("--bundles", ...).
+// The run flags, one per row of the table, the cluster's among them; returns their long names
+// ("--bundles", ...). Each flag's value is checked as it is parsed (its row's parse).
 std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& flags);
 
 // Number checks whose refusal reads plainly ("must be greater than 0 (got 0)"), for the flags
@@ -86,8 +73,10 @@ std::set<std::string> given_flags(const CLI::App* cmd);
 // The meshing the flags ask for: --patches N, --max-edge L (not both), or about 10000 patches.
 MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<double> max_edge);
 
-// The run the flags ask for (`given`: the flags given; --target-error without --bundles lifts
-// the cap to kTargetErrorCap), checked (cluster::check). Throws sirad::Error naming the flag.
+// The run the flags ask for: every row's given text, else its default, in the table's order
+// (`given`: the flags given; --patches and --max-edge exclude each other; --target-error without
+// --bundles lifts the cap to kTargetErrorCap), checked (cluster::check). Throws sirad::Error
+// naming the flag. With no flags: the command lines' defaults.
 cluster::RunSettings settings_from(const RunFlags& flags, const std::set<std::string>& given);
 
 // --camera's view, or none when it is empty; throws sirad::Error naming the flag.

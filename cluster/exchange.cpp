@@ -33,7 +33,7 @@ uint32_t parse_exchange_every(const std::string& s) {
     used = 0;
   }
   if (used != s.size() || s.empty() || s[0] == '-' || v == 0 || v >= kExchangeAuto)
-    fail("--exchange-every '{}' is not a bundle count >= 1, 'end' or 'auto'", s);
+    fail("'{}' is not a bundle count >= 1, 'end' or 'auto'", s);
   return static_cast<uint32_t>(v);
 }
 

@@ -2,7 +2,10 @@
 #include "cluster/settings.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
 
 #include "cluster/policy.h"
 #include "engine/version.h"
@@ -12,22 +15,265 @@
 
 namespace sirad::cluster {
 
+namespace {
+
+// The flags' values as the rows read them (messages without the flag: the caller names it).
+int64_t integer_in(const std::string& text, int64_t lo, int64_t hi) {
+  int64_t v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size() || text.empty()) fail("'{}' is not a whole number", text);
+  if (v < lo || v > hi) fail("must be in [{}, {}] (got {})", lo, hi, text);
+  return v;
+}
+
+double real_in(const std::string& text, double lo, double hi) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v)) fail("'{}' is not a finite number", text);
+  if (!(v >= lo && v <= hi)) fail("must be in [{}, {}] (got {})", lo, hi, text);
+  return v;
+}
+
+double positive(const std::string& text) {
+  const double v = real_in(text, -std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
+  if (!(v > 0)) fail("must be greater than 0 (got {})", text);
+  return v;
+}
+
+double non_negative(const std::string& text) {
+  const double v = real_in(text, -std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
+  if (!(v >= 0)) fail("must be 0 or more (got {})", text);
+  return v;
+}
+
+bool on_off(const std::string& text) {
+  if (text != "on" && text != "off") fail("{} is not on or off", text);
+  return text == "on";
+}
+
+// The table. Rows are parsed in this order: --patches before --max-edge (which replaces its
+// meshing), --rule before --directions (auto follows the rule).
+const std::vector<SettingRow> kRows = {
+    {.flag = "patches",
+     .help = "Mesh to about this many patches (default 10000)",
+     .type = "INT",
+     .default_text = "10000",
+     .parse = [](RunSettings& s, const std::string& t) {
+       s.mesh_options.target_patches = static_cast<std::size_t>(integer_in(t, 1, int64_t{1} << 31));
+       s.mesh_options.max_edge = 0;
+     },
+     .check = [](const RunSettings& s) {
+       if (s.mesh_options.target_patches > kMaxTargetPatches)
+         fail("target patches {} is above {}", s.mesh_options.target_patches, kMaxTargetPatches);
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_target_patches(s.mesh_options.target_patches); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.mesh_options.target_patches = r.target_patches(); }},
+    {.flag = "max-edge",
+     .help = "Mesh so no patch edge is longer than this",
+     .type = "FLOAT",
+     .parse = [](RunSettings& s, const std::string& t) {
+       s.mesh_options.max_edge = positive(t);
+       s.mesh_options.target_patches = 0;
+     },
+     .check = [](const RunSettings& s) {
+       if (!(s.mesh_options.max_edge >= 0) || !std::isfinite(s.mesh_options.max_edge))
+         fail("max edge {:.6g} is not a finite length >= 0", s.mesh_options.max_edge);
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_max_edge(s.mesh_options.max_edge); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.mesh_options.max_edge = r.max_edge(); }},
+    {.flag = "bundles",
+     .help = "Bundles (random directions) to run; the cap with --target-error (default there: 1000000)",
+     .type = "INT",
+     .default_text = "1000",
+     .show_default = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.bundles = static_cast<uint64_t>(integer_in(t, 1, int64_t{1} << 40)); },
+     .check = [](const RunSettings& s) {
+       if (s.bundles == 0 || s.bundles > kMaxBundles) fail("bundles {} is outside 1..{}", s.bundles, kMaxBundles);
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_bundles(s.bundles); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.bundles = r.bundles(); }},
+    {.flag = "grid",
+     .help = "Lines per side of a bundle (default: from the patch sizes)",
+     .type = "INT",
+     .parse = [](RunSettings& s, const std::string& t) { s.grid = static_cast<int>(integer_in(t, 2, kMaxGrid)); },
+     .check = [](const RunSettings& s) {
+       if (s.grid != 0 && (s.grid < 2 || s.grid > kMaxGrid)) fail("grid {} is outside 2..{} (0: auto)", s.grid, kMaxGrid);
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh& mesh, wire::Run& r) { r.set_grid(static_cast<uint32_t>(run_grid(s, mesh))); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.grid = static_cast<int>(r.grid()); }},
+    {.flag = "seed",
+     .help = "Run seed",
+     .type = "INT",
+     .default_text = "1",
+     .show_default = true,
+     .parse = [](RunSettings& s, const std::string& t) {
+       uint64_t v = 0;
+       const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+       if (ec != std::errc() || end != t.data() + t.size() || t.empty()) fail("'{}' is not a whole number in [0, 2^64)", t);
+       s.seed = v;
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_seed(s.seed); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.seed = r.seed(); }},
+    {.flag = "rule",
+     .help = "Update rule: chain (default) or average (the paper's)",
+     .type = "NAME",
+     .choices = {"chain", "average"},
+     .default_text = "chain",
+     .parse = [](RunSettings& s, const std::string& t) { s.rule = parse_update_rule(t); },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_rule(to_string(s.rule)); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.rule = parse_update_rule(r.rule()); }},
+    {.flag = "directions",
+     .help = "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified",
+     .type = "NAME",
+     .choices = {"auto", "random", "stratified"},
+     .default_text = "auto",
+     .show_default = true,
+     .parse = [](RunSettings& s, const std::string& t) {
+       // auto: stratified under the chain rule, random under average (where stratification
+       // biases: engine/bundle.cpp).
+       s.directions = t == "auto" ? (s.rule == UpdateRule::chain ? Directions::stratified : Directions::random) : parse_directions(t);
+       if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
+         fail("stratified needs --rule chain (under average it biases the estimate: engine/bundle.cpp)");
+     },
+     .check = [](const RunSettings& s) {
+       if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
+         fail("stratified directions need the chain rule (under average they bias the estimate: engine/bundle.cpp)");
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_directions(to_string(s.directions)); },
+     .from_run = [](const wire::Run& r, RunSettings& s) {
+       s.directions = r.directions().empty() ? Directions::random : parse_directions(r.directions());
+     }},
+    {.flag = "control-variate",
+     .help = "The transport's constant control variate: on (default) or off (the plain estimator)",
+     .type = "NAME",
+     .choices = {"on", "off"},
+     .default_text = "on",
+     .show_default = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.control_variate = on_off(t); },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_no_control_variate(!s.control_variate); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.control_variate = !r.no_control_variate(); }},
+    {.flag = "burn-in",
+     .help = "Chain bundles run before counting (default: auto)",
+     .type = "INT",
+     .parse = [](RunSettings& s, const std::string& t) { s.burn_in = static_cast<int>(integer_in(t, 0, kMaxBurnIn)); },
+     .check = [](const RunSettings& s) {
+       if (s.burn_in < -1 || s.burn_in > kMaxBurnIn) fail("burn-in {} is outside 0..{} (-1: auto)", s.burn_in, kMaxBurnIn);
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_burn_in(s.burn_in); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.burn_in = r.burn_in(); }},
+    {.flag = "shots-per-bundle",
+     .help = "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)",
+     .type = "FLOAT",
+     .default_text = "0.25",
+     .show_default = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.shots_per_bundle = real_in(t, 0.0, 1024.0); },
+     .check = [](const RunSettings& s) { check_first_shot(s.shots_per_bundle, s.shot_resolution); },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_shots_per_bundle(s.shots_per_bundle); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.shots_per_bundle = r.shots_per_bundle(); }},
+    {.flag = "shot-resolution",
+     .help = "First shot: hemicube side in pixels (0: from the mesh)",
+     .type = "INT",
+     .default_text = "0",
+     .show_default = true,
+     .parse = [](RunSettings& s, const std::string& t) {
+       const int64_t v = integer_in(t, 0, 2048);
+       if (v != 0 && (v < 4 || v % 2 != 0)) fail("must be 0 (auto) or even in [4, 2048] (got {})", t);
+       s.shot_resolution = static_cast<int>(v);
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_shot_resolution(static_cast<uint32_t>(s.shot_resolution)); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.shot_resolution = static_cast<int>(r.shot_resolution()); }},
+    {.flag = "exchange-every",
+     .help = "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)",
+     .type = "N|end|auto",
+     .default_text = "end",
+     .show_default = true,
+     .cluster = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.exchange_every = parse_exchange_every(t); },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_exchange_every(s.exchange_every); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.exchange_every = r.exchange_every(); }},
+    {.flag = "exchange-fraction",
+     .help = "Fraction S of chunks per exchange",
+     .type = "FLOAT",
+     .default_text = "1",
+     .show_default = true,
+     .cluster = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.fraction = real_in(t, 1e-9, 1.0); },
+     .check = [](const RunSettings& s) {
+       if (!(s.fraction > 0 && s.fraction <= 1)) fail("exchange fraction {} is outside (0, 1]", s.fraction);
+     },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_exchange_fraction(s.fraction); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.fraction = r.exchange_fraction(); }},
+    {.flag = "topology",
+     .help = "star or ring",
+     .type = "NAME",
+     .choices = {"star", "ring"},
+     .default_text = "star",
+     .show_default = true,
+     .cluster = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.topology = parse_topology(t); },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_topology(s.topology == Topology::star ? "star" : "ring"); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.topology = parse_topology(r.topology()); }},
+    {.flag = "mode",
+     .help = "sync or async",
+     .type = "NAME",
+     .choices = {"sync", "async"},
+     .default_text = "async",
+     .show_default = true,
+     .cluster = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.mode = parse_mode(t); },
+     .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_mode(s.mode == Mode::sync ? "sync" : "async"); },
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.mode = parse_mode(r.mode()); }},
+    {.flag = "balance",
+     .help = "Grants sized to each node's speed, so unequal nodes finish them together: on or off (every grant I bundles)",
+     .type = "NAME",
+     .choices = {"on", "off"},
+     .default_text = "on",
+     .show_default = true,
+     .cluster = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.balance = on_off(t); },
+     .to_checkpoint = [](const RunSettings& s, wire::Checkpoint& c) { c.set_balance(s.balance); },
+     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.balance = c.balance(); }},
+    {.flag = "time-limit",
+     .help = "End the run early after this long (seconds)",
+     .type = "SECONDS",
+     .parse = [](RunSettings& s, const std::string& t) { s.time_limit_s = non_negative(t); },
+     .check = [](const RunSettings& s) {
+       if (!(s.time_limit_s >= 0 && s.time_limit_s <= kMaxSeconds))
+         fail("time limit {:.6g} s is outside 0..{:.0e} s", s.time_limit_s, kMaxSeconds);
+     },
+     .to_checkpoint = [](const RunSettings& s, wire::Checkpoint& c) { c.set_time_limit_s(s.time_limit_s); },
+     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.time_limit_s = c.time_limit_s(); }},
+    {.flag = "target-error",
+     .help = "End the run at this relative error estimate (one node: batch means; 2+ nodes with --exchange-every: the "
+             "nodes' spread)",
+     .type = "FLOAT",
+     .parse = [](RunSettings& s, const std::string& t) { s.target_error = real_in(t, 0.0, 1.0); },
+     .check = [](const RunSettings& s) {
+       if (!(s.target_error >= 0 && s.target_error <= 1)) fail("target error {} is outside [0, 1]", s.target_error);
+     },
+     .to_checkpoint = [](const RunSettings& s, wire::Checkpoint& c) { c.set_target_error(s.target_error); },
+     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.target_error = c.target_error(); }},
+    {.flag = "chunks",
+     .help = "Chunks of patches exchanged separately",
+     .type = "INT",
+     .default_text = "16",
+     .show_default = true,
+     .cluster = true,
+     .parse = [](RunSettings& s, const std::string& t) { s.chunks = static_cast<uint32_t>(integer_in(t, 1, proto::kMaxChunks)); },
+     .check = [](const RunSettings& s) {
+       if (s.chunks == 0 || s.chunks > proto::kMaxChunks) fail("chunks {} is outside 1..{}", s.chunks, proto::kMaxChunks);
+     },
+     // On the wire as the chunks' starts (to_wire's `chunk_starts`).
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.chunks = static_cast<uint32_t>(r.chunk_starts_size()); }},
+};
+
+}  // namespace
+
+const std::vector<SettingRow>& setting_rows() { return kRows; }
+
 void check(const RunSettings& s) {
-  if (s.directions == Directions::stratified && s.rule != UpdateRule::chain)
-    fail("stratified directions need the chain rule (under average they bias the estimate: engine/bundle.cpp)");
-  check_first_shot(s.shots_per_bundle, s.shot_resolution);
-  if (s.bundles == 0 || s.bundles > kMaxBundles) fail("bundles {} is outside 1..{}", s.bundles, kMaxBundles);
-  if (s.grid != 0 && (s.grid < 2 || s.grid > kMaxGrid)) fail("grid {} is outside 2..{} (0: auto)", s.grid, kMaxGrid);
-  if (s.burn_in < -1 || s.burn_in > kMaxBurnIn) fail("burn-in {} is outside 0..{} (-1: auto)", s.burn_in, kMaxBurnIn);
-  if (!(s.fraction > 0 && s.fraction <= 1)) fail("exchange fraction {} is outside (0, 1]", s.fraction);
-  if (s.chunks == 0 || s.chunks > proto::kMaxChunks) fail("chunks {} is outside 1..{}", s.chunks, proto::kMaxChunks);
-  if (!(s.time_limit_s >= 0 && s.time_limit_s <= kMaxSeconds))
-    fail("time limit {:.6g} s is outside 0..{:.0e} s", s.time_limit_s, kMaxSeconds);
-  if (!(s.target_error >= 0 && s.target_error <= 1)) fail("target error {} is outside [0, 1]", s.target_error);
-  if (s.mesh_options.target_patches > kMaxTargetPatches)
-    fail("target patches {} is above {}", s.mesh_options.target_patches, kMaxTargetPatches);
-  if (!(s.mesh_options.max_edge >= 0) || !std::isfinite(s.mesh_options.max_edge))
-    fail("max edge {:.6g} is not a finite length >= 0", s.mesh_options.max_edge);
+  for (const SettingRow& row : kRows)
+    if (row.check) row.check(s);
 }
 
 std::string target_error_problem(const RunSettings& s) {
@@ -42,23 +288,10 @@ int run_grid(const RunSettings& s, const PatchMesh& mesh) { return s.grid == 0 ?
 wire::Run to_wire(const RunSettings& s, const PatchMesh& mesh, const std::vector<uint32_t>& chunk_starts) {
   wire::Run run;
   run.set_scene_hash(mesh.hash);
-  run.set_seed(s.seed);
-  run.set_grid(static_cast<uint32_t>(run_grid(s, mesh)));
-  run.set_rule(to_string(s.rule));
-  run.set_burn_in(s.burn_in);
-  run.set_directions(to_string(s.directions));
-  run.set_no_control_variate(!s.control_variate);
-  run.set_shots_per_bundle(s.shots_per_bundle);
-  run.set_shot_resolution(static_cast<uint32_t>(s.shot_resolution));
   for (std::size_t c = 0; c + 1 < chunk_starts.size(); ++c) run.add_chunk_starts(chunk_starts[c]);
   run.set_patches(static_cast<uint32_t>(mesh.size()));
-  run.set_exchange_every(s.exchange_every);
-  run.set_exchange_fraction(s.fraction);
-  run.set_topology(s.topology == Topology::star ? "star" : "ring");
-  run.set_mode(s.mode == Mode::sync ? "sync" : "async");
-  run.set_bundles(s.bundles);
-  run.set_target_patches(s.mesh_options.target_patches);
-  run.set_max_edge(s.mesh_options.max_edge);
+  for (const SettingRow& row : kRows)
+    if (row.to_run) row.to_run(s, mesh, run);
   return run;
 }
 
@@ -76,40 +309,24 @@ RunSettings from_wire(const wire::Run& r) {
   if (!source.empty() && !is_scene_hash(source))
     fail("the run's scene source ({} bytes) is not 32 hex digits", source.size());
   RunSettings s;
-  s.bundles = r.bundles();
-  s.seed = r.seed();
-  s.grid = static_cast<int>(r.grid());
-  s.rule = parse_update_rule(r.rule());
-  s.burn_in = r.burn_in();
-  s.directions = r.directions().empty() ? Directions::random : parse_directions(r.directions());
-  s.control_variate = !r.no_control_variate();
-  s.shots_per_bundle = r.shots_per_bundle();
-  s.shot_resolution = static_cast<int>(r.shot_resolution());
-  s.exchange_every = r.exchange_every();
-  s.fraction = r.exchange_fraction();
-  s.topology = parse_topology(r.topology());
-  s.mode = parse_mode(r.mode());
-  s.chunks = static_cast<uint32_t>(r.chunk_starts_size());
-  s.mesh_options.target_patches = r.target_patches();
-  s.mesh_options.max_edge = r.max_edge();
+  for (const SettingRow& row : kRows)
+    if (row.from_run) row.from_run(r, s);
   check(s);
   return s;
 }
 
 RunSettings settings_of(const wire::Checkpoint& c) {
   RunSettings s = from_wire(c.run());
-  s.balance = c.balance();
-  s.time_limit_s = c.time_limit_s();
-  s.target_error = c.target_error();
+  for (const SettingRow& row : kRows)
+    if (row.from_checkpoint) row.from_checkpoint(c, s);
   check(s);
   return s;
 }
 
 void put_settings(wire::Checkpoint& c, const RunSettings& s, const wire::Run& run) {
   *c.mutable_run() = run;
-  c.set_balance(s.balance);
-  c.set_time_limit_s(s.time_limit_s);
-  c.set_target_error(s.target_error);
+  for (const SettingRow& row : kRows)
+    if (row.to_checkpoint) row.to_checkpoint(s, c);
 }
 
 SolverOptions solver_options(const RunSettings& s, const PatchMesh& mesh, uint64_t chain_id) {

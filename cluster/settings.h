@@ -11,6 +11,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "cluster/exchange.h"
@@ -63,11 +64,39 @@ inline constexpr uint64_t kMaxBundles = uint64_t{1} << 40;
 inline constexpr uint64_t kMaxTargetPatches = uint64_t{1} << 31;
 inline constexpr double kMaxSeconds = 1e9;              // a time limit or a run's elapsed time (31 years)
 
-// Throws sirad::Error, naming the setting, for settings no run can have: stratified directions
-// under the average rule, a first shot out of range (check_first_shot), bundles outside
-// [1, kMaxBundles], a grid or burn-in beyond its bound, a fraction outside (0, 1], chunks
-// outside [1, kMaxChunks], a time limit outside [0, kMaxSeconds], a target outside [0, 1], or
-// meshing options no mesh can have.
+// One row of the table of a run's settings (settings.cpp): what is said about a setting, in one
+// place, from which the command lines' flags (cli/run_flags.cpp), check(), the wire (to_wire,
+// from_wire) and the checkpoint (put_settings, settings_of) are made. A new setting is its
+// RunSettings member, its row (and its field in proto/sirad.proto when the nodes need it), and
+// the code that uses it.
+struct SettingRow {
+  std::string_view flag;                  // the long flag without "--" ("bundles")
+  std::string_view help;
+  std::string_view type;                  // what --help says it takes: INT, FLOAT, the names, ...
+  std::vector<std::string_view> choices;  // the names it takes, for --help (none: a number)
+  std::string_view default_text;          // the command lines' default ("": RunSettings' stands: auto, none)
+  bool show_default = false;              // --help shows it
+  bool cluster = false;                   // a cluster's only: refused on one node
+  // Sets the setting from the flag's text; the rows before it are set (--directions auto
+  // follows --rule). Throws sirad::Error saying what is wrong (the caller names the flag).
+  void (*parse)(RunSettings& s, const std::string& text) = nullptr;
+  // Throws sirad::Error, naming the setting, for a value no run can have, whoever gave it.
+  void (*check)(const RunSettings& s) = nullptr;
+  // The setting onto and from the wire's Run (WELCOME, and the checkpoint's run), or, for the
+  // coordinator's own, the checkpoint's fields (null where it has none of them).
+  void (*to_run)(const RunSettings& s, const PatchMesh& mesh, wire::Run& r) = nullptr;
+  void (*from_run)(const wire::Run& r, RunSettings& s) = nullptr;
+  void (*to_checkpoint)(const RunSettings& s, wire::Checkpoint& c) = nullptr;
+  void (*from_checkpoint)(const wire::Checkpoint& c, RunSettings& s) = nullptr;
+};
+// The rows, in the order the flags are parsed (and listed by --help).
+const std::vector<SettingRow>& setting_rows();
+
+// Throws sirad::Error, naming the setting, for settings no run can have (each row's check):
+// stratified directions under the average rule, a first shot out of range (check_first_shot),
+// bundles outside [1, kMaxBundles], a grid or burn-in beyond its bound, a fraction outside
+// (0, 1], chunks outside [1, kMaxChunks], a time limit outside [0, kMaxSeconds], a target
+// outside [0, 1], or meshing options no mesh can have.
 void check(const RunSettings& s);
 
 // The grid the run uses on `mesh`: s.grid, or auto_grid(mesh) where it is 0.

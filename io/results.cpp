@@ -41,7 +41,7 @@ void check_file_name(const std::string& path, const std::string& flag) {
 }
 
 GatherOptions final_gather_of(const ResultOptions& options) {
-  return {.width = options.width, .height = options.height, .spp = options.gather_spp};
+  return {.width = options.width, .height = options.height, .spp = options.final_gather_spp};
 }
 
 std::string wrote_lines(const ResultFiles& files) {
@@ -103,7 +103,7 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
   std::string why = image_failed;
   if (why.empty()) {
     try {
-      if (options.gather_spp > 0) {
+      if (options.final_gather_spp > 0) {
         if (gathered) {
           if (gathered->combined.width != options.width || gathered->combined.height != options.height)
             fail("a gathered image of {}x{} for {}x{}", gathered->combined.width, gathered->combined.height, options.width,
@@ -127,14 +127,14 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
     write_together({{files.ply, ply}, {files.glb, glb}});
     fail("{}: no image ({}); the solution is kept in {} and {}", name, why, files.ply, files.glb);
   }
-  if (options.gather_spp > 0) {
+  if (options.final_gather_spp > 0) {
     with_camera.emplace_back("sirad.image", std::string("final gather"));
-    with_camera.emplace_back("sirad.spp", static_cast<int64_t>(options.gather_spp));
+    with_camera.emplace_back("sirad.spp", static_cast<int64_t>(options.final_gather_spp));
   }
   const Image& image = passes.combined;
   write_together({{files.exr,
                    [&](const std::string& path) {
-                     if (options.gather_spp > 0)
+                     if (options.final_gather_spp > 0)
                        write_exr_layers(path, passes.layers(), with_camera);
                      else
                        write_exr(path, image, with_camera);

@@ -18,7 +18,7 @@ struct ResultOptions {
   int samples_per_side = 0;
   // > 0: the images are a final gather (render/gather.h, its default seed) with this many samples
   // per pixel, the EXR with its passes; 0: the patches drawn.
-  int gather_spp = 0;
+  int final_gather_spp = 0;
 };
 
 // The final gather the options ask for (spp 0: none): the image's size and samples, the
@@ -40,7 +40,7 @@ void check_output_name(const std::string& name, const std::string& flag);
 void check_file_name(const std::string& path, const std::string& flag);
 
 // Renders the view of the mesh's camera and writes NAME.exr, .png, .ply and .glb atomically.
-// `gathered`: with options.gather_spp > 0, the final gather's passes already rendered (a
+// `gathered`: with options.final_gather_spp > 0, the final gather's passes already rendered (a
 // cluster run's tiles: RunResult::image), of the options' size; null: rendered here.
 // A solution outlives its image: where the image cannot be made (`image_failed` says why, as a
 // cluster run's RunResult::image_error does, or rendering it here fails or runs out of memory),

@@ -581,7 +581,7 @@ TEST_F(Cli, BadProfilesAndEndingFlags) {
   expect_error(sirad("render cornell --profile " SIRAD_SOURCE_DIR "/deploy/profiles/lan-1g.yaml"), "needs a cluster");
   expect_error(sirad("render cornell --target-error 2"), "--target-error");
   expect_error(sirad("render cornell --shots-per-bundle -1"), "--shots-per-bundle");
-  expect_error(sirad("render cornell --shot-resolution 7"), "--shot-resolution must be 0 (auto) or even");
+  expect_error(sirad("render cornell --shot-resolution 7"), "--shot-resolution: must be 0 (auto) or even");
   expect_error(sirad("render cornell --nodes 2 --target-error 2"), "--target-error");
   expect_error(sirad("profile typo.yaml"), "typo.yaml:3");
   Outcome ok = sirad("profile " SIRAD_SOURCE_DIR "/deploy/profiles/office-mixed.yaml --nodes 4");

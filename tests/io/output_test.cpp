@@ -916,7 +916,7 @@ TEST_F(OutputResults, TheSolutionIsKeptWhenItsImageFails) {
   PatchMesh far = quad_with_camera();
   far.camera->eye = glm::vec3(0, 0, 1e20f);
   ResultOptions gather = small();
-  gather.gather_spp = 4;
+  gather.final_gather_spp = 4;
   for (const auto& [mesh, failed, why] : {std::tuple{far, std::string(), std::string("the camera's eye is 1e+20")},
                                           std::tuple{quad_with_camera(), std::string("tile 3 was lost"), std::string("tile 3 was lost")}}) {
     fs::remove_all(dir_);
