@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 
 #include "cli/commands.h"
+#include "cli/program.h"
 #include "cli/run_flags.h"
 #include "engine/version.h"
 #include "farm/farm_client.h"
@@ -170,14 +171,7 @@ int run(int argc, char** argv) {
   cancel_cmd->add_option("id", cancel_id, "The job's id (sirad jobs)")->required();
   add_farm(cancel_cmd, true);
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::Success& e) {  // --help, --help-all, --version
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "sirad: error: %s (see sirad --help)\n", e.what());
-    return 2;
-  }
+  if (std::optional<int> exit = cli::parse_command_line(app, argc, argv, "sirad")) return *exit;
   auto given = [](const CLI::App* cmd) { return cli::given_flags(cmd); };
   if (render_cmd->parsed()) {
     r.given = given(render_cmd);
@@ -205,15 +199,5 @@ int run(int argc, char** argv) {
 }  // namespace sirad
 
 int main(int argc, char** argv) {
-  try {
-    return sirad::run(argc, argv);
-  } catch (const sirad::Error& e) {
-    std::fprintf(stderr, "sirad: error: %s\n", e.what());
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "sirad: error: out of memory\n");
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sirad: error: %s\n", e.what());
-  }
-  return 1;
+  return sirad::cli::guarded("sirad", [&] { return sirad::run(argc, argv); });
 }

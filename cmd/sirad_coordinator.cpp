@@ -12,6 +12,7 @@
 
 #include "cli/coordinator_command.h"
 #include "cli/log_flags.h"
+#include "cli/program.h"
 #include "cli/run_flags.h"
 #include "engine/version.h"
 #include "farm/farm_command.h"
@@ -61,15 +62,8 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", a.quiet, "No progress view");
   cli::LogFlags log_flags;
   log_flags.add(app);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::Success& e) {  // --help, --version
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "sirad-coordinator: error: %s (see sirad-coordinator --help)\n", e.what());
-    return 2;
-  }
-  try {
+  if (std::optional<int> exit = cli::parse_command_line(app, argc, argv, "sirad-coordinator")) return *exit;
+  return cli::guarded("sirad-coordinator", [&] {
     log_flags.apply();
     a.given = cli::given_flags(&app);
     if (!serve.empty()) {
@@ -86,11 +80,5 @@ int main(int argc, char** argv) {
     }
     if (a.given.count("--http") || a.given.count("--token-file")) fail("--http and --token-file: only with --serve");
     return cli::coordinate_command(std::move(a));
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "sirad-coordinator: error: out of memory\n");
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sirad-coordinator: error: %s\n", e.what());
-    return 1;
-  }
+  });
 }

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "cli/log_flags.h"
+#include "cli/program.h"
 #include "cli/stop_signals.h"
 #include "engine/opencl.h"
 #include "engine/version.h"
@@ -47,15 +48,9 @@ int main(int argc, char** argv) {
   app.add_flag("--check-config", check_config, "Check the flags, keys and the OpenCL device; connect to nothing");
   sirad::cli::LogFlags log_flags;
   log_flags.add(app);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::Success& e) {  // --help, --version
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "sirad-node: error: %s (see sirad-node --help)\n", e.what());
-    return 2;
-  }
-  try {
+  if (std::optional<int> exit = sirad::cli::parse_command_line(app, argc, argv, "sirad-node")) return *exit;
+  constexpr int kServe = -1;  // the flags are good and --check-config not given: serve
+  const int checked = sirad::cli::guarded("sirad-node", [&] {
     log_flags.apply();
     sirad::proto::check_endpoint("--connect", endpoint, false);
     sirad::proto::check_security(endpoint, !curve_secret.empty(), insecure, "--curve-secret and --server-key");
@@ -70,30 +65,20 @@ int main(int argc, char** argv) {
                   d.platform_name.c_str(), d.device_name.c_str());
       return 0;
     }
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "sirad-node: error: out of memory\n");
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sirad-node: error: %s\n", e.what());
-    return 1;
-  }
+    return kServe;
+  });
+  if (checked != kServe) return checked;
   const std::atomic<bool>& stop = sirad::cli::stop_on_signals();
   if (insecure)
     sirad::logging::write(sirad::logging::Level::warn, "sirad-node", sirad::proto::insecure_warning(endpoint), {{"event", "insecure"}});
   options.name = name;
   options.device = device;
   options.stop = &stop;
-  try {
+  return sirad::cli::guarded("sirad-node", [&] {
     zmq::context_t context;
     sirad::node::serve(context, endpoint, options);
     if (stop) sirad::logging::write(sirad::logging::Level::info, "sirad-node " + name, "stopped by a signal; leaving",
                                     {{"event", "left"}, {"why", "signal"}, {"node", name}});
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "sirad-node: error: out of memory\n");
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sirad-node: error: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }
