@@ -292,7 +292,7 @@ class Emulator {
     RunResult& r = result_.run;
     gather_ = std::make_unique<FinalGather>(mesh_, r.radiosity, o);
     result_.tile_s = config_.tile_s > 0 ? config_.tile_s : measure_tile_seconds(*gather_, *mesh_.camera);
-    image_ = std::make_unique<ImagePhase>(o.width, o.height, o.spp, DeadlineRules{}, 0);
+    image_ = std::make_unique<ImagePhase>(o.width, o.height, o.spp, grant_deadlines(run_), 0);
     const double began = now_;
     for (uint32_t n = 0; n < nodes_.size(); ++n) {
       log(n, "image", 0);

@@ -363,6 +363,12 @@ Policy make_policy(const RunSettings& s, const PatchMesh& mesh, uint32_t min_nod
   return Policy(pc, std::move(starts), error_weights(mesh), std::move(bounds));
 }
 
+DeadlineRules grant_deadlines(const ProcessSettings& p) {
+  DeadlineRules r = p.deadlines;
+  r.slack_s = std::max(r.slack_s, p.heartbeat_ms * 1e-3 * p.liveness);
+  return r;
+}
+
 Attributes run_attributes(const RunSettings& s, const RunOutcome& o, const PatchMesh& mesh, const std::string& scene,
                           bool cluster) {
   Attributes a = {

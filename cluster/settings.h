@@ -14,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "cluster/deadlines.h"
 #include "cluster/exchange.h"
 #include "cluster/profile.h"
 #include "engine/bundle.h"
@@ -162,6 +163,9 @@ struct ProcessSettings {
   double timeout_s = 0;         // 0: none; else the run fails if it takes longer
   uint32_t heartbeat_ms = 1000; // HEARTBEAT interval of both sides (PROTOCOL.md section 4)
   uint32_t liveness = 3;        // a peer silent this many intervals is dead
+  // When a node's grants (of bundles or tiles) are due (cluster/deadlines.h); the slack is at
+  // least the liveness window (grant_deadlines).
+  DeadlineRules deadlines;
   std::optional<emulation::Profile> profile;  // network and speed emulation
   bool emulate_bandwidth = true;  // false: the network itself limits bandwidth (tc tbf in the
                                   // namespace cluster); the profile's other settings still apply
@@ -180,6 +184,10 @@ struct ProcessSettings {
   // resume without them renders the outputs the run was started for.
   std::vector<std::string> output_args;
 };
+
+// The rules of grants' due times a coordinator keeps: `p.deadlines`, its slack at least the
+// liveness window (heartbeat_ms x liveness).
+DeadlineRules grant_deadlines(const ProcessSettings& p);
 
 // Who a peer is to a coordinator: its CURVE public key ("" without CURVE) and IP address ("" off tcp://).
 struct PeerIdentity {

@@ -21,7 +21,7 @@ namespace sirad::cluster::detail {
 Coordinator::Coordinator(zmq::socket_t& router, const RunConfig& config, const PatchMesh& mesh, proto::PeerBytes* peer_bytes)
     : router_(router), peer_bytes_(peer_bytes), config_(config), mesh_(mesh),
       policy_(make_policy(config, mesh, config.min_nodes, [this](const std::vector<uint32_t>& ready) { return choose(ready); })),
-      scene_bytes_(encode_scene(config.scene)), grants_(deadline_rules(config)) {
+      scene_bytes_(encode_scene(config.scene)), grants_(grant_deadlines(config)) {
   // A reconnecting node keeps its routing id; the new connection takes it over.
   router_.set(zmq::sockopt::router_handover, 1);
   proto::harden(router_, proto::max_frame_bytes(mesh.size()));

@@ -33,7 +33,7 @@ class Coordinator::ImageStage final : public Coordinator::Stage {
     // A resumed run none of whose nodes is here to render: min_nodes to join before the first tile.
     const bool none_here = std::none_of(c_.peers_.begin(), c_.peers_.end(), [&](const auto& e) { return c_.may_render(e.second); });
     const bool wait = none_here && c_.config_.resume != nullptr;
-    c_.image_ = std::make_unique<ImagePhase>(o.width, o.height, o.spp, deadline_rules(c_.config_), wait ? c_.config_.min_nodes : 0);
+    c_.image_ = std::make_unique<ImagePhase>(o.width, o.height, o.spp, grant_deadlines(c_.config_), wait ? c_.config_.min_nodes : 0);
     std::vector<double> solution;
     solution.reserve(3 * c_.mesh_.size());
     for (const glm::vec3& b : result.radiosity) solution.insert(solution.end(), {b.x, b.y, b.z});

@@ -60,14 +60,6 @@ inline constexpr double kJoinWindowS = 10;
 // are waiting (a peer that floods would otherwise keep every silence from being judged).
 inline constexpr uint32_t kReadUpToDateAfter = 4096;
 
-// The rules of grants' due times (cluster/deadlines.h): the slack is the liveness window
-// (heartbeat_ms x liveness), and at least the rules' default.
-inline DeadlineRules deadline_rules(const RunConfig& c) {
-  DeadlineRules r;
-  r.slack_s = std::max(r.slack_s, c.heartbeat_ms * 1e-3 * c.liveness);
-  return r;
-}
-
 // Refused because the coordinator does not know the sender in its run (never joined, declared
 // dead, or this coordinator was restarted): the ERROR asks it to say HELLO again.
 struct Rejoin : Error {
