@@ -40,6 +40,7 @@
 #include "scene/scene.h"
 #include "solver/reference.h"
 #include "tests/coincident_scenes.h"
+#include "tests/scene_files.h"
 #include "tests/test_folder.h"
 #include "util/error.h"
 #include "util/json_bounded.h"
@@ -114,115 +115,6 @@ TEST(Gltf, BlenderExportReadsObjectsMaterialsCameraAndTransforms) {
 // meshes to the same areas per object and solves to the same radiosity per object: the
 // reference solver on each, compared within 3 SE (SE of an object's mean at most the mean of its
 // patches' SEs: full correlation), and within 0.5 % where that is the larger.
-// The apartment of the Blender corpus (tests/data/blender/make_apartment.py: Boolean-cut walls, lamps
-// just under the ceilings, zero-thickness walls, a sky plane, Blender's export defaults). Its OBJ
-// has concave n-gons and an empty `usemtl`; its glb says doubleSided for every material. Object
-// by object, the OBJ made two-sided and the glb cover the same area (the n-gons cut inside their
-// outlines), and twins exist only where a back side can exchange light: a zero-thickness wall of
-// one plane and the lamps' upper sides get them; wall, slab and furniture boxes (whose bottoms
-// face into the floor slab), the sky plane's back and the two coincident planes of the living/hall
-// wall (each under the other's original face) do not.
-TEST(Gltf, TheBlenderApartmentKeepsOnlyTwinsThatExchangeLight) {
-  const Scene glb = load_scene(kData + "apartment.glb");
-  const Scene obj = load_scene(kData + "apartment.obj", {.two_sided = true});
-  const Scene one_sided = load_scene(kData + "apartment.obj");
-  auto areas = [](const Scene& s) {
-    std::map<std::string, double> a;
-    for (const Triangle& t : s.triangles)
-      a[s.objects.at(t.object)] += 0.5 * glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0])));
-    return a;
-  };
-  std::map<std::string, double> g = areas(glb), o = areas(obj), front = areas(one_sided);
-  ASSERT_EQ(g.size(), front.size() + (front.count("(unnamed)") ? 0 : 1) - 1) << "objects";
-  for (const auto& [name, a] : front) {
-    SCOPED_TRACE(name);
-    EXPECT_NEAR(g[name], o[name], 1e-4 * a);
-    // The bedroom's lamp is a closed box that emits: its inner twins light each other and stay.
-    const bool twins = name == "PartitionBath" || name == "LampLiving" || name == "LampBath" || name == "LampBedroom";
-    EXPECT_NEAR(g[name], (twins ? 2.0 : 1.0) * a, 1e-4 * a);
-  }
-  // The camera: 18 mm on a 36 mm sensor at 3:2; images default to its shape.
-  ASSERT_TRUE(glb.camera_aspect.has_value());
-  EXPECT_NEAR(*glb.camera_aspect, 1.5, 1e-6);
-  int width = 0, height = 0;
-  cli::settle_image_size(width, height, glb.camera_aspect);
-  EXPECT_EQ(width, 768);
-  EXPECT_EQ(height, 512);
-  width = 300;
-  height = 0;
-  cli::settle_image_size(width, height, glb.camera_aspect);
-  EXPECT_EQ(height, 200);
-  EXPECT_FALSE(obj.camera_aspect.has_value());
-}
-
-// The corpus's outer faces that face away from every light (walls' outer sides, the slabs'
-// undersides, the ends of wall boxes) receive nothing; before they were left whole they took
-// about 30 % of the apartment's patches, all at B = 0. Now, in the apartment and in the studio
-// (turned 30 degrees, a round lamp 1 cm under the ceiling, a closet lit through a door): no face
-// that faces into a room is marked (a face inside a room sees a lamp, or the light through a
-// doorway, within 8 bounces), the marked faces hold under 1 % of the patches at 20,000, and in
-// the reference solution (whose light is exact where light reaches a face at all: 0 only where
-// none does) under 10 % of the patches have B = 0 and the marked faces hold under 1e-3 of the
-// light (measured, apartment: 88 faces, 0.44 % of the patches; at 4,000, 2.4 % dark and 3.7e-5 of
-// the light on the marked faces).
-struct CorpusPlan {
-  std::string file;
-  double turn_deg, offset_x, offset_y, height;  // the building's place (make_*.py)
-  std::vector<std::array<double, 4>> rooms;       // x0, x1, y0, y1 in Blender's frame before the turn
-};
-
-class CorpusScenes : public ::testing::TestWithParam<CorpusPlan> {};
-
-TEST_P(CorpusScenes, SpendTheirPatchesWhereLightReaches) {
-  const CorpusPlan& plan = GetParam();
-  const Scene glb = load_scene(kData + plan.file);
-  const double t = plan.turn_deg * std::numbers::pi / 180.0;
-  std::size_t unlit = 0;
-  for (std::size_t i = 0; i < glb.triangles.size(); ++i) {
-    const Triangle& tri = glb.triangles[i];
-    const glm::dvec3 a(tri.p[0]), b(tri.p[1]), c(tri.p[2]);
-    const glm::dvec3 p = (a + b + c) / 3.0 + 0.01 * glm::normalize(glm::cross(b - a, c - a));
-    // glTF (x, y, z) is Blender's (x, -z, y); then the building's turn and offset undone.
-    const double xs = p.x - plan.offset_x, ys = -p.z - plan.offset_y;
-    const double x = xs * std::cos(t) + ys * std::sin(t), y = -xs * std::sin(t) + ys * std::cos(t);
-    bool inside = false;
-    for (const auto& r : plan.rooms) inside = inside || (x > r[0] && x < r[1] && y > r[2] && y < r[3] && p.y > 0 && p.y < plan.height);
-    // The apartment's table legs' tops, under the table's top, face into the room and see nothing.
-    const bool leg_top = glb.objects.at(tri.object).starts_with("TableLeg") && p.y > 0.725;
-    if (inside && !leg_top) {
-      EXPECT_FALSE(tri.unlit) << "triangle " << i << " of " << glb.objects.at(tri.object) << " faces into a room, at " << x << " " << y << " "
-                              << p.y;
-    }
-    unlit += tri.unlit;
-  }
-  EXPECT_GT(unlit, 10u) << "the outer faces that face away from the lights";
-  PatchMesh mesh = mesh_scene(glb, {.target_patches = 20000});
-  std::size_t whole = 0;
-  for (std::size_t j = 0; j < mesh.size(); ++j) whole += glb.triangles[mesh.source_triangle[j]].unlit;
-  EXPECT_LT(static_cast<double>(whole), 0.01 * static_cast<double>(mesh.size()));
-  std::printf("%s: %zu faces unlit: %zu of %zu patches\n", plan.file.c_str(), unlit, whole, mesh.size());
-  mesh = mesh_scene(glb, {.target_patches = 4000});
-  ReferenceSolution ref = solve_reference(mesh, {.rays_per_patch = 64, .light_samples = 16, .batches = 2, .seed = 5});
-  std::size_t dark = 0;
-  double light = 0.0, on_unlit = 0.0;
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    if (mesh.emits(j)) continue;
-    const double v = ref.radiosity[j].x + ref.radiosity[j].y + ref.radiosity[j].z;
-    dark += v == 0.0;
-    light += mesh.area[j] * v;
-    if (glb.triangles[mesh.source_triangle[j]].unlit) on_unlit += mesh.area[j] * v;
-  }
-  std::printf("at %zu patches: %zu dark, light on the unlit faces %.2g of all\n", mesh.size(), dark, on_unlit / light);
-  EXPECT_LT(static_cast<double>(dark), 0.1 * static_cast<double>(mesh.size()));
-  EXPECT_LT(on_unlit, 1e-3 * light);
-}
-
-INSTANTIATE_TEST_SUITE_P(
-    Blender, CorpusScenes,
-    ::testing::Values(CorpusPlan{"apartment.glb", 0.0, 0.0, 0.0, 2.6, {{0, 5, 0, 4}, {0, 5, 4, 6}, {5, 8, 0, 3.5}, {5, 8, 3.5, 6}}},
-                      CorpusPlan{"studio.glb", 30.0, 1.0, -0.5, 2.7, {{0, 4.45, 0, 4}, {4.55, 6, 0, 2.45}, {4.55, 6, 2.55, 4}}}),
-    [](const ::testing::TestParamInfo<CorpusPlan>& info) { return info.param.file.substr(0, info.param.file.find('.')); });
-
 TEST(Gltf, TheSameSceneAsObjAndAsGltfGivesTheSameAnswer) {
   Scene gltf = load_scene(kData + "room.glb");
   Scene obj = load_scene(kData + "room.obj", {.two_sided = true});
@@ -311,32 +203,7 @@ std::string gltf_text(std::map<std::string, std::string> edit = {}) {
   return out + "}";
 }
 
-class GltfFiles : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = sirad::test::fresh_test_folder("sirad_gltf");
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string write(const std::string& name, const std::string& text) {
-    std::ofstream(dir_ / name, std::ios::binary) << text;
-    return (dir_ / name).string();
-  }
-  // `text` written as `name` is refused with one sirad::Error of one line naming the file;
-  // returns the message ("" when it was accepted).
-  std::string expect_refused(const std::string& name, const std::string& text) {
-    try {
-      load_scene(write(name, text));
-      ADD_FAILURE() << "accepted";
-      return "";
-    } catch (const Error& e) {
-      std::string m = e.what();
-      EXPECT_EQ(m.find('\n'), std::string::npos) << m;
-      EXPECT_NE(m.find(name), std::string::npos) << m;
-      return m;
-    }
-  }
-  fs::path dir_;
-};
+class GltfFiles : public test::SceneFiles {};
 
 TEST_F(GltfFiles, AMinimalFileLoads) {
   Scene s = load_scene(write("tri.gltf", gltf_text()));
@@ -753,95 +620,6 @@ TEST_F(GltfFiles, RenderedGlbPassesTheKhronosValidator) {
   int rc = std::system(cmd.c_str());
   EXPECT_EQ(rc, 0) << slurp(report);
   std::printf("gltf-validator: %s\n", slurp(report).c_str());
-}
-
-}  // namespace
-}  // namespace sirad
-
-namespace sirad {
-namespace {
-
-// PLY scenes (scene/ply.h): the PLY sirad writes is a scene again: the same triangles in
-// patch order, each with its patch's reflectance and emission (the per-face properties).
-TEST_F(GltfFiles, SiradsOwnPlyIsASceneAgain) {
-  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 300});
-  mesh.background = glm::vec3(0.25f, 0.5f, 1.5f);
-  std::vector<glm::vec3> radiosity(mesh.size(), glm::vec3(0.5f));
-  const std::string path = (dir_ / "solved.ply").string();
-  write_ply(path, mesh, radiosity);
-  Scene s = load_scene(path);
-  ASSERT_EQ(s.triangles.size(), mesh.size());
-  // The comments keep what an image of it needs: the camera and the background.
-  ASSERT_TRUE(s.camera.has_value());
-  EXPECT_EQ(camera_spec(*s.camera), camera_spec(*mesh.camera));
-  EXPECT_EQ(s.background, mesh.background);
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    for (int k = 0; k < 3; ++k) ASSERT_EQ(s.triangles[j].p[static_cast<std::size_t>(k)], mesh.vertices[mesh.patches[j][static_cast<std::size_t>(k)]]);
-    ASSERT_EQ(s.materials[s.triangles[j].material].reflectance, mesh.reflectance(j)) << j;
-    ASSERT_EQ(s.materials[s.triangles[j].material].emission, mesh.emission(j)) << j;
-  }
-  EXPECT_EQ(s.objects, std::vector<std::string>{"solved"});
-  // Damaged copies (bytes changed, cut short) load or throw sirad::Error, never anything else.
-  const std::string base = slurp(path);
-  std::mt19937_64 rng(5);
-  for (int round = 0; round < 300; ++round) {
-    std::string d = base;
-    if (round % 2) d.resize(rng() % d.size());
-    else
-      for (int k = 0; k < 1 + static_cast<int>(rng() % 6); ++k) d[rng() % d.size()] = static_cast<char>(rng());
-    const std::string damaged = write("damaged.ply", d);
-    try {
-      load_scene(damaged);
-    } catch (const Error&) {
-    }
-  }
-}
-
-// An ascii PLY as other tools write it: polygons (fan-triangulated), vertex colours as
-// reflectance (bytes, sRGB-decoded), a face with emission.
-TEST_F(GltfFiles, AsciiPlyWithColoursAndPolygons) {
-  const std::string path = write("quad.ply",
-                                 "ply\nformat ascii 1.0\ncomment made by hand\nelement vertex 5\nproperty float x\n"
-                                 "property float y\nproperty float z\nproperty uchar red\nproperty uchar green\n"
-                                 "property uchar blue\nelement face 2\nproperty list uchar int vertex_indices\n"
-                                 "property float emission_r\nproperty float emission_g\nproperty float emission_b\n"
-                                 "end_header\n0 0 0 255 0 0\n1 0 0 255 0 0\n1 1 0 255 0 0\n0 1 0 255 0 0\n0 0 1 0 0 255\n"
-                                 "4 0 1 2 3 0 0 0\n3 0 1 4 2 2 2\n");
-  Scene s = load_scene(path);
-  ASSERT_EQ(s.triangles.size(), 3u);
-  EXPECT_EQ(s.materials[s.triangles[0].material].reflectance, glm::vec3(1.0f, 0.0f, 0.0f));
-  EXPECT_EQ(s.materials[s.triangles[2].material].emission, glm::vec3(2.0f));
-}
-
-// Bad PLY files: one sirad::Error, one line, naming the file.
-TEST_F(GltfFiles, HostilePlyFilesGiveOneLineErrors) {
-  const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                           "element face 1\nproperty list uchar int vertex_indices\nproperty float emission_r\n"
-                           "property float emission_g\nproperty float emission_b\nend_header\n";
-  const std::vector<std::pair<std::string, std::string>> cases = {
-      {"not a ply", "hello\n"},
-      {"no end_header", "ply\nformat ascii 1.0\n"},
-      {"unknown format", "ply\nformat binary_middle_endian 1.0\nend_header\n"},
-      {"count beyond the file", "ply\nformat binary_little_endian 1.0\nelement vertex 99999999999\nproperty float x\nend_header\n"},
-      {"truncated binary", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                           "property float z\nend_header\n\x01\x02"},
-      {"index out of range", head + "0 0 0\n1 0 0\n0 1 0\n3 0 1 7 1 1 1\n"},
-      {"nan vertex", head + "0 0 nan\n1 0 0\n0 1 0\n3 0 1 2 1 1 1\n"},
-      {"not a number", head + "0 0 zero\n1 0 0\n0 1 0\n3 0 1 2 1 1 1\n"},
-      {"no emitter", head + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2 0 0 0\n"},
-      {"negative emission", head + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2 -1 1 1\n"},
-      {"degenerate", head + "0 0 0\n1 0 0\n2 0 0\n3 0 1 2 1 1 1\n"},
-      {"two vertices", head + "0 0 0\n1 0 0\n0 1 0\n2 0 1 1 1 1\n"},
-      {"no xyz", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float q\nend_header\n1\n"},
-      {"unknown type", "ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n1\n"},
-      {"bad camera comment", "ply\nformat ascii 1.0\ncomment sirad camera eye 1 2\nend_header\n"},
-      {"bad background comment", "ply\nformat ascii 1.0\ncomment sirad background 1 nan 2\nend_header\n"},
-      {"negative background", "ply\nformat ascii 1.0\ncomment sirad background 1 -1 2\nend_header\n"},
-  };
-  for (const auto& [what, text] : cases) {
-    SCOPED_TRACE(what);
-    expect_refused("bad.ply", text);
-  }
 }
 
 }  // namespace
