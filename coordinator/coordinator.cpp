@@ -234,6 +234,18 @@ void Coordinator::send(Peer& p, const Message& m) {
   p.unreachable = p.unreachable || !p.down.send(router_, std::move(frames), clock(now));
 }
 
+wire::Grant Coordinator::grant_of(uint64_t id, const std::vector<Range>& ranges) const {
+  wire::Grant g;
+  g.set_run_id(run_.run_id());
+  g.set_grant_id(id);
+  for (const Range& r : ranges) {
+    auto* w = g.add_ranges();
+    w->set_first(r.first);
+    w->set_last(r.last);
+  }
+  return g;
+}
+
 void Coordinator::error(const std::string& id, const std::string& reason, bool rejoin) {
   wire::Error e;
   e.set_reason(reason);

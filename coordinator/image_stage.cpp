@@ -241,17 +241,7 @@ void Coordinator::drop_joiner(Peer& p, const std::string& why) {
 }
 
 // A TILES grant to `p` (its due time is the ImagePhase's).
-void Coordinator::grant_tiles(Peer& p, const TileGrant& g) {
-  wire::Grant w;
-  w.set_run_id(run_.run_id());
-  w.set_grant_id(g.id);
-  for (const Range& r : g.tiles) {
-    auto* wr = w.add_ranges();
-    wr->set_first(r.first);
-    wr->set_last(r.last);
-  }
-  send(p, {Command::tiles, w, {}});
-}
+void Coordinator::grant_tiles(Peer& p, const TileGrant& g) { send(p, {Command::tiles, grant_of(g.id, g.tiles), {}}); }
 
 void Coordinator::pixels(Peer& p, const wire::Pixels& px, const std::vector<std::string>& bulk) {
   if (px.run_id() != run_.run_id()) fail("PIXELS for run {:x}, not this run", px.run_id());

@@ -174,6 +174,8 @@ class Coordinator {
 
   // To a peer, through its link (shaped when the profile says so).
   void send(Peer& p, const Message& m);
+  // A GRANT (bundles) or TILES (tiles) message of grant `id` for `ranges`.
+  wire::Grant grant_of(uint64_t id, const std::vector<Range>& ranges) const;
   void error(const std::string& id, const std::string& reason, bool rejoin = false);
 
   // Everything accepted so far, into config_.checkpoint (atomically).

@@ -296,14 +296,7 @@ void Coordinator::ready(Peer& p, const wire::Ready& r) {
 void Coordinator::schedule() {
   Orders orders = policy_.schedule();
   for (const GrantOrder& o : orders.grants) {
-    wire::Grant g;
-    g.set_run_id(run_.run_id());
-    g.set_grant_id(o.id);
-    for (const Range& r : o.ranges) {
-      auto* w = g.add_ranges();
-      w->set_first(r.first);
-      w->set_last(r.last);
-    }
+    wire::Grant g = grant_of(o.id, o.ranges);
     for (uint32_t c : o.report_chunks) g.add_report_chunks(c);
     Peer& p = peer(o.node);
     uint64_t bundles = 0;

@@ -17,6 +17,7 @@
 
 #include "solver/reference.h"
 #include "tests/agreement.h"
+#include "tests/cli_fixture.h"
 #include "tests/coincident_scenes.h"
 #include "tests/test_folder.h"
 #include "tests/test_util.h"
@@ -425,29 +426,10 @@ TEST(ReferenceAgreement, DefaultSolverThreeLights) {
 // The command line: `sirad reference` writes the three images and NAME.ref.csv, which
 // round-trips exactly (shortest round-trip decimal form; the solve is deterministic whatever
 // the thread count); bad flags, a bad scene and a corrupted file give one clear line.
-class ReferenceCli : public ::testing::Test {
+using test::Outcome;
+
+class ReferenceCli : public test::Cli {
  protected:
-  void SetUp() override {
-    dir_ = sirad::test::fresh_test_folder("sirad_ref");
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  struct Outcome {
-    int status;
-    std::string out, err;
-  };
-  Outcome sirad(const std::string& args) {
-    std::string out = (dir_ / "stdout.txt").string(), err = (dir_ / "stderr.txt").string();
-    std::string cmd = "cd '" + dir_.string() + "' && '" + SIRAD_BINARY + "' " + args + " >'" + out + "' 2>'" + err + "' </dev/null";
-    int raw = std::system(cmd.c_str());
-    Outcome r{WIFEXITED(raw) ? WEXITSTATUS(raw) : 128 + WTERMSIG(raw), slurp(out), slurp(err)};
-    fs::remove(out);
-    fs::remove(err);
-    return r;
-  }
-  static std::string slurp(const fs::path& path) {
-    std::ifstream in(path);
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-  }
   static void expect_one_line_error(const Outcome& r, const std::string& needle) {
     EXPECT_NE(r.status, 0);
     EXPECT_TRUE(r.out.empty()) << r.out;
@@ -456,7 +438,6 @@ class ReferenceCli : public ::testing::Test {
     EXPECT_EQ(r.err.rfind("sirad: error: ", 0), 0u) << r.err;
     EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
   }
-  fs::path dir_;
 };
 
 TEST_F(ReferenceCli, WritesOutputsAndTheFileRoundTrips) {
