@@ -3,9 +3,13 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <new>
 #include <optional>
 
+#include <fmt/format.h>
+
 #include "io/results.h"
+#include "render/gather.h"
 #include "scene/check.h"
 #include "util/error.h"
 
@@ -15,7 +19,22 @@ void write_outputs(const cli::OutputFlags& o, const std::string& out, const Patc
                    const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from,
                    const GatherPasses* gathered, const std::string& image_failed) {
   attrs.emplace_back("sirad.camera_from", camera_from);
-  ResultFiles files = write_results(out, mesh, radiosity, cli::result_options(o), attrs, gathered, image_failed);
+  const ResultOptions options = cli::result_options(o);
+  // A final gather no cluster rendered: on this machine (its failure keeps the solution, as a
+  // cluster's does).
+  std::optional<GatherPasses> here;
+  std::string why = image_failed;
+  if (options.final_gather_spp > 0 && !gathered && why.empty()) {
+    try {
+      here = FinalGather(mesh, radiosity, final_gather_of(options)).render(*mesh.camera);
+      gathered = &*here;
+    } catch (const Error& e) {
+      why = e.what();
+    } catch (const std::bad_alloc&) {
+      why = fmt::format("out of memory for a {}x{} image", options.width, options.height);
+    }
+  }
+  ResultFiles files = write_results(out, mesh, radiosity, options, attrs, gathered, why);
   std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), camera_from.c_str());
   std::fputs(wrote_lines(files).c_str(), stdout);
 }

@@ -4,6 +4,7 @@
 #include "io/write_gltf.h"
 #include "render/gather.h"
 #include "scene/scene.h"
+#include "util/check.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -104,14 +105,11 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
   if (why.empty()) {
     try {
       if (options.final_gather_spp > 0) {
-        if (gathered) {
-          if (gathered->combined.width != options.width || gathered->combined.height != options.height)
-            fail("a gathered image of {}x{} for {}x{}", gathered->combined.width, gathered->combined.height, options.width,
-                 options.height);
-          passes = *gathered;
-        } else {
-          passes = FinalGather(mesh, radiosity, final_gather_of(options)).render(*mesh.camera);
-        }
+        SIRAD_CHECK(gathered != nullptr, "{}: a final gather's image was asked for and none was given", name);
+        if (gathered->combined.width != options.width || gathered->combined.height != options.height)
+          fail("a gathered image of {}x{} for {}x{}", gathered->combined.width, gathered->combined.height, options.width,
+               options.height);
+        passes = *gathered;
       } else {
         int s = options.samples_per_side;
         if (s == 0) s = std::clamp(4096 / std::max(options.width, options.height), 1, 4);

@@ -39,9 +39,10 @@ void check_output_name(const std::string& name, const std::string& flag);
 // key): also refused when `path` is a directory.
 void check_file_name(const std::string& path, const std::string& flag);
 
-// Renders the view of the mesh's camera and writes NAME.exr, .png, .ply and .glb atomically.
-// `gathered`: with options.final_gather_spp > 0, the final gather's passes already rendered (a
-// cluster run's tiles: RunResult::image), of the options' size; null: rendered here.
+// Writes NAME.exr, .png, .ply and .glb atomically: the image is the patches drawn from the mesh's
+// camera, or with options.final_gather_spp > 0 `gathered`, the final gather's passes the caller
+// rendered (a cluster run's tiles: RunResult::image; one machine's: cli write_outputs), of the
+// options' size.
 // A solution outlives its image: where the image cannot be made (`image_failed` says why, as a
 // cluster run's RunResult::image_error does, or rendering it here fails or runs out of memory),
 // NAME.ply and NAME.glb are still written, together, and then an Error names the image's

@@ -35,6 +35,7 @@
 
 #include "io/results.h"
 #include "io/write.h"
+#include "render/gather.h"
 #include "tests/mesh_builder.h"
 #include "tests/png_util.h"
 #include "util/error.h"
@@ -453,16 +454,23 @@ TEST_F(OutputResults, NonFiniteResultIsNeverWritten) {
   EXPECT_TRUE(listing().empty());
 }
 
-// A solution outlives its image (issue 35): where the final gather cannot render the view (a
-// camera 1e20 away, past check_camera_reach), the PLY and glb are still written and the error
-// says so; no EXR or PNG is. The same where the image failed before (a cluster run's
-// RunResult::image_error): nothing is rendered.
+// A solution outlives its image (issue 35): where the final gather could not render the view (a
+// camera 1e20 away, past check_camera_reach), or the image failed elsewhere (a cluster run's
+// RunResult::image_error), the PLY and glb are still written and the error says so; no EXR or
+// PNG is.
 TEST_F(OutputResults, TheSolutionIsKeptWhenItsImageFails) {
   PatchMesh far = quad_with_camera();
   far.camera->eye = glm::vec3(0, 0, 1e20f);
   ResultOptions gather = small();
   gather.final_gather_spp = 4;
-  for (const auto& [mesh, failed, why] : {std::tuple{far, std::string(), std::string("the camera's eye is 1e+20")},
+  // The far camera's failure as the final gather gives it (cli write_outputs hands it on).
+  std::string far_failed;
+  try {
+    FinalGather(far, {glm::vec3(1), glm::vec3(3)}, final_gather_of(gather)).render(*far.camera);
+  } catch (const Error& e) {
+    far_failed = e.what();
+  }
+  for (const auto& [mesh, failed, why] : {std::tuple{far, far_failed, std::string("the camera's eye is 1e+20")},
                                           std::tuple{quad_with_camera(), std::string("tile 3 was lost"), std::string("tile 3 was lost")}}) {
     fs::remove_all(dir_);
     fs::create_directories(dir_);
