@@ -74,15 +74,12 @@ RunResult Coordinator::run() {
   return result;
 }
 
-// The one loop of every phase: each turn, what ends the run from outside (the time limit,
-// ends_now), the status on its period, the stage's turn, then one message, waited for up to
-// wait_ms.
 void Coordinator::loop(Stage& stage) {
   auto last_status = Clock::now();
   while (!stage.finished()) {
     auto now = Clock::now();
-    if (past_time_limit(now)) stage.out_of_time();
     ends_now();
+    if (past_time_limit(now)) stage.out_of_time();
     if (config_.status && seconds(now - last_status) >= config_.status_every_s) {
       last_status = now;
       config_.status(snapshot());
@@ -93,8 +90,6 @@ void Coordinator::loop(Stage& stage) {
   }
 }
 
-// What else ends the run from outside, checked each turn of the loop: an interrupt (a
-// checkpoint, then the run fails), a local node's failure.
 void Coordinator::ends_now() {
   if (config_.interrupt && config_.interrupt->load()) {
     if (config_.checkpoint.empty()) fail("interrupted after {} bundles (no --checkpoint)", policy_.ledger().done_count());
@@ -105,10 +100,6 @@ void Coordinator::ends_now() {
   if (config_.abort && config_.abort->load()) fail("run aborted: a local node failed");
 }
 
-// The next message (its routing id first), within the bound of its command; nothing after
-// wait_ms. Keeps read_up_to_ (keep_alive's judge) and, behind a broker, puts the sender's
-// CURVE key in `key` and its address in the message.
-// `no_wait`: only what is in already (the coordinator renders tiles between reads).
 std::optional<proto::Received> Coordinator::next(Clock::time_point now, std::string& key, bool no_wait) {
   const int ms = wait_ms(now);
   auto in = proto::receive(router_, no_wait ? 0 : ms, 1, mesh_.size(), run_.chunk_starts_size(), &key);
@@ -126,8 +117,6 @@ std::optional<proto::Received> Coordinator::next(Clock::time_point now, std::str
   return in;
 }
 
-// A message as decode reads it, or nothing (logged) when it was over its command's bound or
-// malformed.
 std::optional<Message> Coordinator::decoded(const proto::Received& in) {
   try {
     if (in.over)
@@ -140,7 +129,6 @@ std::optional<Message> Coordinator::decoded(const proto::Received& in) {
   }
 }
 
-// Every peer of the run in join order: the departed (dead, replaced by a rejoin) and the current.
 std::vector<const Peer*> Coordinator::all_peers() const {
   std::vector<const Peer*> out;
   for (const Peer& p : departed_) out.push_back(&p);
@@ -149,7 +137,6 @@ std::vector<const Peer*> Coordinator::all_peers() const {
   return out;
 }
 
-// The status now; `last`: the run's last, which says how it ended.
 Status Coordinator::snapshot(bool last) const {
   auto now = Clock::now();
   Status s = policy_status(policy_, config_, last);
@@ -183,10 +170,6 @@ Status Coordinator::snapshot(bool last) const {
   return s;
 }
 
-// Why `p` is gone, or "": a message to it could not be sent, it has been silent for the
-// liveness window (when `watched`: a node is not before its READY), or its oldest grant is
-// past due (`overdue`: the image's word; by default its bundles'). Silence and deadlines are
-// judged at read_up_to_ (keep_alive says why).
 std::string Coordinator::gone(const Peer& p, bool watched, std::optional<std::string> overdue) const {
   if (p.unreachable || p.down.failed() > 0) return "a message to it could not be sent";
   if (watched && read_up_to_ - p.last_seen > liveness_window())
@@ -194,13 +177,11 @@ std::string Coordinator::gone(const Peer& p, bool watched, std::optional<std::st
   return overdue ? *overdue : grants_.overdue(p.index, clock(read_up_to_));
 }
 
-// A HEARTBEAT to `p` if nothing went to it for an interval, and its emulated link's due messages.
 void Coordinator::keep_in_touch(Peer& p, Clock::time_point now) {
   if (now - p.last_sent >= std::chrono::milliseconds(config_.heartbeat_ms)) send(p, {Command::heartbeat, {}, {}});
   p.down.flush(router_, clock(now));
 }
 
-// Milliseconds to wait for a message: up to 100, less when an emulated link has one due.
 int Coordinator::wait_ms(Clock::time_point now) {
   double next = std::numeric_limits<double>::infinity();
   for (auto& [id, p] : peers_) next = std::min(next, p.down.flush(router_, clock(now)));
@@ -208,8 +189,6 @@ int Coordinator::wait_ms(Clock::time_point now) {
   return static_cast<int>(std::clamp(ms, 0.0, 100.0));
 }
 
-// A line about a peer: at most 5 per routing id every 10 s; the next line that goes says how
-// many were held back (a flood of refusals is a few lines, not one per message).
 void Coordinator::log(const std::string& id, const std::string& what) {
   uint64_t held = 0;
   if (!log_limit_.allow(id, clock(Clock::now()), &held)) return;
@@ -219,13 +198,11 @@ void Coordinator::log(const std::string& id, const std::string& what) {
       {{"event", "peer"}, {"peer", name}});
 }
 
-// A line of the operator's log (util/log.h), with the run's id among its fields.
 void Coordinator::say(logging::Level level, const std::string& message, nlohmann::json fields) const {
   fields["run"] = fmt::format("{:016x}", run_.run_id());
   logging::write(level, "sirad-coordinator", message, fields);
 }
 
-// To a peer, through its link (shaped when the profile says so).
 void Coordinator::send(Peer& p, const Message& m) {
   std::vector<std::string> frames = proto::encode(m);
   frames.insert(frames.begin(), p.id);
@@ -255,7 +232,6 @@ void Coordinator::error(const std::string& id, const std::string& reason, bool r
   proto::send(router_, {Command::error, e, {}}, &id);
 }
 
-// Everything accepted so far, into config_.checkpoint (atomically).
 void Coordinator::checkpoint() {
   CoordinatorRecord r = record_;
   r.nodes.resize(policy_.nodes());
@@ -266,8 +242,6 @@ void Coordinator::checkpoint() {
   write_checkpoint(config_.checkpoint, c);
 }
 
-// A checkpointed run, continued: its nodes (departed: their processes rejoin as new nodes),
-// its ledger and counters; the scene and the chunks must be the same.
 void Coordinator::resume(const wire::Checkpoint& c) {
   record_ = resume_from(c, run_, policy_);
   const CoordinatorRecord& r = record_;

@@ -106,20 +106,17 @@ class Coordinator::ImageStage final : public Coordinator::Stage {
   bool rendering_here_ = false, waiting_for_lost_ = false;  // each said once
 };
 
-// Whether `p` renders the image when it begins: its FINAL is in, and it is live.
 bool Coordinator::may_render(const Peer& p) const {
   const NodeState& n = policy_.node(p.index);
   return !n.dead && !n.quarantined && n.final_in;
 }
 
-// `p` renders tiles from now: the IMAGE, with the solution as its bulk.
 void Coordinator::start_image(Peer& p, const wire::Image& h, const std::vector<std::string>& bulk) {
   grants_.clear(p.index);
   image_->join(p.index);
   send(p, {Command::image, h, bulk});
 }
 
-// The IMAGE message every node that renders tiles gets (with the solution as its bulk).
 wire::Image Coordinator::image_header() const {
   const GatherOptions& o = config_.final_gather;
   wire::Image h;
@@ -133,17 +130,12 @@ wire::Image Coordinator::image_header() const {
   return h;
 }
 
-// The spot checks' absolute floor: 1e-6 of the scene's largest radiance (an emission, the
-// background).
 double Coordinator::spot_floor() const {
   double top = std::max({mesh_.background.x, mesh_.background.y, mesh_.background.z});
   for (const Material& m : mesh_.materials) top = std::max(top, static_cast<double>(std::max({m.emission.x, m.emission.y, m.emission.z})));
   return top * 1e-6;
 }
 
-// A message during the image: a HELLO joins (join_image), a node joining the image goes on
-// with it (joiner), a node rendering tiles sends PIXELS; what else comes is ignored, and what a
-// rendering node sends that does not fit drops it from the image.
 void Coordinator::image_message(const proto::Received& in, const std::string& key, const wire::Image& h, const std::vector<std::string>& bulk) {
   const std::string id = in.frames.front();
   std::optional<Message> m = decoded(in);
@@ -173,9 +165,6 @@ void Coordinator::image_message(const proto::Received& in, const std::string& ke
   }
 }
 
-// A HELLO during the image: a new node (or one that lost its run) joins as during the bundles
-// (hello: WELCOME and the scene), marked to join the image; a node already known (one
-// repeating HELLO while idle) changes nothing.
 void Coordinator::join_image(const std::string& id, const std::string& key, const std::string& address, const Message& m) {
   auto before = peers_.find(id);
   const std::optional<uint32_t> index = before == peers_.end() ? std::nullopt : std::optional<uint32_t>(before->second.index);
@@ -191,10 +180,6 @@ void Coordinator::join_image(const std::string& id, const std::string& key, cons
   if (after != peers_.end() && (!index || after->second.index != *index)) after->second.image_joiner = true;
 }
 
-// A message from a node that joined during the image and has no IMAGE yet: READY gets the
-// STOP that says the image follows, the FINAL that answers it the IMAGE (its states are not
-// taken: the solution was final before the image began). Anything else, or a run id not this
-// run's, drops it (declared dead: it may say HELLO again).
 void Coordinator::joiner(Peer& p, const Message& m, const wire::Image& h, const std::vector<std::string>& bulk) {
   p.last_seen = Clock::now();
   try {
@@ -240,7 +225,6 @@ void Coordinator::drop_joiner(Peer& p, const std::string& why) {
   error(p.id, why, true);
 }
 
-// A TILES grant to `p` (its due time is the ImagePhase's).
 void Coordinator::grant_tiles(Peer& p, const TileGrant& g) { send(p, {Command::tiles, grant_of(g.id, g.tiles), {}}); }
 
 void Coordinator::pixels(Peer& p, const wire::Pixels& px, const std::vector<std::string>& bulk) {
@@ -258,17 +242,11 @@ void Coordinator::pixels(Peer& p, const wire::Pixels& px, const std::vector<std:
         {{"event", "first tiles due"}, {"tile_s", *tile_s}});
 }
 
-// The final gather on this machine, made at its first use (a spot check, or tiles no node is
-// left to render): the rays of the whole mesh, as a node's.
 const FinalGather& Coordinator::here() {
   if (!here_) here_ = std::make_unique<FinalGather>(mesh_, *image_solution_, config_.final_gather);
   return *here_;
 }
 
-// kSpotChecks pixels of each tile a node sends, chosen here as it arrives (no node can know
-// which), rendered here and compared (cluster/tiles.h check_pixel): a node whose pixels are
-// finite but not the image's is caught where it changed the pixels checked (every tile it
-// changed throughout).
 void Coordinator::spot_check(const TileRect& r, const std::vector<float>& values) {
   for (int k = 0; k < kSpotChecks; ++k) {
     const int x = r.x0 + static_cast<int>(spot_rng_() % static_cast<uint64_t>(r.x1 - r.x0));
@@ -278,8 +256,6 @@ void Coordinator::spot_check(const TileRect& r, const std::vector<float>& values
   }
 }
 
-// The image phase's liveness: as keep_alive's, for the nodes rendering tiles and those joining
-// the image (watched from their READY, as in a run).
 void Coordinator::image_keep_alive(Clock::time_point now) {
   for (auto& [id, p] : peers_) {
     if (rendering(p)) {
@@ -292,7 +268,6 @@ void Coordinator::image_keep_alive(Clock::time_point now) {
   }
 }
 
-// `p` renders no more of the image: its outstanding tiles go back (those it sent stay).
 void Coordinator::drop_from_image(Peer& p, const std::string& why) {
   image_->drop(p.index);
   log(p.id, fmt::format("dropped from the image ({}); its outstanding tiles are granted again", why));
@@ -303,7 +278,6 @@ void Coordinator::drop_from_image(Peer& p, const std::string& why) {
                                   *t, TilePlan::kMaxTileLosses));
 }
 
-// The image is over (done, or failed): every node still rendering it is told so.
 void Coordinator::end_image() {
   for (auto& [id, p] : peers_)
     if (rendering(p)) {
@@ -312,7 +286,6 @@ void Coordinator::end_image() {
     }
 }
 
-// The image's STOP (without image_follows): the node forgets the run.
 void Coordinator::stop_image(Peer& p) {
   wire::Stop s;
   s.set_run_id(run_.run_id());

@@ -116,9 +116,9 @@ class Coordinator {
 
   // ---- what every phase shares (coordinator.cpp) ----
 
-  // The one loop of every phase: each turn, what ends the run from outside (the time limit,
-  // ends_now), the status on its period, the stage's turn, then one message, waited for up to
-  // wait_ms.
+  // The one loop of every phase: each turn, what ends the run from outside (ends_now, then the
+  // time limit: an interrupt's checkpoint comes first), the status on its period, the stage's
+  // turn, then one message, waited for up to wait_ms.
   void loop(Stage& stage);
 
   static double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
@@ -187,10 +187,7 @@ class Coordinator {
 
   // ---- the solve (solve_stage.cpp) ----
 
-  // The solve (PROTOCOL.md section 3): the bundles of the Policy's grants. Each turn writes the
-  // checkpoint and the preview on their periods, judges liveness and grants' due times
-  // (keep_alive) and closes the run when the policy says; each message goes to handle(), and
-  // one it refuses is answered by an ERROR and logged: the run goes on.
+  // The solve stage (solve_stage.cpp): the bundles of the Policy's grants.
   class SolveStage;
   std::unique_ptr<Stage> solve_stage();
 
@@ -251,17 +248,8 @@ class Coordinator {
 
   // ---- the image (image_stage.cpp) ----
 
-  // The image (PROTOCOL.md section 3.4): the final gather of the solution, in tiles that the
-  // ImagePhase (cluster/image_phase.h) grants to the nodes that sent their FINAL, two grants
-  // each at a time; a node that falls silent, misses a deadline or sends what does not fit is
-  // dropped and its tiles are granted again. Nodes join during the image as during the bundles
-  // (image_joiner): HELLO, WELCOME, READY, then at once a STOP that says the image follows,
-  // their FINAL (no bundles; the solution was final before the image began: not taken) and the
-  // IMAGE. A resumed run none of whose nodes is here (its checkpoint was written during its
-  // image) waits for --min-nodes of them to join before its first tile, as a run waits before
-  // its first grant. With no node left otherwise, the coordinator renders the rest itself,
-  // reading messages between its tiles: a node that joins takes tiles from the next one.
-  // Throws ImageFailed when the image cannot be made (the solution stays good).
+  // The image stage (image_stage.cpp): the final gather in tiles; throws ImageFailed when the
+  // image cannot be made (the solution stays good).
   class ImageStage;
   std::unique_ptr<Stage> image_stage(RunResult& result);
 

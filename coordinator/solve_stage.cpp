@@ -74,10 +74,6 @@ class Coordinator::SolveStage final : public Coordinator::Stage {
   Clock::time_point last_checkpoint_ = Clock::now(), last_preview_ = Clock::now();
 };
 
-// Once `measured` has reported its first grant (it took t s from going out, compilation
-// included), the first grants of the nodes that have reported none are due by t
-// (Deadlines::tighten): a node that heartbeats but never reports, or runs sixteen times
-// slower, is declared dead then and its bundles granted again, not after the allowance.
 void Coordinator::tighten_first_grants(const Peer& measured) {
   const auto now = Clock::now();
   const double t = seconds(now - measured.first_grant_at);
@@ -93,16 +89,10 @@ void Coordinator::tighten_first_grants(const Peer& measured) {
         {{"event", "first grants due"}, {"first_grant_s", t}});
 }
 
-// What a node's first grant may take beyond its bound (PoCL compiling its kernels at their first
-// use): the rules' first_grant_s, or, once a node has reported its first grant, unequal_first
-// times the quickest such grant took, compilation included, if that is less.
 double Coordinator::first_grant_allowance() const {
   return std::min(grants_.rules().first_grant_s, grants_.rules().unequal_first * first_grant_s_);
 }
 
-// --exchange-every auto: each ready node's bundle time from its READY (its burn-in, slowdown
-// included) and its link's transfer time, the scene from a quick fit on this machine (its
-// OpenCL device, else the plain C++ reference engine) when the model needs it.
 ExchangeSetting Coordinator::choose(const std::vector<uint32_t>& ready) {
   std::vector<NodeCost> costs;
   for (uint32_t n : ready) {
@@ -118,18 +108,12 @@ ExchangeSetting Coordinator::choose(const std::vector<uint32_t>& ready) {
   return s;
 }
 
-// Whether any node's state is in (a preview of nothing is not worth drawing).
 bool Coordinator::holds_states() const {
   for (uint32_t c = 0; c < policy_.aggregate().chunks(); ++c)
     if (policy_.aggregate().count(c) > 0) return true;
   return false;
 }
 
-// Heartbeats to every live peer that has heard nothing for an interval; flushes the emulated
-// links; declares dead the ready peers silent for `liveness` intervals and those past a grant's
-// due time. Both are judged at read_up_to_, not now: after a stall of this process (a slow
-// fsync on a loaded machine) the heartbeats that came meanwhile wait in the socket, and a node
-// is silent only if the socket, read up to date, holds nothing newer from it.
 void Coordinator::keep_alive(Clock::time_point now) {
   for (auto& [id, p] : peers_) {
     const NodeState& n = policy_.node(p.index);
@@ -153,9 +137,6 @@ void Coordinator::keep_alive(Clock::time_point now) {
   }
 }
 
-// `p` is dead for `why`. `gone` (silent, unreachable, past due, and not an emulated
-// disconnect): it may have crashed on its bundles, which count a loss by its CURVE key, else
-// its address (Policy::lost).
 void Coordinator::declare_dead(Peer& p, const std::string& why, bool gone) {
   const bool poisoned_before = policy_.ledger().poisoned(Policy::kMaxBundleLosses).has_value();
   const uint64_t back = gone && !disconnected_on_purpose(p) ? policy_.lost(p.index, p.key.empty() ? p.address : p.key)
@@ -169,8 +150,6 @@ void Coordinator::declare_dead(Peer& p, const std::string& why, bool gone) {
   schedule();  // a sync barrier may have been waiting on it
 }
 
-// Whether `p` went silent because its emulated link said so (the profile's disconnect_at_s,
-// past since it was ready): its grant's bundles did not crash it.
 bool Coordinator::disconnected_on_purpose(const Peer& p) const {
   if (!config_.profile || p.ready_at == Clock::time_point{}) return false;
   const double at = config_.profile->for_node(p.index, p.name).disconnect_at_s;
@@ -205,8 +184,6 @@ void Coordinator::handle(const std::string& id, const std::string& key, const st
   }
 }
 
-// A new node, or one that lost its run (it restarted, or the emulation disconnected it): it
-// joins with a fresh index; a former entry's last state stays in the estimate.
 void Coordinator::hello(const std::string& id, const std::string& key, const std::string& address, const wire::Hello& h) {
   if (auto it = peers_.find(id); it != peers_.end()) {
     Peer& old = it->second;
@@ -292,7 +269,6 @@ void Coordinator::ready(Peer& p, const wire::Ready& r) {
   schedule();
 }
 
-// Sends what the policy orders: grants, then STOPs.
 void Coordinator::schedule() {
   Orders orders = policy_.schedule();
   for (const GrantOrder& o : orders.grants) {
@@ -322,7 +298,6 @@ Peer& Coordinator::peer(uint32_t index) {
   fail("no peer with index {}", index);  // the policy orders only current peers
 }
 
-// The REPORT or FINAL's chunks as the policy takes them (the run id checked first).
 std::vector<ChunkState> Coordinator::chunk_states(Peer& p, const wire::Report& r, const std::vector<std::string>& bulk, uint64_t& bytes) {
   if (r.run_id() != run_.run_id()) fail("{} for run {:x}, not this run", "state", r.run_id());
   std::vector<ChunkState> out;
