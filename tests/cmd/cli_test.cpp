@@ -285,6 +285,26 @@ TEST_F(Cli, EmulateRunsTheHeterogeneousProfileInVirtualTime) {
   fs::remove(dir_ / "timeline.csv");
 }
 
+// `sirad emulate --final-gather`: the image follows the solve in tiles that the emulated nodes
+// render (the timeline has their TILES and PIXELS), and it is the image `sirad image` makes of
+// the solution the run wrote, bit for bit (a pixel depends only on the seed and its place).
+TEST_F(Cli, AnEmulatedClustersImageIsTheImageOfItsSolution) {
+  Outcome e = sirad("emulate cornell --nodes 3 --patches 300 --bundles 48 --bundle-ms 1 --tile-ms 2 --width 70 --height 40 "
+                    "--final-gather 4 --timeline tl.csv --out emu");
+  ASSERT_EQ(e.status, 0) << e.err;
+  EXPECT_NE(e.out.find("image: 6 tiles in "), std::string::npos) << e.out;
+  const std::string timeline = slurp((dir_ / "tl.csv").string());
+  EXPECT_NE(timeline.find(",tiles,"), std::string::npos);
+  EXPECT_NE(timeline.find(",pixels,"), std::string::npos);
+  Outcome i = sirad("image emu.ply --width 70 --height 40 --spp 4 --out again -q");
+  ASSERT_EQ(i.status, 0) << i.err;
+  const auto emulated = sirad::test::exr_channels(dir_ / "emu.exr"), imaged = sirad::test::exr_channels(dir_ / "again.exr");
+  for (const char* c : {"R", "G", "B", "direct.R", "indirect.R"}) {
+    ASSERT_TRUE(emulated.count(c)) << c;
+    EXPECT_EQ(emulated.at(c), imaged.at(c)) << c;
+  }
+}
+
 // On unequal nodes an async run's fast nodes do not wait for the slow ones' set-up: on hetero-16
 // the first grant to a 4x node (emu-0) goes out before the 0.25x nodes (emu-14, emu-15; their
 // burn-in takes 16 times as long) are ready. A sync run waits for every node (its rounds need
