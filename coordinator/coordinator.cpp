@@ -1,5 +1,6 @@
 // sirad: the coordinator's loop over a ROUTER socket (coordinator.h), and what every phase
-// shares: reading and decoding, sending, liveness, the log, the status, checkpoints.
+// shares: reading and decoding, joins (HELLO, WELCOME and the scene), sending, liveness, the
+// log, the status, checkpoints.
 #include "coordinator/coordinator.h"
 
 #include <algorithm>
@@ -209,6 +210,81 @@ void Coordinator::send(Peer& p, const Message& m) {
   auto now = Clock::now();
   p.last_sent = now;
   p.unreachable = p.unreachable || !p.down.send(router_, std::move(frames), clock(now));
+}
+
+void Coordinator::hello(const std::string& id, const std::string& key, const std::string& address, const wire::Hello& h) {
+  if (auto it = peers_.find(id); it != peers_.end()) {
+    Peer& old = it->second;
+    const NodeState& n = policy_.node(old.index);
+    if (old.key != key && !n.dead) fail("HELLO on the routing id of {} from another key: refused", old.name);
+    old.last_seen = Clock::now();
+    if (n.quarantined) fail("HELLO from a quarantined node ({}): refused", n.why);
+    // An idle node repeats HELLO until it has a run, and a node between FINAL and the next
+    // run does too: nothing to do for either, unless the budget has work again (a node
+    // quarantined at its FINAL gave its bundles back): then it rejoins, its FINAL kept.
+    bool work = n.final_in && !policy_.closing() && policy_.ledger().available() > 0;
+    if (!n.dead && (!n.ready || n.stopped) && !work) return;
+    if (!n.dead && !n.final_in) declare_dead(old, "it said HELLO again: it lost its run", false);
+    departed_.push_back(std::move(old));
+    peers_.erase(it);
+  }
+  // Joins are limited per CURVE key, else per address: a peer that cycles HELLO and READY
+  // cannot grow the run's node entries faster than this (each costs a few hundred bytes; its
+  // chunk states are allocated only when it sends one).
+  if (!join_limit_.allow(key.empty() ? address : key, clock(Clock::now())))
+    fail("HELLO: more than {} joins from {} in {} s: refused", kJoinBurst, key.empty() ? address : "its key", kJoinWindowS);
+  const uint32_t index = policy_.join();
+  // A reused index (Policy::join): the departed entry it held is forgotten.
+  std::erase_if(departed_, [&](const Peer& d) { return d.index == index; });
+  Peer& p = peers_[id];
+  p.id = id;
+  p.key = key;
+  p.address = address;
+  p.index = index;
+  // What a peer names itself reaches logs, the summary and the status: printable ASCII only.
+  p.name = h.node_name().empty() ? fmt::format("node {}", p.index) : peer_text(h.node_name(), 64);
+  if (h.has_device()) p.device = peer_text(h.device().name(), 128);
+  say(logging::Level::info,
+      fmt::format("{} joined as node {} from {} ({})", p.name, p.index, address.empty() ? "inproc" : address,
+                  p.device.empty() ? "no device named" : p.device),
+      {{"event", "joined"}, {"peer", p.name}, {"index", p.index}, {"address", address}, {"device", p.device}});
+  wire::Welcome w;
+  w.set_node_index(p.index);
+  w.set_heartbeat_ms(config_.heartbeat_ms);
+  w.set_liveness(config_.liveness);
+  *w.mutable_run() = run_;
+  if (config_.profile) {
+    emulation::LinkSpec spec = config_.profile->for_node(p.index, p.name);
+    if (!config_.emulate_bandwidth) spec.up_mbit = spec.down_mbit = 0;
+    uint64_t seed = emulation::link_seed(config_.seed, p.index);
+    p.down = proto::ShapedLink(emulation::LinkModel(spec.down_mbit, spec.latency_ms, spec.jitter_ms, spec.loss, seed));
+    wire::Emulation* e = w.mutable_emulation();
+    e->set_slowdown(config_.profile->slowdown(spec));
+    e->set_latency_ms(spec.latency_ms);
+    e->set_jitter_ms(spec.jitter_ms);
+    e->set_up_mbit(spec.up_mbit);
+    e->set_loss(spec.loss);
+    e->set_disconnect_at_s(spec.disconnect_at_s);
+    e->set_reconnect_after_s(spec.reconnect_after_s);
+    e->set_seed(seed + 1);
+  }
+  send(p, {Command::welcome, w, {}});
+  // A node that holds the scene (by its source hash) meshes it from its cache: nothing to send.
+  const auto& held = h.scene_hashes();
+  if (std::find(held.begin(), held.end(), run_.scene_source()) != held.end()) {
+    ++scenes_from_cache_;
+    return;
+  }
+  ++scenes_sent_;
+  for (std::size_t off = 0; off < scene_bytes_.size() || off == 0; off += proto::kMaxSceneFrameBytes) {
+    wire::SceneChunk c;
+    c.set_scene_hash(run_.scene_source());
+    c.set_total_bytes(scene_bytes_.size());
+    c.set_offset(off);
+    c.set_last(off + proto::kMaxSceneFrameBytes >= scene_bytes_.size());
+    send(p, {Command::scene, c, {scene_bytes_.substr(off, proto::kMaxSceneFrameBytes)}});
+    if (c.last()) break;
+  }
 }
 
 wire::Grant Coordinator::grant_of(uint64_t id, const std::vector<Range>& ranges) const {

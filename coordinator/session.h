@@ -172,6 +172,10 @@ class Coordinator {
   // A line of the operator's log (util/log.h), with the run's id among its fields.
   void say(logging::Level level, const std::string& message, nlohmann::json fields) const;
 
+  // A new node, or one that lost its run (it restarted, or the emulation disconnected it): it
+  // joins with a fresh index; a former entry's last state stays in the estimate.
+  void hello(const std::string& id, const std::string& key, const std::string& address, const wire::Hello& h);
+
   // To a peer, through its link (shaped when the profile says so).
   void send(Peer& p, const Message& m);
   // A GRANT (bundles) or TILES (tiles) message of grant `id` for `ranges`.
@@ -227,10 +231,6 @@ class Coordinator {
   bool disconnected_on_purpose(const Peer& p) const;
 
   void handle(const std::string& id, const std::string& key, const std::string& address, const Message& m);
-
-  // A new node, or one that lost its run (it restarted, or the emulation disconnected it): it
-  // joins with a fresh index; a former entry's last state stays in the estimate.
-  void hello(const std::string& id, const std::string& key, const std::string& address, const wire::Hello& h);
 
   void ready(Peer& p, const wire::Ready& r);
 
