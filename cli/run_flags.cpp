@@ -2,12 +2,14 @@
 #include "cli/run_flags.h"
 
 #include <cmath>
+#include <functional>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
 #include "cluster/exchange.h"
 #include "util/error.h"
+#include "util/numbers.h"
 
 namespace sirad::cli {
 
@@ -19,31 +21,27 @@ void add_scene_argument(CLI::App* cmd, std::string& scene) {
 
 namespace {
 
-CLI::Validator number_check(bool zero_too) {
+// A check of a flag's text by `read`, whose sirad::Error is the refusal CLI11 prints after the
+// flag's name (util/numbers.h, a settings row's parse).
+CLI::Validator reads_as(std::function<void(const std::string&)> read, const std::string& description) {
   return CLI::Validator(
-      [zero_too](std::string& text) -> std::string {
-        double v = 0;
-        if (!CLI::detail::lexical_cast(text, v) || !std::isfinite(v)) return "'" + text + "' is not a finite number";
-        if (zero_too ? v >= 0 : v > 0) return "";
-        return std::string(zero_too ? "must be 0 or more" : "must be greater than 0") + " (got " + text + ")";
+      [read = std::move(read)](std::string& text) -> std::string {
+        try {
+          read(text);
+        } catch (const Error& e) {
+          return e.what();
+        }
+        return "";
       },
-      zero_too ? "NONNEGATIVE" : "POSITIVE");
+      description);
 }
 
 }  // namespace
 
-CLI::Validator positive() { return number_check(false); }
-CLI::Validator non_negative() { return number_check(true); }
-
+CLI::Validator positive() { return reads_as([](const std::string& t) { positive_real(t); }, "POSITIVE"); }
+CLI::Validator non_negative() { return reads_as([](const std::string& t) { non_negative_real(t); }, "NONNEGATIVE"); }
 CLI::Validator finite_in(double lo, double hi) {
-  return CLI::Validator(
-      [lo, hi](std::string& text) -> std::string {
-        double v = 0;
-        if (!CLI::detail::lexical_cast(text, v) || !std::isfinite(v)) return "'" + text + "' is not a finite number";
-        if (v >= lo && v <= hi) return "";
-        return fmt::format("must be in [{}, {}] (got {})", lo, hi, text);
-      },
-      fmt::format("[{}, {}]", lo, hi));
+  return reads_as([lo, hi](const std::string& t) { real_in(t, lo, hi); }, fmt::format("[{}, {}]", lo, hi));
 }
 
 std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
@@ -53,15 +51,10 @@ std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
     CLI::Option* o = cmd->add_option("--" + flag, r.text[flag], std::string(row.help));
     // Its row's parse on the defaults: the value's own bounds (--directions stratified under
     // --rule average is settings_from's, where the rule is known).
-    o->check(CLI::Validator(
-        [&row](std::string& text) -> std::string {
+    o->check(reads_as(
+        [&row](const std::string& text) {
           cluster::RunSettings scratch;
-          try {
-            row.parse(scratch, text);
-          } catch (const Error& e) {
-            return e.what();
-          }
-          return "";
+          row.parse(scratch, text);
         },
         row.choices.empty() ? "" : fmt::format("{{{}}}", fmt::join(row.choices, ","))));
     o->type_name(std::string(row.type));

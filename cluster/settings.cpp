@@ -2,49 +2,18 @@
 #include "cluster/settings.h"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
-#include <cstdlib>
-#include <limits>
 
 #include "cluster/policy.h"
 #include "engine/version.h"
 #include "scene/encoding.h"
 #include "solver/error_estimate.h"
 #include "util/error.h"
+#include "util/numbers.h"
 
 namespace sirad::cluster {
 
 namespace {
-
-// The flags' values as the rows read them (messages without the flag: the caller names it).
-int64_t integer_in(const std::string& text, int64_t lo, int64_t hi) {
-  int64_t v = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || end != text.data() + text.size() || text.empty()) fail("'{}' is not a whole number", text);
-  if (v < lo || v > hi) fail("must be in [{}, {}] (got {})", lo, hi, text);
-  return v;
-}
-
-double real_in(const std::string& text, double lo, double hi) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v)) fail("'{}' is not a finite number", text);
-  if (!(v >= lo && v <= hi)) fail("must be in [{}, {}] (got {})", lo, hi, text);
-  return v;
-}
-
-double positive(const std::string& text) {
-  const double v = real_in(text, -std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
-  if (!(v > 0)) fail("must be greater than 0 (got {})", text);
-  return v;
-}
-
-double non_negative(const std::string& text) {
-  const double v = real_in(text, -std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
-  if (!(v >= 0)) fail("must be 0 or more (got {})", text);
-  return v;
-}
 
 bool on_off(const std::string& text) {
   if (text != "on" && text != "off") fail("{} is not on or off", text);
@@ -72,7 +41,7 @@ const std::vector<SettingRow> kRows = {
      .help = "Mesh so no patch edge is longer than this",
      .type = "FLOAT",
      .parse = [](RunSettings& s, const std::string& t) {
-       s.mesh_options.max_edge = positive(t);
+       s.mesh_options.max_edge = positive_real(t);
        s.mesh_options.target_patches = 0;
      },
      .check = [](const RunSettings& s) {
@@ -107,10 +76,7 @@ const std::vector<SettingRow> kRows = {
      .default_text = "1",
      .show_default = true,
      .parse = [](RunSettings& s, const std::string& t) {
-       uint64_t v = 0;
-       const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-       if (ec != std::errc() || end != t.data() + t.size() || t.empty()) fail("'{}' is not a whole number in [0, 2^64)", t);
-       s.seed = v;
+       s.seed = unsigned_integer(t);
      },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_seed(s.seed); },
      .from_run = [](const wire::Run& r, RunSettings& s) { s.seed = r.seed(); }},
@@ -236,7 +202,7 @@ const std::vector<SettingRow> kRows = {
     {.flag = "time-limit",
      .help = "End the run early after this long (seconds)",
      .type = "SECONDS",
-     .parse = [](RunSettings& s, const std::string& t) { s.time_limit_s = non_negative(t); },
+     .parse = [](RunSettings& s, const std::string& t) { s.time_limit_s = non_negative_real(t); },
      .check = [](const RunSettings& s) {
        if (!(s.time_limit_s >= 0 && s.time_limit_s <= kMaxSeconds))
          fail("time limit {:.6g} s is outside 0..{:.0e} s", s.time_limit_s, kMaxSeconds);
