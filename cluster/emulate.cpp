@@ -108,12 +108,7 @@ class Emulator {
       // burn-in bundles, timed) and says READY.
       at(to_node_link(n, kHeaderBytes + scene_bytes), [this, n] { setup(n); });
     }
-    while (!events_.empty() && !policy_.done()) {
-      Event e = events_.top();
-      events_.pop();
-      now_ = e.t;
-      e.fn();
-    }
+    run_events([this] { return policy_.done(); });
     if (!policy_.done()) fail("emulate: the run stalled at {:.3f} s with {} of {} bundles done", now_, policy_.ledger().done_count(), run_.bundles);
     const double solved_s = now_;
 
@@ -161,6 +156,17 @@ class Emulator {
   }
 
   void at(double t, std::function<void()> fn) { events_.push({t, seq_++, std::move(fn)}); }
+
+  // The events in time order, each advancing the virtual clock to its time, until `done` or none
+  // is left.
+  void run_events(const std::function<bool()>& done) {
+    while (!events_.empty() && !done()) {
+      Event e = events_.top();
+      events_.pop();
+      now_ = e.t;
+      e.fn();
+    }
+  }
 
   // When a message of `bytes` sent now reaches the coordinator from node n, or node n from the
   // coordinator: it crosses the node's link and the coordinator's, which every node shares
@@ -301,12 +307,7 @@ class Emulator {
       coordinator_out_.deliver(now_, message_bytes(mesh_.size()));
     }
     grant_tiles();
-    while (!events_.empty() && !image_->finished()) {
-      Event e = events_.top();
-      events_.pop();
-      now_ = e.t;
-      e.fn();
-    }
+    run_events([this] { return image_->finished(); });
     if (!image_->finished()) fail("emulate: the image stalled at {:.3f} s with {} of {} tiles done", now_, image_->tiles_done(), image_->tiles());
     r.image = std::move(image_->passes());
     r.image_tiles = image_->tiles();
