@@ -279,7 +279,6 @@ class Emulator {
     at(now_ + busy, [this, n, g = std::move(g), frames = std::move(frames), busy]() mutable {
       VNode& v = nodes_[n];
       v.running = false;
-      v.figures.tile_busy_s += busy;
       std::size_t bytes = kHeaderBytes + 16 * g.tiles.size();
       for (const std::string& f : frames) bytes += f.size();
       at(to_coordinator_link(n, bytes), [this, n, g = std::move(g), frames = std::move(frames), busy]() mutable {

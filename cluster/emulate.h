@@ -65,7 +65,6 @@ struct EmulatedNode {
   double end_s = 0;        // when its FINAL reached the coordinator
   double utilisation = 0;  // busy_s over the run's virtual wall time
   uint64_t tiles = 0;      // tiles of the image it rendered
-  double tile_busy_s = 0;  // rendering them
 };
 
 struct EmulateResult {
