@@ -36,6 +36,52 @@ double time_field(const nlohmann::json& j, const char* key, const std::string& o
   return t;
 }
 
+// A list of strings, each of at most kMaxJobArgBytes, at most kMaxJobArgs of them (`what`: how
+// the error names it).
+void check_strings(const std::vector<std::string>& list, const std::string& what) {
+  if (list.size() > kMaxJobArgs) fail("{} {} (at most {})", list.size(), what, kMaxJobArgs);
+  for (const std::string& a : list)
+    if (a.size() > kMaxJobArgBytes) fail("one of its {} has {} bytes (at most {})", what, a.size(), kMaxJobArgBytes);
+}
+
+void check_run(const JobRun& r) {
+  check_strings(r.output, "output flags");
+  if (r.min_nodes < 1 || r.min_nodes > kMaxJobNodes || r.max_nodes > kMaxJobNodes)
+    fail("nodes {}..{}: outside 1..{}", r.min_nodes, r.max_nodes, kMaxJobNodes);
+  if (r.max_nodes != 0 && r.min_nodes > r.max_nodes) fail("min_nodes {} is more than max_nodes {}", r.min_nodes, r.max_nodes);
+  check(r.settings);
+}
+
+nlohmann::ordered_json run_json(const JobRun& r) {
+  nlohmann::ordered_json settings = nlohmann::ordered_json::object();
+  for (const auto& [flag, text] : settings_text(r.settings)) settings[flag] = text;
+  return {{"settings", std::move(settings)}, {"output", r.output}, {"min_nodes", r.min_nodes}, {"max_nodes", r.max_nodes}};
+}
+
+JobRun run_from_json(const nlohmann::json& j, const std::string& origin) {
+  if (!j.is_object()) fail("{}: 'run' is not an object", origin);
+  const std::string where = origin + ": run";
+  const nlohmann::json settings = field<nlohmann::json>(j, "settings", where);
+  if (!settings.is_object() || settings.size() > setting_rows().size())
+    fail("{}: 'settings' is not an object of at most {} settings", where, setting_rows().size());
+  SettingsText text;
+  for (const auto& [flag, value] : settings.items()) {
+    if (!value.is_string()) fail("{}: setting '{}' is not a string", where, flag.substr(0, 40));
+    text.emplace_back(flag, value.get<std::string>());
+  }
+  JobRun r;
+  r.settings = settings_from_text(text, where);
+  r.output = field<std::vector<std::string>>(j, "output", where);
+  r.min_nodes = field<uint32_t>(j, "min_nodes", where);
+  r.max_nodes = field<uint32_t>(j, "max_nodes", where);
+  try {
+    check_run(r);
+  } catch (const Error& e) {
+    fail("{}: {}", where, e.what());
+  }
+  return r;
+}
+
 }  // namespace
 
 void check_job_name(const std::string& name) {
@@ -48,10 +94,11 @@ void check_job_name(const std::string& name) {
 }
 
 std::string job_json(const Job& j) {
-  nlohmann::json o = {{"id", j.id},           {"name", j.name},         {"scene", j.scene},         {"args", j.args},
-                      {"priority", j.priority}, {"state", j.state},     {"submitted", j.submitted}, {"started", j.started},
-                      {"finished", j.finished}, {"error", j.error},     {"runs", j.runs},
-                      {"lost_runs", j.lost_runs}};
+  nlohmann::ordered_json o = {{"id", j.id},           {"name", j.name},         {"scene", j.scene},         {"args", j.args},
+                              {"priority", j.priority}, {"state", j.state},     {"submitted", j.submitted}, {"started", j.started},
+                              {"finished", j.finished}, {"error", j.error},     {"runs", j.runs},
+                              {"lost_runs", j.lost_runs}};
+  if (j.run) o["run"] = run_json(*j.run);
   return o.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n";
 }
 
@@ -75,9 +122,12 @@ Job job_from_json(const std::string& text, const std::string& origin) {
   job.scene = field<std::string>(j, "scene", origin);
   if (job.scene.size() > kMaxJobArgBytes) fail("{}: 'scene' is too long", origin);
   job.args = field<std::vector<std::string>>(j, "args", origin);
-  if (job.args.size() > kMaxJobArgs) fail("{}: {} args (at most {})", origin, job.args.size(), kMaxJobArgs);
-  for (const std::string& a : job.args)
-    if (a.size() > kMaxJobArgBytes) fail("{}: an arg of {} bytes (at most {})", origin, a.size(), kMaxJobArgBytes);
+  try {
+    check_strings(job.args, "args");
+  } catch (const Error& e) {
+    fail("{}: {}", origin, e.what());
+  }
+  if (j.contains("run")) job.run = run_from_json(j.at("run"), origin);  // absent in older stores
   job.priority = field<int>(j, "priority", origin);
   if (std::abs(job.priority) > kMaxPriority) fail("{}: 'priority' {} is out of range", origin, job.priority);
   job.state = field<std::string>(j, "state", origin);
@@ -148,13 +198,12 @@ Job* JobStore::find(uint64_t id) {
 }
 
 Job JobStore::submit(const std::string& name, const std::string& scene, const std::string& scene_bytes,
-                     std::vector<std::string> args, int priority, double now) {
+                     std::vector<std::string> args, JobRun run, int priority, double now) {
   check_job_name(name);
   if (scene.empty() == scene_bytes.empty()) fail("a job needs a built-in scene's name or a scene's bytes, not both");
   if (scene.size() > kMaxJobArgBytes) fail("scene name of {} bytes", scene.size());
-  if (args.size() > kMaxJobArgs) fail("{} args (at most {})", args.size(), kMaxJobArgs);
-  for (const std::string& a : args)
-    if (a.size() > kMaxJobArgBytes) fail("an arg of {} bytes (at most {})", a.size(), kMaxJobArgBytes);
+  check_strings(args, "args");
+  check_run(run);
   if (std::abs(priority) > kMaxPriority) fail("priority {} is out of range (+-{})", priority, kMaxPriority);
   std::lock_guard lock(mutex_);
   if (jobs_.size() >= kMaxJobs) fail("the farm holds {} jobs already (at most {})", jobs_.size(), kMaxJobs);
@@ -163,6 +212,7 @@ Job JobStore::submit(const std::string& name, const std::string& scene, const st
   job.name = name;
   job.scene = scene;
   job.args = std::move(args);
+  job.run = std::move(run);
   job.priority = priority;
   job.submitted = now;
   std::error_code ec;

@@ -13,13 +13,29 @@
 #include <string>
 #include <vector>
 
+#include "cluster/settings.h"
+
 namespace sirad::cluster {
+
+// What a job runs, as its flags asked when it was submitted (farm/farm.h plan_job): the run's
+// settings, kept as the table writes them (settings_text), so a job reads back the same run
+// whatever becomes of the flags; its output flags as a checkpoint keeps them (cli
+// output_args); the nodes it waits for and takes.
+struct JobRun {
+  RunSettings settings;
+  std::vector<std::string> output;
+  uint32_t min_nodes = 1;  // nodes ready before its first grant
+  uint32_t max_nodes = 0;  // the most nodes it takes (0: every node there is)
+};
 
 struct Job {
   uint64_t id = 0;                 // 1, 2, ... in submission order
   std::string name;                // the outputs' base name (NAME.exr, ...)
   std::string scene;               // a built-in scene's name, or "" for the job's scene.bin
-  std::vector<std::string> args;   // run and output flags, as sirad-coordinator takes them
+  std::vector<std::string> args;   // its flags as submitted (what the page shows)
+  // What it runs; none only in a job file of an earlier version, whose run is planned from its
+  // args when it comes to run.
+  std::optional<JobRun> run;
   int priority = 0;                // higher runs first; equal: in submission order
   std::string state = "queued";    // queued | running | done | failed | cancelled
   double submitted = 0, started = 0, finished = 0;  // Unix seconds (0: not yet)
@@ -42,6 +58,7 @@ inline constexpr std::size_t kMaxJobs = 100000;
 inline constexpr std::size_t kMaxJobArgs = 64, kMaxJobArgBytes = 4096, kMaxJobNameBytes = 64;
 inline constexpr std::size_t kMaxJobFileBytes = 1 << 20;
 inline constexpr int kMaxPriority = 1000000;
+inline constexpr uint32_t kMaxJobNodes = 4096;  // --min-nodes, --max-nodes
 
 // The job's record as JSON (job.json) and back; from_json throws sirad::Error naming `origin`
 // and the field for anything out of bounds.
@@ -61,9 +78,9 @@ class JobStore {
   JobStore(std::string dir, double now, bool recover = true);
 
   // A new queued job (its folder, scene.bin when `scene_bytes` is given, job.json). Throws
-  // sirad::Error for a bad name, too many args or jobs.
+  // sirad::Error for a bad name, too many args or output flags, or too many jobs.
   Job submit(const std::string& name, const std::string& scene, const std::string& scene_bytes, std::vector<std::string> args,
-             int priority, double now);
+             JobRun run, int priority, double now);
   std::vector<Job> list() const;
   std::optional<Job> get(uint64_t id) const;
   // The next job to run: queued, highest priority, oldest.

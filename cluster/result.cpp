@@ -32,6 +32,7 @@ RunResult policy_result(const Policy& p, int grid) {
 
 Status policy_status(const Policy& p, const RunSettings& settings, bool last) {
   Status s;
+  s.settings = settings_text(settings);
   s.target_error = settings.target_error;
   if (last) {
     s.ended_by = p.ended_by().empty() ? "budget" : p.ended_by();

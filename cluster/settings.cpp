@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <fmt/format.h>
+
 #include "cluster/policy.h"
 #include "engine/version.h"
 #include "scene/encoding.h"
@@ -14,6 +16,9 @@
 namespace sirad::cluster {
 
 namespace {
+
+// A number as the shortest text that reads back to exactly it.
+std::string exact(double v) { return fmt::format("{}", v); }
 
 bool on_off(const std::string& text) {
   if (text != "on" && text != "off") fail("{} is not on or off", text);
@@ -36,7 +41,8 @@ const std::vector<SettingRow> kRows = {
          fail("target patches {} is above {}", s.mesh_options.target_patches, kMaxTargetPatches);
      },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_target_patches(s.mesh_options.target_patches); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.mesh_options.target_patches = r.target_patches(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.mesh_options.target_patches = r.target_patches(); },
+     .text = [](const RunSettings& s) { return s.mesh_options.target_patches > 0 ? std::to_string(s.mesh_options.target_patches) : std::string(); }},
     {.flag = "max-edge",
      .help = "Mesh so no patch edge is longer than this",
      .type = "FLOAT",
@@ -49,7 +55,24 @@ const std::vector<SettingRow> kRows = {
          fail("max edge {:.6g} is not a finite length >= 0", s.mesh_options.max_edge);
      },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_max_edge(s.mesh_options.max_edge); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.mesh_options.max_edge = r.max_edge(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.mesh_options.max_edge = r.max_edge(); },
+     .text = [](const RunSettings& s) { return s.mesh_options.max_edge > 0 ? exact(s.mesh_options.max_edge) : std::string(); }},
+    {.flag = "max-patches",
+     .help = "Refuse a scene that meshes to more patches than this, before the mesh is made (default: 2^31 - 1)",
+     .type = "INT",
+     .parse = [](RunSettings& s, const std::string& t) {
+       s.mesh_options.max_patches = static_cast<uint64_t>(integer_in(t, 1, static_cast<int64_t>(kMaxTargetPatches)));
+     },
+     .check = [](const RunSettings& s) {
+       if (s.mesh_options.max_patches > kMaxTargetPatches)
+         fail("max patches {} is above {}", s.mesh_options.max_patches, kMaxTargetPatches);
+     },
+     // Not in the wire's Run: a node meshes to the run's patch count and no more (node.cpp).
+     .to_checkpoint = [](const RunSettings& s, wire::Checkpoint& c) { c.set_max_patches(s.mesh_options.max_patches); },
+     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.mesh_options.max_patches = c.max_patches(); },
+     .text = [](const RunSettings& s) {
+       return s.mesh_options.max_patches > 0 ? std::to_string(s.mesh_options.max_patches) : std::string();
+     }},
     {.flag = "bundles",
      .help = "Bundles (random directions) to run; the cap with --target-error (default there: 1000000)",
      .type = "INT",
@@ -60,7 +83,8 @@ const std::vector<SettingRow> kRows = {
        if (s.bundles == 0 || s.bundles > kMaxBundles) fail("bundles {} is outside 1..{}", s.bundles, kMaxBundles);
      },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_bundles(s.bundles); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.bundles = r.bundles(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.bundles = r.bundles(); },
+     .text = [](const RunSettings& s) { return std::to_string(s.bundles); }},
     {.flag = "grid",
      .help = "Lines per side of a bundle (default: from the patch sizes)",
      .type = "INT",
@@ -69,7 +93,8 @@ const std::vector<SettingRow> kRows = {
        if (s.grid != 0 && (s.grid < 2 || s.grid > kMaxGrid)) fail("grid {} is outside 2..{} (0: auto)", s.grid, kMaxGrid);
      },
      .to_run = [](const RunSettings& s, const PatchMesh& mesh, wire::Run& r) { r.set_grid(static_cast<uint32_t>(run_grid(s, mesh))); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.grid = static_cast<int>(r.grid()); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.grid = static_cast<int>(r.grid()); },
+     .text = [](const RunSettings& s) { return s.grid > 0 ? std::to_string(s.grid) : std::string(); }},
     {.flag = "seed",
      .help = "Run seed",
      .type = "INT",
@@ -79,7 +104,8 @@ const std::vector<SettingRow> kRows = {
        s.seed = unsigned_integer(t);
      },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_seed(s.seed); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.seed = r.seed(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.seed = r.seed(); },
+     .text = [](const RunSettings& s) { return std::to_string(s.seed); }},
     {.flag = "rule",
      .help = "Update rule: chain (default) or average (the paper's)",
      .type = "NAME",
@@ -87,7 +113,8 @@ const std::vector<SettingRow> kRows = {
      .default_text = "chain",
      .parse = [](RunSettings& s, const std::string& t) { s.rule = parse_update_rule(t); },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_rule(to_string(s.rule)); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.rule = parse_update_rule(r.rule()); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.rule = parse_update_rule(r.rule()); },
+     .text = [](const RunSettings& s) { return std::string(to_string(s.rule)); }},
     {.flag = "directions",
      .help = "Bundle directions: auto (stratified under the chain rule, random under average), random or stratified",
      .type = "NAME",
@@ -108,7 +135,8 @@ const std::vector<SettingRow> kRows = {
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_directions(to_string(s.directions)); },
      .from_run = [](const wire::Run& r, RunSettings& s) {
        s.directions = r.directions().empty() ? Directions::random : parse_directions(r.directions());
-     }},
+     },
+     .text = [](const RunSettings& s) { return std::string(to_string(s.directions)); }},
     {.flag = "control-variate",
      .help = "The transport's constant control variate: on (default) or off (the plain estimator)",
      .type = "NAME",
@@ -117,7 +145,8 @@ const std::vector<SettingRow> kRows = {
      .show_default = true,
      .parse = [](RunSettings& s, const std::string& t) { s.control_variate = on_off(t); },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_no_control_variate(!s.control_variate); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.control_variate = !r.no_control_variate(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.control_variate = !r.no_control_variate(); },
+     .text = [](const RunSettings& s) { return std::string(s.control_variate ? "on" : "off"); }},
     {.flag = "burn-in",
      .help = "Chain bundles run before counting (default: auto)",
      .type = "INT",
@@ -126,7 +155,8 @@ const std::vector<SettingRow> kRows = {
        if (s.burn_in < -1 || s.burn_in > kMaxBurnIn) fail("burn-in {} is outside 0..{} (-1: auto)", s.burn_in, kMaxBurnIn);
      },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_burn_in(s.burn_in); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.burn_in = r.burn_in(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.burn_in = r.burn_in(); },
+     .text = [](const RunSettings& s) { return s.burn_in >= 0 ? std::to_string(s.burn_in) : std::string(); }},
     {.flag = "shots-per-bundle",
      .help = "First shot: hemicube shots from the emitters per bundle (0: off, the plain estimator)",
      .type = "FLOAT",
@@ -135,7 +165,8 @@ const std::vector<SettingRow> kRows = {
      .parse = [](RunSettings& s, const std::string& t) { s.shots_per_bundle = real_in(t, 0.0, 1024.0); },
      .check = [](const RunSettings& s) { check_first_shot(s.shots_per_bundle, s.shot_resolution); },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_shots_per_bundle(s.shots_per_bundle); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.shots_per_bundle = r.shots_per_bundle(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.shots_per_bundle = r.shots_per_bundle(); },
+     .text = [](const RunSettings& s) { return exact(s.shots_per_bundle); }},
     {.flag = "shot-resolution",
      .help = "First shot: hemicube side in pixels (0: from the mesh)",
      .type = "INT",
@@ -147,7 +178,8 @@ const std::vector<SettingRow> kRows = {
        s.shot_resolution = static_cast<int>(v);
      },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_shot_resolution(static_cast<uint32_t>(s.shot_resolution)); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.shot_resolution = static_cast<int>(r.shot_resolution()); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.shot_resolution = static_cast<int>(r.shot_resolution()); },
+     .text = [](const RunSettings& s) { return std::to_string(s.shot_resolution); }},
     {.flag = "exchange-every",
      .help = "Bundles between exchanges, 'end', or 'auto' (chosen from the paper's model at the start: see sirad model)",
      .type = "N|end|auto",
@@ -156,7 +188,8 @@ const std::vector<SettingRow> kRows = {
      .cluster = true,
      .parse = [](RunSettings& s, const std::string& t) { s.exchange_every = parse_exchange_every(t); },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_exchange_every(s.exchange_every); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.exchange_every = r.exchange_every(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.exchange_every = r.exchange_every(); },
+     .text = [](const RunSettings& s) { return exchange_every_name(s.exchange_every); }},
     {.flag = "exchange-fraction",
      .help = "Fraction S of chunks per exchange",
      .type = "FLOAT",
@@ -168,7 +201,8 @@ const std::vector<SettingRow> kRows = {
        if (!(s.fraction > 0 && s.fraction <= 1)) fail("exchange fraction {} is outside (0, 1]", s.fraction);
      },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_exchange_fraction(s.fraction); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.fraction = r.exchange_fraction(); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.fraction = r.exchange_fraction(); },
+     .text = [](const RunSettings& s) { return exact(s.fraction); }},
     {.flag = "topology",
      .help = "star or ring",
      .type = "NAME",
@@ -178,7 +212,8 @@ const std::vector<SettingRow> kRows = {
      .cluster = true,
      .parse = [](RunSettings& s, const std::string& t) { s.topology = parse_topology(t); },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_topology(s.topology == Topology::star ? "star" : "ring"); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.topology = parse_topology(r.topology()); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.topology = parse_topology(r.topology()); },
+     .text = [](const RunSettings& s) { return std::string(s.topology == Topology::star ? "star" : "ring"); }},
     {.flag = "mode",
      .help = "sync or async",
      .type = "NAME",
@@ -188,7 +223,8 @@ const std::vector<SettingRow> kRows = {
      .cluster = true,
      .parse = [](RunSettings& s, const std::string& t) { s.mode = parse_mode(t); },
      .to_run = [](const RunSettings& s, const PatchMesh&, wire::Run& r) { r.set_mode(s.mode == Mode::sync ? "sync" : "async"); },
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.mode = parse_mode(r.mode()); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.mode = parse_mode(r.mode()); },
+     .text = [](const RunSettings& s) { return std::string(s.mode == Mode::sync ? "sync" : "async"); }},
     {.flag = "balance",
      .help = "Grants sized to each node's speed, so unequal nodes finish them together: on or off (every grant I bundles)",
      .type = "NAME",
@@ -198,7 +234,8 @@ const std::vector<SettingRow> kRows = {
      .cluster = true,
      .parse = [](RunSettings& s, const std::string& t) { s.balance = on_off(t); },
      .to_checkpoint = [](const RunSettings& s, wire::Checkpoint& c) { c.set_balance(s.balance); },
-     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.balance = c.balance(); }},
+     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.balance = c.balance(); },
+     .text = [](const RunSettings& s) { return std::string(s.balance ? "on" : "off"); }},
     {.flag = "time-limit",
      .help = "End the run early after this long (seconds)",
      .type = "SECONDS",
@@ -208,7 +245,8 @@ const std::vector<SettingRow> kRows = {
          fail("time limit {:.6g} s is outside 0..{:.0e} s", s.time_limit_s, kMaxSeconds);
      },
      .to_checkpoint = [](const RunSettings& s, wire::Checkpoint& c) { c.set_time_limit_s(s.time_limit_s); },
-     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.time_limit_s = c.time_limit_s(); }},
+     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.time_limit_s = c.time_limit_s(); },
+     .text = [](const RunSettings& s) { return exact(s.time_limit_s); }},
     {.flag = "target-error",
      .help = "End the run at this relative error estimate (one node: batch means; 2+ nodes with --exchange-every: the "
              "nodes' spread)",
@@ -218,7 +256,8 @@ const std::vector<SettingRow> kRows = {
        if (!(s.target_error >= 0 && s.target_error <= 1)) fail("target error {} is outside [0, 1]", s.target_error);
      },
      .to_checkpoint = [](const RunSettings& s, wire::Checkpoint& c) { c.set_target_error(s.target_error); },
-     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.target_error = c.target_error(); }},
+     .from_checkpoint = [](const wire::Checkpoint& c, RunSettings& s) { s.target_error = c.target_error(); },
+     .text = [](const RunSettings& s) { return exact(s.target_error); }},
     {.flag = "chunks",
      .help = "Chunks of patches exchanged separately",
      .type = "INT",
@@ -230,7 +269,8 @@ const std::vector<SettingRow> kRows = {
        if (s.chunks == 0 || s.chunks > proto::kMaxChunks) fail("chunks {} is outside 1..{}", s.chunks, proto::kMaxChunks);
      },
      // On the wire as the chunks' starts (to_wire's `chunk_starts`).
-     .from_run = [](const wire::Run& r, RunSettings& s) { s.chunks = static_cast<uint32_t>(r.chunk_starts_size()); }},
+     .from_run = [](const wire::Run& r, RunSettings& s) { s.chunks = static_cast<uint32_t>(r.chunk_starts_size()); },
+     .text = [](const RunSettings& s) { return std::to_string(s.chunks); }},
 };
 
 }  // namespace
@@ -240,6 +280,39 @@ const std::vector<SettingRow>& setting_rows() { return kRows; }
 void check(const RunSettings& s) {
   for (const SettingRow& row : kRows)
     if (row.check) row.check(s);
+}
+
+SettingsText settings_text(const RunSettings& s) {
+  SettingsText out;
+  for (const SettingRow& row : kRows)
+    if (std::string t = row.text(s); !t.empty()) out.emplace_back(row.flag, std::move(t));
+  return out;
+}
+
+RunSettings settings_from_text(const SettingsText& text, const std::string& origin) {
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const std::string& flag = text[i].first;
+    if (std::none_of(kRows.begin(), kRows.end(), [&](const SettingRow& row) { return row.flag == flag; }))
+      fail("{}: '{}' is not a run setting", origin, flag.substr(0, 40));
+    for (std::size_t j = 0; j < i; ++j)
+      if (text[j].first == flag) fail("{}: '{}' is given twice", origin, flag);
+  }
+  RunSettings s;
+  for (const SettingRow& row : kRows) {
+    auto given = std::find_if(text.begin(), text.end(), [&](const auto& t) { return t.first == row.flag; });
+    if (given == text.end()) continue;
+    try {
+      row.parse(s, given->second);
+    } catch (const Error& e) {
+      fail("{}: {}: {}", origin, row.flag, e.what());
+    }
+  }
+  try {
+    check(s);
+  } catch (const Error& e) {
+    fail("{}: {}", origin, e.what());
+  }
+  return s;
 }
 
 std::string target_error_problem(const RunSettings& s) {

@@ -12,6 +12,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "cluster/deadlines.h"
@@ -89,9 +90,22 @@ struct SettingRow {
   void (*from_run)(const wire::Run& r, RunSettings& s) = nullptr;
   void (*to_checkpoint)(const RunSettings& s, wire::Checkpoint& c) = nullptr;
   void (*from_checkpoint)(const wire::Checkpoint& c, RunSettings& s) = nullptr;
+  // The setting as its flag's text, which `parse` reads back to the same value; "" where the
+  // setting holds its own default (auto, none), which a flag does not spell.
+  std::string (*text)(const RunSettings& s) = nullptr;
 };
 // The rows, in the order the flags are parsed (and listed by --help).
 const std::vector<SettingRow>& setting_rows();
+
+// A run's settings as their flags' text, (flag, text) in the table's order, the rows whose text
+// is "" left out: what the farm's job files and the status hold. settings_from_text reads it
+// back, every row in the table's order whatever the order given, a row not given left at
+// RunSettings' default (the "" of its text), and checks it (check()): settings_from_text(
+// settings_text(s)) is s. Throws sirad::Error naming `origin` and the flag for a flag that is
+// not a row's, one given twice, or a text its row refuses.
+using SettingsText = std::vector<std::pair<std::string, std::string>>;
+SettingsText settings_text(const RunSettings& s);
+RunSettings settings_from_text(const SettingsText& text, const std::string& origin);
 
 // Throws sirad::Error, naming the setting, for settings no run can have (each row's check):
 // stratified directions under the average rule, a first shot out of range (check_first_shot),

@@ -45,7 +45,9 @@ std::string to_json(const Status& s) {
                   {"topology", s.topology},
                   {"target_error", or_null(s.target_error > 0, s.target_error)},
                   {"ended_by", or_null(!s.ended_by.empty(), s.ended_by)},
+                  {"settings", Json::object()},
                   {"nodes", std::move(nodes)}};
+  for (const auto& [flag, text] : s.settings) j["settings"][flag] = text;
   if (s.image_tiles > 0) {
     j["image_tiles"] = s.image_tiles;
     j["image_tiles_done"] = s.image_tiles_done;
@@ -73,6 +75,7 @@ T field(const Json& node, const char* key, const std::string& path, const std::s
 
 // The largest status file read back: a run of 4096 nodes is about 1.2 MB.
 constexpr std::size_t kMaxStatusBytes = std::size_t{1} << 26;
+constexpr std::size_t kMaxStatusSettings = 256;  // far beyond the table's rows
 
 }  // namespace
 
@@ -107,6 +110,14 @@ Status read_status(const std::string& path) {
   s.image_tiles = field<uint64_t>(root, "image_tiles", path, "", 0);
   s.image_tiles_done = field<uint64_t>(root, "image_tiles_done", path, "", 0);
   if (s.image_tiles_done > s.image_tiles) fail("{}: 'image_tiles_done' is more than 'image_tiles'", path);
+  if (auto settings = root.find("settings"); settings != root.end()) {  // absent in a status file of an earlier version
+    if (!settings->is_object() || settings->size() > kMaxStatusSettings)
+      fail("{}: 'settings' is not an object of at most {} settings", path, kMaxStatusSettings);
+    for (const auto& [flag, text] : settings->items()) {
+      if (!text.is_string()) fail("{}: setting '{}' is not a string", path, peer_text(flag, 40));
+      s.settings.emplace_back(flag, text.get<std::string>());
+    }
+  }
   auto nodes = root.find("nodes");
   if (nodes == root.end() || !nodes->is_array()) fail("{}: 'nodes' is missing or not a list", path);
   for (std::size_t i = 0; i < nodes->size(); ++i) {

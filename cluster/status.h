@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace sirad::cluster {
@@ -25,6 +26,9 @@ struct Status {
   double exchange_fraction = 1.0;
   std::string mode, topology;
   double target_error = 0;  // --target-error (0: none)
+  // Every setting of the run as its flag's text, (flag, text) in the table's order (settings.h
+  // settings_text): as started, so --exchange-every auto is "auto" here and its choice above.
+  std::vector<std::pair<std::string, std::string>> settings;
   // How the run ended, in the last status of a run ("" while it runs): "budget", "time limit",
   // "target error (...)", "interrupted", or "bundle cap reached short of the target error".
   std::string ended_by;

@@ -112,8 +112,9 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
   rc.scene = job.scene.empty()
                  ? decode_scene(read_file_whole((dir / "scene.bin").string(), "scene", kMaxSceneBytes), "job scene")
                  : load_scene(job.scene, import);
-  PatchMesh mesh = mesh_scene(rc.scene, rc.mesh_options);
-  if (mesh.size() > kFarmMaxPatches) fail("{} patches: a farm takes jobs of at most {}", mesh.size(), kFarmMaxPatches);
+  MeshOptions meshing = rc.mesh_options;  // refused before the mesh is made, should its flags ask for more
+  meshing.max_patches = meshing.max_patches > 0 ? std::min<uint64_t>(meshing.max_patches, kFarmMaxPatches) : kFarmMaxPatches;
+  PatchMesh mesh = mesh_scene(rc.scene, meshing);
   check_scene(rc.scene, mesh, camera_flag(plan.output.camera), "--camera");  // the view the images show
   rc.interrupt = &running.interrupt;
   rc.peer_identity = [&peers](const std::string& id) { return peers.get(id); };
@@ -270,7 +271,7 @@ class Farm {
     auto r = std::make_unique<RunningJob>();
     r->job = *job;
     try {
-      r->plan = plan_job(job->args);
+      r->plan = plan_of(*job, fmt::format("job {}", job->id));
     } catch (const Error& e) {  // checked when submitted: only a job.json edited since gets here
       store_.started(job->id, unix_now());
       store_.finished(job->id, "failed", e.what(), unix_now());
@@ -469,6 +470,21 @@ JobPlan plan_job(const std::vector<std::string>& args) {
   plan.max_nodes = static_cast<uint32_t>(max_nodes);
   plan.settings = settings_from(run, given_flags(&app));
   if (std::string why = cluster::target_error_problem(plan.settings); !why.empty()) fail("job flags: {}", why);
+  if (plan.settings.mesh_options.target_patches > kFarmMaxPatches)
+    fail("job flags: --patches {}: a farm takes jobs of at most {} patches", plan.settings.mesh_options.target_patches,
+         kFarmMaxPatches);
+  return plan;
+}
+
+cluster::JobRun job_run(const JobPlan& plan) {
+  return {.settings = plan.settings, .output = output_args(plan.output), .min_nodes = plan.min_nodes, .max_nodes = plan.max_nodes};
+}
+
+JobPlan plan_of(const cluster::Job& job, const std::string& origin) {
+  if (!job.run) return plan_job(job.args);
+  JobPlan plan{.settings = job.run->settings, .min_nodes = job.run->min_nodes, .max_nodes = job.run->max_nodes};
+  parse_output_args(job.run->output, plan.output, origin);
+  if (!plan.output.camera.empty()) camera_flag(plan.output.camera);
   return plan;
 }
 

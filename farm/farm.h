@@ -37,8 +37,14 @@ struct JobPlan {
   uint32_t min_nodes = 1;  // --min-nodes: nodes ready before its first grant
   uint32_t max_nodes = 0;  // --max-nodes: the most nodes it takes (0: every node there is)
 };
-// Throws sirad::Error (CLI11's message, or the check's) for flags a job cannot take.
+// Throws sirad::Error (CLI11's message, or the check's) for flags a job cannot take, among
+// them a meshing target beyond kFarmMaxPatches.
 JobPlan plan_job(const std::vector<std::string>& args);
+// The plan as a job file keeps it, and back (the output flags parsed again: a job file edited
+// since throws sirad::Error naming `origin`). A job of an earlier version, without its run,
+// is planned from its args.
+cluster::JobRun job_run(const JobPlan& plan);
+JobPlan plan_of(const cluster::Job& job, const std::string& origin);
 
 // Seconds since the Unix epoch: the times of a job's record (cluster/jobs.h takes them passed in).
 double unix_now();

@@ -49,10 +49,16 @@ std::vector<std::string> job_files(const cluster::Job& j, const std::string& fol
 }
 
 json job_object(const cluster::Job& j) {
-  return {{"id", j.id},           {"name", j.name},         {"scene", j.scene.empty() ? "(uploaded)" : j.scene},
-          {"args", j.args},       {"priority", j.priority}, {"state", j.state},
-          {"submitted", j.submitted}, {"started", j.started}, {"finished", j.finished},
-          {"error", j.error},     {"runs", j.runs}};
+  json o = {{"id", j.id},           {"name", j.name},         {"scene", j.scene.empty() ? "(uploaded)" : j.scene},
+            {"args", j.args},       {"priority", j.priority}, {"state", j.state},
+            {"submitted", j.submitted}, {"started", j.started}, {"finished", j.finished},
+            {"error", j.error},     {"runs", j.runs}};
+  if (j.run) {  // the run it was planned to, every setting spelled out (the table's text)
+    json settings = json::object();
+    for (const auto& [flag, text] : cluster::settings_text(j.run->settings)) settings[flag] = text;
+    o["settings"] = std::move(settings);
+  }
+  return o;
 }
 
 void reply(httplib::Response& res, int status, const json& body) {
@@ -240,8 +246,8 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
         fail("job: scene '{}' is not a built-in one (cornell, furnace, bright-room, three-lights); upload a file's scene",
              scene.substr(0, 80));
       }
-      plan_job(args);  // the flags are checked now, not when the job comes to run
-      cluster::Job job = store_.submit(name, scene, bytes, std::move(args), priority, unix_now());
+      cluster::JobRun run = job_run(plan_job(args));  // the flags are checked now, not when the job comes to run
+      cluster::Job job = store_.submit(name, scene, bytes, std::move(args), std::move(run), priority, unix_now());
       logging::write(logging::Level::info, "sirad-coordinator", fmt::format("job {} ({}) submitted", job.id, job.name),
                      {{"event", "job submitted"}, {"job", job.id}, {"address", req.get_header_value("X-Sirad-Peer")}});
       reply(res, 201, job_object(job));

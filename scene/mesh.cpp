@@ -437,7 +437,7 @@ PatchMesh mesh_scene(const Scene& scene, const MeshOptions& options) {
       fail("{}: meshing would make {}{} patches, more than 2^31 - 1", scene.name,
            total == kSaturated ? "over " : "", total);
     if (options.max_patches > 0 && total > kSplitHeadroom * options.max_patches)
-      fail("{}: meshing would make {} patches, more than the {} expected", scene.name, total, options.max_patches);
+      fail("{}: meshing would make {} patches, more than the {} allowed", scene.name, total, options.max_patches);
     PatchMesh mesh;
     try {
       mesh.patches.reserve(total);

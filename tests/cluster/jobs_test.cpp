@@ -2,12 +2,15 @@
 // changes that survive a reload, a job left running queued again, hostile job files.
 #include <filesystem>
 #include <fstream>
+#include <tuple>
+#include <vector>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include "cluster/jobs.h"
+#include "util/atomic_file.h"
 #include "util/error.h"
 #include "util/json_bounded.h"
 
@@ -27,9 +30,9 @@ TEST(JobStore, RunsTheHighestPriorityFirstThenTheOldest) {
   TempDir d;
   JobStore store(d.path.string(), 0);
   EXPECT_FALSE(store.next());
-  const Job a = store.submit("a", "cornell", "", {"--bundles", "10"}, 0, 100);
-  const Job b = store.submit("b", "cornell", "", {}, 5, 101);
-  const Job c = store.submit("c", "furnace", "", {}, 5, 102);
+  const Job a = store.submit("a", "cornell", "", {"--bundles", "10"}, JobRun{}, 0, 100);
+  const Job b = store.submit("b", "cornell", "", {}, JobRun{}, 5, 101);
+  const Job c = store.submit("c", "furnace", "", {}, JobRun{}, 5, 102);
   EXPECT_EQ(a.id, 1u);
   EXPECT_EQ(store.next()->id, b.id);  // priority 5, submitted before c
   store.started(b.id, 110);
@@ -62,8 +65,8 @@ TEST(JobStore, AJobTheFarmDiesInTwiceInARowIsFailedNotResumed) {
   TempDir d;
   {
     JobStore store(d.path.string(), 0);
-    store.submit("poison", "cornell", "", {}, 0, 1);
-    store.submit("fine", "cornell", "", {}, 0, 2);
+    store.submit("poison", "cornell", "", {}, JobRun{}, 0, 1);
+    store.submit("fine", "cornell", "", {}, JobRun{}, 0, 2);
     store.started(1, 3);
   }  // the farm dies with job 1 running
   for (int look = 0; look < 3; ++look) {  // looks at the store (--check-config) change nothing
@@ -112,8 +115,8 @@ TEST(JobStore, SurvivesARestartAndQueuesTheJobThatWasRunning) {
   TempDir d;
   {
     JobStore store(d.path.string(), 0);
-    store.submit("done-one", "cornell", "", {}, 0, 1);
-    store.submit("uploaded", "", std::string("SCENEBYTES"), {"--patches", "300"}, 2, 2);
+    store.submit("done-one", "cornell", "", {}, JobRun{}, 0, 1);
+    store.submit("uploaded", "", std::string("SCENEBYTES"), {"--patches", "300"}, JobRun{}, 2, 2);
     store.started(1, 3);
     store.finished(1, "done", "", 4);
     store.started(2, 5);
@@ -128,7 +131,7 @@ TEST(JobStore, SurvivesARestartAndQueuesTheJobThatWasRunning) {
   EXPECT_EQ(j.args, (std::vector<std::string>{"--patches", "300"}));
   EXPECT_TRUE(fs::exists(d.path / "jobs" / "2" / "scene.bin"));
   EXPECT_EQ(again.next()->id, 2u);
-  EXPECT_EQ(again.submit("third", "cornell", "", {}, 0, 6).id, 3u);
+  EXPECT_EQ(again.submit("third", "cornell", "", {}, JobRun{}, 0, 6).id, 3u);
   // Cancelling a running job is only marked: the farm stops it and records the end.
   again.started(2, 7);
   EXPECT_TRUE(again.cancel(2, 8));
@@ -145,7 +148,7 @@ TEST(JobStore, HostileJobFilesAndSubmissionsAreRefused) {
   TempDir d;
   {
     JobStore store(d.path.string(), 0);
-    for (int i = 0; i < 5; ++i) store.submit(fmt::format("j{}", i), "cornell", "", {}, 0, i);
+    for (int i = 0; i < 5; ++i) store.submit(fmt::format("j{}", i), "cornell", "", {}, JobRun{}, 0, i);
   }
   const std::vector<std::string> bad = {"{not json", "[1, 2]", R"({"id": 2})",
                                         R"({"id": 3, "name": "../../etc", "scene": "", "args": [], "priority": 0, "state": "queued", "submitted": 0, "started": 0, "finished": 0, "error": "", "runs": 0})",
@@ -159,20 +162,77 @@ TEST(JobStore, HostileJobFilesAndSubmissionsAreRefused) {
   }
   EXPECT_EQ(std::ifstream(d.path / "jobs" / "1" / "job.json").get(), '{');  // left as it was
   EXPECT_FALSE(store.next());
-  EXPECT_THROW(store.submit("../x", "cornell", "", {}, 0, 1), Error);
-  EXPECT_THROW(store.submit(".hidden", "cornell", "", {}, 0, 1), Error);
-  EXPECT_THROW(store.submit("preview", "cornell", "", {}, 0, 1), Error);  // preview.png is the farm's
-  EXPECT_THROW(store.submit("ok", "", "", {}, 0, 1), Error);             // no scene
-  EXPECT_THROW(store.submit("ok", "cornell", "x", {}, 0, 1), Error);     // both
-  EXPECT_THROW(store.submit("ok", "cornell", "", std::vector<std::string>(kMaxJobArgs + 1, "-q"), 0, 1), Error);
-  EXPECT_THROW(store.submit("ok", "cornell", "", {}, kMaxPriority + 1, 1), Error);
+  EXPECT_THROW(store.submit("../x", "cornell", "", {}, JobRun{}, 0, 1), Error);
+  EXPECT_THROW(store.submit(".hidden", "cornell", "", {}, JobRun{}, 0, 1), Error);
+  EXPECT_THROW(store.submit("preview", "cornell", "", {}, JobRun{}, 0, 1), Error);  // preview.png is the farm's
+  EXPECT_THROW(store.submit("ok", "", "", {}, JobRun{}, 0, 1), Error);             // no scene
+  EXPECT_THROW(store.submit("ok", "cornell", "x", {}, JobRun{}, 0, 1), Error);     // both
+  EXPECT_THROW(store.submit("ok", "cornell", "", std::vector<std::string>(kMaxJobArgs + 1, "-q"), JobRun{}, 0, 1), Error);
+  EXPECT_THROW(store.submit("ok", "cornell", "", {}, JobRun{}, kMaxPriority + 1, 1), Error);
+}
+
+// A job keeps the run it was planned to, not its flags: the settings as the table writes them
+// (every one spelled out), its output flags and nodes, read back to the same settings after a
+// restart. A job file of an earlier version (args only) loads without a run, to be planned from
+// its args; a run that no job can have fails its job with the field named.
+TEST(JobStore, AJobKeepsTheRunItWasPlannedTo) {
+  TempDir d;
+  JobRun run;
+  run.settings.mesh_options.target_patches = 300;
+  run.settings.bundles = 64;
+  run.settings.seed = 9;
+  run.settings.mode = Mode::sync;
+  run.settings.balance = false;
+  run.settings.shots_per_bundle = 0.125;
+  run.output = {"--width", "48", "--height", "32"};
+  run.min_nodes = 2;
+  run.max_nodes = 3;
+  {
+    JobStore store(d.path.string(), 0);
+    store.submit("planned", "cornell", "", {"--patches", "300"}, run, 0, 1);
+    store.submit("old", "cornell", "", {"--bundles", "5"}, run, 0, 2);
+  }
+  const std::string planned = read_file_whole((d.path / "jobs" / "1" / "job.json").string(), "job", kMaxJobFileBytes);
+  EXPECT_NE(planned.find(R"("settings": {
+      "patches": "300",)"), std::string::npos) << planned;
+  EXPECT_NE(planned.find(R"("shots-per-bundle": "0.125")"), std::string::npos) << planned;
+  std::ofstream(d.path / "jobs" / "2" / "job.json")
+      << R"({"id": 2, "name": "old", "scene": "cornell", "args": ["--bundles", "5"], "priority": 0, "state": "queued", )"
+      << R"("submitted": 2, "started": 0, "finished": 0, "error": "", "runs": 0})";
+  const std::vector<std::tuple<int, std::string, std::string>> bad_runs = {
+           {3, R"("run": {"settings": {"bundles": "0"}, "output": [], "min_nodes": 1, "max_nodes": 0})", "run: bundles: must be in [1, "},
+           {4, R"("run": {"settings": {"nodes": "2"}, "output": [], "min_nodes": 1, "max_nodes": 0})", "run: 'nodes' is not a run setting"},
+           {5, R"("run": {"settings": {"seed": 7}, "output": [], "min_nodes": 1, "max_nodes": 0})", "run: setting 'seed' is not a string"},
+           {6, R"("run": {"settings": {}, "output": [], "min_nodes": 3, "max_nodes": 2})", "run: min_nodes 3 is more than max_nodes 2"},
+           {7, R"("run": {"settings": {}, "output": [], "min_nodes": -1, "max_nodes": 0})", "run: nodes 4294967295..0: outside 1..4096"},
+           {8, R"("run": {"output": [], "min_nodes": 1, "max_nodes": 0})", "run: no 'settings'"}};
+  for (const auto& [id, bad, expect] : bad_runs) {
+    fs::create_directories(d.path / "jobs" / std::to_string(id));
+    std::ofstream(d.path / "jobs" / std::to_string(id) / "job.json")
+        << fmt::format(R"({{"id": {}, "name": "bad", "scene": "cornell", "args": [], "priority": 0, "state": "queued", )", id)
+        << R"("submitted": 2, "started": 0, "finished": 0, "error": "", "runs": 0, )" << bad << "}";
+  }
+  JobStore store(d.path.string(), 0);
+  const Job j = *store.get(1);
+  ASSERT_TRUE(j.run);
+  EXPECT_EQ(j.run->output, run.output);
+  EXPECT_EQ(j.run->min_nodes, 2u);
+  EXPECT_EQ(j.run->max_nodes, 3u);
+  EXPECT_EQ(settings_text(j.run->settings), settings_text(run.settings));
+  EXPECT_EQ(j.run->settings.shots_per_bundle, 0.125);
+  EXPECT_EQ(store.get(2)->state, "queued");
+  EXPECT_FALSE(store.get(2)->run);
+  for (const auto& [id, bad, expect] : bad_runs) {
+    EXPECT_EQ(store.get(id)->state, "failed") << id;
+    EXPECT_NE(store.get(id)->error.find("job.json: " + expect), std::string::npos) << store.get(id)->error;
+  }
 }
 
 // A job file nested deeper than kMaxJsonDepth (here 200,000 levels in its args) fails its job by
 // its depth, found before the file is parsed.
 TEST(JobStore, AJobFileNestedTooDeepFailsItsJob) {
   TempDir d;
-  JobStore(d.path.string(), 0).submit("deep", "cornell", "", {}, 0, 1);
+  JobStore(d.path.string(), 0).submit("deep", "cornell", "", {}, JobRun{}, 0, 1);
   std::ofstream(d.path / "jobs" / "1" / "job.json") << R"({"id": 1, "args": )" << std::string(200000, '[') << std::string(200000, ']')
                                                     << "}";
   JobStore store(d.path.string(), 0);

@@ -2,10 +2,12 @@
 // flag that parses its default and a sample of its own, and every value a flag sets reaches a
 // node (the wire's Run) or a resumed coordinator (the checkpoint) unchanged; what no run can
 // have is refused by check(), whoever gives it.
+#include <algorithm>
 #include <map>
 #include <set>
 #include <string>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "cli/run_flags.h"
@@ -24,7 +26,7 @@ const std::map<std::string, std::string> kSamples = {
     {"seed", "18446744073709551615"}, {"rule", "average"},   {"directions", "random"},   {"control-variate", "off"},
     {"burn-in", "12"},          {"shots-per-bundle", "1.5"}, {"shot-resolution", "64"}, {"exchange-every", "24"},
     {"exchange-fraction", "0.375"}, {"topology", "ring"},  {"mode", "sync"},           {"balance", "off"},
-    {"time-limit", "12.5"},     {"target-error", "0.0625"}, {"chunks", "7"},
+    {"time-limit", "12.5"},     {"target-error", "0.0625"}, {"chunks", "7"},             {"max-patches", "1000000"},
 };
 
 // The settings of `given` flags (each flag's text) as the command lines make them.
@@ -81,6 +83,45 @@ TEST(SettingsTable, EveryFlagParsesAndItsValueReachesTheNodesAndTheCheckpoint) {
     EXPECT_EQ(sent.SerializeAsString(), returned.SerializeAsString()) << "changed on its way";
     EXPECT_NE(sent.SerializeAsString(), plain.SerializeAsString()) << "the sample changed nothing";
   }
+}
+
+// A run's settings as their flags' text (the farm's job files, the status) read back to the same
+// run, each row's sample and the defaults of the command lines and of the library (which meshes
+// one patch per face: neither --patches nor --max-edge is written); what is not a run's
+// setting is refused with the file's name.
+TEST(SettingsTable, TheSettingsAsTextReadBackToTheSameRun) {
+  const PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 200});
+  const auto as_checkpoint = [&](const RunSettings& s) {
+    std::vector<uint32_t> starts;
+    for (uint32_t c = 0; c < s.chunks; ++c) starts.push_back(c);
+    starts.push_back(static_cast<uint32_t>(mesh.size()));
+    wire::Checkpoint c;
+    put_settings(c, s, to_wire(s, mesh, starts));
+    return c.SerializeAsString();
+  };
+  std::vector<RunSettings> runs = {from_flags({}), RunSettings{}};
+  for (const auto& [flag, text] : kSamples) runs.push_back(from_flags({{flag, text}}));
+  for (const RunSettings& s : runs) {
+    const SettingsText text = settings_text(s);
+    EXPECT_EQ(as_checkpoint(settings_from_text(text, "job.json")), as_checkpoint(s)) << fmt::format("{}", text.size());
+    SettingsText reversed(text.rbegin(), text.rend());  // the table's order is the reader's
+    EXPECT_EQ(as_checkpoint(settings_from_text(reversed, "job.json")), as_checkpoint(s));
+  }
+  const SettingsText library = settings_text(RunSettings{});
+  EXPECT_TRUE(std::none_of(library.begin(), library.end(), [](const auto& t) { return t.first == "patches" || t.first == "max-edge"; }));
+  auto refused = [](const SettingsText& text, const std::string& expect) {
+    try {
+      settings_from_text(text, "jobs/7/job.json");
+      ADD_FAILURE() << expect << ": accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()), expect);
+    }
+  };
+  refused({{"nodes", "3"}}, "jobs/7/job.json: 'nodes' is not a run setting");
+  refused({{"seed", "1"}, {"seed", "2"}}, "jobs/7/job.json: 'seed' is given twice");
+  refused({{"grid", "1"}}, "jobs/7/job.json: grid: must be in [2, 8192] (got 1)");
+  refused({{"rule", "average"}, {"directions", "stratified"}},
+          "jobs/7/job.json: directions: stratified needs --rule chain (under average it biases the estimate: engine/bundle.cpp)");
 }
 
 // The command lines' defaults come from the rows: 10,000 patches, 1,000 bundles, the chain rule

@@ -120,6 +120,16 @@ TEST_F(Cli, TargetErrorLiftsTheDefaultCapAndSaysWhenItFallsShort) {
   const sirad::cluster::Status status = sirad::cluster::read_status((dir_ / "status.json").string());
   EXPECT_EQ(status.ended_by, "bundle cap reached short of the target error");
   EXPECT_EQ(status.target_error, 1e-6);
+  // And every setting of the run, as the table spells it: those given, and the defaults.
+  const std::map<std::string, std::string> settings(status.settings.begin(), status.settings.end());
+  EXPECT_EQ(settings.size(), status.settings.size()) << "a setting twice";
+  EXPECT_EQ(settings.at("patches"), "300");
+  EXPECT_EQ(settings.at("bundles"), "64");
+  EXPECT_EQ(settings.at("exchange-every"), "4");
+  EXPECT_EQ(settings.at("target-error"), "1e-06");
+  EXPECT_EQ(settings.at("shots-per-bundle"), "0.25");
+  EXPECT_EQ(settings.at("directions"), "stratified");
+  EXPECT_EQ(settings.count("grid"), 0u) << "auto: no text";
 }
 
 // No output ever overwrites the scene file that was read: a scene named like one of the outputs

@@ -59,11 +59,13 @@ TEST(Cluster, StatusJsonEscapesNodeNames) {
   n.exchanges = 1;
   n.last_seen_s = 0.25;
   s.nodes.push_back(n);
+  s.settings = {{"bundles", "10"}, {"exchange-every", "end"}};
   EXPECT_EQ(to_json(s),
             "{\"bundles_done\":3,\"bundles\":10,\"patches\":1000,\"elapsed_s\":1.5,\"bundles_per_s\":2.0,"
             "\"patch_bundles_per_s\":2000.0,\"error_estimate\":null,\"exchanges\":0,\"bytes_in\":0,\"bytes_out\":0,"
             "\"scenes_sent\":2,\"scenes_from_cache\":1,\"exchange_every\":0,\"exchange_fraction\":1.0,"
-            "\"mode\":\"\",\"topology\":\"\",\"target_error\":null,\"ended_by\":null,\"nodes\":[{\"name\":\"a\\\"b\\\\c\\nd\","
+            "\"mode\":\"\",\"topology\":\"\",\"target_error\":null,\"ended_by\":null,"
+            "\"settings\":{\"bundles\":\"10\",\"exchange-every\":\"end\"},\"nodes\":[{\"name\":\"a\\\"b\\\\c\\nd\","
             "\"device\":\"\",\"state\":\"\",\"bundles\":3,\"exchanges\":1,\"last_seen_s\":0.25,"
             "\"bundles_per_s\":0.0,\"busy_s\":0.0,\"idle_s\":0.0,\"bytes_in\":0,\"bytes_out\":0,\"suspicion\":0.0}]}\n");
   // It reads back (sirad model --from-run), the escaped name included.

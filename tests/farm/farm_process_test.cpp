@@ -464,22 +464,33 @@ TEST(Farm, SlowClientsHoldNoneOfTheServersThreads) {
 
 // A poison job: its camera's eye 1e20 away, which aborted a node in Embree and then the farm,
 // rendering the tile itself, again after every restart. Now the job fails at its start with
-// the reason, the farm and its node stay up, and the next job runs on that node.
+// the reason, the farm and its node stay up, and the next job runs on that node. So does a job
+// whose --max-edge would mesh the scene to 34 million patches (the farm takes 2^22): refused
+// before the mesh is made, where the farm's memory once held whatever the flags asked for.
 TEST(Farm, AJobWhoseCameraNoRayCanStartFromFailsAndTheFarmGoesOn) {
   const fs::path dir = fresh_dir("sirad_farm_poison");
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
   auto submit = [&](std::vector<std::string> args) { EXPECT_EQ(sirad_submit(dir, std::move(args)), 0) << slurp(dir / "submit.log"); };
   submit({"cornell", "--farm", farm.folder.string(), "--name", "far", "--priority", "1", "--patches", "200", "--bundles", "16",
           "--width", "16", "--height", "16", "--final-gather", "1", "--camera", "eye 1e20 0 0 look 0 0 0 up 0 1 0 fov 60"});
+  submit({"cornell", "--farm", farm.folder.string(), "--name", "huge", "--priority", "1", "--max-edge", "0.5", "--bundles", "16"});
   submit({"cornell", "--farm", farm.folder.string(), "--name", "next", "--patches", "200", "--bundles", "16", "--width", "16",
           "--height", "16", "--final-gather", "1"});
   std::vector<std::unique_ptr<Child>> nodes = insecure_nodes(dir, farm.endpoint, "p", 1);
-  ASSERT_TRUE(wait_until([&] { return job_state(farm, 2) == "done" || job_state(farm, 2) == "failed"; })) << slurp(dir / "farm0.log");
+  ASSERT_TRUE(wait_until([&] { return job_state(farm, 3) == "done" || job_state(farm, 3) == "failed"; })) << slurp(dir / "farm0.log");
   EXPECT_EQ(job_state(farm, 1), "failed");
   EXPECT_NE(job_record(farm, 1)["error"].get<std::string>().find("the camera's eye is 1e+20 from the scene's centre"), std::string::npos)
       << job_record(farm, 1);
-  EXPECT_EQ(job_state(farm, 2), "done") << job_record(farm, 2);
-  EXPECT_TRUE(fs::exists(farm.folder / "jobs" / "2" / "next.exr"));
+  EXPECT_EQ(job_state(farm, 2), "failed");
+  EXPECT_NE(job_record(farm, 2)["error"].get<std::string>().find("patches, more than the 4194304 allowed"), std::string::npos)
+      << job_record(farm, 2);
+  EXPECT_EQ(job_state(farm, 3), "done") << job_record(farm, 3);
+  EXPECT_TRUE(fs::exists(farm.folder / "jobs" / "3" / "next.exr"));
+  // What ran is the job file's run, every setting spelled out as the table writes it.
+  const nlohmann::json run = job_record(farm, 3)["run"];
+  EXPECT_EQ(run["settings"]["patches"], "200") << run;
+  EXPECT_EQ(run["settings"]["shots-per-bundle"], "0.25") << run;
+  EXPECT_EQ(run["output"], nlohmann::json({"--width", "16", "--height", "16", "--final-gather", "1"})) << run;
   stop_farm(farm, nodes, dir, "farm0.log");
 }
 
@@ -506,7 +517,8 @@ TEST(Farm, AJobSpecOfTheWrongKindIsRefusedWithItsReason) {
       {R"({"name": 7, "scene": "cornell"})", "'name' is not a string"},
       {R"({"name": "a", "scene": "cornell", "args": ["--help"]})", "a job cannot ask for help"},
       {R"({"name": "a", "scene": "cornell", "args": ["--width", "16384", "--height", "16384"]})", "more than 33554432 pixels"},
-      {R"({"name": "preview", "scene": "cornell"})", "job name 'preview'"}};
+      {R"({"name": "preview", "scene": "cornell"})", "job name 'preview'"},
+      {R"({"name": "a", "scene": "cornell", "args": ["--patches", "5000000"]})", "--patches 5000000: a farm takes jobs of at most 4194304 patches"}};
   for (const auto& [spec, why] : refused) {
     auto [said, code] = submit(spec);
     EXPECT_EQ(code, 400) << spec << ": " << said;
@@ -516,6 +528,7 @@ TEST(Farm, AJobSpecOfTheWrongKindIsRefusedWithItsReason) {
   auto [said, code] = submit(R"({"name": "ok", "scene": "cornell", "priority": -1000000, "args": ["--bundles", "4"]})");
   EXPECT_EQ(code, 201) << said;
   EXPECT_EQ(nlohmann::json::parse(said)["priority"], -1000000);
+  EXPECT_EQ(nlohmann::json::parse(said)["settings"]["bundles"], "4") << said;
   std::vector<std::unique_ptr<Child>> nodes;
   stop_farm(farm, nodes, dir, "farm0.log");
 }
@@ -527,7 +540,7 @@ TEST(Farm, TheJobListComesInPages) {
   const fs::path dir = fresh_dir("sirad_farm_pages");
   {
     sirad::cluster::JobStore store((dir / "farm").string(), 0);
-    for (int i = 0; i < 250; ++i) store.submit(fmt::format("j{}", i), "cornell", "", {}, 0, i);
+    for (int i = 0; i < 250; ++i) store.submit(fmt::format("j{}", i), "cornell", "", {}, sirad::cluster::JobRun{}, 0, i);
   }
   FarmProcess farm = start_farm(dir, "tcp://127.0.0.1:*", 0);
   auto ids = [](const std::string& text) {
