@@ -58,7 +58,8 @@ struct ModelArgs {
   std::string sweep = "none";
   uint64_t max = 16;
   std::string scene;                // fit a, sigma_1 / C and T_i on this scene's real bundles
-  std::optional<int64_t> patches;
+  RunFlags mesh;                    // its meshing (kMeshFlags)
+  std::set<std::string> given;      // the flags given (given_flags)
   std::string device;
   std::string from_run;             // a --status-json file: P, I, S, T, T_i and T_e from a real run
   bool time_given = false;
@@ -74,8 +75,8 @@ int model_table(ModelArgs m);
 // .png, .ply like `render`, plus NAME.ref.csv (per-patch B, D and their standard errors).
 struct ReferenceArgs {
   std::string scene;
-  std::optional<int64_t> patches;
-  std::optional<double> max_edge;
+  RunFlags mesh;                // the meshing (kMeshFlags)
+  std::set<std::string> given;  // the flags given (given_flags)
   ReferenceOptions options;
   OutputFlags output;
   bool quiet = false;

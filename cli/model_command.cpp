@@ -82,7 +82,7 @@ int model_table(ModelArgs m) {
   }
   if (!m.from_run.empty()) apply_run(m);
   if (!m.scene.empty()) {
-    PatchMesh mesh = mesh_scene(load_scene(m.scene), mesh_options_from(m.patches, std::nullopt));
+    PatchMesh mesh = mesh_scene(load_scene(m.scene), mesh_options_from(m.mesh, m.given));
     auto engine = make_cl_engine(mesh, {.device = m.device});
     model::SceneFit fit = model::fit_scene(mesh, *engine);
     m.scene_params.contraction = std::min(fit.contraction, 0.999);

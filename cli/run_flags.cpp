@@ -1,6 +1,7 @@
 // sirad: the run and output flags (see run_flags.h).
 #include "cli/run_flags.h"
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 
@@ -44,9 +45,10 @@ CLI::Validator finite_in(double lo, double hi) {
   return reads_as([lo, hi](const std::string& t) { real_in(t, lo, hi); }, fmt::format("[{}, {}]", lo, hi));
 }
 
-std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r) {
+std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r, const std::vector<std::string_view>& only) {
   std::vector<std::string> names;
   for (const cluster::SettingRow& row : cluster::setting_rows()) {
+    if (!only.empty() && std::find(only.begin(), only.end(), row.flag) == only.end()) continue;
     const std::string flag(row.flag);
     CLI::Option* o = cmd->add_option("--" + flag, r.text[flag], std::string(row.help));
     // Its row's parse on the defaults: the value's own bounds (--directions stratified under
@@ -139,13 +141,8 @@ std::set<std::string> given_flags(const CLI::App* cmd) {
   return out;
 }
 
-MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<double> max_edge) {
-  if (patches && max_edge) fail("--patches and --max-edge exclude each other");
-  MeshOptions o;
-  if (patches) o.target_patches = static_cast<std::size_t>(*patches);
-  else if (max_edge) o.max_edge = *max_edge;
-  else o.target_patches = 10000;
-  return o;
+MeshOptions mesh_options_from(const RunFlags& flags, const std::set<std::string>& given) {
+  return settings_from(flags, given).mesh_options;
 }
 
 cluster::RunSettings settings_from(const RunFlags& f, const std::set<std::string>& given) {

@@ -45,9 +45,12 @@ struct OutputFlags {
 
 // The SCENE argument (a built-in name or a scene file).
 void add_scene_argument(CLI::App* cmd, std::string& scene);
-// The run flags, one per row of the table, the cluster's among them; returns their long names
-// ("--bundles", ...). Each flag's value is checked as it is parsed (its row's parse).
-std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& flags);
+// The run flags, one per row of the table, the cluster's among them, or (`only`) those rows'
+// alone; returns their long names ("--bundles", ...). Each flag's value is checked as it is
+// parsed (its row's parse).
+std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& flags, const std::vector<std::string_view>& only = {});
+// The rows of the meshing: what `sirad reference` and `sirad model --scene` take of a run's flags.
+inline const std::vector<std::string_view> kMeshFlags = {"patches", "max-edge", "max-patches"};
 
 // Number checks whose refusal reads plainly ("must be greater than 0 (got 0)"), for the flags
 // CLI11's PositiveNumber and NonNegativeNumber would refuse with a 300-digit bound.
@@ -70,8 +73,9 @@ void parse_output_args(const std::vector<std::string>& args, OutputFlags& flags,
 // The long names of the options given on `cmd`'s command line.
 std::set<std::string> given_flags(const CLI::App* cmd);
 
-// The meshing the flags ask for: --patches N, --max-edge L (not both), or about 10000 patches.
-MeshOptions mesh_options_from(std::optional<int64_t> patches, std::optional<double> max_edge);
+// The meshing the flags (kMeshFlags, `given` as given_flags says) ask for: --patches N,
+// --max-edge L (not both), or about 10000 patches; --max-patches M. As settings_from makes it.
+MeshOptions mesh_options_from(const RunFlags& flags, const std::set<std::string>& given);
 
 // The run the flags ask for: every row's given text, else its default, in the table's order
 // (`given`: the flags given; --patches and --max-edge exclude each other; --target-error without

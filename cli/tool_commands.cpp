@@ -46,7 +46,7 @@ std::vector<Camera> read_cameras(const std::string& path) {
 }  // namespace
 
 int reference(const ReferenceArgs& r) {
-  MeshOptions mesh_options = mesh_options_from(r.patches, r.max_edge);
+  MeshOptions mesh_options = mesh_options_from(r.mesh, r.given);
   if (r.options.rays_per_patch < r.options.batches)
     fail("--rays {} is below --batches {}", r.options.rays_per_patch, r.options.batches);
   if (r.options.light_samples < r.options.batches)

@@ -36,8 +36,7 @@ CLI::App* add_model_command(CLI::App& app, ModelArgs& m) {
       ->check(CLI::IsMember({"none", "processors", "period", "fraction"}))->capture_default_str();
   cmd->add_option("--max", m.max, "Sweep range, and the largest I searched for the best")->check(CLI::Range(uint64_t{1}, uint64_t{1000000}))->capture_default_str();
   cmd->add_option("--scene", m.scene, "Fit the contraction, sigma_1 / C and T_i on this scene's bundles (replacing those flags)");
-  cmd->add_option("--patches", m.patches, "Mesh the fitted scene to about this many patches (default 10000)")
-      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
+  cli::add_run_flags(cmd, m.mesh, cli::kMeshFlags);  // the fitted scene's meshing
   cmd->add_option("--device", m.device, "OpenCL device for the fit");
   cmd->add_option("--time-to", m.time_to, "Also print the time each setup needs to reach this relative error (column time_to_error)")
       ->check(cli::finite_in(1e-9, 1e9));
@@ -55,9 +54,7 @@ CLI::App* add_reference_command(CLI::App& app, ReferenceArgs& r) {
   auto* cmd = app.add_subcommand("reference", "Independent reference solution (Embree rays, exact direct light); "
                                               "write NAME.exr, .png, .ply and NAME.ref.csv");
   cli::add_scene_argument(cmd, r.scene);
-  cmd->add_option("--patches", r.patches, "Mesh to about this many patches (default 10000)")
-      ->check(CLI::Range(int64_t{1}, int64_t{1} << 31));
-  cmd->add_option("--max-edge", r.max_edge, "Mesh so no patch edge is longer than this")->check(cli::positive());
+  cli::add_run_flags(cmd, r.mesh, cli::kMeshFlags);
   cmd->add_option("--rays", r.options.rays_per_patch, "Cosine-distributed rays per patch (all batches)")
       ->check(CLI::Range(1, 1 << 24))->capture_default_str();
   cmd->add_option("--light-samples", r.options.light_samples,
@@ -181,10 +178,14 @@ int run(int argc, char** argv) {
     e.run.given = given(emulate_cmd);
     return emulate(e);
   }
-  if (reference_cmd->parsed()) return reference(ref_args);
+  if (reference_cmd->parsed()) {
+    ref_args.given = given(reference_cmd);
+    return reference(ref_args);
+  }
   if (image_cmd->parsed()) return image(image_args);
   if (model_cmd->parsed()) {
     model_args.time_given = model_cmd->count("--time") > 0;
+    model_args.given = given(model_cmd);
     return model_table(model_args);
   }
   if (profile_cmd->parsed()) return profile_table(profile_path, profile_nodes, profile_prefix);
