@@ -213,6 +213,7 @@ void Coordinator::send(Peer& p, const Message& m) {
 }
 
 void Coordinator::hello(const std::string& id, const std::string& key, const std::string& address, const wire::Hello& h) {
+  if (!key.empty() && record_.quarantined_keys.count(key)) fail("HELLO from the key of a quarantined node: refused");
   if (auto it = peers_.find(id); it != peers_.end()) {
     Peer& old = it->second;
     const NodeState& n = policy_.node(old.index);

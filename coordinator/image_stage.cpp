@@ -169,7 +169,7 @@ void Coordinator::join_image(const std::string& id, const std::string& key, cons
   auto before = peers_.find(id);
   const std::optional<uint32_t> index = before == peers_.end() ? std::nullopt : std::optional<uint32_t>(before->second.index);
   try {
-    handle(id, key, address, m);
+    hello(id, key, address, std::get<wire::Hello>(m.header));
   } catch (const Error& e) {
     if (config_.strict) throw;
     log(id, e.what());

@@ -173,7 +173,8 @@ class Coordinator {
   void say(logging::Level level, const std::string& message, nlohmann::json fields) const;
 
   // A new node, or one that lost its run (it restarted, or the emulation disconnected it): it
-  // joins with a fresh index; a former entry's last state stays in the estimate.
+  // joins with a fresh index; a former entry's last state stays in the estimate. Every phase
+  // takes joins through it; a quarantined key is refused.
   void hello(const std::string& id, const std::string& key, const std::string& address, const wire::Hello& h);
 
   // To a peer, through its link (shaped when the profile says so).

@@ -157,10 +157,7 @@ bool Coordinator::disconnected_on_purpose(const Peer& p) const {
 }
 
 void Coordinator::handle(const std::string& id, const std::string& key, const std::string& address, const Message& m) {
-  if (m.command == Command::hello) {
-    if (!key.empty() && record_.quarantined_keys.count(key)) fail("HELLO from the key of a quarantined node: refused");
-    return hello(id, key, address, std::get<wire::Hello>(m.header));
-  }
+  if (m.command == Command::hello) return hello(id, key, address, std::get<wire::Hello>(m.header));
   auto it = peers_.find(id);
   if (it == peers_.end()) throw Rejoin(fmt::format("{} before HELLO", proto::command_name(m.command)));
   Peer& p = it->second;
