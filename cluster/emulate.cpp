@@ -342,7 +342,7 @@ class Emulator {
 
   void report(uint32_t n, const GrantOrder& g, std::vector<ChunkState> chunks, double error, uint64_t count) {
     log(n, "report", count);
-    std::optional<Exchange> x = policy_.report(n, g.id, g.ranges, std::move(chunks), error);
+    std::optional<Exchange> x = policy_.take_result(n, g.id, g.ranges, std::move(chunks), error);
     if (x) {
       result_.run.exchange_bytes_in += 24 * patches_of(x->chunks);
       result_.run.exchange_bytes_out += 24 * patches_of(x->chunks);
@@ -355,7 +355,7 @@ class Emulator {
   }
 
   void dispatch() {
-    Orders orders = policy_.schedule();
+    Orders orders = policy_.next_work();
     for (GrantOrder& g : orders.grants) {
       uint64_t bundles = 0;
       for (const Range& r : g.ranges) bundles += r.size();

@@ -295,7 +295,7 @@ void Policy::quarantine_and_fail(uint32_t n, const std::string& why) {
   fail("quarantined: {}; its {} bundles return to the budget and its data are dropped", why, done);
 }
 
-Orders Policy::schedule() {
+Orders Policy::next_work() {
   Orders orders;
   uint32_t ready = 0;
   bool any_holding = false;
@@ -368,7 +368,7 @@ void Policy::take_chunks(uint32_t n, std::vector<ChunkState>& chunks) {
   }
 }
 
-std::optional<Exchange> Policy::report(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
+std::optional<Exchange> Policy::take_result(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
                                        std::vector<ChunkState> chunks, double error_estimate) {
   NodeState& p = nodes_.at(n);
   if (p.dead) fail("report from a node declared dead");

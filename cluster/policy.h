@@ -3,7 +3,9 @@
 // the sampling plan), what a report changes (ledger, aggregate, the exchange it is answered
 // with), when the run closes and ends, and its error estimate. The ZeroMQ coordinator
 // (coordinator.cpp) and the virtual-time cluster (emulate.cpp) both drive this one class, so
-// an emulated timeline is decided exactly as a real run would be.
+// an emulated timeline is decided exactly as a real run would be. It is the solve's phase
+// (DESIGN.md section 2), shaped as the image's (cluster/image_phase.h): next_work gives what to
+// send, take_result takes a node's result, and the due times of grants are grant_time_bound's.
 #pragma once
 #include <cstdint>
 #include <functional>
@@ -193,7 +195,7 @@ class Policy {
   const NodeState& node(uint32_t n) const { return nodes_.at(n); }
   void ready(uint32_t n);  // throws sirad::Error for a second READY
   // Declares node n dead: its outstanding grant goes back to the budget. Returns how many
-  // bundles went back. Call schedule() next (a sync barrier may have waited on it).
+  // bundles went back. Call next_work() next (a sync barrier may have waited on it).
   uint64_t dead(uint32_t n);
   // The same for a node gone while it held its grants (silent, unreachable, past due: not one
   // that left on purpose or said HELLO again), known as `who` (its CURVE key, else its
@@ -209,28 +211,28 @@ class Policy {
   // count beyond its bundles or going backwards, bundles it was not granted): dead, its data
   // dropped from the aggregate, and every index granted to it, done or not, back in the budget,
   // so the run still ends with its full count of accepted bundles. Returns how many bundles it
-  // had done. Call schedule() next.
+  // had done. Call next_work() next.
   uint64_t quarantine(uint32_t n, const std::string& why);
 
   // Gives grants and STOPs. Async: every live ready node holds two grants, the one it runs and
   // one queued behind it, so it never waits for the REPORT -> GRANT round trip; near the end of
   // the budget (less than two grants per node left) only one, so no node queues work a faster
   // one could take. Sync: one each, given only when no node holds one (the exchange barrier).
-  Orders schedule();
+  Orders next_work();
 
   // Node n's REPORT for grant `grant_id` (which must be its oldest): the done ranges go into
   // the ledger, the chunks into the aggregate. Returns the exchange to answer with (none when
   // the report carried no chunks). Throws sirad::Error when refused: a report for a grant the
   // node does not hold changes nothing; one whose data (or error estimate, or done ranges) no
   // honest node sends, or whose chunks are implausible (cluster/plausibility.h), quarantines
-  // the node. Call schedule() next, always.
-  std::optional<Exchange> report(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
+  // the node. Call next_work() next, always.
+  std::optional<Exchange> take_result(uint32_t n, uint64_t grant_id, const std::vector<Range>& done,
                                  std::vector<ChunkState> chunks, double error_estimate);
   // Node n's FINAL (after its STOP): its end states (impossible ones quarantine it, as above).
   void final_state(uint32_t n, std::vector<ChunkState> chunks);
 
   // The time limit (elapsed_s on the driver's clock) or the target error closes the run: no
-  // more grants, the outstanding ones finish. True when it closed now; call schedule() next.
+  // more grants, the outstanding ones finish. True when it closed now; call next_work() next.
   bool check_close(double elapsed_s);
   // Closes the run now, ended by `why` (an interrupt), as check_close would. False when it was
   // closing or finished already.

@@ -192,7 +192,7 @@ void Coordinator::ready(Peer& p, const wire::Ready& r) {
 }
 
 void Coordinator::schedule() {
-  Orders orders = policy_.schedule();
+  Orders orders = policy_.next_work();
   for (const GrantOrder& o : orders.grants) {
     wire::Grant g = grant_of(o.id, o.ranges);
     for (uint32_t c : o.report_chunks) g.add_report_chunks(c);
@@ -263,7 +263,7 @@ void Coordinator::report(Peer& p, const wire::Report& r, const std::vector<std::
         chunks.clear();
       }
     }
-    x = policy_.report(p.index, r.grant_id(), done, std::move(chunks), refused.empty() ? r.error_estimate() : 0.0);
+    x = policy_.take_result(p.index, r.grant_id(), done, std::move(chunks), refused.empty() ? r.error_estimate() : 0.0);
     grants_.settle(p.index, r.grant_id());
     if (!refused.empty()) throw Error(refused);
     record_.bytes_in += bytes;

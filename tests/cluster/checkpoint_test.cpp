@@ -55,9 +55,9 @@ TEST(Checkpoint, APolicyResumesFromItsFile) {
   Policy p = make(64, 2);
   p.ready(0);
   p.ready(1);
-  Orders o = p.schedule();  // node 0: grants 0 and 1, node 1: 2 and 3 (8 bundles each)
-  p.report(0, o.grants[0].id, o.grants[0].ranges, {chunk(0, 2.0, 8), chunk(1, 3.0, 8)}, 0.05);
-  p.report(1, o.grants[2].id, o.grants[2].ranges, {chunk(0, 4.0, 8)}, 0);
+  Orders o = p.next_work();  // node 0: grants 0 and 1, node 1: 2 and 3 (8 bundles each)
+  p.take_result(0, o.grants[0].id, o.grants[0].ranges, {chunk(0, 2.0, 8), chunk(1, 3.0, 8)}, 0.05);
+  p.take_result(1, o.grants[2].id, o.grants[2].ranges, {chunk(0, 4.0, 8)}, 0);
   fs::path file = fs::temp_directory_path() / fmt::format("sirad_checkpoint_{}", ::getpid());
   write_checkpoint(file.string(), checkpoint_of(p));
   wire::Checkpoint c = read_checkpoint(file.string());
@@ -77,9 +77,9 @@ TEST(Checkpoint, APolicyResumesFromItsFile) {
   q.ready(n);
   uint64_t granted = 0;
   for (int round = 0; round < 20 && !q.ending(); ++round)
-    for (const GrantOrder& g : q.schedule().grants) {
+    for (const GrantOrder& g : q.next_work().grants) {
       for (const Range& r : g.ranges) granted += r.size();
-      q.report(n, g.id, g.ranges, {}, 0);
+      q.take_result(n, g.id, g.ranges, {}, 0);
     }
   EXPECT_EQ(granted, 48u);
   EXPECT_EQ(q.ledger().done_count(), 64u);
@@ -90,8 +90,8 @@ TEST(Checkpoint, APolicyResumesFromItsFile) {
 TEST(Checkpoint, ADamagedFileIsOneClearError) {
   Policy p = make(64, 1);
   p.ready(0);
-  Orders o = p.schedule();
-  p.report(0, o.grants[0].id, o.grants[0].ranges, {chunk(0, 2.0, 8)}, 0);
+  Orders o = p.next_work();
+  p.take_result(0, o.grants[0].id, o.grants[0].ranges, {chunk(0, 2.0, 8)}, 0);
   const wire::Checkpoint good = checkpoint_of(p);
   fs::path file = fs::temp_directory_path() / fmt::format("sirad_checkpoint_bad_{}", ::getpid());
   auto expect_refused = [&](const wire::Checkpoint& c, const std::string& what) {

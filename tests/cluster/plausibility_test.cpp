@@ -260,7 +260,7 @@ TEST(Plausibility, ThePolicyQuarantinesALiar) {
   c[2].scale = 0.8;
   bool caught = false;
   for (int round = 0; round < 200 && !caught; ++round) {
-    Orders o = p.schedule();
+    Orders o = p.next_work();
     for (const GrantOrder& g : o.grants) {
       if (p.node(g.node).dead) continue;
       uint64_t bundles = 0;
@@ -268,7 +268,7 @@ TEST(Plausibility, ThePolicyQuarantinesALiar) {
       Plausibility::Observation st = c[g.node].run(bundles);
       ChunkState s{0, {st.s.x, st.s.y, st.s.z}, st.count};
       try {
-        p.report(g.node, g.id, g.ranges, {s}, 0.0);
+        p.take_result(g.node, g.id, g.ranges, {s}, 0.0);
       } catch (const Error& e) {
         EXPECT_EQ(g.node, 2u) << e.what();
         EXPECT_NE(std::string(e.what()).find("median of 3 nodes"), std::string::npos) << e.what();
@@ -294,11 +294,11 @@ TEST(Plausibility, AClaimedTinyErrorCannotEndARunEarly) {
       p.join();
       p.ready(n);
     }
-    Orders o = p.schedule();
+    Orders o = p.next_work();
     for (const GrantOrder& g : o.grants) {
       if (p.node(g.node).grants.front() != g.id) continue;
       ChunkState s{0, {200.0, 200.0, 200.0}, 100};
-      p.report(g.node, g.id, g.ranges, {s}, g.node == 2 ? third : 0.01);
+      p.take_result(g.node, g.id, g.ranges, {s}, g.node == 2 ? third : 0.01);
     }
     return p.error_estimate();
   };

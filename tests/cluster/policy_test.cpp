@@ -32,7 +32,7 @@ TEST(Policy, BalancedGrantsFollowTheNodesSpeeds) {
     p.ready(n);
     p.set_bundle_time(n, t[n]);
   }
-  Orders o = p.schedule();
+  Orders o = p.next_work();
   ASSERT_EQ(o.grants.size(), 4u);
   EXPECT_EQ(size_of(o.grants[0]), 16u);  // the fastest
   EXPECT_EQ(size_of(o.grants[1]), 16u);  // 1.5x: below 2x, exactly I
@@ -45,7 +45,7 @@ TEST(Policy, BalancedGrantsFollowTheNodesSpeeds) {
     q.ready(n);
     q.set_bundle_time(n, t[n]);
   }
-  for (const GrantOrder& g : q.schedule().grants) EXPECT_EQ(size_of(g), 16u);
+  for (const GrantOrder& g : q.next_work().grants) EXPECT_EQ(size_of(g), 16u);
 }
 
 // A grant's time bound: 8 times its bundles at the node's bundle time (measured, else its
@@ -82,19 +82,19 @@ TEST(Policy, QuarantineDropsTheDataAndReturnsTheBundles) {
     Policy p = make(c, 2);
     p.ready(0);
     p.ready(1);
-    Orders o = p.schedule();
+    Orders o = p.next_work();
     ASSERT_EQ(o.grants.size(), 4u);  // two each, 8 bundles: node 0 holds 0 and 1, node 1 holds 2 and 3
     auto chunk = [](double v, uint64_t count) { return ChunkState{0, std::vector<double>(48, v * static_cast<double>(count)), count}; };
-    p.report(1, o.grants[2].id, o.grants[2].ranges, {chunk(5.0, 8)}, 0);  // node 1's first: accepted
+    p.take_result(1, o.grants[2].id, o.grants[2].ranges, {chunk(5.0, 8)}, 0);  // node 1's first: accepted
     EXPECT_EQ(p.aggregate().count(0), 8u);
     std::vector<Range> done = k.foreign_range ? o.grants[0].ranges : o.grants[3].ranges;
-    EXPECT_THROW(p.report(1, o.grants[3].id, done, {chunk(k.value, 16 * k.count_factor)}, 0), Error);
+    EXPECT_THROW(p.take_result(1, o.grants[3].id, done, {chunk(k.value, 16 * k.count_factor)}, 0), Error);
     EXPECT_TRUE(p.node(1).quarantined);
     EXPECT_STREQ(p.node(1).state(), "quarantined");
     EXPECT_EQ(p.aggregate().count(0), 0u) << "its accepted state is dropped too";
     EXPECT_EQ(p.ledger().done_count(), 0u);
     EXPECT_EQ(p.ledger().available(), 64u - 16u) << "only node 0's grants are out";
-    EXPECT_THROW(p.report(1, o.grants[3].id, o.grants[3].ranges, {}, 0), Error);
+    EXPECT_THROW(p.take_result(1, o.grants[3].id, o.grants[3].ranges, {}, 0), Error);
     EXPECT_EQ(p.ledger().done_count(), 0u);
   }
 }
@@ -105,20 +105,20 @@ TEST(Policy, SyncGrantsARoundOnlyWhenTheLastIsIn) {
   PolicyConfig c{.bundles = 64, .exchange_every = 8, .mode = Mode::sync, .min_nodes = 2};
   Policy p = make(c, 3);
   p.ready(0);
-  EXPECT_TRUE(p.schedule().grants.empty());  // min_nodes
+  EXPECT_TRUE(p.next_work().grants.empty());  // min_nodes
   p.ready(1);
   p.ready(2);
-  Orders first = p.schedule();
+  Orders first = p.next_work();
   ASSERT_EQ(first.grants.size(), 3u);
-  p.report(0, first.grants[0].id, first.grants[0].ranges, {}, 0);
-  EXPECT_TRUE(p.schedule().grants.empty());
+  p.take_result(0, first.grants[0].id, first.grants[0].ranges, {}, 0);
+  EXPECT_TRUE(p.next_work().grants.empty());
   EXPECT_EQ(p.dead(2), 8u);  // its grant goes back
-  EXPECT_TRUE(p.schedule().grants.empty());  // node 1 still holds one
-  p.report(1, first.grants[1].id, first.grants[1].ranges, {}, 0);
-  Orders second = p.schedule();
+  EXPECT_TRUE(p.next_work().grants.empty());  // node 1 still holds one
+  p.take_result(1, first.grants[1].id, first.grants[1].ranges, {}, 0);
+  Orders second = p.next_work();
   ASSERT_EQ(second.grants.size(), 2u);
   EXPECT_EQ(second.grants[0].ranges.front().first, 16u);  // node 2's returned range first
-  EXPECT_THROW(p.report(0, first.grants[0].id, first.grants[0].ranges, {}, 0), Error);  // answered already
+  EXPECT_THROW(p.take_result(0, first.grants[0].id, first.grants[0].ranges, {}, 0), Error);  // answered already
 }
 
 // Bundles that crash whoever runs them: the lowest free indices go out first, so the first
@@ -135,7 +135,7 @@ TEST(Policy, BundlesLostWithThreeNodesCloseTheRun) {
     for (uint32_t n = 0; n < 3; ++n) {
       EXPECT_EQ(p.join(), n);
       p.ready(n);
-      Orders o = p.schedule();
+      Orders o = p.next_work();
       ASSERT_FALSE(o.grants.empty()) << how << " " << n;
       EXPECT_EQ(o.grants.front().ranges.front().first, 0u);  // the lost bundles first
       held = p.grant_size() * o.grants.size();
@@ -145,12 +145,12 @@ TEST(Policy, BundlesLostWithThreeNodesCloseTheRun) {
     p.join();
     p.ready(3);
     if (planned) {
-      EXPECT_FALSE(p.schedule().grants.empty());
+      EXPECT_FALSE(p.next_work().grants.empty());
       continue;
     }
     EXPECT_EQ(held, 16u);
     EXPECT_NE(p.ended_by().find(fmt::format("bundles 0..{} were lost with 3 nodes", held - 1)), std::string::npos) << p.ended_by();
-    Orders after = p.schedule();
+    Orders after = p.next_work();
     EXPECT_TRUE(after.grants.empty());
     EXPECT_EQ(after.stops, (std::vector<uint32_t>{3}));
     EXPECT_TRUE(p.ending());
@@ -168,10 +168,10 @@ TEST(Policy, AutoExchangeIsChosenOnceAtTheStart) {
   };
   Policy p = make(c, 2);
   p.ready(0);
-  p.schedule();
+  p.next_work();
   EXPECT_EQ(calls, 0);
   p.ready(1);
-  Orders o = p.schedule();
+  Orders o = p.next_work();
   EXPECT_EQ(calls, 1);
   EXPECT_EQ(p.exchange_every(), 5u);
   EXPECT_EQ(p.fraction(), 0.5);
@@ -179,7 +179,7 @@ TEST(Policy, AutoExchangeIsChosenOnceAtTheStart) {
   ASSERT_FALSE(o.grants.empty());
   EXPECT_EQ(size_of(o.grants[0]), 5u);
   EXPECT_EQ(o.grants[0].report_chunks.size(), 2u);  // S = 1/2 of 4 chunks
-  p.schedule();
+  p.next_work();
   EXPECT_EQ(calls, 1);
 }
 
@@ -222,8 +222,8 @@ TEST(Policy, NodeEntriesAreCappedByReusingEmptyDepartedOnes) {
   // Node 0 works: reports a state and done bundles, then dies (its record must stay).
   p.join();
   p.ready(0);
-  GrantOrder g = p.schedule().grants.front();
-  p.report(0, g.id, g.ranges, {ChunkState{0, std::vector<double>(48, 4.0), 4}}, 0.0);
+  GrantOrder g = p.next_work().grants.front();
+  p.take_result(0, g.id, g.ranges, {ChunkState{0, std::vector<double>(48, 4.0), 4}}, 0.0);
   p.dead(0);
   for (uint32_t n = 1; n < Policy::kMaxNodeEntries; ++n) {
     ASSERT_EQ(p.join(), n);
@@ -242,8 +242,8 @@ TEST(Policy, NodeEntriesAreCappedByReusingEmptyDepartedOnes) {
     q.join();
     q.ready(n);
   }
-  for (const GrantOrder& o : q.schedule().grants)
-    if (q.node(o.node).grants.front() == o.id) q.report(o.node, o.id, o.ranges, {}, 0.0);
+  for (const GrantOrder& o : q.next_work().grants)
+    if (q.node(o.node).grants.front() == o.id) q.take_result(o.node, o.id, o.ranges, {}, 0.0);
   for (uint32_t n = 0; n < Policy::kMaxNodeEntries; ++n) q.dead(n);
   EXPECT_THROW(q.join(), Error);
   q.quarantine(7, "test");  // its bundles go back: it holds nothing now
