@@ -443,9 +443,9 @@ JobPlan plan_job(const std::vector<std::string>& args) {
   add_run_flags(&app, run);
   add_output_flags(&app, plan.output);
   int min_nodes = 1, max_nodes = 0;
-  app.add_option("--min-nodes", min_nodes, "Nodes ready before the job's first grant")->check(CLI::Range(1, 4096));
+  app.add_option("--min-nodes", min_nodes, "Nodes ready before the job's first grant")->check(CLI::Range(1, static_cast<int>(cluster::kMaxJobNodes)));
   app.add_option("--max-nodes", max_nodes, "The most nodes the job takes; the others run other jobs (0: every node)")
-      ->check(CLI::Range(0, 4096));
+      ->check(CLI::Range(0, static_cast<int>(cluster::kMaxJobNodes)));
   std::vector<const char*> argv{"job"};
   for (const std::string& a : args) argv.push_back(a.c_str());
   try {

@@ -1,0 +1,64 @@
+// sirad: a lightmap atlas of a scene (issue 38): its input faces grouped into charts, each chart
+// laid flat on its plane and packed, with gutters, into one texture of texels of a set size.
+//   - A chart is a set of triangles of one object that share edges and lie in one plane (the
+//     faces of a wall, a door cut out of it by a Boolean included): no seam crosses a flat
+//     surface, so filtering and the texels' samples see one continuous surface.
+//   - Each chart is projected onto its plane and turned to its least bounding rectangle (the
+//     rotating calipers over its convex hull: a wall at 30 degrees costs no more texels than one
+//     on the axes); a texel is texel_size on a side in the scene's units, so every surface has
+//     one density.
+//   - The charts, each with `gutter` empty texels around it, are packed in shelves (tallest
+//     first) into an atlas about as wide as it is tall; a filter reaching `gutter` texels beyond
+//     a chart never reaches another.
+// Texel (i, j) covers [i, i + 1) x [j, j + 1) in texel units, rows top first; a triangle
+// corner's UV is its texel position over the atlas size, as glTF's TEXCOORD_1 takes it (u right,
+// v down). Plain geometry: no rays, no radiosity.
+#pragma once
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+
+#include "scene/scene.h"
+
+namespace sirad {
+
+struct AtlasOptions {
+  // A texel's side in the scene's units; 0: the size that covers the scene's surface with about
+  // texel_budget texels.
+  double texel_size = 0;
+  uint64_t texel_budget = uint64_t{1} << 20;
+  int gutter = 2;  // empty texels around each chart, 0..64
+  // The atlas's largest side: a texel_size that needs more is refused; from a budget, the texel
+  // size grows until the atlas fits. 16..16384.
+  int max_side = 8192;
+};
+
+struct Chart {
+  std::vector<uint32_t> triangles;  // the scene's, in their order
+  // Its plane's frame: point p lies at texel ((p - origin) . u, (p - origin) . v) / texel_size
+  // of the chart's rectangle, inside its gutter.
+  glm::dvec3 origin{0.0}, u{0.0}, v{0.0}, normal{0.0};
+  // Its rectangle in the atlas, in texels, gutters included: [x, x + width) x [y, y + height).
+  int x = 0, y = 0, width = 0, height = 0;
+};
+
+struct Atlas {
+  int width = 0, height = 0;  // texels
+  double texel_size = 0;
+  int gutter = 0;
+  std::vector<Chart> charts;
+  std::vector<uint32_t> chart_of;               // per scene triangle
+  std::vector<std::array<glm::vec2, 3>> uv;     // per scene triangle, its corners' UV in [0, 1]
+  // The texels the charts' rectangles cover, gutters left out, over the atlas's.
+  double fill() const;
+};
+
+// The atlas of `scene` (every triangle, unlit ones included: they are surfaces a viewer sees).
+// Throws sirad::Error for options out of range, or a texel size that needs an atlas wider or
+// taller than max_side (naming the size it would take).
+Atlas make_atlas(const Scene& scene, const AtlasOptions& options);
+
+}  // namespace sirad

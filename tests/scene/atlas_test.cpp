@@ -1,0 +1,181 @@
+// sirad tests: the lightmap atlas (scene/atlas.h): one chart per flat connected surface of an
+// object, charts that never overlap (gutters included), every corner's UV inside its chart, one
+// texel density everywhere (an affine map: a triangle's texels are its area over texel_size^2,
+// to float rounding), the least rectangle for a turned wall, a budget kept, sizes refused.
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include <glm/geometric.hpp>
+#include <gtest/gtest.h>
+
+#include "scene/atlas.h"
+#include "scene/gltf.h"
+#include "util/error.h"
+
+namespace sirad {
+namespace {
+
+void quad(Scene& s, glm::vec3 a, glm::vec3 b, glm::vec3 c, glm::vec3 d, uint32_t object = 0) {
+  s.triangles.push_back({.p = {a, b, c}, .object = object});
+  s.triangles.push_back({.p = {a, c, d}, .object = object});
+}
+
+// The inside of a unit cube: six faces of two triangles each, in one object.
+Scene cube() {
+  Scene s;
+  s.name = "cube";
+  s.materials = {Material{"white", glm::vec3(0.5f), glm::vec3(0.0f)}};
+  const glm::vec3 p[8] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  quad(s, p[0], p[1], p[2], p[3]);
+  quad(s, p[4], p[7], p[6], p[5]);
+  quad(s, p[0], p[4], p[5], p[1]);
+  quad(s, p[3], p[2], p[6], p[7]);
+  quad(s, p[0], p[3], p[7], p[4]);
+  quad(s, p[1], p[5], p[6], p[2]);
+  return s;
+}
+
+double area3(const Triangle& t) { return 0.5 * glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))); }
+
+// What every atlas must be: rectangles inside the atlas and apart; each triangle's UVs inside its
+// chart's rectangle less the gutter; its area in texels its area over texel_size^2.
+void expect_sound(const Scene& s, const Atlas& a) {
+  ASSERT_EQ(a.uv.size(), s.triangles.size());
+  for (std::size_t i = 0; i < a.charts.size(); ++i) {
+    const Chart& c = a.charts[i];
+    EXPECT_TRUE(c.x >= 0 && c.y >= 0 && c.x + c.width <= a.width && c.y + c.height <= a.height) << i;
+    for (std::size_t j = 0; j < i; ++j) {
+      const Chart& d = a.charts[j];
+      const bool apart = c.x + c.width <= d.x || d.x + d.width <= c.x || c.y + c.height <= d.y || d.y + d.height <= c.y;
+      EXPECT_TRUE(apart) << "charts " << i << " and " << j << " overlap";
+    }
+  }
+  for (std::size_t t = 0; t < s.triangles.size(); ++t) {
+    const Chart& c = a.charts[a.chart_of[t]];
+    double texel_area = 0;
+    std::array<glm::dvec2, 3> q{};
+    for (int k = 0; k < 3; ++k) {
+      q[static_cast<std::size_t>(k)] = {a.uv[t][static_cast<std::size_t>(k)].x * double(a.width), a.uv[t][static_cast<std::size_t>(k)].y * double(a.height)};
+      const glm::dvec2& p = q[static_cast<std::size_t>(k)];
+      // Within the chart's rectangle less its gutter (a float's rounding of the UV allowed).
+      EXPECT_GE(p.x, c.x + a.gutter - 1e-3) << t;
+      EXPECT_LE(p.x, c.x + c.width - a.gutter + 1e-3) << t;
+      EXPECT_GE(p.y, c.y + a.gutter - 1e-3) << t;
+      EXPECT_LE(p.y, c.y + c.height - a.gutter + 1e-3) << t;
+    }
+    texel_area = 0.5 * std::abs((q[1].x - q[0].x) * (q[2].y - q[0].y) - (q[1].y - q[0].y) * (q[2].x - q[0].x));
+    // UVs are floats: a corner's place is exact to about 1e-7 of the atlas's side.
+    const double expect = area3(s.triangles[t]) / (a.texel_size * a.texel_size);
+    EXPECT_NEAR(texel_area, expect, 1e-5 * std::max(a.width, a.height) * std::sqrt(expect) + 1e-6 * expect) << t;
+  }
+}
+
+// A cube's six faces are six charts of two triangles each, each a square of side / texel texels.
+TEST(Atlas, EachFlatConnectedSurfaceIsOneChart) {
+  const Scene s = cube();
+  const Atlas a = make_atlas(s, {.texel_size = 0.1, .gutter = 2});
+  ASSERT_EQ(a.charts.size(), 6u);
+  for (const Chart& c : a.charts) {
+    EXPECT_EQ(c.triangles.size(), 2u);
+    EXPECT_EQ(c.width, 10 + 4);
+    EXPECT_EQ(c.height, 10 + 4);
+  }
+  EXPECT_EQ(a.texel_size, 0.1);
+  expect_sound(s, a);
+  EXPECT_EQ(a.width % 4, 0);
+  EXPECT_EQ(a.height % 4, 0);
+}
+
+// Coplanar faces of two objects, or two flat faces meeting at an edge at an angle (a fold of
+// 0.1 degrees), are separate charts; a face cut by a door (an L of three quads sharing whole
+// edges, as Blender triangulates an n-gon) is one.
+TEST(Atlas, ChartsFollowObjectsAndPlanes) {
+  Scene s;
+  s.name = "walls";
+  s.materials = {Material{"white", glm::vec3(0.5f), glm::vec3(0.0f)}};
+  quad(s, {0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, 0);
+  quad(s, {1, 0, 0}, {2, 0, 0}, {2, 1, 0}, {1, 1, 0}, 1);  // the same plane, another object
+  quad(s, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}, 2);  // an L: three quads in one plane
+  quad(s, {1, 0, 1}, {2, 0, 1}, {2, 1, 1}, {1, 1, 1}, 2);
+  quad(s, {0, 1, 1}, {1, 1, 1}, {1, 2, 1}, {0, 2, 1}, 2);
+  const float dz = static_cast<float>(std::tan(0.1 * std::numbers::pi / 180.0));
+  quad(s, {0, 0, 5}, {1, 0, 5}, {1, 1, 5}, {0, 1, 5}, 3);  // folded by 0.1 degrees along x = 1
+  quad(s, {1, 0, 5}, {2, 0, 5 + dz}, {2, 1, 5 + dz}, {1, 1, 5}, 3);
+  const Atlas a = make_atlas(s, {.texel_size = 0.05});
+  ASSERT_EQ(a.charts.size(), 5u);
+  EXPECT_EQ(a.chart_of[0], a.chart_of[1]);
+  EXPECT_NE(a.chart_of[0], a.chart_of[2]);
+  EXPECT_EQ(a.chart_of[4], a.chart_of[6]);
+  EXPECT_EQ(a.chart_of[4], a.chart_of[8]);
+  EXPECT_NE(a.chart_of[10], a.chart_of[12]);
+  expect_sound(s, a);
+}
+
+// A wall turned 30 degrees about the vertical takes the texels of one on the axes: its chart is
+// turned to the wall's own rectangle (4 x 2.5 m at 0.05: 80 x 50 texels and the gutters), not
+// to its bounding box in the scene's axes.
+TEST(Atlas, ATurnedWallTakesItsOwnRectangle) {
+  Scene s;
+  s.name = "turned";
+  s.materials = {Material{"white", glm::vec3(0.5f), glm::vec3(0.0f)}};
+  const double t = 30.0 * std::numbers::pi / 180.0;
+  const glm::vec3 along(static_cast<float>(4 * std::cos(t)), static_cast<float>(4 * std::sin(t)), 0.0f);
+  const glm::vec3 up(0.0f, 0.0f, 2.5f);
+  const glm::vec3 o(0.3f, -0.2f, 0.0f);
+  quad(s, o, o + along, o + along + up, o + up);
+  const Atlas a = make_atlas(s, {.texel_size = 0.05, .gutter = 1});
+  ASSERT_EQ(a.charts.size(), 1u);
+  const Chart& c = a.charts[0];
+  EXPECT_EQ(std::min(c.width, c.height), 50 + 2);
+  EXPECT_EQ(std::max(c.width, c.height), 80 + 2);
+  expect_sound(s, a);
+}
+
+// From a budget: the charts cover about that many texels (the texel size is the surface's over
+// the budget; each chart rounds up by less than a texel a side); with a largest side too small
+// for it, the texels grow until the atlas fits. A texel size that needs more is refused, and
+// options out of range are, each naming what.
+TEST(Atlas, ABudgetIsKeptAndSizesBeyondTheLimitsAreRefused) {
+  const Scene s = cube();
+  const Atlas a = make_atlas(s, {.texel_budget = 60000, .gutter = 0});
+  double covered = 0;
+  for (const Chart& c : a.charts) covered += double(c.width) * c.height;
+  EXPECT_NEAR(a.texel_size, std::sqrt(6.0 / 60000), 1e-12);
+  EXPECT_GE(covered, 60000);
+  EXPECT_LE(covered, 60000 + 6 * (2 * 100 + 1));  // each square of 100 texels a side rounded up by under one
+  expect_sound(s, a);
+  const Atlas small = make_atlas(s, {.texel_budget = 60000, .max_side = 64});
+  EXPECT_LE(std::max(small.width, small.height), 64);
+  EXPECT_GT(small.texel_size, a.texel_size);
+  expect_sound(s, small);
+  auto refused = [&](const AtlasOptions& o, const std::string& expect) {
+    try {
+      make_atlas(s, o);
+      ADD_FAILURE() << expect << ": accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(expect), std::string::npos) << e.what();
+    }
+  };
+  refused({.texel_size = 1e-4}, "atlas: texels of 0.0001 make an atlas of more than 8192 x 8192 texels for cube");
+  refused({.texel_size = -1}, "atlas: texel size -1 is not a finite length >= 0");
+  refused({.texel_size = NAN}, "is not a finite length");
+  refused({.texel_size = 0.1, .gutter = 65}, "atlas: gutter 65 is outside 0..64 texels");
+  refused({.texel_size = 0.1, .max_side = 8}, "atlas: largest side 8 is outside 16..16384 texels");
+  refused({.texel_budget = 0}, "atlas: texel budget 0 is outside 1..2^28");
+}
+
+// The Blender apartment as exported: its Boolean-cut walls, zero-thickness planes, turned
+// furniture and lamps in an atlas of a million texels, sound, and at least half of it used.
+TEST(Atlas, TheBlenderApartmentPacksSoundly) {
+  const Scene s = import_gltf(std::string(SIRAD_SOURCE_DIR) + "/tests/data/blender/apartment.glb", {});
+  const Atlas a = make_atlas(s, {.texel_budget = uint64_t{1} << 20});
+  expect_sound(s, a);
+  EXPECT_LT(a.charts.size(), s.triangles.size());
+  EXPECT_GT(a.fill(), 0.5) << a.width << " x " << a.height << ", " << a.charts.size() << " charts";
+  for (const Chart& c : a.charts)
+    for (uint32_t t : c.triangles) EXPECT_EQ(s.triangles[t].object, s.triangles[c.triangles[0]].object);
+}
+
+}  // namespace
+}  // namespace sirad
