@@ -58,7 +58,7 @@ TEST(SettingsTable, EveryFlagParsesAndItsValueReachesTheNodesAndTheCheckpoint) {
     const std::string flag(row.flag);
     SCOPED_TRACE(flag);
     EXPECT_TRUE(flags.insert(flag).second) << "two rows of one flag";
-    ASSERT_TRUE(row.parse && !row.help.empty() && !row.type.empty());
+    ASSERT_TRUE(row.parse && row.text && !row.help.empty() && !row.type.empty()) << "every row parses and writes its text";
     ASSERT_TRUE(kSamples.count(flag)) << "no sample for a new row";
     EXPECT_TRUE(row.to_run || row.to_checkpoint || flag == "chunks") << "reaches neither the nodes nor the checkpoint";
     EXPECT_EQ(row.to_run != nullptr || flag == "chunks", row.from_run != nullptr);  // chunks: as their starts
