@@ -33,7 +33,9 @@ enum class Shading { gouraud, flat };
 // share the welded vertex, restricted to those with the same material and a normal within
 // 30 degrees (so creases and material borders stay sharp), and on the same side of an emitter's
 // outline (PatchMesh::in_gap: the light trapped over a lamp never blends into the ceiling beside
-// it). Result: 3 values per patch.
+// it); patches in one plane blend only if they see each other (a wall standing on a floor
+// between them, a zero-thickness one too, keeps each room's light its own: the final gather's
+// lookups, the outputs' corners). Result: 3 values per patch.
 std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
                                                        const std::vector<glm::vec3>& radiosity);
 

@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <numbers>
 #include <utility>
 #include <vector>
@@ -14,7 +15,9 @@
 #include <glm/vec3.hpp>
 
 #include "scene/camera.h"
+#include "scene/rays.h"
 #include "util/error.h"
+#include "util/parallel.h"
 
 namespace sirad {
 
@@ -149,11 +152,24 @@ std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
   for (std::size_t j = 0; j < n; ++j)
     for (uint32_t v : mesh.patches[j]) adjacent[fill[v]++] = static_cast<uint32_t>(j);
 
-  // Step 2: per corner, the area-weighted mean over the compatible patches at that vertex.
+  // Step 2: per corner, the area-weighted mean over the compatible patches at that vertex; those
+  // in one plane only if they see each other (the segment between their centres, lifted off the
+  // surface, meets nothing: a wall standing on a floor between them, a zero-thickness one
+  // included, keeps the two sides' light apart).
   const bool gaps = mesh.in_gap.size() == n;
   const float cos_limit = static_cast<float>(std::cos(30.0 * std::numbers::pi / 180.0));
+  const float cos_flat = static_cast<float>(std::cos(1.0 * std::numbers::pi / 180.0));
+  std::unique_ptr<RayScene> rays;
+  if (n > 0 && mesh.vertices.size() > 0) rays = std::make_unique<RayScene>(mesh, 0.0, true);
+  const double lift = n > 0 ? ray_offset(mesh) : 0.0;
+  const auto centre = [&](std::size_t j) {
+    const auto& p = mesh.patches[j];
+    return (glm::dvec3(mesh.vertices[p[0]]) + glm::dvec3(mesh.vertices[p[1]]) + glm::dvec3(mesh.vertices[p[2]])) / 3.0;
+  };
   std::vector<std::array<glm::vec3, 3>> corners(n);
-  for (std::size_t j = 0; j < n; ++j) {
+  parallel_for(n, 256, worker_threads(0), [&](std::size_t begin, std::size_t end, unsigned) {
+    for (std::size_t j = begin; j < end; ++j) {
+    const glm::dvec3 up = glm::dvec3(mesh.normal[j]) * lift, from = centre(j) + up;
     for (int k = 0; k < 3; ++k) {
       const uint32_t v = mesh.patches[j][k];
       glm::dvec3 sum = glm::dvec3(radiosity[j]) * static_cast<double>(mesh.area[j]);
@@ -163,12 +179,16 @@ std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
         if (i == j || mesh.material[i] != mesh.material[j] ||
             !(glm::dot(mesh.normal[i], mesh.normal[j]) >= cos_limit) || (gaps && mesh.in_gap[i] != mesh.in_gap[j]))
           continue;
+        // Neighbours in one plane (within a degree) are checked to see each other; on a fold the
+        // straight segment would cut through the surface itself, and no wall stands on a fold.
+        if (glm::dot(mesh.normal[i], mesh.normal[j]) >= cos_flat && rays->blocked(from, centre(i) + up)) continue;
         sum += glm::dvec3(radiosity[i]) * static_cast<double>(mesh.area[i]);
         weight += mesh.area[i];
       }
-      corners[j][k] = weight > 0.0 ? glm::vec3(sum / weight) : radiosity[j];
+      corners[j][static_cast<std::size_t>(k)] = weight > 0.0 ? glm::vec3(sum / weight) : radiosity[j];
     }
-  }
+    }
+  });
   return corners;
 }
 
