@@ -620,6 +620,53 @@ int GatherOptions::thread_count() const {
   return static_cast<int>(worker_threads(threads));
 }
 
+void FinalGather::leaving(const std::vector<SurfacePoint>& points, uint64_t key, glm::dvec3& direct, glm::dvec3& indirect,
+                          uint64_t& cast) const {
+  direct = indirect = glm::dvec3(0.0);
+  if (points.empty()) return;
+  const Impl& m = *impl_;
+  const int n = static_cast<int>(points.size());
+  Rng light(m.options.seed, key, 1, kLight), gather(m.options.seed, key, 1, kGather), more(m.options.seed, key, 1, kMore);
+  std::vector<std::array<double, 2>> emitter_points, gathers;
+  std::vector<double> cdf;
+  stratified_square(n, light, emitter_points);
+  stratified_square(n, gather, gathers);
+  const Impl::Choice pick = m.choice(&points[0].x, points[0].normal, cdf);
+  for (int i = 0; i < n; ++i) {
+    const SurfacePoint& p = points[static_cast<std::size_t>(i)];
+    direct += p.emission;
+    if (p.rho == glm::dvec3(0.0)) continue;
+    const glm::dvec3 origin = p.x + p.normal * m.offset;
+    glm::dvec3 d(0.0), r(0.0);
+    Impl::ShadowRay shadow;
+    if (m.light_sample(p.x, origin, p.normal, emitter_points[static_cast<std::size_t>(i)], true, pick, shadow)) {
+      ++cast;
+      if (!m.rays.blocked(shadow.from, shadow.to)) d += shadow.light;
+    }
+    m.gathered(origin, p.normal, gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r, cast);
+    direct += p.rho * d;
+    indirect += p.rho * r;
+  }
+  direct /= static_cast<double>(n);
+  indirect /= static_cast<double>(n);
+}
+
+bool FinalGather::enclosed(const glm::dvec3& x, const glm::dvec3& n) const {
+  const Impl& m = *impl_;
+  const glm::dvec3 origin = x + n * m.offset;
+  const auto from_behind = [&](const glm::dvec3& d) {
+    const int64_t k = m.rays.nearest(origin, d);
+    return k >= 0 && glm::dot(glm::dvec3(m.mesh.normal[static_cast<std::size_t>(k)]), d) > 0.0;
+  };
+  if (!from_behind(n)) return false;
+  const glm::dvec3 helper = std::abs(n.x) < 0.9 ? glm::dvec3(1, 0, 0) : glm::dvec3(0, 1, 0);
+  const glm::dvec3 u = glm::normalize(glm::cross(helper, n)), v = glm::cross(n, u);
+  const double c = 0.5, s = std::sqrt(0.75);  // 60 degrees from n
+  for (const glm::dvec3& side : {u, -u, v, -v})
+    if (!from_behind(n * c + side * s)) return false;
+  return true;
+}
+
 GatherPasses GatherPasses::of_size(int width, int height) {
   GatherPasses p;
   for (Image* image : {&p.direct, &p.indirect, &p.combined}) {

@@ -52,6 +52,7 @@
 #include <vector>
 
 #include <glm/vec3.hpp>
+#include <glm/ext/vector_double3.hpp>
 
 #include "render/image.h"
 #include "scene/mesh.h"
@@ -114,6 +115,24 @@ class FinalGather {
   GatherPasses render(const Camera& camera) const;
 
   const GatherOptions& options() const;
+
+  // A point on a front of the scene (a texel's sample): where, its surface's normal, reflectance
+  // and emission.
+  struct SurfacePoint {
+    glm::dvec3 x{0.0}, normal{0.0}, rho{0.0}, emission{0.0};
+  };
+  // The light leaving `points`, their mean, as a pixel's samples give it without the cache:
+  // per point its emission, one emitter sample with its shadow ray and one gather ray (the
+  // emitter points and gather directions stratified over the points, in their order; the light
+  // chosen as for a pixel whose first hit is the first point), in the passes' split: `direct`
+  // the emission and the light reflected straight from the emitters, `indirect` the rest. It
+  // depends only on the seed, `key` (a texel's index) and the points. Rays cast into `cast`.
+  void leaving(const std::vector<SurfacePoint>& points, uint64_t key, glm::dvec3& direct, glm::dvec3& indirect,
+               uint64_t& cast) const;
+  // Whether point x of a front facing n lies inside a solid: the first face met along n, and
+  // along each of four directions 60 degrees from it, is met from behind (a floor under a wall
+  // standing on it; not one under a one-sided table top, which rays beside it pass).
+  bool enclosed(const glm::dvec3& x, const glm::dvec3& n) const;
 
  private:
   struct Impl;

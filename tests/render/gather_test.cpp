@@ -17,6 +17,7 @@
 #include "scene/emitters.h"
 #include "scene/mesh.h"
 #include "scene/scene.h"
+#include "tests/closed_forms.h"
 #include "tests/quad_scene.h"
 #include "util/error.h"
 
@@ -24,6 +25,7 @@ namespace sirad {
 namespace {
 
 using test::QuadScene;
+using test::floor_radiance;
 
 // The furnace (a closed cube, every face E = 1, rho = 0.5: B = 2 everywhere, exactly) gathered
 // from the exact solution, seen from inside. Each sample's value is E = 1 seen, plus rho times
@@ -76,18 +78,6 @@ TEST(Gather, AFurnaceIsTwoEverywhere) {
       EXPECT_GT(p.record_rays, 0u);
     }
   }
-}
-
-// Reflected radiance at (px, py, 0) on a floor of reflectance rho under a square emitter of
-// radiance E, side [x0, x1] x [y0, y1] at height c facing down: rho E F, F the form factor from
-// the point to the rectangle (the corner formula, odd in each offset, by superposition).
-double floor_radiance(double px, double py, double x0, double x1, double y0, double y1, double c, double rho, double E) {
-  auto f = [c](double u, double v) {
-    const double su = std::sqrt(c * c + u * u), sv = std::sqrt(c * c + v * v);
-    return (u / su * std::atan(v / su) + v / sv * std::atan(u / sv)) / (2.0 * std::numbers::pi);
-  };
-  const double F = f(x1 - px, y1 - py) - f(x0 - px, y1 - py) - f(x1 - px, y0 - py) + f(x0 - px, y0 - py);
-  return rho * E * F;
 }
 
 // A floor (rho 0.5, the plane z = 0 within 4 of the origin, facing +z) under a square of side 1
@@ -262,7 +252,7 @@ TEST(Gather, AWallBesideACeilingLightMatchesLambertsFormula) {
 // The indirect light against its closed form, where the cache interpolates a light that peaks: a
 // floor (rho 0.5) under a square (side 1, height 1, facing down) that emits nothing but whose
 // solution is B = 1, and no emitter. A floor point's radiance is then all indirect, rho B F with F
-// its form factor to the square (floor_radiance above): the gather rays that meet the square
+// its form factor to the square (tests/closed_forms.h floor_radiance): the gather rays that meet the square
 // take B - E = 1 there (they land at least 1 away, beyond the near bounce of kNear = 4 patch
 // sizes: the square's patches are 0.1 across), the others leave the scene (background 0). Seen
 // from above, the image spans the peak under the square and its fall beyond the square's edge.

@@ -1,0 +1,134 @@
+// sirad: a lightmap baked from a radiosity solution (see bake.h).
+#include "render/bake.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+#include "scene/rays.h"
+#include "util/error.h"
+#include "util/parallel.h"
+
+namespace sirad {
+
+namespace {
+
+// The streams of a texel's sample positions (the gather's own use 1..6 of the last key).
+constexpr uint64_t kTexelJitter = 7;
+
+// A chart's triangle in texel coordinates, with its corners in the scene.
+struct Flat {
+  std::array<glm::dvec2, 3> q;
+  std::array<glm::dvec3, 3> p;
+  glm::dvec3 normal, rho, emission;
+};
+
+// Barycentric coordinates of point x in triangle q (false when x lies outside it).
+bool inside(const std::array<glm::dvec2, 3>& q, const glm::dvec2& x, glm::dvec3& w) {
+  const double d = (q[1].y - q[2].y) * (q[0].x - q[2].x) + (q[2].x - q[1].x) * (q[0].y - q[2].y);
+  if (d == 0.0) return false;
+  w.x = ((q[1].y - q[2].y) * (x.x - q[2].x) + (q[2].x - q[1].x) * (x.y - q[2].y)) / d;
+  w.y = ((q[2].y - q[0].y) * (x.x - q[2].x) + (q[0].x - q[2].x) * (x.y - q[2].y)) / d;
+  w.z = 1.0 - w.x - w.y;
+  return w.x >= 0.0 && w.y >= 0.0 && w.z >= 0.0;
+}
+
+// Fills the texels of chart rectangle [x0, x1) x [y0, y1) that have no value (coverage 0) with
+// the mean of their neighbours (8-connected) that have one, ring by ring, each ring from the
+// values before it.
+void dilate(Lightmap& m, int x0, int y0, int x1, int y1) {
+  const int w = m.combined.width;
+  std::vector<uint8_t> has(static_cast<std::size_t>((x1 - x0) * (y1 - y0)));
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) has[static_cast<std::size_t>((y - y0) * (x1 - x0) + (x - x0))] = m.coverage[static_cast<std::size_t>(y) * w + x] > 0;
+  for (int ring = 0; ring < (x1 - x0) + (y1 - y0); ++ring) {
+    std::vector<std::array<int, 2>> filled;
+    for (int y = y0; y < y1; ++y)
+      for (int x = x0; x < x1; ++x) {
+        if (has[static_cast<std::size_t>((y - y0) * (x1 - x0) + (x - x0))]) continue;
+        glm::vec3 d(0.0f), i(0.0f);
+        int n = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int a = x + dx, b = y + dy;
+            if (a < x0 || a >= x1 || b < y0 || b >= y1 || !has[static_cast<std::size_t>((b - y0) * (x1 - x0) + (a - x0))]) continue;
+            d += m.direct.at(a, b), i += m.indirect.at(a, b), ++n;
+          }
+        if (n == 0) continue;
+        m.direct.at(x, y) = d / float(n), m.indirect.at(x, y) = i / float(n);
+        m.combined.at(x, y) = m.direct.at(x, y) + m.indirect.at(x, y);
+        filled.push_back({x, y});
+      }
+    if (filled.empty()) return;
+    for (const auto& [x, y] : filled) has[static_cast<std::size_t>((y - y0) * (x1 - x0) + (x - x0))] = 1;
+  }
+}
+
+}  // namespace
+
+Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples) {
+  if (samples < 1 || samples > 4096) fail("lightmap: {} samples per texel (1..4096)", samples);
+  if (atlas.uv.size() != scene.triangles.size() || atlas.width < 1 || atlas.height < 1)
+    fail("lightmap: an atlas of {} triangles for a scene of {}", atlas.uv.size(), scene.triangles.size());
+  const int W = atlas.width, H = atlas.height;
+  Lightmap m;
+  for (Image* image : {&m.direct, &m.indirect, &m.combined}) {
+    image->width = W, image->height = H;
+    image->pixels.assign(static_cast<std::size_t>(W) * H, glm::vec3(0.0f));
+  }
+  m.coverage.assign(static_cast<std::size_t>(W) * H, 0.0f);
+  std::vector<uint64_t> cast(atlas.charts.size(), 0);
+  const uint64_t seed = gather.options().seed;
+  parallel_for(atlas.charts.size(), 1, static_cast<unsigned>(gather.options().thread_count()), [&](std::size_t c, std::size_t, unsigned) {
+    // Step 1: the chart's triangles flat, in texel coordinates.
+    const Chart& chart = atlas.charts[c];
+    std::vector<Flat> flat;
+    for (uint32_t t : chart.triangles) {
+      const Triangle& tri = scene.triangles[t];
+      Flat f;
+      for (std::size_t k = 0; k < 3; ++k) {
+        f.q[k] = {double(atlas.uv[t][k].x) * W, double(atlas.uv[t][k].y) * H};
+        f.p[k] = glm::dvec3(tri.p[k]);
+      }
+      const glm::dvec3 n = glm::cross(f.p[1] - f.p[0], f.p[2] - f.p[0]);
+      if (!(glm::length(n) > 0.0)) continue;
+      f.normal = glm::normalize(n);
+      f.rho = glm::dvec3(scene.materials.at(tri.material).reflectance);
+      f.emission = glm::dvec3(scene.materials.at(tri.material).emission);
+      flat.push_back(f);
+    }
+    // Step 2: each texel's samples on the chart's faces, the light leaving them.
+    std::vector<std::array<double, 2>> positions;
+    std::vector<FinalGather::SurfacePoint> points;
+    for (int y = chart.y; y < chart.y + chart.height; ++y)
+      for (int x = chart.x; x < chart.x + chart.width; ++x) {
+        const uint64_t key = static_cast<uint64_t>(y) * static_cast<uint64_t>(W) + static_cast<uint64_t>(x);
+        Rng jitter(seed, key, 1, kTexelJitter);
+        stratified_square(samples, jitter, positions);
+        points.clear();
+        for (const auto& [sx, sy] : positions) {
+          const glm::dvec2 at(x + sx, y + sy);
+          glm::dvec3 w;
+          const auto f = std::find_if(flat.begin(), flat.end(), [&](const Flat& g) { return inside(g.q, at, w); });
+          if (f == flat.end()) continue;  // beyond the chart's outline
+          const glm::dvec3 p = f->p[0] * w.x + f->p[1] * w.y + f->p[2] * w.z;
+          if (gather.enclosed(p, f->normal)) continue;  // inside a solid
+          points.push_back({p, f->normal, f->rho, f->emission});
+        }
+        if (points.empty()) continue;
+        glm::dvec3 d, i;
+        gather.leaving(points, key, d, i, cast[c]);
+        const std::size_t k = static_cast<std::size_t>(key);
+        m.direct.pixels[k] = glm::vec3(d), m.indirect.pixels[k] = glm::vec3(i), m.combined.pixels[k] = glm::vec3(d + i);
+        m.coverage[k] = static_cast<float>(points.size()) / static_cast<float>(samples);
+      }
+    // Step 3: the empty texels from their chart's.
+    dilate(m, chart.x, chart.y, chart.x + chart.width, chart.y + chart.height);
+  });
+  for (uint64_t n : cast) m.rays += n;
+  return m;
+}
+
+}  // namespace sirad

@@ -1,0 +1,40 @@
+// sirad: a lightmap baked from a radiosity solution (issue 38): every texel of an atlas
+// (scene/atlas.h) lit by the final gather, as a pixel of `sirad image` is, at points on its own
+// surface.
+//   - A texel's samples are stratified over its square on its chart's plane; each lands on the
+//     chart's triangle that holds it, and takes that face's normal and material. A sample on no
+//     triangle of the chart (the texel straddles the chart's outline) is left out, and so is one
+//     inside a solid: the first face along its normal is met from behind (a floor under a wall
+//     that stands on it). So no sample lies where light cannot be, and a texel's value is the
+//     light of its own surface only.
+//   - Each kept sample is one estimate of FinalGather::leaving (emission, an emitter sample with
+//     its shadow ray, a gather ray); the texel is their mean, in radiance, in the passes' split.
+//   - Texels none of whose samples was kept take the mean of their kept neighbours in the same
+//     chart, ring by ring, out to the chart's gutter (dilation): filtering at a chart's edge then
+//     never reaches the background or another chart.
+// A texel's value depends only on the seed, the atlas and the texel: any split over threads
+// gives the same lightmap.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "render/gather.h"
+#include "render/image.h"
+#include "scene/atlas.h"
+#include "scene/scene.h"
+
+namespace sirad {
+
+struct Lightmap {
+  Image direct, indirect, combined;  // the atlas's size, rows top first, radiance
+  // Per texel, the share of its samples that were kept (0: filled by dilation, or empty).
+  std::vector<float> coverage;
+  uint64_t rays = 0;
+};
+
+// The lightmap of `atlas` (made from `scene`, whose faces `gather`'s mesh was meshed from) at
+// `samples` samples per texel (1..4096). Throws sirad::Error for samples out of range or an atlas
+// not of this scene.
+Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples);
+
+}  // namespace sirad

@@ -1,0 +1,172 @@
+// sirad tests: lightmaps baked from a solution (render/bake.h): a floor's texels under a square
+// light against the closed form, no light through a zero-thickness wall into a dark room, no
+// samples inside a solid standing on a floor, gutters filled from their own chart, and the same
+// lightmap on any number of threads.
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include <glm/geometric.hpp>
+#include <gtest/gtest.h>
+
+#include "render/bake.h"
+#include "render/gather.h"
+#include "scene/atlas.h"
+#include "scene/mesh.h"
+#include "tests/closed_forms.h"
+#include "tests/quad_scene.h"
+#include "util/error.h"
+
+namespace sirad {
+namespace {
+
+using test::QuadScene;
+using test::floor_radiance;
+
+// A floor (rho 0.5, 4 x 4 at z = 0 facing +z) under a unit square light (E 1, rho 0) at height 1,
+// facing down; the solution B = E (the floor sees no floor: nothing of B's reflected part
+// reaches a floor point, so any floor value would do). A floor texel's value is rho E F over
+// its square: per sample the direct estimate D is at most 2 M (M = rho E A / (pi r^2), r >= 1
+// the height: each MIS term is at most rho E cos cos A / (pi r^2)), so Var D <= E[D^2] <= 2 M mu
+// and a texel of N samples is within 5 sqrt(2 M mu / N) of mu but with probability 6e-7 (normal
+// approximation of a mean of 256 bounded terms); 64 texels: 4e-5.
+TEST(Bake, AFloorsTexelsUnderASquareLightMatchTheClosedForm) {
+  QuadScene q;
+  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(1.0f));
+  q.quad({-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}, floor);
+  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, light);
+  const PatchMesh mesh = mesh_scene(q.scene, {.target_patches = 400});
+  std::vector<glm::vec3> b(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) b[j] = mesh.emission(j);
+  const FinalGather gather(mesh, b, {.seed = 5});
+  const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.5, .gutter = 2});
+  const int samples = 256;
+  const Lightmap m = bake_lightmap(q.scene, atlas, gather, samples);
+  const Chart& c = atlas.charts[atlas.chart_of[0]];
+  ASSERT_EQ(c.width, 8 + 4);
+  ASSERT_EQ(c.height, 8 + 4);
+  const double M = 0.5 * 1.0 * 1.0 / std::numbers::pi;
+  int checked = 0;
+  for (int y = c.y + 2; y < c.y + c.height - 2; ++y)
+    for (int x = c.x + 2; x < c.x + c.width - 2; ++x) {
+      double mu = 0;  // the closed form's mean over the texel's square, 8 x 8 points
+      for (int j = 0; j < 8; ++j)
+        for (int i = 0; i < 8; ++i) {
+          const glm::dvec3 p = c.origin + c.u * ((x - c.x - 2 + (i + 0.5) / 8) * atlas.texel_size) +
+                               c.v * ((y - c.y - 2 + (j + 0.5) / 8) * atlas.texel_size);
+          mu += floor_radiance(p.x, p.y, -0.5, 0.5, -0.5, 0.5, 1.0, 0.5, 1.0) / 64;
+        }
+      const float got = m.combined.at(x, y).x;
+      EXPECT_EQ(m.coverage[static_cast<std::size_t>(y) * atlas.width + x], 1.0f);
+      EXPECT_NEAR(got, mu, 5 * std::sqrt(2 * M * mu / samples)) << x << ", " << y;
+      EXPECT_EQ(m.indirect.at(x, y).x, 0.0f);  // gather rays meet the light's front (B - E = 0) or leave
+      ++checked;
+    }
+  EXPECT_EQ(checked, 64);
+  // The gutter's texels: no sample of theirs lands on the floor; each takes its chart's nearest.
+  EXPECT_EQ(m.coverage[static_cast<std::size_t>(c.y) * atlas.width + c.x], 0.0f);
+  EXPECT_EQ(m.combined.at(c.x, c.y), m.combined.at(c.x + 2, c.y + 2));
+}
+
+// Two closed rooms side by side sharing a zero-thickness wall (two planes back to back at
+// x = 1), the left one lit by its ceiling and every surface of it given B = 1 by the solution,
+// the right one dark (B = 0) with a solid block standing on its floor. No texel of the right
+// room takes any light (exactly 0: its samples' shadow rays all meet the wall, its gather rays
+// all land on surfaces of B = 0); every texel of the left room does (each only where all its
+// samples are on one side); the right floor's samples
+// under the block are left out (coverage 0 where a texel lies wholly under it, 1 where wholly
+// outside). And the lightmap is the same on one thread and on four.
+TEST(Bake, NoLightThroughAThinWallAndNoSamplesInsideASolid) {
+  QuadScene q;
+  const uint32_t white = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t lamp = q.material(glm::vec3(0.5f), glm::vec3(2.0f));
+  auto room = [&](float x0, bool lit) {  // the inside of [x0, x0 + 1] x [0, 1] x [0, 1]
+    const float x1 = x0 + 1;
+    q.quad({x0, 0, 0}, {x1, 0, 0}, {x1, 1, 0}, {x0, 1, 0}, white);            // floor, +z
+    q.quad({x0, 0, 1}, {x0, 1, 1}, {x1, 1, 1}, {x1, 0, 1}, lit ? lamp : white);  // ceiling, -z
+    q.quad({x0, 0, 0}, {x0, 0, 1}, {x1, 0, 1}, {x1, 0, 0}, white);            // y = 0, +y
+    q.quad({x0, 1, 0}, {x1, 1, 0}, {x1, 1, 1}, {x0, 1, 1}, white);            // y = 1, -y
+    q.quad({x0, 0, 0}, {x0, 1, 0}, {x0, 1, 1}, {x0, 0, 1}, white);            // x = x0, +x
+    q.quad({x1, 0, 0}, {x1, 0, 1}, {x1, 1, 1}, {x1, 1, 0}, white);            // x = x1, -x
+  };
+  room(0, true);
+  room(1, false);
+  // A block 0.4 x 0.4 x 0.3 on the right room's floor, its outside faces (its bottom on the floor).
+  const float a = 1.3f, b = 1.7f, lo = 0.3f, hi = 0.7f, h = 0.3f;
+  q.quad({a, lo, 0}, {a, hi, 0}, {b, hi, 0}, {b, lo, 0}, white);  // bottom, -z
+  q.quad({a, lo, h}, {b, lo, h}, {b, hi, h}, {a, hi, h}, white);  // top, +z
+  q.quad({a, lo, 0}, {b, lo, 0}, {b, lo, h}, {a, lo, h}, white);  // -y
+  q.quad({a, hi, 0}, {a, hi, h}, {b, hi, h}, {b, hi, 0}, white);  // +y
+  q.quad({a, lo, 0}, {a, lo, h}, {a, hi, h}, {a, hi, 0}, white);  // -x
+  q.quad({b, lo, 0}, {b, hi, 0}, {b, hi, h}, {b, lo, h}, white);  // +x
+  const PatchMesh mesh = mesh_scene(q.scene, {.target_patches = 2000});
+  std::vector<glm::vec3> radiosity(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const auto& p = mesh.patches[j];
+    const glm::vec3 centre = (mesh.vertices[p[0]] + mesh.vertices[p[1]] + mesh.vertices[p[2]]) / 3.0f;
+    const bool left = centre.x < 1.0f || (centre.x == 1.0f && mesh.normal[j].x < 0);
+    radiosity[j] = left ? glm::vec3(1.0f) + mesh.emission(j) : glm::vec3(0.0f);
+  }
+  const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.05, .gutter = 1});
+  const FinalGather one(mesh, radiosity, {.seed = 2, .threads = 1}), four(mesh, radiosity, {.seed = 2, .threads = 4});
+  const Lightmap m = bake_lightmap(q.scene, atlas, one, 16);
+  // Every texel wholly on a surface (all its samples kept) and wholly in one room: the floors
+  // and ceilings of the two rooms are one chart each (one plane, one object, a shared edge), so
+  // a texel across x = 1 takes samples of both rooms and is left out here (see DESIGN.md).
+  int lit = 0, dark = 0;
+  for (const Chart& c : atlas.charts)
+    for (int y = c.y; y < c.y + c.height; ++y)
+      for (int x = c.x; x < c.x + c.width; ++x) {
+        if (m.coverage[static_cast<std::size_t>(y) * atlas.width + x] < 1.0f) continue;
+        double x_lo = INFINITY, x_hi = -INFINITY;
+        for (int k = 0; k < 4; ++k) {
+          const glm::dvec3 p =
+              c.origin + c.u * ((x - c.x - 1 + (k & 1)) * atlas.texel_size) + c.v * ((y - c.y - 1 + (k >> 1)) * atlas.texel_size);
+          x_lo = std::min(x_lo, p.x), x_hi = std::max(x_hi, p.x);
+        }
+        const bool on_wall = x_hi - x_lo < 1e-6 && std::abs(x_lo - 1.0) < 1e-6;  // the shared wall: by its side
+        const bool left = on_wall ? c.normal.x < 0 : x_hi <= 1.0 + 1e-6;
+        const bool right = on_wall ? c.normal.x > 0 : x_lo >= 1.0 - 1e-6;
+        const glm::vec3 v = m.combined.at(x, y);
+        if (left) {
+          EXPECT_GT(v.x, 0.0f) << "a texel of the lit room at " << x << ", " << y;
+          ++lit;
+        } else if (right) {
+          EXPECT_EQ(v, glm::vec3(0.0f)) << "light in the dark room at texel " << x << ", " << y << " normal " << c.normal.x << " " << c.normal.y << " " << c.normal.z << " x " << x_lo << " " << x_hi << " d " << m.direct.at(x, y).x << " i " << m.indirect.at(x, y).x;
+          ++dark;
+        }
+      }
+  EXPECT_GT(lit, 2000);
+  EXPECT_GT(dark, 2000);
+  // The right room's floor (faces 12, 13, one chart with the left's): texels wholly under the
+  // block have no sample, those wholly clear of it all of theirs.
+  const Chart& f = atlas.charts[atlas.chart_of[12]];
+  int under = 0, clear = 0;
+  for (int y = f.y + 1; y < f.y + f.height - 1; ++y)
+    for (int x = f.x + 1; x < f.x + f.width - 1; ++x) {
+      glm::dvec3 corner[4];
+      for (int k = 0; k < 4; ++k)
+        corner[k] = f.origin + f.u * ((x - f.x - 1 + (k & 1)) * atlas.texel_size) + f.v * ((y - f.y - 1 + (k >> 1)) * atlas.texel_size);
+      const auto in_block = [&](const glm::dvec3& p) { return p.x > a && p.x < b && p.y > lo && p.y < hi; };
+      const float coverage = m.coverage[static_cast<std::size_t>(y) * atlas.width + x];
+      if (std::any_of(corner, corner + 4, [](const glm::dvec3& p) { return p.x < 1.0 || p.x > 2.0; })) continue;
+      if (std::all_of(corner, corner + 4, in_block)) {
+        EXPECT_EQ(coverage, 0.0f) << x << ", " << y;
+        ++under;
+      } else if (std::none_of(corner, corner + 4, in_block)) {
+        EXPECT_EQ(coverage, 1.0f) << x << ", " << y;
+        ++clear;
+      }
+    }
+  EXPECT_GT(under, 30);
+  EXPECT_GT(clear, 200);
+  // Any number of threads: the same lightmap, bit for bit.
+  const Lightmap again = bake_lightmap(q.scene, atlas, four, 16);
+  EXPECT_EQ(again.combined.pixels, m.combined.pixels);
+  EXPECT_EQ(again.coverage, m.coverage);
+  EXPECT_THROW(bake_lightmap(q.scene, atlas, one, 0), Error);
+}
+
+}  // namespace
+}  // namespace sirad
