@@ -159,16 +159,19 @@ std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
   const bool gaps = mesh.in_gap.size() == n;
   const float cos_limit = static_cast<float>(std::cos(30.0 * std::numbers::pi / 180.0));
   const float cos_flat = static_cast<float>(std::cos(1.0 * std::numbers::pi / 180.0));
-  std::unique_ptr<RayScene> rays;
-  if (n > 0 && mesh.vertices.size() > 0) rays = std::make_unique<RayScene>(mesh, 0.0, true);
+  std::unique_ptr<RayScene> rays;  // none for a scene too far out to trace rays in: no sight test
+  try {
+    if (n > 0 && !mesh.vertices.empty()) rays = std::make_unique<RayScene>(mesh, 0.0, true);
+  } catch (const Error&) {
+    rays.reset();
+  }
   const double lift = n > 0 ? ray_offset(mesh) : 0.0;
   const auto centre = [&](std::size_t j) {
     const auto& p = mesh.patches[j];
     return (glm::dvec3(mesh.vertices[p[0]]) + glm::dvec3(mesh.vertices[p[1]]) + glm::dvec3(mesh.vertices[p[2]])) / 3.0;
   };
   std::vector<std::array<glm::vec3, 3>> corners(n);
-  parallel_for(n, 256, worker_threads(0), [&](std::size_t begin, std::size_t end, unsigned) {
-    for (std::size_t j = begin; j < end; ++j) {
+  const auto corners_of = [&](std::size_t j) {
     const glm::dvec3 up = glm::dvec3(mesh.normal[j]) * lift, from = centre(j) + up;
     for (int k = 0; k < 3; ++k) {
       const uint32_t v = mesh.patches[j][k];
@@ -181,13 +184,15 @@ std::vector<std::array<glm::vec3, 3>> corner_radiosity(const PatchMesh& mesh,
           continue;
         // Neighbours in one plane (within a degree) are checked to see each other; on a fold the
         // straight segment would cut through the surface itself, and no wall stands on a fold.
-        if (glm::dot(mesh.normal[i], mesh.normal[j]) >= cos_flat && rays->blocked(from, centre(i) + up)) continue;
+        if (rays && glm::dot(mesh.normal[i], mesh.normal[j]) >= cos_flat && rays->blocked(from, centre(i) + up)) continue;
         sum += glm::dvec3(radiosity[i]) * static_cast<double>(mesh.area[i]);
         weight += mesh.area[i];
       }
       corners[j][static_cast<std::size_t>(k)] = weight > 0.0 ? glm::vec3(sum / weight) : radiosity[j];
     }
-    }
+  };
+  parallel_for(n, 256, worker_threads(0), [&](std::size_t begin, std::size_t end, unsigned) {
+    for (std::size_t j = begin; j < end; ++j) corners_of(j);
   });
   return corners;
 }
