@@ -131,10 +131,14 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
   const int preview_w = std::min(kPreviewWidth, shown.width);
   const int preview_h = std::max(1, static_cast<int>(std::lround(double(shown.height) * preview_w / shown.width)));
   const fs::path preview = dir / "preview.png";
+  // Drawn on the run's loop: where the patches outnumber the preview's pixels, Gouraud corners
+  // (a sight test per neighbour, corner_radiosity) would show nothing flat shading does not.
+  const bool preview_flat = mesh.size() > static_cast<std::size_t>(preview_w) * static_cast<std::size_t>(preview_h);
+  const Shading preview_shading = preview_flat ? Shading::flat : shown.shading;
   rc.preview = [&](const std::vector<glm::vec3>& radiosity) {
     try {
       const fs::path part = dir / "preview.png.part";
-      write_png(part.string(), render_view(mesh, radiosity, *mesh.camera, preview_w, preview_h, shown.shading), shown.exposure);
+      write_png(part.string(), render_view(mesh, radiosity, *mesh.camera, preview_w, preview_h, preview_shading), shown.exposure);
       fs::rename(part, preview);
     } catch (const std::exception& e) {  // a preview that cannot be written must not end the run
       say(logging::Level::warn, fmt::format("job {}: preview not written: {}", job.id, e.what()), {{"event", "preview"}});
