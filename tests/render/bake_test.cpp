@@ -133,7 +133,8 @@ TEST(Bake, NoLightThroughAThinWallAndNoSamplesInsideASolid) {
           EXPECT_GT(v.x, 0.0f) << "a texel of the lit room at " << x << ", " << y;
           ++lit;
         } else if (right) {
-          EXPECT_EQ(v, glm::vec3(0.0f)) << "light in the dark room at texel " << x << ", " << y << " normal " << c.normal.x << " " << c.normal.y << " " << c.normal.z << " x " << x_lo << " " << x_hi << " d " << m.direct.at(x, y).x << " i " << m.indirect.at(x, y).x;
+          EXPECT_EQ(v, glm::vec3(0.0f)) << "light in the dark room at texel " << x << ", " << y << " (direct "
+                                        << m.direct.at(x, y).x << ", indirect " << m.indirect.at(x, y).x << ")";
           ++dark;
         }
       }
