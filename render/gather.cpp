@@ -235,7 +235,8 @@ struct FinalGather::Impl {
     const glm::dvec3 rho_k(mesh.reflectance(k));
     if (depth == 0 && s < kNear * std::sqrt(2.0 * mesh.area[k]) && rho_k != glm::dvec3(0.0)) {
       glm::dvec3 d(0.0), i(0.0);
-      reflected(y, glm::dvec3(mesh.normal[k]), {more.uniform(), more.uniform()}, {more.uniform(), more.uniform()}, more, 1, d, i, cast);
+      reflected(y, glm::dvec3(mesh.normal[k]), {more.uniform(), more.uniform()}, {more.uniform(), more.uniform()}, more, 1,
+                by_area.data(), d, i, cast);
       indirect += rho_k * (d + i);
     } else {
       indirect += radiosity_at(k, y) - e;
@@ -265,16 +266,17 @@ struct FinalGather::Impl {
   }
 
   // The light reflected at point x (normal n) toward the viewer, before rho: one emitter sample
-  // with its shadow ray (light_sample) and one gather ray (gathered), ray by ray.
+  // with its shadow ray (light_sample, the light chosen by c) and one gather ray (gathered), ray
+  // by ray.
   void reflected(const glm::dvec3& x, const glm::dvec3& n, const std::array<double, 2>& light, const std::array<double, 2>& gather,
-                 Rng& more, int depth, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
+                 Rng& more, int depth, Choice c, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
     const glm::dvec3 origin = x + n * offset;
     ShadowRay shadow;
-    if (light_sample(x, origin, n, light, true, by_area.data(), shadow)) {
+    if (light_sample(x, origin, n, light, true, c, shadow)) {
       ++cast;
       if (!rays.blocked(shadow.from, shadow.to)) direct += shadow.light;
     }
-    gathered(origin, n, gather, more, depth, by_area.data(), direct, indirect, cast);
+    gathered(origin, n, gather, more, depth, c, direct, indirect, cast);
   }
 
   // The gather rays of a cache record: 4 per sample of a pixel, within [256, 16384], so that the
@@ -573,14 +575,9 @@ void FinalGather::leaving(const std::vector<SurfacePoint>& points, uint64_t key,
     const SurfacePoint& p = points[static_cast<std::size_t>(i)];
     direct += p.emission;
     if (p.rho == glm::dvec3(0.0)) continue;
-    const glm::dvec3 origin = p.x + p.normal * m.offset;
     glm::dvec3 d(0.0), r(0.0);
-    Impl::ShadowRay shadow;
-    if (m.light_sample(p.x, origin, p.normal, emitter_points[static_cast<std::size_t>(i)], true, pick, shadow)) {
-      ++cast;
-      if (!m.rays.blocked(shadow.from, shadow.to)) d += shadow.light;
-    }
-    m.gathered(origin, p.normal, gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r, cast);
+    m.reflected(p.x, p.normal, emitter_points[static_cast<std::size_t>(i)], gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r,
+                cast);
     direct += p.rho * d;
     indirect += p.rho * r;
   }
