@@ -50,9 +50,10 @@ constexpr double kNear = 4.0;
 // a gather ray for the direct light's MIS.
 // Nor is a block whose corners' indirect light differs by more than kCacheContrast times, at any
 // size: beside a lamp hung just under a ceiling, the light that leaves the gap falls off within
-// a few centimetres, and a corner at the lamp's edge would spread it over the block.
+// a few centimetres, convex, and a bilinear interpolation between a bright corner and a dim one
+// lies above it over the whole block (bench/RESULTS.md, "The cache beside a lamp", has the sweep).
 constexpr int kCacheSpacing = 16, kCacheAny = 4, kCacheLeast = 2;
-constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.02, kCacheContrast = 2.0;
+constexpr double kCacheCos = 0.98, kCachePlane = 0.05, kCacheWard = 0.25, kCacheMis = 0.02, kCacheContrast = 1.25;
 
 // From kEdgeSpp samples per pixel on, an edge's pixels (a block of kCacheLeast pixels whose
 // corners are not one surface) take nothing from the cache: their samples gather for themselves,
