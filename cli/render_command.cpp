@@ -132,8 +132,7 @@ int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, c
     if (!short_of.empty())
       for (auto& [key, value] : attrs)
         if (key == "sirad.ended_by") value = short_of;
-    write_outputs(a.output, out, m.mesh, result.radiosity, attrs, m.camera_from, result.image ? &*result.image : nullptr,
-                  result.image_error);
+    write_outputs(a.output, out, m, result.radiosity, attrs, result.image ? &*result.image : nullptr, result.image_error);
   };
   embedded::Outcome o = embedded::run(rc, m.mesh, eo);
   const cluster::RunResult& result = o.result;
@@ -159,7 +158,7 @@ int render(RenderArgs a) {
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   if (settings.target_error > 0 && a.nodes == 0 && settings.rule != UpdateRule::chain)
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
-  std::string out = output_name(a.output.out, a.scene);
+  std::string out = output_name(a.output.out, a.scene, a.output.lightmap.on ? kLightmapEndings : std::vector<std::string>{});
   Meshed m = load_meshed(a.scene, settings.mesh_options,
                          a.output.import(), a.output.camera);
   cli::settle_image_size(a.output, m.scene);
@@ -210,7 +209,7 @@ int render(RenderArgs a) {
   if (error >= 0) attrs.emplace_back("sirad.error_estimate", error);
   if (settings.target_error > 0) attrs.emplace_back("sirad.target_error", settings.target_error);
   attrs.emplace_back("sirad.device", engine->description());
-  write_outputs(a.output, out, mesh, solver.estimate(), attrs, m.camera_from);
+  write_outputs(a.output, out, m, solver.estimate(), attrs);
   std::printf("%s\n", cluster::summary_line(mesh.size(), static_cast<uint64_t>(done), solver.grid(), 0, seconds, solver.crossings(),
                                             fmt::format(", error estimate {}", error >= 0 ? fmt::format("{:.4f}", error) : "n/a"))
                           .c_str());
@@ -227,7 +226,7 @@ int emulate(EmulateArgs& e) {
   }
   const cluster::RunSettings settings = cli::settings_from(a.run, a.given);
   if (std::string why = cluster::target_error_problem(settings); !why.empty()) fail("{}", why);
-  std::string out = output_name(a.output.out, a.scene);
+  std::string out = output_name(a.output.out, a.scene, a.output.lightmap.on ? kLightmapEndings : std::vector<std::string>{});
   Meshed m = load_meshed(a.scene, settings.mesh_options,
                          a.output.import(), a.output.camera);
   cli::settle_image_size(a.output, m.scene);
@@ -261,7 +260,7 @@ int emulate(EmulateArgs& e) {
   attrs.emplace_back("sirad.virtual_wall_s", r.wall_s);
   attrs.emplace_back("sirad.bundle_s", r.bundle_s);
   if (r.error_estimate >= 0) attrs.emplace_back("sirad.error_estimate", r.error_estimate);
-  write_outputs(a.output, out, mesh, r.run.radiosity, attrs, m.camera_from, r.run.image ? &*r.run.image : nullptr);
+  write_outputs(a.output, out, m, r.run.radiosity, attrs, r.run.image ? &*r.run.image : nullptr);
   if (!e.nodes_csv.empty()) write_file_atomic(e.nodes_csv, cluster::nodes_csv(r));
   if (!e.timeline.empty()) write_file_atomic(e.timeline, cluster::timeline_csv(r));
   // Every node up to 32; beyond, the spread of their utilisation.

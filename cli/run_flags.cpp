@@ -103,6 +103,21 @@ std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
   return names;
 }
 
+void add_lightmap_flags(CLI::App* cmd, LightmapFlags& l, bool with_switch) {
+  if (with_switch)
+    cmd->add_flag("--lightmap", l.on,
+                  "Also bake a lightmap: NAME-lightmap.exr (half-float radiance; layers direct, indirect, error), "
+                  "NAME-lightmap.png, NAME-baked.glb (TEXCOORD_1 and the lightmap; what sirad bake writes)");
+  cmd->add_option("--texel-size", l.texel_size, "Lightmap texel side in the scene's units (default: from --texels)")
+      ->check(finite_in(1e-9, 1e9));
+  cmd->add_option("--texels", l.texels, "Lightmap texel budget: the texel size that covers the scene with about this many")
+      ->check(CLI::Range(uint64_t{1024}, uint64_t{1} << 26))
+      ->capture_default_str();
+  cmd->add_option("--texel-samples", l.samples, "Final-gather samples per lightmap texel (each: an emitter sample, a gather ray)")
+      ->check(CLI::Range(2, 4096))
+      ->capture_default_str();
+}
+
 std::vector<std::string> output_args(const OutputFlags& o) {
   std::vector<std::string> a;
   if (o.width > 0) a.insert(a.end(), {"--width", std::to_string(o.width)});

@@ -30,6 +30,15 @@ struct RunFlags {
   std::map<std::string, std::string> text;
 };
 
+// A lightmap baked from the solution (render/bake.h; io/write_lightmap.h's files): `sirad bake`,
+// or `sirad render --lightmap`.
+struct LightmapFlags {
+  bool on = false;
+  double texel_size = 0;                 // --texel-size (0: from the budget)
+  uint64_t texels = uint64_t{1} << 20;   // --texels: the budget
+  int samples = 16;                      // --texel-samples
+};
+
 struct OutputFlags {
   std::string out;
   int width = 0, height = 0;  // 0: settle_image_size gives them from the camera's aspect
@@ -40,6 +49,7 @@ struct OutputFlags {
   bool two_sided = false;
   bool outside_uris = false;  // --allow-outside-uris (ImportOptions::outside_uris)
   std::string camera;  // --camera "eye X Y Z look X Y Z up X Y Z fov DEG"
+  LightmapFlags lightmap;  // not among add_output_flags' (a farm's job does not bake yet): add_lightmap_flags
   ImportOptions import() const { return {.skip_degenerate = skip_degenerate, .two_sided = two_sided, .outside_uris = outside_uris}; }
 };
 
@@ -64,6 +74,8 @@ const std::vector<std::string>& cluster_flag_names();
 // --skip-degenerate, --two-sided, --camera; returns their long names.
 std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& flags);
 
+// --texel-size, --texels and --texel-samples, and (`with_switch`) --lightmap to turn them on.
+void add_lightmap_flags(CLI::App* cmd, LightmapFlags& flags, bool with_switch);
 // `flags` (but --out) as the arguments that give them again through add_output_flags.
 std::vector<std::string> output_args(const OutputFlags& flags);
 // Sets `flags` from output_args' arguments (a checkpoint's); throws sirad::Error for ones that

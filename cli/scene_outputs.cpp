@@ -1,6 +1,9 @@
 // sirad: the scene a command loads and the outputs it writes (see scene_outputs.h).
 #include "cli/scene_outputs.h"
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <new>
@@ -9,16 +12,55 @@
 #include <fmt/format.h>
 
 #include "io/results.h"
+#include "io/write_lightmap.h"
+#include "render/bake.h"
+#include "scene/atlas.h"
 #include "render/gather.h"
 #include "scene/check.h"
 #include "util/error.h"
 
 namespace sirad::cli {
 
-void write_outputs(const cli::OutputFlags& o, const std::string& out, const PatchMesh& mesh,
-                   const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from,
-                   const GatherPasses* gathered, const std::string& image_failed) {
-  attrs.emplace_back("sirad.camera_from", camera_from);
+namespace {
+
+// The lightmap of the solution: its atlas, its texels gathered, its files and a line of figures.
+void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const std::vector<glm::vec3>& radiosity,
+          const Attributes& attrs) {
+  const auto start = std::chrono::steady_clock::now();
+  const Atlas atlas = make_atlas(m.scene, {.texel_size = o.lightmap.texel_size, .texel_budget = o.lightmap.texels});
+  const FinalGather gather(m.mesh, radiosity, GatherOptions{});
+  const Lightmap lightmap = bake_lightmap(m.scene, atlas, gather, o.lightmap.samples);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  Attributes a = attrs;
+  a.emplace_back("sirad.texel_samples", static_cast<int64_t>(o.lightmap.samples));
+  a.emplace_back("sirad.bake_seconds", seconds);
+  const LightmapFiles files = write_lightmap(out, m.scene, atlas, lightmap, o.exposure, m.mesh.camera ? &*m.mesh.camera : nullptr,
+                                             static_cast<double>(o.width) / static_cast<double>(std::max(o.height, 1)), a);
+  // The texels' relative error: their estimated standard errors over their values, as a root
+  // mean square over the texels with light (luminance above 1e-6 of the brightest's).
+  auto lum = [](const glm::vec3& v) { return 0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z; };
+  double brightest = 0, sum = 0;
+  std::size_t lit = 0;
+  for (const glm::vec3& v : lightmap.combined.pixels) brightest = std::max(brightest, lum(v));
+  for (std::size_t k = 0; k < lightmap.combined.pixels.size(); ++k)
+    if (const double y = lum(lightmap.combined.pixels[k]); lightmap.coverage[k] > 0 && y > 1e-6 * brightest) {
+      const double e = lum(lightmap.error.pixels[k]) / y;
+      sum += e * e, ++lit;
+    }
+  namespace fs = std::filesystem;
+  for (const std::string& f : {files.exr, files.png, files.glb}) std::printf("wrote %s\n", fs::absolute(f).c_str());
+  std::printf("lightmap %dx%d texels of %.4g, %zu charts (%.0f %% of the atlas), %d samples a texel, %.2f s, "
+              "relative error per texel %.3g %% (RMS over %zu lit texels)\n",
+              atlas.width, atlas.height, atlas.texel_size, atlas.charts.size(), 100 * atlas.fill(), o.lightmap.samples, seconds,
+              lit ? 100 * std::sqrt(sum / static_cast<double>(lit)) : 0.0, lit);
+}
+
+}  // namespace
+
+void write_outputs(const OutputFlags& o, const std::string& out, const Meshed& m, const std::vector<glm::vec3>& radiosity,
+                   Attributes attrs, const GatherPasses* gathered, const std::string& image_failed) {
+  const PatchMesh& mesh = m.mesh;
+  attrs.emplace_back("sirad.camera_from", m.camera_from);
   const ResultOptions options = cli::result_options(o);
   // A final gather no cluster rendered: on this machine (its failure keeps the solution, as a
   // cluster's does).
@@ -35,18 +77,20 @@ void write_outputs(const cli::OutputFlags& o, const std::string& out, const Patc
     }
   }
   ResultFiles files = write_results(out, mesh, radiosity, options, attrs, gathered, why);
-  std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), camera_from.c_str());
+  std::printf("camera %s (%s)\n", camera_spec(*mesh.camera).c_str(), m.camera_from.c_str());
   std::fputs(wrote_lines(files).c_str(), stdout);
+  if (o.lightmap.on) bake(o, out, m, radiosity, attrs);
 }
 
-std::string output_name(const std::string& out, const std::string& scene,
-                        std::initializer_list<const char*> extensions) {
+std::string output_name(const std::string& out, const std::string& scene, const std::vector<std::string>& more) {
+  std::vector<std::string> extensions = {".exr", ".png", ".ply", ".glb"};
+  extensions.insert(extensions.end(), more.begin(), more.end());
   namespace fs = std::filesystem;
   std::string name = out.empty() ? fs::path(scene).stem().string() : out;
   check_output_name(name, "--out");
   std::error_code ec;
   if (fs::is_regular_file(scene, ec))
-    for (const char* ext : extensions) {
+    for (const std::string& ext : extensions) {
       fs::path output = name + ext;
       if (fs::exists(output, ec) && fs::equivalent(output, scene, ec))
         fail("{}: the output {} would overwrite the scene file; choose another name with --out", scene, output.string());

@@ -2,7 +2,6 @@
 // meshed with its camera, the outputs' name checked before any work, and the outputs written
 // with their paths on stdout.
 #pragma once
-#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -16,23 +15,25 @@
 
 namespace sirad::cli {
 
-// The outputs and their paths on stdout (`gathered`: the final gather's passes a cluster run
-// rendered in tiles, or `image_failed` why it could not, write_results).
-void write_outputs(const OutputFlags& o, const std::string& out, const PatchMesh& mesh,
-                   const std::vector<glm::vec3>& radiosity, Attributes attrs, const std::string& camera_from,
-                   const GatherPasses* gathered = nullptr, const std::string& image_failed = {});
-
-// The outputs' name: --out, or the scene's file name without extension; checked before any work:
-// its folder must be writable, and no output (NAME + each of `extensions`) may be the scene file.
-std::string output_name(const std::string& out, const std::string& scene,
-                        std::initializer_list<const char*> extensions = {".exr", ".png", ".ply", ".glb"});
-
 // The scene `spec` names, meshed, with a camera (the scene's, else a default view of it).
 struct Meshed {
   Scene scene;
   PatchMesh mesh;
   std::string camera_from;  // where the camera came from, for the outputs' line and the EXR
 };
+
+// The outputs of a solution of `m` and their paths on stdout (`gathered`: the final gather's
+// passes a cluster run rendered in tiles, or `image_failed` why it could not, write_results);
+// with o.lightmap.on, then the lightmap baked on this machine and its files (io/write_lightmap.h).
+void write_outputs(const OutputFlags& o, const std::string& out, const Meshed& m, const std::vector<glm::vec3>& radiosity,
+                   Attributes attrs, const GatherPasses* gathered = nullptr, const std::string& image_failed = {});
+
+// The outputs' name: --out, or the scene's file name without extension; checked before any work:
+// its folder must be writable, and no output (NAME + .exr, .png, .ply, .glb and each of `more`)
+// may be the scene file.
+std::string output_name(const std::string& out, const std::string& scene, const std::vector<std::string>& more = {});
+// The endings of a lightmap's files (io/write_lightmap.h), for `more` where one is baked.
+inline const std::vector<std::string> kLightmapEndings = {"-lightmap.exr", "-lightmap.png", "-baked.glb"};
 // The camera: --camera (`camera`, checked first), else the scene's, else one chosen (check_scene).
 Meshed load_meshed(const std::string& spec, const MeshOptions& mesh_options, const ImportOptions& import = {},
                    const std::string& camera = "");

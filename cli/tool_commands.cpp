@@ -51,11 +51,11 @@ int reference(const ReferenceArgs& r) {
     fail("--rays {} is below --batches {}", r.options.rays_per_patch, r.options.batches);
   if (r.options.light_samples < r.options.batches)
     fail("--light-samples {} is below --batches {}", r.options.light_samples, r.options.batches);
-  std::string out = output_name(r.output.out, r.scene, {".exr", ".png", ".ply", ".glb", ".ref.csv"});
-  auto [scene, mesh, camera_from] = load_meshed(
-      r.scene, mesh_options, r.output.import(), r.output.camera);
+  std::string out = output_name(r.output.out, r.scene, {".ref.csv"});
+  const Meshed m = load_meshed(r.scene, mesh_options, r.output.import(), r.output.camera);
+  const PatchMesh& mesh = m.mesh;
   cli::OutputFlags output = r.output;
-  cli::settle_image_size(output, scene);
+  cli::settle_image_size(output, m.scene);
   if (!r.quiet)
     std::fprintf(stderr, "sirad: %s: %zu patches, reference with %d rays and %d light samples per patch, %d batches\n",
                  r.scene.c_str(), mesh.size(), r.options.rays_per_patch, r.options.light_samples, r.options.batches);
@@ -73,7 +73,7 @@ int reference(const ReferenceArgs& r) {
       {"sirad.batches", static_cast<int64_t>(r.options.batches)},
       {"sirad.seed", std::to_string(r.options.seed)},
   };
-  write_outputs(output, out, mesh, radiosity, attrs, camera_from);
+  write_outputs(output, out, m, radiosity, attrs);
   const std::string csv = out + ".ref.csv";
   write_reference(csv, mesh, s, r.options);
   std::printf("wrote %s\n", std::filesystem::absolute(csv).c_str());

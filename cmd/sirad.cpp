@@ -113,6 +113,12 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0, 64));
   render_cmd->add_option("--status-json", r.status_json, "With --nodes: rewrite this file with the run's status every second");
   render_cmd->add_option("--profile", r.profile, "With --nodes: network emulation profile (YAML; nodes are named local-0, local-1, ...)");
+  cli::add_lightmap_flags(render_cmd, r.output.lightmap, true);
+  RenderArgs bake_args;
+  auto* bake_cmd = app.add_subcommand("bake", "Solve a scene and bake its light into a lightmap: NAME-lightmap.exr (half-float radiance), "
+                                              "NAME-lightmap.png, NAME-baked.glb (TEXCOORD_1, the lightmap shown unlit), and render's outputs");
+  add_run_options(bake_cmd, bake_args);
+  cli::add_lightmap_flags(bake_cmd, bake_args.output.lightmap, false);
   EmulateArgs e;
   auto* emulate_cmd = app.add_subcommand(
       "emulate", "Run a cluster of N nodes in virtual time on this machine (real bundles, emulated clocks and links); write NAME.exr, .png, .ply");
@@ -173,6 +179,11 @@ int run(int argc, char** argv) {
   if (render_cmd->parsed()) {
     r.given = given(render_cmd);
     return render(r);
+  }
+  if (bake_cmd->parsed()) {
+    bake_args.given = given(bake_cmd);
+    bake_args.output.lightmap.on = true;
+    return render(bake_args);
   }
   if (emulate_cmd->parsed()) {
     e.run.given = given(emulate_cmd);

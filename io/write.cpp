@@ -9,12 +9,14 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <limits>
 #include <set>
 #include <string_view>
 
+#include <Imath/half.h>
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDoubleAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -220,9 +222,9 @@ void write_exr(const std::string& path, const Image& image, const Attributes& at
 }
 
 void write_exr_layers(const std::string& path, const std::vector<std::pair<std::string, const Image*>>& layers,
-                      const Attributes& attributes) {
-  // Step 1: validate and build the header: float R, G, B per layer ("" unprefixed, else
-  // LAYER.R ...), lossless ZIP, top row first.
+                      const Attributes& attributes, ExrPixel pixel) {
+  // Step 1: validate and build the header: float (or half) R, G, B per layer ("" unprefixed,
+  // else LAYER.R ...), lossless ZIP, top row first.
   if (layers.empty()) fail("cannot write {}: no image", path);
   const Image& first = *layers.front().second;
   for (const auto& [name, image] : layers) {
@@ -237,14 +239,29 @@ void write_exr_layers(const std::string& path, const std::vector<std::pair<std::
   for (const auto& [name, image] : layers)
     for (const char* channel : {"R", "G", "B"}) {
       names.push_back(name.empty() ? channel : name + "." + channel);
-      header.channels().insert(names.back(), Imf::Channel(Imf::FLOAT));
+      header.channels().insert(names.back(), Imf::Channel(pixel == ExrPixel::half ? Imf::HALF : Imf::FLOAT));
     }
+  if (pixel == ExrPixel::half)
+    for (const auto& [name, image] : layers)
+      for (const glm::vec3& v : image->pixels)
+        if (std::max({v.x, v.y, v.z}) > kHalfMax)
+          fail("cannot write {}: layer '{}' has a value {} above half float's largest, {}", path, name, std::max({v.x, v.y, v.z}), kHalfMax);
   add_exr_attributes(path, attributes, header);
 
-  // Step 2: the pixels, straight from the packed RGB floats.
+  // Step 2: the pixels, straight from the packed RGB floats, or rounded to half beside them.
   Imf::FrameBuffer frame;
   std::size_t n = 0;
+  std::vector<std::vector<Imath::half>> halves;
   for (const auto& [name, image] : layers) {
+    if (pixel == ExrPixel::half) {
+      std::vector<Imath::half>& h = halves.emplace_back(image->pixels.size() * 3);
+      for (std::size_t i = 0; i < image->pixels.size(); ++i)
+        for (int c = 0; c < 3; ++c) h[3 * i + static_cast<std::size_t>(c)] = Imath::half(image->pixels[i][c]);
+      const std::size_t x_stride = 3 * sizeof(Imath::half), y_stride = x_stride * static_cast<std::size_t>(image->width);
+      for (int c = 0; c < 3; ++c)
+        frame.insert(names[n++], Imf::Slice(Imf::HALF, reinterpret_cast<char*>(h.data() + c), x_stride, y_stride));
+      continue;
+    }
     auto* base = const_cast<char*>(reinterpret_cast<const char*>(image->pixels.data()));
     const std::size_t x_stride = sizeof(glm::vec3);
     const std::size_t y_stride = x_stride * static_cast<std::size_t>(image->width);
@@ -267,17 +284,31 @@ void write_exr_layers(const std::string& path, const std::vector<std::pair<std::
   file.commit();
 }
 
-void write_png(const std::string& path, const Image& image, float exposure) {
-  // Step 1: tone map into 8-bit rows.
-  check_image(path, image);
-  if (!std::isfinite(exposure)) fail("cannot write {}: exposure {} is not finite", path, exposure);
+namespace {
+
+// The tone map's 8-bit rows of `image` (write_png), validated for `what`.
+std::vector<png_byte> tone_mapped(const std::string& what, const Image& image, float exposure) {
+  check_image(what, image);
+  if (!std::isfinite(exposure)) fail("cannot write {}: exposure {} is not finite", what, exposure);
   const double scale = std::exp2(static_cast<double>(exposure));
-  const auto width = static_cast<std::size_t>(image.width);
   std::vector<png_byte> bytes(image.pixels.size() * 3);
   for (std::size_t i = 0; i < image.pixels.size(); ++i)
     for (int c = 0; c < 3; ++c) bytes[3 * i + c] = tone_map(image.pixels[i][c], scale);
+  return bytes;
+}
+
+std::vector<png_bytep> rows_of(std::vector<png_byte>& bytes, const Image& image) {
   std::vector<png_bytep> rows(static_cast<std::size_t>(image.height));
-  for (std::size_t y = 0; y < rows.size(); ++y) rows[y] = bytes.data() + 3 * width * y;
+  for (std::size_t y = 0; y < rows.size(); ++y) rows[y] = bytes.data() + 3 * static_cast<std::size_t>(image.width) * y;
+  return rows;
+}
+
+}  // namespace
+
+void write_png(const std::string& path, const Image& image, float exposure) {
+  // Step 1: tone map into 8-bit rows.
+  std::vector<png_byte> bytes = tone_mapped(path, image, exposure);
+  std::vector<png_bytep> rows = rows_of(bytes, image);
 
   // Step 2: encode into the temporary; libpng errors become sirad::Error here, outside libpng.
   AtomicFile file(path);
@@ -288,6 +319,22 @@ void write_png(const std::string& path, const Image& image, float exposure) {
     file.fail(fmt::format("libpng: {}", context.message));
   }
   file.commit();
+}
+
+std::vector<unsigned char> png_bytes(const std::string& what, const Image& image, float exposure) {
+  std::vector<png_byte> bytes = tone_mapped(what, image, exposure);
+  std::vector<png_bytep> rows = rows_of(bytes, image);
+  char* data = nullptr;
+  std::size_t size = 0;
+  std::FILE* memory = open_memstream(&data, &size);
+  if (memory == nullptr) fail("cannot encode {}: out of memory", what);
+  PngContext context{memory, 0, {}};
+  const bool done = encode_png(&context, rows.data(), static_cast<png_uint_32>(image.width), static_cast<png_uint_32>(image.height));
+  std::fclose(memory);  // sets data and size
+  std::vector<unsigned char> out(data, data + (done ? size : 0));
+  std::free(data);
+  if (!done) fail("cannot encode {}: libpng: {}", what, context.message);
+  return out;
 }
 
 std::vector<uint32_t> split_corners(const PatchMesh& mesh, const std::vector<std::array<glm::vec3, 3>>& corners,

@@ -30,12 +30,18 @@ std::vector<uint32_t> split_corners(const PatchMesh& mesh, const std::vector<std
                                     std::vector<glm::vec3>& value);
 
 void write_exr(const std::string& path, const Image& image, const Attributes& attributes);
+// The channels' type: 32-bit float, or half (16-bit: 3 significant digits, up to kHalfMax;
+// larger values are refused), as engines load lightmaps.
+enum class ExrPixel { full, half };
+inline constexpr float kHalfMax = 65504.0f;
 // Several images of one size in one EXR, as compositors read passes: the layer named "" as R,
 // G, B, each other as NAME.R, NAME.G, NAME.B.
 void write_exr_layers(const std::string& path, const std::vector<std::pair<std::string, const Image*>>& layers,
-                      const Attributes& attributes);
+                      const Attributes& attributes, ExrPixel pixel = ExrPixel::full);
 // Tone map: pixel * 2^exposure, clamped to [0, 1], sRGB-encoded, 8 bits.
 void write_png(const std::string& path, const Image& image, float exposure = 0.0f);
+// The same PNG as bytes (to embed in a glTF); `what` names it in errors.
+std::vector<unsigned char> png_bytes(const std::string& what, const Image& image, float exposure = 0.0f);
 // The PLY of DESIGN.md section 4: one face per patch in patch order with its radiosity,
 // reflectance and emission (and sirad_in_gap, 0 or 1, where some patch lies over an emitter:
 // PatchMesh::in_gap); a vertex per welded position and corner value (corner_radiosity:

@@ -1,55 +1,23 @@
 // sirad: the solution as a binary glTF 2.0 file (io/write_gltf.h), written with tinygltf.
 #include "io/write_gltf.h"
 
-#include <tiny_gltf.h>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
 #include <map>
-#include <sstream>
 
 #include <fmt/format.h>
 #include <glm/geometric.hpp>
 
+#include "io/gltf_build.h"
 #include "scene/rays.h"
 #include "scene/scene.h"
-#include "util/atomic_file.h"
 #include "util/error.h"
 
 namespace sirad {
 
 namespace {
-
-// Appends `values` to the buffer as an accessor of `count` elements (`type`, float or uint32).
-template <typename T>
-int add_accessor(tinygltf::Model& m, const std::vector<T>& values, std::size_t count, int type, int component, int target) {
-  auto& data = m.buffers[0].data;
-  while (data.size() % 4 != 0) data.push_back(0);
-  tinygltf::BufferView view;
-  view.buffer = 0;
-  view.byteOffset = data.size();
-  view.byteLength = values.size() * sizeof(T);
-  view.target = target;
-  const auto* bytes = reinterpret_cast<const unsigned char*>(values.data());
-  data.insert(data.end(), bytes, bytes + view.byteLength);
-  m.bufferViews.push_back(view);
-  tinygltf::Accessor a;
-  a.bufferView = static_cast<int>(m.bufferViews.size() - 1);
-  a.byteOffset = 0;
-  a.componentType = component;
-  a.count = count;
-  a.type = type;
-  m.accessors.push_back(a);
-  return static_cast<int>(m.accessors.size() - 1);
-}
-
-// Three numbers as a JSON array (a float is a double exactly: read back, the same float).
-tinygltf::Value triple(const glm::vec3& v) {
-  return tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(static_cast<double>(v.x)), tinygltf::Value(static_cast<double>(v.y)),
-                                                tinygltf::Value(static_cast<double>(v.z))});
-}
 
 // Which patches have a face back to back with them at their centre (a two-sided face and its
 // twin, the two planes of a zero-thickness wall, however each is cut into triangles).
@@ -76,7 +44,7 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
   tinygltf::Model m;
   m.asset.version = "2.0";
   m.asset.generator = "sirad";
-  m.asset.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_background", triple(mesh.background)}});
+  m.asset.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_background", gltf::triple(mesh.background)}});
   m.extensionsUsed.push_back("KHR_materials_unlit");
   m.buffers.resize(1);
   for (const Material& mat : mesh.materials) {
@@ -86,8 +54,8 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
     g.pbrMetallicRoughness.metallicFactor = 0.0;
     g.pbrMetallicRoughness.roughnessFactor = 1.0;
     g.extensions["KHR_materials_unlit"] = tinygltf::Value(tinygltf::Value::Object());
-    g.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_reflectance", triple(mat.reflectance)},
-                                                       {"sirad_emission", triple(mat.emission)}});
+    g.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_reflectance", gltf::triple(mat.reflectance)},
+                                                       {"sirad_emission", gltf::triple(mat.emission)}});
     m.materials.push_back(g);
   }
   // Patches by object, then by material: one mesh per object, one primitive per material.
@@ -131,15 +99,15 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
       tinygltf::Primitive prim;
       prim.mode = TINYGLTF_MODE_TRIANGLES;
       prim.material = static_cast<int>(material);
-      prim.attributes["POSITION"] = add_accessor(m, position, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
+      prim.attributes["POSITION"] = gltf::add_accessor(m, position, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                                  TINYGLTF_TARGET_ARRAY_BUFFER);
       m.accessors.back().minValues = lo;
       m.accessors.back().maxValues = hi;
-      prim.attributes["COLOR_0"] = add_accessor(m, colour, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
+      prim.attributes["COLOR_0"] = gltf::add_accessor(m, colour, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                                 TINYGLTF_TARGET_ARRAY_BUFFER);
-      prim.attributes["_RADIANCE"] = add_accessor(m, radiance, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
+      prim.attributes["_RADIANCE"] = gltf::add_accessor(m, radiance, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
                                                   TINYGLTF_TARGET_ARRAY_BUFFER);
-      prim.indices = add_accessor(m, indices, indices.size(), TINYGLTF_TYPE_SCALAR, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+      prim.indices = gltf::add_accessor(m, indices, indices.size(), TINYGLTF_TYPE_SCALAR, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
                                   TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
       gm.primitives.push_back(prim);
     }
@@ -150,36 +118,8 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
     m.nodes.push_back(node);
     scene.nodes.push_back(static_cast<int>(m.nodes.size() - 1));
   }
-  if (mesh.camera) {  // the view of the EXR: eye, looking along -Z of the node, +Y up
-    const glm::dvec3 eye(mesh.camera->eye), f = glm::normalize(glm::dvec3(mesh.camera->look_at) - eye);
-    const glm::dvec3 r = glm::normalize(glm::cross(f, glm::dvec3(mesh.camera->up))), u = glm::cross(r, f);
-    tinygltf::Camera cam;
-    cam.type = "perspective";
-    cam.name = "sirad view";
-    cam.perspective.yfov = mesh.camera->vfov_deg * 3.14159265358979323846 / 180.0;
-    const double reach = static_cast<double>(mesh.bound_radius) + glm::length(glm::dvec3(mesh.bound_center) - eye);
-    cam.perspective.znear = 1e-3 * std::max(static_cast<double>(mesh.bound_radius), 1e-6);
-    cam.perspective.zfar = std::max(10.0 * reach, 2.0 * cam.perspective.znear);  // beyond the whole scene
-    cam.perspective.aspectRatio = aspect > 0.0 && std::isfinite(aspect) ? aspect : 1.0;
-    m.cameras.push_back(cam);
-    tinygltf::Node node;
-    node.name = "sirad view";
-    node.camera = 0;
-    node.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_camera", tinygltf::Value(camera_spec(*mesh.camera))}});
-    node.matrix = {r.x, r.y, r.z, 0, u.x, u.y, u.z, 0, -f.x, -f.y, -f.z, 0, eye.x, eye.y, eye.z, 1};
-    m.nodes.push_back(node);
-    scene.nodes.push_back(static_cast<int>(m.nodes.size() - 1));
-  }
-  m.buffers[0].data.resize((m.buffers[0].data.size() + 3) / 4 * 4, 0);
-  m.scenes.push_back(scene);
-  m.defaultScene = 0;
-  std::ostringstream out;
-  tinygltf::TinyGLTF writer;
-  if (!writer.WriteGltfSceneToStream(&m, out, false, true)) fail("cannot write {}: the glTF writer failed", path);
-  const std::string bytes = out.str();
-  AtomicFile file(path);
-  file.write(bytes.data(), bytes.size());
-  file.commit();
+  if (mesh.camera) gltf::add_camera(m, scene, *mesh.camera, mesh.bound_center, mesh.bound_radius, aspect);
+  gltf::save_glb(m, std::move(scene), path);
 }
 
 }  // namespace sirad

@@ -48,16 +48,16 @@ void dilate(Lightmap& m, int x0, int y0, int x1, int y1) {
     for (int y = y0; y < y1; ++y)
       for (int x = x0; x < x1; ++x) {
         if (has[static_cast<std::size_t>((y - y0) * (x1 - x0) + (x - x0))]) continue;
-        glm::vec3 d(0.0f), i(0.0f);
+        glm::vec3 d(0.0f), i(0.0f), e(0.0f);
         int n = 0;
         for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
             const int a = x + dx, b = y + dy;
             if (a < x0 || a >= x1 || b < y0 || b >= y1 || !has[static_cast<std::size_t>((b - y0) * (x1 - x0) + (a - x0))]) continue;
-            d += m.direct.at(a, b), i += m.indirect.at(a, b), ++n;
+            d += m.direct.at(a, b), i += m.indirect.at(a, b), e += m.error.at(a, b), ++n;
           }
         if (n == 0) continue;
-        m.direct.at(x, y) = d / float(n), m.indirect.at(x, y) = i / float(n);
+        m.direct.at(x, y) = d / float(n), m.indirect.at(x, y) = i / float(n), m.error.at(x, y) = e / float(n);
         m.combined.at(x, y) = m.direct.at(x, y) + m.indirect.at(x, y);
         filled.push_back({x, y});
       }
@@ -74,13 +74,14 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
     fail("lightmap: an atlas of {} triangles for a scene of {}", atlas.uv.size(), scene.triangles.size());
   const int W = atlas.width, H = atlas.height;
   Lightmap m;
-  for (Image* image : {&m.direct, &m.indirect, &m.combined}) {
+  for (Image* image : {&m.direct, &m.indirect, &m.combined, &m.error}) {
     image->width = W, image->height = H;
     image->pixels.assign(static_cast<std::size_t>(W) * H, glm::vec3(0.0f));
   }
   m.coverage.assign(static_cast<std::size_t>(W) * H, 0.0f);
   std::vector<uint64_t> cast(atlas.charts.size(), 0);
   const uint64_t seed = gather.options().seed;
+  const uint64_t texels = static_cast<uint64_t>(W) * static_cast<uint64_t>(H);
   parallel_for(atlas.charts.size(), 1, static_cast<unsigned>(gather.options().thread_count()), [&](std::size_t c, std::size_t, unsigned) {
     // Step 1: the chart's triangles flat, in texel coordinates.
     const Chart& chart = atlas.charts[c];
@@ -102,6 +103,7 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
     // Step 2: each texel's samples on the chart's faces, the light leaving them.
     std::vector<std::array<double, 2>> positions;
     std::vector<FinalGather::SurfacePoint> points;
+    std::array<std::vector<FinalGather::SurfacePoint>, 2> halves;
     for (int y = chart.y; y < chart.y + chart.height; ++y)
       for (int x = chart.x; x < chart.x + chart.width; ++x) {
         const uint64_t key = static_cast<uint64_t>(y) * static_cast<uint64_t>(W) + static_cast<uint64_t>(x);
@@ -118,10 +120,23 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
           points.push_back({p, f->normal, f->rho, f->emission});
         }
         if (points.empty()) continue;
-        glm::dvec3 d, i;
-        gather.leaving(points, key, d, i, cast[c]);
+        // Two interleaved halves, each from its own streams (the second's key past every texel's).
+        halves[0].clear(), halves[1].clear();
+        for (std::size_t s = 0; s < points.size(); ++s) halves[s % 2].push_back(points[s]);
+        glm::dvec3 d(0.0), i(0.0), a(0.0), b(0.0);
+        for (std::size_t h = 0; h < 2; ++h) {
+          if (halves[h].empty()) continue;
+          glm::dvec3 hd, hi;
+          gather.leaving(halves[h], key + h * texels, hd, hi, cast[c]);
+          const double w = static_cast<double>(halves[h].size()) / static_cast<double>(points.size());
+          d += w * hd, i += w * hi;
+          (h == 0 ? a : b) = hd + hi;
+        }
         const std::size_t k = static_cast<std::size_t>(key);
         m.direct.pixels[k] = glm::vec3(d), m.indirect.pixels[k] = glm::vec3(i), m.combined.pixels[k] = glm::vec3(d + i);
+        if (!halves[1].empty())
+          m.error.pixels[k] = glm::vec3(glm::abs(a - b) * std::sqrt(double(halves[0].size()) * double(halves[1].size())) /
+                                        static_cast<double>(points.size()));
         m.coverage[k] = static_cast<float>(points.size()) / static_cast<float>(samples);
       }
     // Step 3: the empty texels from their chart's.

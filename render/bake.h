@@ -9,6 +9,11 @@
 //     light of its own surface only.
 //   - Each kept sample is one estimate of FinalGather::leaving (emission, an emitter sample with
 //     its shadow ray, a gather ray); the texel is their mean, in radiance, in the passes' split.
+//   - Its error: the samples are taken as two interleaved halves, each its own estimate a and b
+//     (n_a and n_b samples, independent streams); the texel is their weighted mean, and
+//     |a - b| sqrt(n_a n_b) / n is an estimate of its standard error (E (a - b)^2 = s^2 n /
+//     (n_a n_b) for samples of variance s^2, and the mean's variance is s^2 / n): unbiased in
+//     its square, noisy per texel (one degree of freedom), right over many.
 //   - Texels none of whose samples was kept take the mean of their kept neighbours in the same
 //     chart, ring by ring, out to the chart's gutter (dilation): filtering at a chart's edge then
 //     never reaches the background or another chart.
@@ -27,6 +32,7 @@ namespace sirad {
 
 struct Lightmap {
   Image direct, indirect, combined;  // the atlas's size, rows top first, radiance
+  Image error;  // per texel and channel, the estimate of combined's standard error (above)
   // Per texel, the share of its samples that were kept (0: filled by dilation, or empty).
   std::vector<float> coverage;
   uint64_t rays = 0;

@@ -655,3 +655,34 @@ TEST_F(Cli, ImageOfAStoredSolutionIsTheRendersFinalGather) {
   expect_error(sirad("image nothing.ply --exposure nan"), "--exposure");
   expect_error(sirad("render cornell --final-gather 4 --flat"), "--flat");
 }
+
+// `sirad bake`: the run's outputs and the lightmap's three files, named on stdout with a line of
+// figures (the atlas, the samples, the texels' error); the EXR is half-float radiance with the
+// error layer; a budget or sample count out of range is one line naming the flag, before any
+// work; `render --lightmap` bakes the same way.
+TEST_F(Cli, BakeWritesTheLightmapFilesBesideTheRunsOutputs) {
+  Outcome r = sirad("bake cornell --patches 300 --bundles 16 --width 32 --height 32 --texels 4096 --texel-samples 4 --out c");
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const char* end : {".exr", ".png", ".ply", ".glb", "-lightmap.exr", "-lightmap.png", "-baked.glb"}) {
+    EXPECT_TRUE(fs::exists(dir_ / (std::string("c") + end))) << end;
+    EXPECT_NE(r.out.find((dir_ / (std::string("c") + end)).string()), std::string::npos) << end << "\n" << r.out;
+  }
+  EXPECT_NE(r.out.find("4 samples a texel"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("relative error per texel"), std::string::npos) << r.out;
+  Imf::InputFile exr((dir_ / "c-lightmap.exr").string().c_str());
+  ASSERT_NE(exr.header().channels().findChannel("error.R"), nullptr);
+  EXPECT_EQ(exr.header().channels().findChannel("R")->type, Imf::HALF);
+  auto* units = exr.header().findTypedAttribute<Imf::StringAttribute>("sirad.lightmap");
+  ASSERT_NE(units, nullptr);
+  EXPECT_EQ(units->value(), "radiance");
+
+  for (const char* bad : {"--texels 10", "--texel-samples 1", "--texel-size -1"}) {
+    Outcome b = sirad(std::string("bake cornell --bundles 4 --out d ") + bad);
+    EXPECT_NE(b.status, 0) << bad;
+    EXPECT_NE(b.err.find(std::string(bad).substr(0, std::string(bad).find(' '))), std::string::npos) << b.err;
+    EXPECT_FALSE(fs::exists(dir_ / "d.exr")) << bad;
+  }
+  Outcome l = sirad("render cornell --patches 300 --bundles 8 --width 32 --height 32 --lightmap --texels 4096 --texel-samples 2 --out e");
+  ASSERT_EQ(l.status, 0) << l.err;
+  EXPECT_TRUE(fs::exists(dir_ / "e-baked.glb"));
+}

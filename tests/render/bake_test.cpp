@@ -48,6 +48,7 @@ TEST(Bake, AFloorsTexelsUnderASquareLightMatchTheClosedForm) {
   ASSERT_EQ(c.height, 8 + 4);
   const double M = 0.5 * 1.0 * 1.0 / std::numbers::pi;
   int checked = 0;
+  double squared_error = 0, squared_estimate = 0;
   for (int y = c.y + 2; y < c.y + c.height - 2; ++y)
     for (int x = c.x + 2; x < c.x + c.width - 2; ++x) {
       double mu = 0;  // the closed form's mean over the texel's square, 8 x 8 points
@@ -61,9 +62,19 @@ TEST(Bake, AFloorsTexelsUnderASquareLightMatchTheClosedForm) {
       EXPECT_EQ(m.coverage[static_cast<std::size_t>(y) * atlas.width + x], 1.0f);
       EXPECT_NEAR(got, mu, 5 * std::sqrt(2 * M * mu / samples)) << x << ", " << y;
       EXPECT_EQ(m.indirect.at(x, y).x, 0.0f);  // gather rays meet the light's front (B - E = 0) or leave
+      squared_error += (got - mu) * (got - mu);
+      squared_estimate += double(m.error.at(x, y).x) * m.error.at(x, y).x;
       ++checked;
     }
   EXPECT_EQ(checked, 64);
+  // The texels' error estimates against their true errors: each sum is about its texels' mean
+  // variance times a chi-square of 64 degrees over 64 (the estimate's terms one degree each, the
+  // errors' too: a mean of 256 bounded terms is near normal), so each is within about 18 % of
+  // it (sqrt(2 / 64)) and their ratio's logarithm has a standard deviation of about 0.25: a
+  // factor of 4 either way is 5.5 of them.
+  EXPECT_GT(squared_estimate, 0.0);
+  EXPECT_GT(squared_error / squared_estimate, 0.25);
+  EXPECT_LT(squared_error / squared_estimate, 4.0);
   // The gutter's texels: no sample of theirs lands on the floor; each takes its chart's nearest.
   EXPECT_EQ(m.coverage[static_cast<std::size_t>(c.y) * atlas.width + c.x], 0.0f);
   EXPECT_EQ(m.combined.at(c.x, c.y), m.combined.at(c.x + 2, c.y + 2));
