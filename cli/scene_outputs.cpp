@@ -27,14 +27,15 @@ namespace {
 void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const std::vector<glm::vec3>& radiosity,
           const Attributes& attrs) {
   const auto start = std::chrono::steady_clock::now();
-  const Atlas atlas = make_atlas(m.scene, {.texel_size = o.lightmap.texel_size, .texel_budget = o.lightmap.texels});
+  const Scene faces = cut_at_contacts(m.scene);  // no chart across a wall's foot
+  const Atlas atlas = make_atlas(faces, {.texel_size = o.lightmap.texel_size, .texel_budget = o.lightmap.texels});
   const FinalGather gather(m.mesh, radiosity, GatherOptions{});
-  const Lightmap lightmap = bake_lightmap(m.scene, atlas, gather, o.lightmap.samples);
+  const Lightmap lightmap = bake_lightmap(faces, atlas, gather, o.lightmap.samples);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   Attributes a = attrs;
   a.emplace_back("sirad.texel_samples", static_cast<int64_t>(o.lightmap.samples));
   a.emplace_back("sirad.bake_seconds", seconds);
-  const LightmapFiles files = write_lightmap(out, m.scene, atlas, lightmap, o.exposure, m.mesh.camera ? &*m.mesh.camera : nullptr,
+  const LightmapFiles files = write_lightmap(out, faces, atlas, lightmap, o.exposure, m.mesh.camera ? &*m.mesh.camera : nullptr,
                                              static_cast<double>(o.width) / static_cast<double>(std::max(o.height, 1)), a);
   // The texels' relative error: their estimated standard errors over their values, as a root
   // mean square over the texels with light (luminance above 1e-6 of the brightest's).

@@ -9,7 +9,9 @@
 
 #include <glm/geometric.hpp>
 
+#include "scene/contacts.h"
 #include "util/error.h"
+#include "util/polygon.h"
 
 namespace sirad {
 
@@ -38,9 +40,27 @@ struct UnionFind {
 
 glm::dvec3 corner(const Triangle& t, int k) { return glm::dvec3(t.p[static_cast<std::size_t>(k)]); }
 
+// Whether the segment [a, b] lies along one of `segments`: both ends within `tolerance` of its
+// line and its middle within the segment's length.
+bool along(const std::vector<ContactSegment>& segments, const glm::dvec3& a, const glm::dvec3& b, double tolerance) {
+  for (const ContactSegment& s : segments) {
+    const glm::dvec3 d = s.q - s.p;
+    const double length = glm::length(d);
+    if (!(length > 0)) continue;
+    const glm::dvec3 u = d / length;
+    const auto off = [&](const glm::dvec3& x) { return glm::length((x - s.p) - u * glm::dot(x - s.p, u)); };
+    const double mid = glm::dot(0.5 * (a + b) - s.p, u);
+    if (off(a) <= tolerance && off(b) <= tolerance && mid >= -tolerance && mid <= length + tolerance) return true;
+  }
+  return false;
+}
+
 // The triangles' charts: those of one object joined across a shared edge (corners at the same
-// float positions) where they lie in one plane. Each chart's triangles in scene order.
+// float positions) where they lie in one plane and the edge is not along a contact segment of
+// either (a wall's foot). Each chart's triangles in scene order.
 std::vector<std::vector<uint32_t>> find_charts(const Scene& scene, const std::vector<glm::dvec3>& normal, double extent) {
+  const double tolerance = 10 * contact_tolerance(scene);
+  const std::vector<std::vector<ContactSegment>> contacts = contact_segments(scene, contact_tolerance(scene));
   const std::size_t n = scene.triangles.size();
   std::map<std::array<float, 3>, uint32_t> vertex_id;
   std::map<std::pair<uint32_t, uint32_t>, std::vector<uint32_t>> edges;
@@ -64,11 +84,15 @@ std::vector<std::vector<uint32_t>> find_charts(const Scene& scene, const std::ve
     }
     return true;
   };
+  std::vector<glm::dvec3> position(vertex_id.size());
+  for (const auto& [p, id] : vertex_id) position[id] = glm::dvec3(p[0], p[1], p[2]);
   UnionFind sets(n);
   for (const auto& [edge, faces] : edges)
     for (std::size_t i = 0; i < faces.size(); ++i)
       for (std::size_t j = i + 1; j < faces.size(); ++j)
-        if (coplanar(faces[i], faces[j])) sets.join(faces[i], faces[j]);
+        if (coplanar(faces[i], faces[j]) && !along(contacts[faces[i]], position[edge.first], position[edge.second], tolerance) &&
+            !along(contacts[faces[j]], position[edge.first], position[edge.second], tolerance))
+          sets.join(faces[i], faces[j]);
   std::vector<std::vector<uint32_t>> charts;
   std::vector<uint32_t> index(n, UINT32_MAX);
   for (uint32_t i = 0; i < n; ++i) {
@@ -199,6 +223,64 @@ double Atlas::fill() const {
   double used = 0;
   for (const Chart& c : charts) used += double(c.width - 2 * gutter) * (c.height - 2 * gutter);
   return width > 0 && height > 0 ? used / (double(width) * height) : 0.0;
+}
+
+Scene cut_at_contacts(const Scene& scene) {
+  const std::vector<std::vector<ContactSegment>> contacts = contact_segments(scene, contact_tolerance(scene));
+  Scene out = scene;
+  out.triangles.clear();
+  std::vector<std::vector<glm::dvec3>> pieces, next;
+  std::vector<glm::dvec3> in, below;
+  for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+    const Triangle& t = scene.triangles[i];
+    const std::array<glm::dvec3, 3> p = {corner(t, 0), corner(t, 1), corner(t, 2)};
+    const glm::dvec3 c = glm::cross(p[1] - p[0], p[2] - p[0]);
+    if (contacts[i].empty() || !(glm::length(c) > 0)) {
+      out.triangles.push_back(t);
+      continue;
+    }
+    const glm::dvec3 normal = glm::normalize(c);
+    const double size = std::sqrt(glm::length(c));  // about an edge
+    pieces.assign(1, {p[0], p[1], p[2]});
+    for (const ContactSegment& seg : contacts[i]) {
+      glm::dvec3 a = seg.p, b = seg.q;
+      if (pieces.size() >= kMaxPiecesPerFace || !clip_to_triangle(p, normal, a, b) || !(glm::length(b - a) > 1e-6 * size)) continue;
+      const glm::dvec3 m = glm::normalize(glm::cross(normal, b - a));
+      next.clear();
+      for (const auto& piece : pieces) {
+        // A piece the segment's line crosses within it (not one it grazes: a cut along its edge).
+        double over = 0.0, under = 0.0;
+        for (const glm::dvec3& x : piece) over = std::max(over, glm::dot(x - a, m)), under = std::max(under, -glm::dot(x - a, m));
+        glm::dvec3 pa = a, pb = b;
+        std::array<glm::dvec3, 3> hull3{};
+        bool crosses = std::min(over, under) > 1e-9 * size;
+        if (crosses) {  // and the segment itself reaches into it (a wall's foot ends where the wall does)
+          crosses = false;
+          for (std::size_t k = 1; k + 1 < piece.size() && !crosses; ++k) {
+            hull3 = {piece[0], piece[k], piece[k + 1]};
+            glm::dvec3 qa = pa, qb = pb;
+            crosses = clip_to_triangle(hull3, normal, qa, qb) && glm::length(qb - qa) > 1e-6 * size;
+          }
+        }
+        if (!crosses) {
+          next.push_back(piece);
+          continue;
+        }
+        split_convex(piece, a, m, in, below);
+        if (in.size() >= 3 && below.size() >= 3) next.push_back(in), next.push_back(below);
+        else next.push_back(piece);
+      }
+      std::swap(pieces, next);
+    }
+    for (const auto& piece : pieces)
+      for (std::size_t k = 1; k + 1 < piece.size(); ++k) {
+        Triangle f = t;
+        f.p = {glm::vec3(piece[0]), glm::vec3(piece[k]), glm::vec3(piece[k + 1])};
+        const glm::dvec3 fc = glm::cross(glm::dvec3(f.p[1] - f.p[0]), glm::dvec3(f.p[2] - f.p[0]));
+        if (glm::dot(fc, normal) > 0) out.triangles.push_back(f);  // slivers with no area in float dropped
+      }
+  }
+  return out;
 }
 
 Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {

@@ -56,7 +56,19 @@ struct Atlas {
   double fill() const;
 };
 
+// `scene` with each face cut along the segments where another face stands on it or crosses it
+// (scene/contacts.h contact_segments: the foot of a wall on a floor slab that runs on under it,
+// an inner wall against an outer one), each convex piece fanned into triangles that keep the
+// face's material, object, line and flags. With make_atlas, which joins no faces across such a
+// segment, no chart spans the foot of a wall: the floors of two rooms either side of a
+// zero-thickness wall get texels of their own, and no texel (nor its filtering) mixes them.
+// Pieces under a solid are kept (their texels are never seen; the bake leaves such samples
+// out). At most kMaxPiecesPerFace pieces a face (cuts past that are not made).
+inline constexpr std::size_t kMaxPiecesPerFace = 64;
+Scene cut_at_contacts(const Scene& scene);
+
 // The atlas of `scene` (every triangle, unlit ones included: they are surfaces a viewer sees).
+// Faces are not joined across an edge that lies along a contact segment (cut_at_contacts).
 // Throws sirad::Error for options out of range, or a texel size that needs an atlas wider or
 // taller than max_side (naming the size it would take).
 Atlas make_atlas(const Scene& scene, const AtlasOptions& options);

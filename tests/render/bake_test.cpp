@@ -122,9 +122,8 @@ TEST(Bake, NoLightThroughAThinWallAndNoSamplesInsideASolid) {
   const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.05, .gutter = 1});
   const FinalGather one(mesh, radiosity, {.seed = 2, .threads = 1}), four(mesh, radiosity, {.seed = 2, .threads = 4});
   const Lightmap m = bake_lightmap(q.scene, atlas, one, 16);
-  // Every texel wholly on a surface (all its samples kept) and wholly in one room: the floors
-  // and ceilings of the two rooms are one chart each (one plane, one object, a shared edge), so
-  // a texel across x = 1 takes samples of both rooms and is left out here (see DESIGN.md).
+  // Every texel wholly on a surface (all its samples kept) and wholly in one room (the two
+  // rooms' floors share an edge in one plane, but the wall stands on it: two charts).
   int lit = 0, dark = 0;
   for (const Chart& c : atlas.charts)
     for (int y = c.y; y < c.y + c.height; ++y)
@@ -151,8 +150,8 @@ TEST(Bake, NoLightThroughAThinWallAndNoSamplesInsideASolid) {
       }
   EXPECT_GT(lit, 2000);
   EXPECT_GT(dark, 2000);
-  // The right room's floor (faces 12, 13, one chart with the left's): texels wholly under the
-  // block have no sample, those wholly clear of it all of theirs.
+  // The right room's floor (faces 12, 13): texels wholly under the block have no sample, those
+  // wholly clear of it all of theirs.
   const Chart& f = atlas.charts[atlas.chart_of[12]];
   int under = 0, clear = 0;
   for (int y = f.y + 1; y < f.y + f.height - 1; ++y)
@@ -178,6 +177,84 @@ TEST(Bake, NoLightThroughAThinWallAndNoSamplesInsideASolid) {
   EXPECT_EQ(again.combined.pixels, m.combined.pixels);
   EXPECT_EQ(again.coverage, m.coverage);
   EXPECT_THROW(bake_lightmap(q.scene, atlas, one, 0), Error);
+}
+
+// One floor and one ceiling slab run under and over a zero-thickness wall (two one-sided
+// planes back to back at x = 1) between a lit room (its ceiling the lamp, its surfaces B = 1)
+// and a dark one (B = 0). Baked on the faces as they come, the floor is one chart and its texels
+// across the wall's foot take samples of both rooms: light in the dark room. Cut along the
+// contacts (cut_at_contacts), no chart reaches across x = 1, and every texel of the dark
+// room's charts, gutters and dilated texels included, is exactly 0.
+TEST(Bake, FacesCutAtAWallsFootKeepTwoRoomsTexelsApart) {
+  QuadScene q;
+  const uint32_t white = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t lamp = q.material(glm::vec3(0.5f), glm::vec3(2.0f));
+  q.quad({0, 0, 0}, {2, 0, 0}, {2, 1, 0}, {0, 1, 0}, white);  // the floor slab, +z
+  q.quad({0, 0, 1}, {0, 1, 1}, {1, 1, 1}, {1, 0, 1}, lamp);   // the lit room's ceiling, -z
+  q.quad({1, 0, 1}, {1, 1, 1}, {2, 1, 1}, {2, 0, 1}, white);  // the dark room's, -z
+  q.quad({0, 0, 0}, {0, 0, 1}, {2, 0, 1}, {2, 0, 0}, white);  // y = 0, +y
+  q.quad({0, 1, 0}, {2, 1, 0}, {2, 1, 1}, {0, 1, 1}, white);  // y = 1, -y
+  q.quad({0, 0, 0}, {0, 1, 0}, {0, 1, 1}, {0, 0, 1}, white);  // x = 0, +x
+  q.quad({2, 0, 0}, {2, 0, 1}, {2, 1, 1}, {2, 1, 0}, white);  // x = 2, -x
+  q.quad({1, 0, 0}, {1, 0, 1}, {1, 1, 1}, {1, 1, 0}, white);  // the wall's left side, -x
+  q.quad({1, 0, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}, white);  // its right side, +x
+  const PatchMesh mesh = mesh_scene(q.scene, {.target_patches = 2000});
+  std::vector<glm::vec3> radiosity(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const auto& p = mesh.patches[j];
+    const glm::vec3 centre = (mesh.vertices[p[0]] + mesh.vertices[p[1]] + mesh.vertices[p[2]]) / 3.0f;
+    const bool left = centre.x < 1.0f || (centre.x == 1.0f && mesh.normal[j].x < 0);
+    radiosity[j] = left ? glm::vec3(1.0f) + mesh.emission(j) : glm::vec3(0.0f);
+  }
+  const FinalGather gather(mesh, radiosity, {.seed = 3});
+  // The chart's side: where its faces' centres lie (the wall's sides by their normals).
+  const auto side = [](const Scene& scene, const Chart& c) {
+    int left = 0, right = 0;
+    for (uint32_t t : c.triangles) {
+      const Triangle& tri = scene.triangles[t];
+      const glm::vec3 centre = (tri.p[0] + tri.p[1] + tri.p[2]) / 3.0f;
+      const float nx = glm::cross(tri.p[1] - tri.p[0], tri.p[2] - tri.p[0]).x;
+      const bool l = std::abs(centre.x - 1.0f) < 1e-6f ? nx < 0 : centre.x < 1.0f;
+      (l ? left : right)++;
+    }
+    return left > 0 && right > 0 ? 0 : left > 0 ? -1 : 1;
+  };
+  {  // As the faces come: the floor's chart spans both rooms, and the dark side of it takes light.
+    const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.05, .gutter = 1});
+    const Chart& floor = atlas.charts[atlas.chart_of[0]];
+    EXPECT_EQ(side(q.scene, floor), 0);
+    const Lightmap m = bake_lightmap(q.scene, atlas, gather, 16);
+    float leaked = 0;
+    for (int y = floor.y; y < floor.y + floor.height; ++y)
+      for (int x = floor.x; x < floor.x + floor.width; ++x) {
+        const glm::dvec3 p = floor.origin + floor.u * ((x - floor.x - 0.5) * atlas.texel_size) +
+                             floor.v * ((y - floor.y - 0.5) * atlas.texel_size);  // the texel's centre
+        if (p.x > 1.0 && p.x < 1.0 + atlas.texel_size) leaked = std::max(leaked, m.combined.at(x, y).x);
+      }
+    EXPECT_GT(leaked, 0.0f) << "the uncut floor's texels beside the wall took no light: this test shows nothing";
+  }
+  const Scene cut = cut_at_contacts(q.scene);
+  EXPECT_GT(cut.triangles.size(), q.scene.triangles.size());
+  const Atlas atlas = make_atlas(cut, {.texel_size = 0.05, .gutter = 1});
+  const Lightmap m = bake_lightmap(cut, atlas, gather, 16);
+  int lit = 0, dark = 0;
+  for (const Chart& c : atlas.charts) {
+    const int s = side(cut, c);
+    ASSERT_NE(s, 0) << "a chart spans the wall";
+    for (int y = c.y; y < c.y + c.height; ++y)
+      for (int x = c.x; x < c.x + c.width; ++x) {
+        const glm::vec3 v = m.combined.at(x, y);
+        if (s > 0) {
+          EXPECT_EQ(v, glm::vec3(0.0f)) << "light in the dark room at texel " << x << ", " << y;
+          ++dark;
+        } else if (m.coverage[static_cast<std::size_t>(y) * atlas.width + x] == 1.0f) {
+          EXPECT_GT(v.x, 0.0f) << "a texel of the lit room at " << x << ", " << y;
+          ++lit;
+        }
+      }
+  }
+  EXPECT_GT(lit, 1000);
+  EXPECT_GT(dark, 1000);
 }
 
 }  // namespace

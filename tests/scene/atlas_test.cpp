@@ -112,6 +112,48 @@ TEST(Atlas, ChartsFollowObjectsAndPlanes) {
   expect_sound(s, a);
 }
 
+// A floor (4 x 2, one quad, facing +z) with a box wall 0.2 thick standing across it at x = 1.9 to
+// 2.1 (its sides and top, facing out): cut at the contacts, the floor's pieces cover its area
+// exactly, keep its material, object and line, and none lies on both sides of a wall face's
+// foot; the atlas makes the floor left of the wall, under it and right of it charts of their own.
+TEST(Atlas, FacesAreCutAtTheFeetOfWhatStandsOnThem) {
+  Scene s;
+  s.name = "floor";
+  s.materials = {Material{"white", glm::vec3(0.5f), glm::vec3(0.0f)}};
+  quad(s, {0, 0, 0}, {4, 0, 0}, {4, 2, 0}, {0, 2, 0}, 0);
+  s.triangles[0].source_line = s.triangles[1].source_line = 7;
+  quad(s, {1.9f, 0, 0}, {1.9f, 0, 1}, {1.9f, 2, 1}, {1.9f, 2, 0}, 1);  // -x
+  quad(s, {2.1f, 0, 0}, {2.1f, 2, 0}, {2.1f, 2, 1}, {2.1f, 0, 1}, 1);  // +x
+  quad(s, {1.9f, 0, 1}, {2.1f, 0, 1}, {2.1f, 2, 1}, {1.9f, 2, 1}, 1);  // top
+  const Scene cut = cut_at_contacts(s);
+  double floor_area = 0;
+  int left = 0, under = 0, right = 0;
+  for (const Triangle& t : cut.triangles) {
+    if (t.object != 0) continue;
+    EXPECT_EQ(t.source_line, 7u);
+    EXPECT_EQ(t.material, 0u);
+    floor_area += area3(t);
+    double lo = INFINITY, hi = -INFINITY;
+    for (const glm::vec3& p : t.p) lo = std::min(lo, double(p.x)), hi = std::max(hi, double(p.x));
+    const bool l = hi <= 1.9 + 1e-6, u = lo >= 1.9 - 1e-6 && hi <= 2.1 + 1e-6, r = lo >= 2.1 - 1e-6;
+    EXPECT_TRUE(l || u || r) << "a piece from x = " << lo << " to " << hi;
+    left += l, under += u && !l && !r, right += r;
+  }
+  EXPECT_NEAR(floor_area, 8.0, 1e-5);
+  EXPECT_GT(left, 0);
+  EXPECT_GT(under, 0);
+  EXPECT_GT(right, 0);
+  const Atlas a = make_atlas(cut, {.texel_size = 0.05});
+  for (std::size_t i = 0; i < cut.triangles.size(); ++i)
+    for (std::size_t j = 0; j < cut.triangles.size(); ++j) {
+      if (cut.triangles[i].object != 0 || cut.triangles[j].object != 0 || a.chart_of[i] != a.chart_of[j]) continue;
+      const auto mid = [&](std::size_t k) { return (cut.triangles[k].p[0].x + cut.triangles[k].p[1].x + cut.triangles[k].p[2].x) / 3; };
+      EXPECT_EQ(mid(i) < 1.9f, mid(j) < 1.9f) << i << " " << j;
+      EXPECT_EQ(mid(i) > 2.1f, mid(j) > 2.1f) << i << " " << j;
+    }
+  expect_sound(cut, a);
+}
+
 // A wall turned 30 degrees about the vertical takes the texels of one on the axes: its chart is
 // turned to the wall's own rectangle (4 x 2.5 m at 0.05: 80 x 50 texels and the gutters), not
 // to its bounding box in the scene's axes.
