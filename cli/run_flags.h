@@ -36,7 +36,7 @@ struct LightmapFlags {
   bool on = false;
   double texel_size = 0;                 // --texel-size (0: from the budget)
   uint64_t texels = uint64_t{1} << 20;   // --texels: the budget
-  int samples = 16;                      // --texel-samples
+  int samples = 64;                      // --texel-samples
 };
 
 struct OutputFlags {

@@ -37,23 +37,30 @@ void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const s
   a.emplace_back("sirad.bake_seconds", seconds);
   const LightmapFiles files = write_lightmap(out, faces, atlas, lightmap, o.exposure, m.mesh.camera ? &*m.mesh.camera : nullptr,
                                              static_cast<double>(o.width) / static_cast<double>(std::max(o.height, 1)), a);
-  // The texels' relative error: their estimated standard errors over their values, as a root
-  // mean square over the texels with light (luminance above 1e-6 of the brightest's).
+  // The texels' relative error: their estimated standard errors over their values, over the
+  // texels with light (luminance above 1e-6 of the brightest's): the median, and the RMS of
+  // the errors over the RMS of the values (the bright texels weigh as they show).
   auto lum = [](const glm::vec3& v) { return 0.2126 * v.x + 0.7152 * v.y + 0.0722 * v.z; };
-  double brightest = 0, sum = 0;
-  std::size_t lit = 0;
+  double brightest = 0, errors = 0, values = 0;
+  std::vector<double> relative;
   for (const glm::vec3& v : lightmap.combined.pixels) brightest = std::max(brightest, lum(v));
   for (std::size_t k = 0; k < lightmap.combined.pixels.size(); ++k)
     if (const double y = lum(lightmap.combined.pixels[k]); lightmap.coverage[k] > 0 && y > 1e-6 * brightest) {
-      const double e = lum(lightmap.error.pixels[k]) / y;
-      sum += e * e, ++lit;
+      const double e = lum(lightmap.error.pixels[k]);
+      errors += e * e, values += y * y;
+      relative.push_back(e / y);
     }
+  const std::size_t lit = relative.size();
+  const auto covered = static_cast<double>(std::count_if(lightmap.coverage.begin(), lightmap.coverage.end(), [](float c) { return c > 0; }));
+  std::nth_element(relative.begin(), relative.begin() + static_cast<std::ptrdiff_t>(lit / 2), relative.end());
+  const double median = lit ? relative[lit / 2] : 0.0, rms = values > 0 ? std::sqrt(errors / values) : 0.0;
   namespace fs = std::filesystem;
   for (const std::string& f : {files.exr, files.png, files.glb}) std::printf("wrote %s\n", fs::absolute(f).c_str());
   std::printf("lightmap %dx%d texels of %.4g, %zu charts (%.0f %% of the atlas), %d samples a texel, %.2f s, "
-              "relative error per texel %.3g %% (RMS over %zu lit texels)\n",
+              "relative error per texel %.3g %% (median; %.3g %% RMS) over %zu lit texels; the indirect light of %.0f %% of "
+              "the texels from the cache\n",
               atlas.width, atlas.height, atlas.texel_size, atlas.charts.size(), 100 * atlas.fill(), o.lightmap.samples, seconds,
-              lit ? 100 * std::sqrt(sum / static_cast<double>(lit)) : 0.0, lit);
+              100 * median, 100 * rms, lit, covered > 0 ? 100.0 * static_cast<double>(lightmap.cached) / covered : 0.0);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <unordered_map>
 
 #include <glm/geometric.hpp>
 
@@ -66,6 +67,101 @@ void dilate(Lightmap& m, int x0, int y0, int x1, int y1) {
   }
 }
 
+// The cache of a chart's indirect light: records at texel corners kCacheSides[0] (or, where
+// those do not make a block, kCacheSides[1]) texels apart, each kRecordRays gather rays
+// (FinalGather::arriving). A texel takes the bilinear blend of its block's four corners where
+// all four lie on the chart and outside any solid, see each other, differ by at most
+// kCacheContrast times (the sum of the channels, each record taken two of its standard errors
+// towards the others: noise alone does not make a block steep) and, for the larger blocks, lie within
+// kCacheWard of the least distance their rays went (the gather's criteria, render/gather.cpp;
+// the smaller blocks are taken at any distance, as the image's of kCacheAny pixels are: near a
+// wall Ward's criterion would refuse a light that changes there nearly linearly); else its
+// samples gather for themselves. 256 rays a record over 4 x 4 texels cost a texel 16 rays, as 16
+// samples' own gather rays do, and leave smooth light where those leave speckles.
+constexpr std::array<int, 2> kCacheSides = {4, 2};
+constexpr int kRecordRays = 256;
+constexpr double kCacheContrast = 1.25, kCacheWard = 0.25;
+
+struct Record {
+  bool valid = false;
+  glm::dvec3 x{0.0}, e{0.0}, se{0.0};
+  double r = 0.0;
+};
+
+class ChartCache {
+ public:
+  ChartCache(const Chart& chart, const std::vector<Flat>& flat, const FinalGather& gather, uint64_t base, int width, double texel)
+      : chart_(chart), flat_(flat), gather_(gather), base_(base), width_(width), texel_(texel) {}
+
+  // The arriving indirect light (before the reflectance) at texel point (sx, sy) of texel (x, y),
+  // and its standard error's estimate; false where the texel's block is not usable.
+  bool at(int x, int y, double sx, double sy, glm::dvec3& e, glm::dvec3& se, uint64_t& cast) {
+    for (int side : kCacheSides) {
+      const int bx = chart_.x + (x - chart_.x) / side * side, by = chart_.y + (y - chart_.y) / side * side;
+      std::array<const Record*, 4> c{};
+      for (int k = 0; k < 4; ++k) c[static_cast<std::size_t>(k)] = &record(bx + (k & 1) * side, by + (k >> 1) * side, cast);
+      if (!usable(c, (static_cast<uint64_t>(by) * (static_cast<uint64_t>(width_) + 1) + static_cast<uint64_t>(bx)) * 8 + side, side, cast))
+        continue;
+      const double u = std::clamp((sx - bx) / side, 0.0, 1.0), v = std::clamp((sy - by) / side, 0.0, 1.0);
+      const std::array<double, 4> w = {(1 - u) * (1 - v), u * (1 - v), (1 - u) * v, u * v};
+      e = se = glm::dvec3(0.0);
+      for (std::size_t k = 0; k < 4; ++k) e += w[k] * c[k]->e, se += w[k] * w[k] * c[k]->se * c[k]->se;
+      se = glm::sqrt(se);
+      return true;
+    }
+    return false;
+  }
+
+ private:
+  const Record& record(int gx, int gy, uint64_t& cast) {
+    const uint64_t key = static_cast<uint64_t>(gy) * (static_cast<uint64_t>(width_) + 1) + static_cast<uint64_t>(gx);
+    auto [it, added] = records_.try_emplace(key);
+    if (!added) return it->second;
+    Record& r = it->second;
+    const glm::dvec2 at(gx, gy);
+    glm::dvec3 w;
+    const auto f = std::find_if(flat_.begin(), flat_.end(), [&](const Flat& g) { return inside(g.q, at, w); });
+    if (f == flat_.end()) return r;
+    r.x = f->p[0] * w.x + f->p[1] * w.y + f->p[2] * w.z;
+    if (gather_.enclosed(r.x, chart_.normal)) return r;
+    r.e = gather_.arriving(r.x, chart_.normal, kRecordRays, base_ + key, r.se, r.r, cast);
+    r.valid = true;
+    return r;
+  }
+
+  // Whether the block of corners c (`key` its own) may be interpolated over.
+  bool usable(const std::array<const Record*, 4>& c, uint64_t key, int side, uint64_t& cast) {
+    if (auto it = blocks_.find(key); it != blocks_.end()) return it->second;
+    bool ok = true;
+    // The contrast of what the records' light could be: each taken 2 standard errors towards
+    // the others (a record's noise alone does not make a block steep).
+    double dim = INFINITY, bright = 0, r = INFINITY;
+    for (const Record* a : c) {
+      ok = ok && a->valid;
+      if (!ok) break;
+      const double y = a->e.x + a->e.y + a->e.z, se = a->se.x + a->se.y + a->se.z;
+      dim = std::min(dim, y + 2 * se), bright = std::max(bright, y - 2 * se), r = std::min(r, a->r);
+    }
+    ok = ok && bright <= kCacheContrast * dim && (side <= kCacheSides.back() || side * texel_ * std::sqrt(2.0) <= kCacheWard * r);
+    for (std::size_t a = 0; a < 4 && ok; ++a)
+      for (std::size_t b = a + 1; b < 4 && ok; ++b) {
+        ++cast;
+        ok = gather_.in_sight(c[a]->x, c[b]->x, chart_.normal);
+      }
+    blocks_.emplace(key, ok);
+    return ok;
+  }
+
+  const Chart& chart_;
+  const std::vector<Flat>& flat_;
+  const FinalGather& gather_;
+  uint64_t base_;
+  int width_;
+  double texel_;
+  std::unordered_map<uint64_t, Record> records_;
+  std::unordered_map<uint64_t, bool> blocks_;
+};
+
 }  // namespace
 
 Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples) {
@@ -79,7 +175,7 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
     image->pixels.assign(static_cast<std::size_t>(W) * H, glm::vec3(0.0f));
   }
   m.coverage.assign(static_cast<std::size_t>(W) * H, 0.0f);
-  std::vector<uint64_t> cast(atlas.charts.size(), 0);
+  std::vector<uint64_t> cast(atlas.charts.size(), 0), cached_texels(atlas.charts.size(), 0);
   const uint64_t seed = gather.options().seed;
   const uint64_t texels = static_cast<uint64_t>(W) * static_cast<uint64_t>(H);
   parallel_for(atlas.charts.size(), 1, static_cast<unsigned>(gather.options().thread_count()), [&](std::size_t c, std::size_t, unsigned) {
@@ -104,12 +200,14 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
     std::vector<std::array<double, 2>> positions;
     std::vector<FinalGather::SurfacePoint> points;
     std::array<std::vector<FinalGather::SurfacePoint>, 2> halves;
+    std::vector<std::array<double, 2>> kept;  // the kept samples' texel points
+    ChartCache cache(chart, flat, gather, 2 * texels, W, atlas.texel_size);
     for (int y = chart.y; y < chart.y + chart.height; ++y)
       for (int x = chart.x; x < chart.x + chart.width; ++x) {
         const uint64_t key = static_cast<uint64_t>(y) * static_cast<uint64_t>(W) + static_cast<uint64_t>(x);
         Rng jitter(seed, key, 1, kTexelJitter);
         stratified_square(samples, jitter, positions);
-        points.clear();
+        points.clear(), kept.clear();
         for (const auto& [sx, sy] : positions) {
           const glm::dvec2 at(x + sx, y + sy);
           glm::dvec3 w;
@@ -118,8 +216,18 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
           const glm::dvec3 p = f->p[0] * w.x + f->p[1] * w.y + f->p[2] * w.z;
           if (gather.enclosed(p, f->normal)) continue;  // inside a solid
           points.push_back({p, f->normal, f->rho, f->emission});
+          kept.push_back({at.x, at.y});
         }
         if (points.empty()) continue;
+        // The indirect light from the chart's cache where the texel's block is usable.
+        glm::dvec3 cached(0.0), cached_se(0.0);
+        bool from_cache = true;
+        for (std::size_t s = 0; s < points.size() && from_cache; ++s) {
+          glm::dvec3 e, se;
+          from_cache = cache.at(x, y, kept[s][0], kept[s][1], e, se, cast[c]);
+          cached += points[s].rho * e, cached_se += points[s].rho * se;
+        }
+        cached /= static_cast<double>(points.size()), cached_se /= static_cast<double>(points.size());
         // Two interleaved halves, each from its own streams (the second's key past every texel's).
         halves[0].clear(), halves[1].clear();
         for (std::size_t s = 0; s < points.size(); ++s) halves[s % 2].push_back(points[s]);
@@ -130,19 +238,24 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
           gather.leaving(halves[h], key + h * texels, hd, hi, cast[c]);
           const double w = static_cast<double>(halves[h].size()) / static_cast<double>(points.size());
           d += w * hd, i += w * hi;
-          (h == 0 ? a : b) = hd + hi;
+          (h == 0 ? a : b) = from_cache ? hd : hd + hi;
         }
+        if (from_cache) i = cached;
         const std::size_t k = static_cast<std::size_t>(key);
         m.direct.pixels[k] = glm::vec3(d), m.indirect.pixels[k] = glm::vec3(i), m.combined.pixels[k] = glm::vec3(d + i);
+        glm::dvec3 se(0.0);
         if (!halves[1].empty())
-          m.error.pixels[k] = glm::vec3(glm::abs(a - b) * std::sqrt(double(halves[0].size()) * double(halves[1].size())) /
-                                        static_cast<double>(points.size()));
+          se = glm::abs(a - b) * std::sqrt(double(halves[0].size()) * double(halves[1].size())) / static_cast<double>(points.size());
+        if (from_cache) se = glm::sqrt(se * se + cached_se * cached_se);
+        m.error.pixels[k] = glm::vec3(se);
+        cached_texels[c] += from_cache;
         m.coverage[k] = static_cast<float>(points.size()) / static_cast<float>(samples);
       }
     // Step 3: the empty texels from their chart's.
     dilate(m, chart.x, chart.y, chart.x + chart.width, chart.y + chart.height);
   });
   for (uint64_t n : cast) m.rays += n;
+  for (uint64_t n : cached_texels) m.cached += n;
   return m;
 }
 

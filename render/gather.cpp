@@ -586,6 +586,31 @@ void FinalGather::leaving(const std::vector<SurfacePoint>& points, uint64_t key,
   indirect /= static_cast<double>(n);
 }
 
+glm::dvec3 FinalGather::arriving(const glm::dvec3& x, const glm::dvec3& n, int rays, uint64_t key, glm::dvec3& error, double& nearest,
+                                 uint64_t& cast) const {
+  if (rays < 2 || rays > 65536) fail("final gather: {} rays a point (2..65536)", rays);
+  const Impl& m = *impl_;
+  const glm::dvec3 origin = x + n * m.offset;
+  Rng gather(m.options.seed, key, 0, kRecordGather), more(m.options.seed, key, 0, kRecordMore);
+  std::vector<std::array<double, 2>> gathers;
+  stratified_square(rays, gather, gathers);
+  std::array<glm::dvec3, 2> half{glm::dvec3(0.0), glm::dvec3(0.0)};
+  nearest = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < gathers.size(); ++i) {
+    glm::dvec3 direct(0.0);
+    const Impl::Landed l = m.gathered(origin, n, gathers[i], more, 0, m.by_area.data(), direct, half[i % 2], cast);
+    nearest = std::min(nearest, l.distance);
+  }
+  const double na = static_cast<double>((gathers.size() + 1) / 2), nb = static_cast<double>(gathers.size() / 2);
+  error = glm::abs(half[0] / na - half[1] / nb) * std::sqrt(na * nb) / (na + nb);
+  return (half[0] + half[1]) / (na + nb);
+}
+
+bool FinalGather::in_sight(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& n) const {
+  const Impl& m = *impl_;
+  return !m.rays.blocked(a + n * m.offset, b + n * m.offset);
+}
+
 bool FinalGather::enclosed(const glm::dvec3& x, const glm::dvec3& n) const {
   const Impl& m = *impl_;
   const glm::dvec3 origin = x + n * m.offset;

@@ -129,6 +129,16 @@ class FinalGather {
   // depends only on the seed, `key` (a texel's index) and the points. Rays cast into `cast`.
   void leaving(const std::vector<SurfacePoint>& points, uint64_t key, glm::dvec3& direct, glm::dvec3& indirect,
                uint64_t& cast) const;
+  // The light arriving at point x of a front facing n from everything but the emitters (what a
+  // pixel's indirect pass reflects, before the reflectance), as the cache's records take it: the
+  // mean over `rays` (2..65536) stratified cosine gather rays from the streams of `key`. Into
+  // `error` the estimate of its standard error (its rays as two interleaved halves, as
+  // render/bake.h says), into `nearest` the least distance a ray went.
+  glm::dvec3 arriving(const glm::dvec3& x, const glm::dvec3& n, int rays, uint64_t key, glm::dvec3& error, double& nearest,
+                      uint64_t& cast) const;
+  // Whether nothing stands between points a and b of a surface facing n (the segment lifted off
+  // it by the rays' offset): a wall standing between two points of one floor.
+  bool in_sight(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& n) const;
   // Whether point x of a front facing n lies inside a solid: the first face met along n, and
   // along each of four directions 60 degrees from it, is met from behind (a floor under a wall
   // standing on it; not one under a one-sided table top, which rays beside it pass).

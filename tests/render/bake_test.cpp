@@ -179,6 +179,35 @@ TEST(Bake, NoLightThroughAThinWallAndNoSamplesInsideASolid) {
   EXPECT_THROW(bake_lightmap(q.scene, atlas, one, 0), Error);
 }
 
+// The furnace (a closed unit cube, E = 1, rho = 0.5 everywhere, B = 2): every gather ray from a
+// face's middle meets a face whose light beyond its emission is B - E = 1 (none lands close
+// enough to trace a bounce further), so a texel's indirect light is rho x 1 = 0.5 exactly,
+// whether its chart's cache gives it (records of 256 rays blended) or its own samples' rays do;
+// and most texels take the cache (the blocks there are flat and far from everything).
+TEST(Bake, TheCachesIndirectLightInTheFurnaceIsExact) {
+  const Scene scene = builtin_furnace();
+  const PatchMesh mesh = mesh_scene(scene, {.target_patches = 2000});
+  std::vector<glm::vec3> b(mesh.size(), glm::vec3(2.0f));
+  const FinalGather gather(mesh, b, {.seed = 4});
+  const Atlas atlas = make_atlas(scene, {.texel_size = 0.02, .gutter = 1});
+  const Lightmap m = bake_lightmap(scene, atlas, gather, 4);
+  int checked = 0, covered = 0;
+  for (const Chart& c : atlas.charts)
+    for (int y = c.y; y < c.y + c.height; ++y)
+      for (int x = c.x; x < c.x + c.width; ++x) {
+        covered += m.coverage[static_cast<std::size_t>(y) * atlas.width + x] > 0;
+        const glm::dvec3 centre = c.origin + c.u * ((x - c.x - 0.5) * atlas.texel_size) + c.v * ((y - c.y - 0.5) * atlas.texel_size);
+        bool middle = true;  // 0.35 from every edge of its face
+        for (int k = 0; k < 3; ++k)
+          if (std::abs(c.normal[k]) < 0.5) middle = middle && centre[k] > 0.35 && centre[k] < 0.65;
+        if (!middle) continue;
+        for (int k = 0; k < 3; ++k) ASSERT_NEAR(m.indirect.at(x, y)[k], 0.5f, 1e-6f) << x << ", " << y;
+        ++checked;
+      }
+  EXPECT_GT(checked, 6 * 200);
+  EXPECT_GT(m.cached, static_cast<uint64_t>(covered) / 2) << covered << " texels with samples";
+}
+
 // One floor and one ceiling slab run under and over a zero-thickness wall (two one-sided
 // planes back to back at x = 1) between a lit room (its ceiling the lamp, its surfaces B = 1)
 // and a dark one (B = 0). Baked on the faces as they come, the floor is one chart and its texels
