@@ -13,6 +13,7 @@
 #include "cli/run_flags.h"
 #include "engine/version.h"
 #include "farm/farm_client.h"
+#include "farm/view_server.h"
 #include "util/error.h"
 
 namespace sirad {
@@ -141,6 +142,12 @@ int run(int argc, char** argv) {
   auto* model_cmd = add_model_command(app, model_args);
   ImageArgs image_args;
   auto* image_cmd = add_image_command(app, image_args);
+  std::string view_glb, view_host = "127.0.0.1";
+  int view_port = 0;
+  auto* view_cmd = app.add_subcommand("view", "Show a result glb (sirad render's or bake's) in 3D on a local page (three.js): orbit, walk, exposure");
+  view_cmd->add_option("glb", view_glb, "The glb")->required();
+  view_cmd->add_option("--port", view_port, "Port (0: any free one; the page's address is printed)")->check(CLI::Range(0, 65535));
+  view_cmd->add_option("--host", view_host, "Address to listen on")->capture_default_str();
   app.add_subcommand("devices", "List the OpenCL devices");
   std::string profile_path, profile_prefix = "local-";
   int profile_nodes = 4;
@@ -194,6 +201,7 @@ int run(int argc, char** argv) {
     return reference(ref_args);
   }
   if (image_cmd->parsed()) return image(image_args);
+  if (view_cmd->parsed()) return view_command(view_glb, view_host, view_port);
   if (model_cmd->parsed()) {
     model_args.time_given = model_cmd->count("--time") > 0;
     model_args.given = given(model_cmd);

@@ -58,3 +58,20 @@ if ((${#missing[@]})); then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
 fi
+
+# The web page's JavaScript (three.js for `sirad view`): web/package-lock.json's exact versions
+# into web/node_modules, which the build embeds into sirad. Not with --build: rendering needs none.
+if [[ -z "${1:-}" ]]; then
+  root="$(cd "$(dirname "$0")/.." && pwd)"
+  want=$(grep -o '"three": "[0-9.]*"' "$root/web/package.json" | grep -o '[0-9][0-9.]*')
+  if ! grep -q "\"version\": \"$want\"" "$root/web/node_modules/three/package.json" 2>/dev/null; then
+    if ! command -v npm >/dev/null; then  # Debian's npm, unless a Node.js of another source brings its own
+      SUDO=""
+      if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+      $SUDO apt-get update -qq
+      DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends npm >&2
+    fi
+    echo "install-deps: npm ci in web/ (three.js)" >&2
+    npm ci --prefix "$root/web" --no-audit --no-fund --loglevel=error >&2
+  fi
+fi
