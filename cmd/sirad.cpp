@@ -93,13 +93,51 @@ CLI::App* add_image_command(CLI::App& app, ImageArgs& a) {
   return cmd;
 }
 
-// The flags of a run, shared by `render` and `emulate` (the cluster flags: with --nodes).
+// The flags of a run, shared by `render`, `bake` and `emulate` (the cluster flags: with --nodes).
 void add_run_options(CLI::App* cmd, RenderArgs& r) {
   cli::add_scene_argument(cmd, r.scene);
   cli::add_run_flags(cmd, r.run);
   cli::add_output_flags(cmd, r.output);
   cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
+}
+
+// `sirad bake`: render's flags and the lightmap's (the lightmap always on).
+CLI::App* add_bake_command(CLI::App& app, RenderArgs& b) {
+  auto* cmd = app.add_subcommand("bake", "Solve a scene and bake its light into a lightmap: NAME-lightmap.exr (half-float radiance), "
+                                         "NAME-lightmap.png, NAME-baked.glb (TEXCOORD_1, the lightmap shown unlit), and render's outputs");
+  add_run_options(cmd, b);
+  cli::add_lightmap_flags(cmd, b.output.lightmap, false);
+  return cmd;
+}
+
+// `sirad keygen` and `sirad profile`.
+struct ToolArgs {
+  std::string profile_path, profile_prefix = "local-", keygen_name;
+  int profile_nodes = 4;
+};
+
+std::pair<CLI::App*, CLI::App*> add_tool_commands(CLI::App& app, ToolArgs& t) {
+  auto* keygen = app.add_subcommand("keygen", "Make a CURVE key pair for a TCP cluster: NAME.key (public) and NAME.key_secret (mode 0600)");
+  keygen->add_option("name", t.keygen_name, "Path and base name of the two files")->required();
+  auto* profile = app.add_subcommand("profile", "Check an emulation profile; print the link of each node");
+  profile->add_option("file", t.profile_path, "Profile (YAML)")->required();
+  profile->add_option("--nodes", t.profile_nodes, "Nodes to list")->check(CLI::Range(1, 4096))->capture_default_str();
+  profile->add_option("--name-prefix", t.profile_prefix, "Node names are PREFIX0, PREFIX1, ...")->capture_default_str();
+  return {keygen, profile};
+}
+
+struct ViewArgs {
+  std::string glb, host = "127.0.0.1";
+  int port = 0;
+};
+
+CLI::App* add_view_command(CLI::App& app, ViewArgs& v) {
+  auto* cmd = app.add_subcommand("view", "Show a result glb (sirad render's or bake's) in 3D on a local page (three.js): orbit, walk, exposure");
+  cmd->add_option("glb", v.glb, "The glb")->required();
+  cmd->add_option("--port", v.port, "Port (0: any free one; the page's address is printed)")->check(CLI::Range(0, 65535));
+  cmd->add_option("--host", v.host, "Address to listen on")->capture_default_str();
+  return cmd;
 }
 
 int run(int argc, char** argv) {
@@ -116,10 +154,7 @@ int run(int argc, char** argv) {
   render_cmd->add_option("--profile", r.profile, "With --nodes: network emulation profile (YAML; nodes are named local-0, local-1, ...)");
   cli::add_lightmap_flags(render_cmd, r.output.lightmap, true);
   RenderArgs bake_args;
-  auto* bake_cmd = app.add_subcommand("bake", "Solve a scene and bake its light into a lightmap: NAME-lightmap.exr (half-float radiance), "
-                                              "NAME-lightmap.png, NAME-baked.glb (TEXCOORD_1, the lightmap shown unlit), and render's outputs");
-  add_run_options(bake_cmd, bake_args);
-  cli::add_lightmap_flags(bake_cmd, bake_args.output.lightmap, false);
+  auto* bake_cmd = add_bake_command(app, bake_args);
   EmulateArgs e;
   auto* emulate_cmd = app.add_subcommand(
       "emulate", "Run a cluster of N nodes in virtual time on this machine (real bundles, emulated clocks and links); write NAME.exr, .png, .ply");
@@ -142,22 +177,11 @@ int run(int argc, char** argv) {
   auto* model_cmd = add_model_command(app, model_args);
   ImageArgs image_args;
   auto* image_cmd = add_image_command(app, image_args);
-  std::string view_glb, view_host = "127.0.0.1";
-  int view_port = 0;
-  auto* view_cmd = app.add_subcommand("view", "Show a result glb (sirad render's or bake's) in 3D on a local page (three.js): orbit, walk, exposure");
-  view_cmd->add_option("glb", view_glb, "The glb")->required();
-  view_cmd->add_option("--port", view_port, "Port (0: any free one; the page's address is printed)")->check(CLI::Range(0, 65535));
-  view_cmd->add_option("--host", view_host, "Address to listen on")->capture_default_str();
+  ViewArgs view_args;
+  auto* view_cmd = add_view_command(app, view_args);
   app.add_subcommand("devices", "List the OpenCL devices");
-  std::string profile_path, profile_prefix = "local-";
-  int profile_nodes = 4;
-  std::string keygen_name;
-  auto* keygen_cmd = app.add_subcommand("keygen", "Make a CURVE key pair for a TCP cluster: NAME.key (public) and NAME.key_secret (mode 0600)");
-  keygen_cmd->add_option("name", keygen_name, "Path and base name of the two files")->required();
-  auto* profile_cmd = app.add_subcommand("profile", "Check an emulation profile; print the link of each node");
-  profile_cmd->add_option("file", profile_path, "Profile (YAML)")->required();
-  profile_cmd->add_option("--nodes", profile_nodes, "Nodes to list")->check(CLI::Range(1, 4096))->capture_default_str();
-  profile_cmd->add_option("--name-prefix", profile_prefix, "Node names are PREFIX0, PREFIX1, ...")->capture_default_str();
+  ToolArgs tools;
+  auto [keygen_cmd, profile_cmd] = add_tool_commands(app, tools);
 
   // The farm's client (farm/farm_client.h).
   cli::FarmAddress farm;
@@ -201,14 +225,14 @@ int run(int argc, char** argv) {
     return reference(ref_args);
   }
   if (image_cmd->parsed()) return image(image_args);
-  if (view_cmd->parsed()) return view_command(view_glb, view_host, view_port);
+  if (view_cmd->parsed()) return view_command(view_args.glb, view_args.host, view_args.port);
   if (model_cmd->parsed()) {
     model_args.time_given = model_cmd->count("--time") > 0;
     model_args.given = given(model_cmd);
     return model_table(model_args);
   }
-  if (profile_cmd->parsed()) return profile_table(profile_path, profile_nodes, profile_prefix);
-  if (keygen_cmd->parsed()) return keygen(keygen_name);
+  if (profile_cmd->parsed()) return profile_table(tools.profile_path, tools.profile_nodes, tools.profile_prefix);
+  if (keygen_cmd->parsed()) return keygen(tools.keygen_name);
   if (submit_cmd->parsed()) return cli::submit_job(farm, submit_scene, submit_cmd->remaining(), submit_name, submit_priority);
   if (jobs_cmd->parsed()) return cli::list_jobs(farm);
   if (cancel_cmd->parsed()) return cli::cancel_job(farm, cancel_id);
