@@ -14,8 +14,8 @@
 #include "io/results.h"
 #include "io/write_lightmap.h"
 #include "render/bake.h"
-#include "scene/atlas.h"
 #include "render/gather.h"
+#include "scene/atlas.h"
 #include "scene/check.h"
 #include "util/error.h"
 
