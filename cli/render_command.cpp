@@ -162,6 +162,7 @@ int render(RenderArgs a) {
   Meshed m = load_meshed(a.scene, settings.mesh_options,
                          a.output.import(), a.output.camera);
   cli::settle_image_size(a.output, m.scene);
+  if (a.output.lightmap.on) lightmap_atlas(a.output.lightmap, m.scene);  // a texel size the atlas cannot take: refused before the solve
   const PatchMesh& mesh = m.mesh;
   install_interrupt();
 

@@ -27,8 +27,8 @@ namespace {
 void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const std::vector<glm::vec3>& radiosity,
           const Attributes& attrs) {
   const auto start = std::chrono::steady_clock::now();
-  const Scene faces = cut_at_contacts(m.scene);  // no chart across a wall's foot
-  const Atlas atlas = make_atlas(faces, {.texel_size = o.lightmap.texel_size, .texel_budget = o.lightmap.texels});
+  Scene faces;
+  const Atlas atlas = lightmap_atlas(o.lightmap, m.scene, &faces);
   const FinalGather gather(m.mesh, radiosity, GatherOptions{});
   const Lightmap lightmap = bake_lightmap(faces, atlas, gather, o.lightmap.samples);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -64,6 +64,13 @@ void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const s
 }
 
 }  // namespace
+
+Atlas lightmap_atlas(const LightmapFlags& flags, const Scene& scene, Scene* faces) {
+  Scene cut = cut_at_contacts(scene);  // no chart across a wall's foot
+  Atlas atlas = make_atlas(cut, {.texel_size = flags.texel_size, .texel_budget = flags.texels});
+  if (faces) *faces = std::move(cut);
+  return atlas;
+}
 
 void write_outputs(const OutputFlags& o, const std::string& out, const Meshed& m, const std::vector<glm::vec3>& radiosity,
                    Attributes attrs, const GatherPasses* gathered, const std::string& image_failed) {

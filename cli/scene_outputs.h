@@ -10,6 +10,7 @@
 #include "cli/run_flags.h"
 #include "io/write.h"
 #include "render/gather.h"
+#include "scene/atlas.h"
 #include "scene/mesh.h"
 #include "scene/scene.h"
 
@@ -27,6 +28,10 @@ struct Meshed {
 // with o.lightmap.on, then the lightmap baked on this machine and its files (io/write_lightmap.h).
 void write_outputs(const OutputFlags& o, const std::string& out, const Meshed& m, const std::vector<glm::vec3>& radiosity,
                    Attributes attrs, const GatherPasses* gathered = nullptr, const std::string& image_failed = {});
+
+// The lightmap's atlas of `scene`'s faces cut at their contacts (scene/atlas.h), as `flags`
+// ask; sirad::Error for sizes it cannot take (checked before a run, made again after it).
+Atlas lightmap_atlas(const LightmapFlags& flags, const Scene& scene, Scene* faces = nullptr);
 
 // The outputs' name: --out, or the scene's file name without extension; checked before any work:
 // its folder must be writable, and no output (NAME + .exr, .png, .ply, .glb and each of `more`)

@@ -658,8 +658,9 @@ TEST_F(Cli, ImageOfAStoredSolutionIsTheRendersFinalGather) {
 
 // `sirad bake`: the run's outputs and the lightmap's three files, named on stdout with a line of
 // figures (the atlas, the samples, the texels' error); the EXR is half-float radiance with the
-// error layer; a budget or sample count out of range is one line naming the flag, before any
-// work; `render --lightmap` bakes the same way.
+// error layer; a budget or sample count out of range is one line naming the flag, and texels
+// too small for an atlas one line naming it, before any work; `render --lightmap` bakes the same
+// way.
 TEST_F(Cli, BakeWritesTheLightmapFilesBesideTheRunsOutputs) {
   Outcome r = sirad("bake cornell --patches 300 --bundles 16 --width 32 --height 32 --texels 4096 --texel-samples 4 --out c");
   ASSERT_EQ(r.status, 0) << r.err;
@@ -682,6 +683,12 @@ TEST_F(Cli, BakeWritesTheLightmapFilesBesideTheRunsOutputs) {
     EXPECT_NE(b.err.find(std::string(bad).substr(0, std::string(bad).find(' '))), std::string::npos) << b.err;
     EXPECT_FALSE(fs::exists(dir_ / "d.exr")) << bad;
   }
+  // Texels too small for the largest atlas: refused before the solve, nothing written.
+  Outcome small = sirad("bake cornell --bundles 4 --out d --texel-size 0.001");
+  EXPECT_NE(small.status, 0);
+  EXPECT_NE(small.err.find("atlas"), std::string::npos) << small.err;
+  EXPECT_FALSE(fs::exists(dir_ / "d.exr"));
+  EXPECT_FALSE(fs::exists(dir_ / "d.ply"));
   Outcome l = sirad("render cornell --patches 300 --bundles 8 --width 32 --height 32 --lightmap --texels 4096 --texel-samples 2 --out e");
   ASSERT_EQ(l.status, 0) << l.err;
   EXPECT_TRUE(fs::exists(dir_ / "e-baked.glb"));
