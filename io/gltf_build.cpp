@@ -26,6 +26,38 @@ int add_view(tinygltf::Model& m, const void* bytes, std::size_t size, int target
   return static_cast<int>(m.bufferViews.size() - 1);
 }
 
+int add_vec3(tinygltf::Model& m, const std::vector<float>& values) {
+  return add_accessor(m, values, values.size() / 3, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TARGET_ARRAY_BUFFER);
+}
+
+int add_positions(tinygltf::Model& m, const std::vector<float>& values) {
+  const int index = add_vec3(m, values);
+  std::vector<double> lo(3, 1e300), hi(3, -1e300);
+  for (std::size_t i = 0; i < values.size(); ++i)
+    lo[i % 3] = std::min(lo[i % 3], static_cast<double>(values[i])), hi[i % 3] = std::max(hi[i % 3], static_cast<double>(values[i]));
+  m.accessors.back().minValues = lo;
+  m.accessors.back().maxValues = hi;
+  return index;
+}
+
+int add_vec2(tinygltf::Model& m, const std::vector<float>& values) {
+  return add_accessor(m, values, values.size() / 2, TINYGLTF_TYPE_VEC2, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TARGET_ARRAY_BUFFER);
+}
+
+int add_indices(tinygltf::Model& m, const std::vector<uint32_t>& indices) {
+  return add_accessor(m, indices, indices.size(), TINYGLTF_TYPE_SCALAR, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
+                      TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+}
+
+void add_mesh(tinygltf::Model& m, tinygltf::Scene& scene, tinygltf::Mesh mesh) {
+  tinygltf::Node node;
+  node.name = mesh.name;
+  m.meshes.push_back(std::move(mesh));
+  node.mesh = static_cast<int>(m.meshes.size() - 1);
+  m.nodes.push_back(node);
+  scene.nodes.push_back(static_cast<int>(m.nodes.size() - 1));
+}
+
 tinygltf::Value triple(const glm::vec3& v) {
   return tinygltf::Value(tinygltf::Value::Array{tinygltf::Value(static_cast<double>(v.x)), tinygltf::Value(static_cast<double>(v.y)),
                                                 tinygltf::Value(static_cast<double>(v.z))});

@@ -31,6 +31,16 @@ int add_accessor(tinygltf::Model& m, const std::vector<T>& values, std::size_t c
   return static_cast<int>(m.accessors.size() - 1);
 }
 
+// Vertex attributes of values.size() / 3 (VEC3) or / 2 (VEC2) vertices, float, in an array
+// buffer; POSITION's carries the min and max glTF requires of it.
+int add_vec3(tinygltf::Model& m, const std::vector<float>& values);
+int add_positions(tinygltf::Model& m, const std::vector<float>& values);
+int add_vec2(tinygltf::Model& m, const std::vector<float>& values);
+// Triangle indices, uint32, in an element array buffer.
+int add_indices(tinygltf::Model& m, const std::vector<uint32_t>& indices);
+// `mesh` into the model, with a node of its name in `scene`.
+void add_mesh(tinygltf::Model& m, tinygltf::Scene& scene, tinygltf::Mesh mesh);
+
 // Three numbers as a JSON array (a float is a double exactly: read back, the same float).
 tinygltf::Value triple(const glm::vec3& v);
 

@@ -83,40 +83,24 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
         if (paired[patches[k]])
           for (int c = 0; c < 3; ++c) pull[indices[3 * k + static_cast<std::size_t>(c)]] += glm::dvec3(mesh.normal[patches[k]]);
       std::vector<float> position, colour, radiance;
-      std::vector<double> lo(3, 1e300), hi(3, -1e300);
       for (std::size_t v = 0; v < welded.size(); ++v)
         for (int a = 0; a < 3; ++a) {
           const double length = glm::length(pull[v]);
-          const float p = static_cast<float>(static_cast<double>(mesh.vertices[welded[v]][a]) +
-                                             (length > 0.0 ? apart * pull[v][a] / length : 0.0));
-          position.push_back(p);
-          lo[static_cast<std::size_t>(a)] = std::min(lo[static_cast<std::size_t>(a)], static_cast<double>(p));
-          hi[static_cast<std::size_t>(a)] = std::max(hi[static_cast<std::size_t>(a)], static_cast<double>(p));
+          position.push_back(static_cast<float>(static_cast<double>(mesh.vertices[welded[v]][a]) +
+                                                (length > 0.0 ? apart * pull[v][a] / length : 0.0)));
           radiance.push_back(value[v][a]);
           colour.push_back(std::clamp(value[v][a] * scale, 0.0f, 1.0f));
         }
-      const std::size_t vertices = welded.size();
       tinygltf::Primitive prim;
       prim.mode = TINYGLTF_MODE_TRIANGLES;
       prim.material = static_cast<int>(material);
-      prim.attributes["POSITION"] = gltf::add_accessor(m, position, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
-                                                 TINYGLTF_TARGET_ARRAY_BUFFER);
-      m.accessors.back().minValues = lo;
-      m.accessors.back().maxValues = hi;
-      prim.attributes["COLOR_0"] = gltf::add_accessor(m, colour, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
-                                                TINYGLTF_TARGET_ARRAY_BUFFER);
-      prim.attributes["_RADIANCE"] = gltf::add_accessor(m, radiance, vertices, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT,
-                                                  TINYGLTF_TARGET_ARRAY_BUFFER);
-      prim.indices = gltf::add_accessor(m, indices, indices.size(), TINYGLTF_TYPE_SCALAR, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
-                                  TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+      prim.attributes["POSITION"] = gltf::add_positions(m, position);
+      prim.attributes["COLOR_0"] = gltf::add_vec3(m, colour);
+      prim.attributes["_RADIANCE"] = gltf::add_vec3(m, radiance);
+      prim.indices = gltf::add_indices(m, indices);
       gm.primitives.push_back(prim);
     }
-    m.meshes.push_back(gm);
-    tinygltf::Node node;
-    node.name = gm.name;
-    node.mesh = static_cast<int>(m.meshes.size() - 1);
-    m.nodes.push_back(node);
-    scene.nodes.push_back(static_cast<int>(m.nodes.size() - 1));
+    gltf::add_mesh(m, scene, std::move(gm));
   }
   if (mesh.camera) gltf::add_camera(m, scene, *mesh.camera, mesh.bound_center, mesh.bound_radius, aspect);
   gltf::save_glb(m, std::move(scene), path);

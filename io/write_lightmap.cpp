@@ -109,38 +109,21 @@ void write_glb(const std::string& path, const std::string& exr_name, const Scene
         }
       }
       std::vector<float> position, normal, uv;
-      std::vector<double> plo(3, 1e300), phi(3, -1e300);
       for (const Vertex& v : vertices) {
-        for (int a = 0; a < 3; ++a) {
-          position.push_back(v.p[a]), normal.push_back(v.n[a]);
-          plo[static_cast<std::size_t>(a)] = std::min(plo[static_cast<std::size_t>(a)], static_cast<double>(v.p[a]));
-          phi[static_cast<std::size_t>(a)] = std::max(phi[static_cast<std::size_t>(a)], static_cast<double>(v.p[a]));
-        }
+        for (int a = 0; a < 3; ++a) position.push_back(v.p[a]), normal.push_back(v.n[a]);
         uv.push_back(v.uv.x), uv.push_back(v.uv.y);
       }
       tinygltf::Primitive prim;
       prim.mode = TINYGLTF_MODE_TRIANGLES;
       prim.material = static_cast<int>(material);
-      const std::size_t n = vertices.size();
-      prim.attributes["POSITION"] =
-          gltf::add_accessor(m, position, n, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TARGET_ARRAY_BUFFER);
-      m.accessors.back().minValues = plo;
-      m.accessors.back().maxValues = phi;
-      prim.attributes["NORMAL"] =
-          gltf::add_accessor(m, normal, n, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TARGET_ARRAY_BUFFER);
-      prim.attributes["TEXCOORD_0"] =
-          gltf::add_accessor(m, uv, n, TINYGLTF_TYPE_VEC2, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TARGET_ARRAY_BUFFER);
+      prim.attributes["POSITION"] = gltf::add_positions(m, position);
+      prim.attributes["NORMAL"] = gltf::add_vec3(m, normal);
+      prim.attributes["TEXCOORD_0"] = gltf::add_vec2(m, uv);
       prim.attributes["TEXCOORD_1"] = prim.attributes["TEXCOORD_0"];
-      prim.indices = gltf::add_accessor(m, indices, indices.size(), TINYGLTF_TYPE_SCALAR, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT,
-                                        TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+      prim.indices = gltf::add_indices(m, indices);
       gm.primitives.push_back(prim);
     }
-    m.meshes.push_back(gm);
-    tinygltf::Node node;
-    node.name = gm.name;
-    node.mesh = static_cast<int>(m.meshes.size() - 1);
-    m.nodes.push_back(node);
-    gscene.nodes.push_back(static_cast<int>(m.nodes.size() - 1));
+    gltf::add_mesh(m, gscene, std::move(gm));
   }
   if (camera) gltf::add_camera(m, gscene, *camera, glm::vec3(0.5 * (lo + hi)), static_cast<float>(radius), aspect);
   gltf::save_glb(m, std::move(gscene), path);
