@@ -23,6 +23,19 @@ namespace {
 using test::QuadScene;
 using test::floor_radiance;
 
+// The solution of two rooms either side of x = 1: B = 1 (plus the emission) on the left, and on
+// the wall's side that faces it (normal -x); 0 on the right.
+std::vector<glm::vec3> lit_left_dark_right(const PatchMesh& mesh) {
+  std::vector<glm::vec3> radiosity(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const auto& p = mesh.patches[j];
+    const glm::vec3 centre = (mesh.vertices[p[0]] + mesh.vertices[p[1]] + mesh.vertices[p[2]]) / 3.0f;
+    const bool left = centre.x < 1.0f || (centre.x == 1.0f && mesh.normal[j].x < 0);
+    radiosity[j] = left ? glm::vec3(1.0f) + mesh.emission(j) : glm::vec3(0.0f);
+  }
+  return radiosity;
+}
+
 // A floor (rho 0.5, 4 x 4 at z = 0 facing +z) under a unit square light (E 1, rho 0) at height 1,
 // facing down; the solution B = E (the floor sees no floor: nothing of B's reflected part
 // reaches a floor point, so any floor value would do). A floor texel's value is rho E F over
@@ -112,13 +125,7 @@ TEST(Bake, NoLightThroughAThinWallAndNoSamplesInsideASolid) {
   q.quad({a, lo, 0}, {a, lo, h}, {a, hi, h}, {a, hi, 0}, white);  // -x
   q.quad({b, lo, 0}, {b, hi, 0}, {b, hi, h}, {b, lo, h}, white);  // +x
   const PatchMesh mesh = mesh_scene(q.scene, {.target_patches = 2000});
-  std::vector<glm::vec3> radiosity(mesh.size());
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    const auto& p = mesh.patches[j];
-    const glm::vec3 centre = (mesh.vertices[p[0]] + mesh.vertices[p[1]] + mesh.vertices[p[2]]) / 3.0f;
-    const bool left = centre.x < 1.0f || (centre.x == 1.0f && mesh.normal[j].x < 0);
-    radiosity[j] = left ? glm::vec3(1.0f) + mesh.emission(j) : glm::vec3(0.0f);
-  }
+  const std::vector<glm::vec3> radiosity = lit_left_dark_right(mesh);
   const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.05, .gutter = 1});
   const FinalGather one(mesh, radiosity, {.seed = 2, .threads = 1}), four(mesh, radiosity, {.seed = 2, .threads = 4});
   const Lightmap m = bake_lightmap(q.scene, atlas, one, 16);
@@ -228,13 +235,7 @@ TEST(Bake, FacesCutAtAWallsFootKeepTwoRoomsTexelsApart) {
   q.quad({1, 0, 0}, {1, 0, 1}, {1, 1, 1}, {1, 1, 0}, white);  // the wall's left side, -x
   q.quad({1, 0, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}, white);  // its right side, +x
   const PatchMesh mesh = mesh_scene(q.scene, {.target_patches = 2000});
-  std::vector<glm::vec3> radiosity(mesh.size());
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    const auto& p = mesh.patches[j];
-    const glm::vec3 centre = (mesh.vertices[p[0]] + mesh.vertices[p[1]] + mesh.vertices[p[2]]) / 3.0f;
-    const bool left = centre.x < 1.0f || (centre.x == 1.0f && mesh.normal[j].x < 0);
-    radiosity[j] = left ? glm::vec3(1.0f) + mesh.emission(j) : glm::vec3(0.0f);
-  }
+  const std::vector<glm::vec3> radiosity = lit_left_dark_right(mesh);
   const FinalGather gather(mesh, radiosity, {.seed = 3});
   // The chart's side: where its faces' centres lie (the wall's sides by their normals).
   const auto side = [](const Scene& scene, const Chart& c) {
