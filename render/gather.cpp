@@ -284,6 +284,29 @@ struct FinalGather::Impl {
   // records' noise stays below the direct light's (bench/RESULTS.md, the irradiance cache).
   int record_rays() const { return std::clamp(4 * options.spp, 256, 16384); }
 
+  // The indirect light arriving at x (normal n) from `rays` stratified gather rays of the record
+  // streams of `key` (what a cache record holds, before its mean): the sums of the two
+  // interleaved halves of the rays, the least distance one went, how many met an emitter.
+  struct Arrival {
+    std::array<glm::dvec3, 2> half{glm::dvec3(0.0), glm::dvec3(0.0)};
+    double nearest = std::numeric_limits<double>::infinity();
+    std::size_t emitters = 0;
+  };
+  Arrival arrival(const glm::dvec3& x, const glm::dvec3& n, int rays, uint64_t key, uint64_t& cast) const {
+    const glm::dvec3 origin = x + n * offset;
+    Rng gather(options.seed, key, 0, kRecordGather), more(options.seed, key, 0, kRecordMore);
+    thread_local std::vector<std::array<double, 2>> gathers;
+    stratified_square(rays, gather, gathers);
+    Arrival a;
+    for (std::size_t i = 0; i < gathers.size(); ++i) {
+      glm::dvec3 direct(0.0);
+      const Landed l = gathered(origin, n, gathers[i], more, 0, by_area.data(), direct, a.half[i % 2], cast);
+      a.nearest = std::min(a.nearest, l.distance);
+      a.emitters += l.emitter;
+    }
+    return a;
+  }
+
   // The cache record of raster point (gx, gy) of the view `frame`, `key` its key in the store.
   CacheRecord make_record(const CameraFrame& frame, int gx, int gy, uint64_t key, uint64_t& cast) const {
     CacheRecord r;
@@ -293,20 +316,11 @@ struct FinalGather::Impl {
     if (hit < 0 || mesh.reflectance(static_cast<uint32_t>(hit)) == glm::vec3(0.0f)) return r;
     r.x = frame.eye + dir * t;
     r.n = glm::dvec3(mesh.normal[static_cast<std::size_t>(hit)]);
-    const glm::dvec3 origin = r.x + r.n * offset;
-    Rng gather(options.seed, key, 0, kRecordGather), more(options.seed, key, 0, kRecordMore);
-    thread_local std::vector<std::array<double, 2>> gathers;
-    stratified_square(record_rays(), gather, gathers);
-    glm::dvec3 direct(0.0), indirect(0.0);
-    r.r = std::numeric_limits<double>::infinity();
-    std::size_t emitters = 0;
-    for (const auto& g : gathers) {
-      const Landed l = gathered(origin, r.n, g, more, 0, by_area.data(), direct, indirect, cast);
-      r.r = std::min(r.r, l.distance);
-      emitters += l.emitter;
-    }
-    r.e = indirect / static_cast<double>(gathers.size());
-    r.emitters = static_cast<double>(emitters) / static_cast<double>(gathers.size());
+    const int rays = record_rays();
+    const Arrival a = arrival(r.x, r.n, rays, key, cast);
+    r.e = (a.half[0] + a.half[1]) / static_cast<double>(rays);
+    r.r = a.nearest;
+    r.emitters = static_cast<double>(a.emitters) / static_cast<double>(rays);
     r.valid = true;
     return r;
   }
@@ -589,21 +603,11 @@ void FinalGather::leaving(const std::vector<SurfacePoint>& points, uint64_t key,
 glm::dvec3 FinalGather::arriving(const glm::dvec3& x, const glm::dvec3& n, int rays, uint64_t key, glm::dvec3& error, double& nearest,
                                  uint64_t& cast) const {
   if (rays < 2 || rays > 65536) fail("final gather: {} rays a point (2..65536)", rays);
-  const Impl& m = *impl_;
-  const glm::dvec3 origin = x + n * m.offset;
-  Rng gather(m.options.seed, key, 0, kRecordGather), more(m.options.seed, key, 0, kRecordMore);
-  std::vector<std::array<double, 2>> gathers;
-  stratified_square(rays, gather, gathers);
-  std::array<glm::dvec3, 2> half{glm::dvec3(0.0), glm::dvec3(0.0)};
-  nearest = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < gathers.size(); ++i) {
-    glm::dvec3 direct(0.0);
-    const Impl::Landed l = m.gathered(origin, n, gathers[i], more, 0, m.by_area.data(), direct, half[i % 2], cast);
-    nearest = std::min(nearest, l.distance);
-  }
-  const double na = static_cast<double>((gathers.size() + 1) / 2), nb = static_cast<double>(gathers.size() / 2);
-  error = glm::abs(half[0] / na - half[1] / nb) * std::sqrt(na * nb) / (na + nb);
-  return (half[0] + half[1]) / (na + nb);
+  const Impl::Arrival a = impl_->arrival(x, n, rays, key, cast);
+  nearest = a.nearest;
+  const double na = static_cast<double>((rays + 1) / 2), nb = static_cast<double>(rays / 2);
+  error = glm::abs(a.half[0] / na - a.half[1] / nb) * std::sqrt(na * nb) / (na + nb);
+  return (a.half[0] + a.half[1]) / (na + nb);
 }
 
 bool FinalGather::in_sight(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& n) const {
