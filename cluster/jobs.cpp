@@ -90,7 +90,7 @@ void check_job_name(const std::string& name) {
         return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
       }))
     fail("job name '{}': 1 to {} of A-Z a-z 0-9 . _ -, not starting with a dot", name.substr(0, 80), kMaxJobNameBytes);
-  if (name == "preview") fail("job name 'preview': its PNG would be the farm's preview.png of the job; choose another");
+  if (name == "preview") fail("job name 'preview': its PNG and glb would be the farm's preview.png and preview.glb of the job; choose another");
 }
 
 std::string job_json(const Job& j) {

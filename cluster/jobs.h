@@ -66,7 +66,8 @@ std::string job_json(const Job& job);
 Job job_from_json(const std::string& text, const std::string& origin);
 
 // Throws sirad::Error for a name that is not 1..64 of [A-Za-z0-9._-] (it names files), not
-// starting with a dot, or that is "preview" (NAME.png would be the farm's preview of the job).
+// starting with a dot, or that is "preview" (NAME.png and NAME.glb would be the farm's previews
+// of the job).
 void check_job_name(const std::string& name);
 
 class JobStore {

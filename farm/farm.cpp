@@ -18,6 +18,7 @@
 #include "coordinator/coordinator.h"
 #include "io/results.h"
 #include "io/write.h"
+#include "io/write_gltf.h"
 #include "proto/codec.h"
 #include "proto/transport.h"
 #include "scene/check.h"
@@ -38,9 +39,9 @@ void say(logging::Level level, const std::string& message, nlohmann::json fields
   logging::write(level, "sirad-coordinator", message, fields);
 }
 
-// The largest scene file a job's folder may hold (decode_scene's own bound is the same).
 // The widest preview image of a running job (its height follows the job's aspect).
 constexpr int kPreviewWidth = 480;
+constexpr int kPreviewGlbShare = 10;  // see rc.preview
 
 using Clock = std::chrono::steady_clock;
 
@@ -135,11 +136,21 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
   // (a sight test per neighbour, corner_radiosity) would show nothing flat shading does not.
   const bool preview_flat = mesh.size() > static_cast<std::size_t>(preview_w) * static_cast<std::size_t>(preview_h);
   const Shading preview_shading = preview_flat ? Shading::flat : shown.shading;
+  // The 3D view's preview (preview.glb) costs far more than the PNG (a ray scene, a sight test per
+  // corner): it is written only once the time since the last one is kPreviewGlbShare times what
+  // that one took, so that it holds the run's loop at most 1 / kPreviewGlbShare of the time.
+  const fs::path preview_glb = dir / "preview.glb";
+  auto glb_due = std::chrono::steady_clock::now();
   rc.preview = [&](const std::vector<glm::vec3>& radiosity) {
     try {
       const fs::path part = dir / "preview.png.part";
       write_png(part.string(), render_view(mesh, radiosity, *mesh.camera, preview_w, preview_h, preview_shading), shown.exposure);
       fs::rename(part, preview);
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= glb_due) {
+        write_glb(preview_glb.string(), mesh, radiosity, shown.exposure, static_cast<double>(shown.width) / shown.height);
+        glb_due = now + kPreviewGlbShare * (std::chrono::steady_clock::now() - now);
+      }
     } catch (const std::exception& e) {  // a preview that cannot be written must not end the run
       say(logging::Level::warn, fmt::format("job {}: preview not written: {}", job.id, e.what()), {{"event", "preview"}});
     }
@@ -154,6 +165,7 @@ std::string run_job(zmq::socket_t& router, RunningJob& running, const std::strin
                 result.image ? &*result.image : nullptr, result.image_error);
   fs::remove(checkpoint);
   fs::remove(preview);
+  fs::remove(preview_glb);
   if (result.bundles_lost) fail("{}", cluster::Policy::lost_reason(*result.bundles_lost));  // failed, its outputs kept
   return cluster::cluster_summary(result, mesh.size(), seconds);
 }
@@ -223,6 +235,7 @@ class Farm {
           state = "cancelled", error = "cancelled while it ran";
           fs::remove(fs::path(store_.folder(id)) / "checkpoint");
           fs::remove(fs::path(store_.folder(id)) / "preview.png");
+          fs::remove(fs::path(store_.folder(id)) / "preview.glb");
         } else if (stopping && r.interrupt.load()) {
           store_.stopped(id);  // queued: it resumes from its checkpoint at the next start
           say(logging::Level::info, fmt::format("job {} checkpointed; it resumes when the farm starts again", id),

@@ -17,6 +17,7 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include "farm/view_server.h"
 #include "scene/encoding.h"
 #include "scene/scene.h"
 #include "util/atomic_file.h"
@@ -43,9 +44,17 @@ constexpr uint64_t kJobsPage = 200, kMaxJobsPage = 1000;
 std::vector<std::string> job_files(const cluster::Job& j, const std::string& folder) {
   std::vector<std::string> out;
   for (const std::string& f : {j.name + ".exr", j.name + ".png", j.name + ".ply", j.name + ".glb", std::string("status.json"),
-                               std::string("preview.png"), std::string("summary.txt"), std::string("ledger.csv")})
+                               std::string("preview.png"), std::string("preview.glb"), std::string("summary.txt"),
+                               std::string("ledger.csv")})
     if (fs::is_regular_file(fs::path(folder) / f)) out.push_back(f);
   return out;
+}
+
+// The glb the 3D view shows of a job: its result once written, else the running job's preview.
+std::optional<fs::path> job_glb(const cluster::Job& j, const std::string& folder) {
+  for (const fs::path& f : {fs::path(folder) / (j.name + ".glb"), fs::path(folder) / "preview.glb"})
+    if (fs::is_regular_file(f)) return f;
+  return std::nullopt;
 }
 
 json job_object(const cluster::Job& j) {
@@ -67,6 +76,21 @@ void reply(httplib::Response& res, int status, const json& body) {
 }
 
 void refuse(httplib::Response& res, int status, const std::string& why) { reply(res, status, {{"error", why}}); }
+
+// Streams `path` in pieces of 1 MiB: a download holds no more than that in memory.
+void send_file(httplib::Response& res, const fs::path& path, const char* type) {
+  auto file = std::make_shared<std::ifstream>(path, std::ios::binary);
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  if (!*file || ec) return refuse(res, 404, "no such file of this job");
+  res.set_content_provider(static_cast<std::size_t>(size), type, [file](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
+    std::vector<char> piece(std::min<std::size_t>(length, std::size_t{1} << 20));
+    file->seekg(static_cast<std::streamoff>(offset));
+    file->read(piece.data(), static_cast<std::streamsize>(piece.size()));
+    if (file->gcount() <= 0) return false;
+    return sink.write(piece.data(), static_cast<std::size_t>(file->gcount()));
+  });
+}
 
 // Compares in time independent of where the strings differ.
 bool same(const std::string& a, const std::string& b) {
@@ -122,7 +146,8 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
   };
   s.Get("/", [](const httplib::Request&, httplib::Response& res) {
     res.set_header("Content-Security-Policy",
-                   "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; img-src 'self'; connect-src 'self'");
+                   "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; img-src 'self'; connect-src 'self'; "
+                   "frame-src 'self'");
     res.set_content(std::string(resource("farm/farm_page.html")), "text/html; charset=utf-8");
   });
   // A page of the queue: the `limit` jobs (default kJobsPage) of the highest ids below `before`
@@ -160,7 +185,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
       o["files"] = job_files(j, store_.folder(j.id));
       jobs.push_back(std::move(o));
     }
-    reply(res, 200, {{"jobs", jobs}, {"running", running}, {"total", total}, {"older", begin - all.begin()}});
+    reply(res, 200, {{"jobs", jobs}, {"running", running}, {"total", total}, {"older", begin - all.begin()}, {"viewer", viewer_available()}});
   });
   s.Get(R"(/api/jobs/(\d+))", [this, job_of](const httplib::Request& req, httplib::Response& res) {
     std::optional<cluster::Job> j = job_of(req, res);
@@ -187,20 +212,30 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
     const std::vector<std::string> files = job_files(*j, store_.folder(j->id));
     if (std::find(files.begin(), files.end(), name) == files.end()) return refuse(res, 404, "no such file of this job");
     const std::string ext = fs::path(name).extension().string();
-    const char* type = ext == ".png" ? "image/png" : ext == ".json" ? "application/json" : ext == ".txt" ? "text/plain" : ext == ".csv" ? "text/csv" : "application/octet-stream";
-    // Streamed from the file in pieces of 1 MiB: a download holds no more than that in memory.
-    const fs::path path = fs::path(store_.folder(j->id)) / name;
-    auto file = std::make_shared<std::ifstream>(path, std::ios::binary);
+    const char* type = ext == ".png" ? "image/png" : ext == ".json" ? "application/json" : ext == ".txt" ? "text/plain" : ext == ".csv" ? "text/csv" : ext == ".glb" ? "model/gltf-binary" : "application/octet-stream";
+    send_file(res, fs::path(store_.folder(j->id)) / name, type);
+  });
+  // The 3D view of a job (/view?glb=/api/jobs/ID/glb&version=/api/jobs/ID/glb-version): the glb,
+  // and its version (size and modification time; "missing" while there is none) that the page
+  // polls to load a running job's newer preview and then its result.
+  serve_viewer(s, "/view");
+  s.Get(R"(/api/jobs/(\d+)/glb)", [this, job_of](const httplib::Request& req, httplib::Response& res) {
+    std::optional<cluster::Job> j = job_of(req, res);
+    if (!j) return;
+    const std::optional<fs::path> glb = job_glb(*j, store_.folder(j->id));
+    if (!glb) return refuse(res, 404, "this job has no glb (yet)");
+    res.set_header("Cache-Control", "no-store");
+    send_file(res, *glb, "model/gltf-binary");
+  });
+  s.Get(R"(/api/jobs/(\d+)/glb-version)", [this, job_of](const httplib::Request& req, httplib::Response& res) {
+    std::optional<cluster::Job> j = job_of(req, res);
+    if (!j) return;
+    const std::optional<fs::path> glb = job_glb(*j, store_.folder(j->id));
     std::error_code ec;
-    const auto size = fs::file_size(path, ec);
-    if (!*file || ec) return refuse(res, 404, "no such file of this job");
-    res.set_content_provider(static_cast<std::size_t>(size), type, [file](std::size_t offset, std::size_t length, httplib::DataSink& sink) {
-      std::vector<char> piece(std::min<std::size_t>(length, std::size_t{1} << 20));
-      file->seekg(static_cast<std::streamoff>(offset));
-      file->read(piece.data(), static_cast<std::streamsize>(piece.size()));
-      if (file->gcount() <= 0) return false;
-      return sink.write(piece.data(), static_cast<std::size_t>(file->gcount()));
-    });
+    const auto size = glb ? fs::file_size(*glb, ec) : 0;
+    const auto time = glb ? fs::last_write_time(*glb, ec).time_since_epoch().count() : 0;
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(!glb || ec ? std::string("missing") : fmt::format("{}-{}-{}", glb->filename().string(), size, time), "text/plain");
   });
   s.Post("/api/jobs", [this](const httplib::Request& req, httplib::Response& res) {
     try {

@@ -53,6 +53,24 @@ bool viewer_available() {
 #endif
 }
 
+void serve_viewer(httplib::Server& s, const std::string& page) {
+  s.Get(page, [](const httplib::Request&, httplib::Response& res) {
+    // Its scripts (the import map, the page's own, three.js) and the glb from this server only;
+    // the glb's embedded textures reach three.js as blob: URLs.
+    res.set_header("Content-Security-Policy",
+                   "default-src 'none'; script-src 'self' 'unsafe-inline'; style-src 'unsafe-inline'; "
+                   "connect-src 'self' blob: data:; img-src 'self' blob: data:");
+    res.set_content(std::string(resource("farm/viewer.html")), "text/html; charset=utf-8");
+  });
+  if (!viewer_available()) return;
+  for (const Module& m : kModules) {
+    const std::string_view text = resource(m.resource);
+    s.Get(m.path, [text](const httplib::Request&, httplib::Response& res) {
+      res.set_content(text.data(), text.size(), "text/javascript; charset=utf-8");
+    });
+  }
+}
+
 struct ViewServer::Thread {
   std::thread t;
 };
@@ -70,15 +88,7 @@ ViewServer::ViewServer(std::string glb) : glb_(std::move(glb)), server_(std::mak
   s.set_read_timeout(5, 0);
   s.set_write_timeout(30, 0);
   s.set_payload_max_length(4096);
-  s.Get("/", [](const httplib::Request&, httplib::Response& res) {
-    res.set_content(std::string(resource("farm/viewer.html")), "text/html; charset=utf-8");
-  });
-  for (const Module& m : kModules) {
-    const std::string_view text = resource(m.resource);
-    s.Get(m.path, [text](const httplib::Request&, httplib::Response& res) {
-      res.set_content(text.data(), text.size(), "text/javascript; charset=utf-8");
-    });
-  }
+  serve_viewer(s, "/");
   s.Get("/scene.glb", [this](const httplib::Request&, httplib::Response& res) {
     std::string bytes;
     if (!read_glb(glb_, bytes)) {

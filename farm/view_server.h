@@ -1,7 +1,8 @@
 // sirad: `sirad view RESULT.glb`, the 3D view of a result on a local page: farm/viewer.html and
 // three.js (web/package.json's, embedded at build time) served with the glb by cpp-httplib on a
 // loopback port. The page loads /scene.glb and polls /version (the file's size and modification
-// time): a rebake, or a running job's newer glb, shows as it lands.
+// time): a rebake, or a running job's newer glb, shows as it lands. The farm's page serves the
+// same page for its jobs (serve_viewer).
 #pragma once
 #include <memory>
 #include <string>
@@ -15,6 +16,11 @@ namespace sirad {
 // Whether three.js was embedded when sirad was built (web/node_modules present: deploy/install-deps.sh
 // runs npm ci there).
 bool viewer_available();
+
+// Serves the 3D view's page (farm/viewer.html) at `page` and three.js's modules where its import
+// map finds them (/three/...). The page loads /scene.glb and polls /version unless its query
+// names other paths of the same server (?glb=PATH&version=PATH: the farm's page shows a job's).
+void serve_viewer(httplib::Server& server, const std::string& page);
 
 class ViewServer {
  public:

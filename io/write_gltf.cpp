@@ -44,7 +44,10 @@ void write_glb(const std::string& path, const PatchMesh& mesh, const std::vector
   tinygltf::Model m;
   m.asset.version = "2.0";
   m.asset.generator = "sirad";
-  m.asset.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_background", gltf::triple(mesh.background)}});
+  // sirad_exposure: the stops COLOR_0 is scaled by (and the PNG's); a viewer showing _RADIANCE
+  // starts there.
+  m.asset.extras = tinygltf::Value(tinygltf::Value::Object{{"sirad_background", gltf::triple(mesh.background)},
+                                                           {"sirad_exposure", tinygltf::Value(static_cast<double>(exposure))}});
   m.extensionsUsed.push_back("KHR_materials_unlit");
   m.buffers.resize(1);
   for (const Material& mat : mesh.materials) {

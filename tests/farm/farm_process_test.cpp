@@ -25,6 +25,7 @@
 #include "cluster/jobs.h"
 #include "cluster/status.h"
 #include "farm/http_guard.h"
+#include "farm/view_server.h"
 #include "tests/png_util.h"
 #include "tests/process_util.h"
 #include "tests/run_files.h"
@@ -309,8 +310,8 @@ TEST(Farm, AKilledFarmResumesItsQueueAndRunsEveryJobOnce) {
 // headless Chromium. Its DOM after the page's script ran lists the job (done), its node and
 // its image's link; its screenshot shows the done badge (#2e7d32) and the job's image (the
 // Cornell box's red wall: pixels of high red and low green and blue, which nothing else on the
-// page has). Then, with a long job running, the page opens on it: its preview image (once the
-// farm has written one) and its node's traffic. Skipped, saying why, where Chromium is not
+// page has), and its 3D view draws the job's glb. Then, with a long job running, the page opens
+// on it: its preview image and glb (once the farm has written them) and its node's traffic. Skipped, saying why, where Chromium is not
 // installed (CI installs it).
 TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   const std::string chromium = sirad::test::on_path("chromium");
@@ -350,13 +351,40 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   }
   EXPECT_GT(badge, 50u) << "no done badge in the screenshot";
   EXPECT_GT(red_wall, 500u) << "no image of the Cornell box in the screenshot";
+  // Its 3D view (where sirad was built with three.js): framed in the page, following the job's
+  // glb (its result's version), and drawn from it by the viewer in a browser of its own with a
+  // software GL (200 x 200: Chromium's headless screenshots of 96 to 128 pixel windows show no
+  // canvas at all). The Cornell box's lit red wall takes the same share of it as of the job's
+  // image, from the same camera at the glb's exposure (measured 0.0835 and 0.0839); a wrong
+  // camera, exposure or an unlit page is off by far more than 15 %, edge pixels by less.
+  if (sirad::viewer_available()) {
+    EXPECT_NE(html.find("/view?glb=/api/jobs/1/glb&amp;version=/api/jobs/1/glb-version"), std::string::npos) << html;
+    EXPECT_EQ(curl(dir, {farm.url + "/api/jobs/1/glb-version"}).first.rfind("shown.glb-", 0), 0u);
+    Child view({chromium, "--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--hide-scrollbars",
+                "--user-data-dir=" + (dir / "profile-view").string(), "--window-size=200,200", "--virtual-time-budget=30000",
+                "--screenshot=" + (dir / "view.png").string(),
+                farm.url + "/view?glb=/api/jobs/1/glb&version=/api/jobs/1/glb-version&probe=1"},
+               dir / "view.log");
+    ASSERT_EQ(view.wait(sirad::test::kHangS), 0) << slurp(dir / "view.log");
+    auto red_share = [](const std::vector<unsigned char>& rgb) {
+      std::size_t red = 0;
+      for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) red += rgb[i] > 100 && rgb[i + 1] < 60 && rgb[i + 2] < 60;
+      return static_cast<double>(red) / static_cast<double>(std::max<std::size_t>(rgb.size() / 3, 1));
+    };
+    int iw = 0, ih = 0;
+    const double in_view = red_share(sirad::test::read_png((dir / "view.png").string(), width, height));
+    const double in_image = red_share(sirad::test::read_png((farm.folder / "jobs" / "1" / "shown.png").string(), iw, ih));
+    std::printf("red wall: %.4f of the 3D view, %.4f of the job's image\n", in_view, in_image);
+    EXPECT_GT(in_image, 0.05);
+    EXPECT_NEAR(in_view / in_image, 1.0, 0.15) << "the job's 3D view does not show its lit red wall as its image does";
+  }
   // A running job is the one the page opens on: its preview image and its node's traffic.
   ASSERT_EQ(sirad_submit(dir, {"cornell", "--farm", farm.folder.string(), "--name", "running", "--patches", "500", "--bundles",
                                "100000000", "--exchange-every", "8", "--width", "64", "--height", "64"}),
             0)
       << slurp(dir / "submit.log");
   ASSERT_TRUE(wait_until([&] {
-    if (!fs::exists(farm.folder / "jobs" / "2" / "preview.png")) return false;
+    if (!fs::exists(farm.folder / "jobs" / "2" / "preview.png") || !fs::exists(farm.folder / "jobs" / "2" / "preview.glb")) return false;
     auto n = status_nodes(farm.folder / "jobs" / "2" / "status.json");
     return !n.empty() && n[0].bytes_in > 0;
   })) << slurp(dir / "farm0.log");
@@ -367,6 +395,10 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   EXPECT_NE(html2.find("preview at "), std::string::npos) << html2;
   EXPECT_NE(html2.find("/api/jobs/2/files/preview.png?at="), std::string::npos) << html2;
   EXPECT_NE(html2.find("iB</td>"), std::string::npos) << "no node traffic (KiB or more)\n" << html2;
+  if (sirad::viewer_available()) {  // its 3D view follows the preview glb until the result's
+    EXPECT_NE(html2.find("/view?glb=/api/jobs/2/glb&amp;version=/api/jobs/2/glb-version"), std::string::npos) << html2;
+    EXPECT_EQ(curl(dir, {farm.url + "/api/jobs/2/glb-version"}).first.rfind("preview.glb-", 0), 0u);
+  }
   stop_farm(farm, nodes, dir, "farm0.log");
 }
 
