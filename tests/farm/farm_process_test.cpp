@@ -190,7 +190,7 @@ TEST(Farm, RunsItsQueueByPriorityAndACancelStopsTheRunningJob) {
 // (their status and ledger), and the short one ran every bundle index once. While the long job
 // runs, the farm writes its preview image from the states its node has sent (its status counts
 // that node's traffic): a PNG showing the Cornell box's red wall, handed out by the API; a
-// cancel then stops the long job and takes its preview away. A job whose --min-nodes exceeds its
+// cancel then stops the long job and takes its previews (image and glb) away. A job whose --min-nodes exceeds its
 // --max-nodes is refused when submitted, with one line.
 TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
   const fs::path dir = fresh_dir("sirad_farm_share");
@@ -214,8 +214,9 @@ TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
   for (const LedgerRow& row : short_ledger) short_names.insert(row.name);
   ASSERT_EQ(short_names.size(), 1u);
   // The long job's node has sent states: its preview is there, and its traffic is counted.
-  ASSERT_TRUE(wait_until([&] { return fs::exists(long_dir / "preview.png") && !status_nodes(long_dir / "status.json").empty(); }))
-      << slurp(dir / "farm0.log");
+  ASSERT_TRUE(wait_until([&] {
+    return fs::exists(long_dir / "preview.png") && fs::exists(long_dir / "preview.glb") && !status_nodes(long_dir / "status.json").empty();
+  })) << slurp(dir / "farm0.log");
   const std::vector<sirad::cluster::Status::Node> long_nodes = status_nodes(long_dir / "status.json");
   ASSERT_EQ(long_nodes.size(), 1u);
   EXPECT_EQ(short_names.count(long_nodes[0].name), 0u) << long_nodes[0].name << " ran both jobs";
@@ -234,6 +235,9 @@ TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
     for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) red_wall += rgb[i] > 100 && rgb[i + 1] < 60 && rgb[i + 2] < 60;
     EXPECT_GT(red_wall, 64u * 64 / 20) << "no red wall in the preview";
   }
+  auto [glb, glb_code] = curl(dir, {farm.url + "/api/jobs/1/glb"});  // its 3D view's: the preview's
+  EXPECT_EQ(glb_code, 200);
+  EXPECT_EQ(glb.substr(0, 4), "glTF");
   auto [list, list_code] = curl(dir, {farm.url + "/api/jobs"});
   ASSERT_EQ(list_code, 200);
   EXPECT_EQ(nlohmann::json::parse(list)["running"], nlohmann::json::array({1})) << list;
@@ -241,7 +245,10 @@ TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
   ASSERT_EQ(cancel_code, 200) << cancelled;
   ASSERT_TRUE(wait_until([&] { return job_state(farm, 1) == "cancelled"; })) << slurp(dir / "farm0.log");
   EXPECT_FALSE(fs::exists(long_dir / "preview.png"));
+  EXPECT_FALSE(fs::exists(long_dir / "preview.glb"));
   EXPECT_FALSE(fs::exists(long_dir / "checkpoint"));
+  EXPECT_EQ(curl(dir, {farm.url + "/api/jobs/1/glb-version"}).first, "missing");
+  EXPECT_EQ(curl(dir, {farm.url + "/api/jobs/1/glb"}).second, 404);
   stop_farm(farm, nodes, dir, "farm0.log");
 }
 
