@@ -27,6 +27,8 @@ struct RenderArgs {
   int nodes = 0;
   std::string status_json;
   std::string profile;
+  // --warm-start: a previous run's PLY whose solution this run starts from (solver/warm_start.h).
+  std::string warm_start;
   std::set<std::string> given;  // the flags given on the command line (long names)
 };
 

@@ -8,6 +8,8 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <memory>
 #include <optional>
 
 #include <fmt/format.h>
@@ -23,8 +25,10 @@
 #include "cluster/status.h"
 #include "engine/bundle_cl.h"
 #include "engine/shot.h"
+#include "io/read_solution.h"
 #include "io/results.h"
 #include "solver/solver.h"
+#include "solver/warm_start.h"
 #include "util/atomic_file.h"
 #include "util/error.h"
 
@@ -140,6 +144,46 @@ int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, c
   return finish_line(result.ended_by, short_of, static_cast<int64_t>(result.bundles));
 }
 
+// --warm-start's refusals that need no file read: it runs on one node, under the chain rule,
+// without a first shot, from a PLY (a glb holds corner values and sides pulled apart, not the
+// solution on its patches: as a control variate it would bias the answer).
+void check_warm_start(const RenderArgs& a, const cluster::RunSettings& s) {
+  const std::string& f = a.warm_start;
+  if (a.nodes > 0) fail("--warm-start {}: a warm start runs on one node (no --nodes)", f);
+  if (s.rule != UpdateRule::chain) fail("--warm-start {}: a warm start needs --rule chain", f);
+  if (s.shots_per_bundle > 0) fail("--warm-start {}: a warm start takes no first shot (the previous solution holds the direct light): drop --shots-per-bundle", f);
+  if (std::filesystem::path(f).extension() != ".ply")
+    fail("--warm-start {}: give the previous run's PLY (its glb holds the solution at corners, not on its patches)", f);
+}
+
+// A warm start's previous solution, its patches framed as the new mesh's, their engine and the
+// match (solver/warm_start.h).
+struct Warm {
+  Solution before;
+  std::unique_ptr<BundleEngine> engine;
+  WarmStart start;
+
+  Warm(const RenderArgs& a, const cluster::RunSettings& s, PatchMesh& mesh) : before(read_solution(a.warm_start)) {
+    if (!before.error_estimate)
+      fail("--warm-start {}: the file does not say its run's error estimate (comment sirad error estimate): run it again "
+           "with this sirad", a.warm_start);
+    if (s.target_error > 0 && *before.error_estimate >= s.target_error)
+      fail("--warm-start {}: its own error {:.4f} is not below --target-error {}: a run from it cannot reach the target; "
+           "run without --warm-start", a.warm_start, *before.error_estimate, s.target_error);
+    share_bound(mesh, before.mesh);
+    engine = make_cl_engine(before.mesh, {.device = a.device});
+    start.before = &before.mesh;
+    start.radiosity = before.radiosity;
+    start.engine = engine.get();
+    start.match = match_patches(mesh, before.mesh, 1e-6 * static_cast<double>(mesh.bound_radius));
+    start.error = *before.error_estimate;
+    const auto matched = std::count_if(start.match.begin(), start.match.end(), [](int64_t i) { return i >= 0; });
+    if (!a.quiet)
+      std::fprintf(stderr, "sirad: warm start from %s: %lld of %zu patches where one of its %zu was (its error %.4f)\n",
+                   a.warm_start.c_str(), static_cast<long long>(matched), mesh.size(), before.mesh.size(), start.error);
+  }
+};
+
 }  // namespace
 
 int render(RenderArgs a) {
@@ -150,7 +194,10 @@ int render(RenderArgs a) {
     cluster_only.push_back("--status-json");
     refuse_given(a, cluster_only, "has no effect on one node: it is a cluster setting (--nodes N)");
   }
-  const cluster::RunSettings settings = cli::settings_from(a.run, a.given);
+  cluster::RunSettings settings = cli::settings_from(a.run, a.given);
+  // A warm start's previous solution holds the direct light: no first shot unless one is asked
+  // for (refused below).
+  if (!a.warm_start.empty() && !a.given.count("--shots-per-bundle")) settings.shots_per_bundle = 0.0;
   if (a.nodes > 0) {
     if (std::string why = cluster::target_error_problem(settings); !why.empty()) fail("{}", why);
   }
@@ -158,11 +205,14 @@ int render(RenderArgs a) {
   if (!a.profile.empty()) profile = emulation::load_profile(a.profile);
   if (settings.target_error > 0 && a.nodes == 0 && settings.rule != UpdateRule::chain)
     fail("--target-error on one node needs --rule chain (its batch means assume the chain's estimates)");
+  if (!a.warm_start.empty()) check_warm_start(a, settings);
   std::string out = output_name(a.output.out, a.scene, a.output.lightmap.on ? kLightmapEndings : std::vector<std::string>{});
   Meshed m = load_meshed(a.scene, settings.mesh_options,
                          a.output.import(), a.output.camera);
   cli::settle_image_size(a.output, m.scene);
   if (a.output.lightmap.on) lightmap_atlas(a.output.lightmap, m.scene);  // a texel size the atlas cannot take: refused before the solve
+  std::optional<Warm> warm;
+  if (!a.warm_start.empty()) warm.emplace(a, settings, m.mesh);  // before the engine: the meshes share one bounding sphere
   const PatchMesh& mesh = m.mesh;
   install_interrupt();
 
@@ -179,6 +229,7 @@ int render(RenderArgs a) {
   auto engine = make_cl_engine(mesh, {.device = a.device});
   SolverOptions so = cluster::solver_options(settings, mesh, 0);
   so.track_error = settings.target_error > 0 || mesh.size() <= kTrackErrorMaxPatches;
+  if (warm) so.warm = &warm->start;
   std::unique_ptr<ShotEngine> shots;
   if (so.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
   const int64_t bundles = static_cast<int64_t>(settings.bundles);

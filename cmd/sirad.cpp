@@ -103,10 +103,18 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
 }
 
 // `sirad bake`: render's flags and the lightmap's (the lightmap always on).
+void add_warm_start(CLI::App* cmd, RenderArgs& r) {
+  cmd->add_option("--warm-start", r.warm_start,
+                  "Start from a previous run's PLY (an earlier version of the scene): where a patch is where one of its "
+                  "patches was, its solution serves as a control variate; the answer is the new scene's (one node, chain rule, "
+                  "no first shot)");
+}
+
 CLI::App* add_bake_command(CLI::App& app, RenderArgs& b) {
   auto* cmd = app.add_subcommand("bake", "Solve a scene and bake its light into a lightmap: NAME-lightmap.exr (half-float radiance), "
                                          "NAME-lightmap.png, NAME-baked.glb (TEXCOORD_1, the lightmap shown unlit), and render's outputs");
   add_run_options(cmd, b);
+  add_warm_start(cmd, b);
   cli::add_lightmap_flags(cmd, b.output.lightmap, false);
   return cmd;
 }
@@ -152,6 +160,7 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0, 64));
   render_cmd->add_option("--status-json", r.status_json, "With --nodes: rewrite this file with the run's status every second");
   render_cmd->add_option("--profile", r.profile, "With --nodes: network emulation profile (YAML; nodes are named local-0, local-1, ...)");
+  add_warm_start(render_cmd, r);
   cli::add_lightmap_flags(render_cmd, r.output.lightmap, true);
   RenderArgs bake_args;
   auto* bake_cmd = add_bake_command(app, bake_args);

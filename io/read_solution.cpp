@@ -33,7 +33,9 @@ Solution read_solution(const std::string& path) {
   }
   if (ext != ".ply") fail("{}: not a solution sirad reads (a .ply or .glb it wrote)", path);
   std::vector<glm::vec3> per_triangle;
-  Scene scene = import_ply(path, {}, &per_triangle);
+  double error = -1.0;
+  Scene scene = import_ply(path, {}, &per_triangle, &error);
+  if (error >= 0.0) s.error_estimate = error;
   s.mesh = mesh_scene(scene, MeshOptions{});  // one patch per triangle: the faces as written
   s.radiosity.resize(s.mesh.size());
   for (std::size_t j = 0; j < s.mesh.size(); ++j) {

@@ -22,6 +22,8 @@ struct Solution {
   std::vector<glm::vec3> radiosity;
   // The camera's width / height, where the file says (a glb sirad wrote: the run's image shape).
   std::optional<double> camera_aspect;
+  // The run's own error estimate, where the file says (a PLY's `sirad error estimate E`).
+  std::optional<double> error_estimate;
 };
 
 // A solution sirad wrote, by the file's extension:

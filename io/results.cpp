@@ -94,7 +94,10 @@ ResultFiles write_results(const std::string& name, const PatchMesh& mesh,
       fail("{}: the result is not finite at patch {} ({}, {}, {}); nothing written", name, j, radiosity[j].x, radiosity[j].y,
            radiosity[j].z);
   const ResultFiles files{name + ".exr", name + ".png", name + ".ply", name + ".glb"};
-  const auto ply = [&](const std::string& path) { write_ply(path, mesh, radiosity, options.exposure); };
+  double error = -1.0;
+  for (const auto& [key, value] : attributes)
+    if (key == "sirad.error_estimate" && std::holds_alternative<double>(value)) error = std::get<double>(value);
+  const auto ply = [&](const std::string& path) { write_ply(path, mesh, radiosity, options.exposure, error); };
   const auto glb = [&](const std::string& path) {
     write_glb(path, mesh, radiosity, options.exposure, static_cast<double>(options.width) / options.height);
   };

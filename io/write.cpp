@@ -372,7 +372,7 @@ std::vector<uint32_t> split_corners(const PatchMesh& mesh, const std::vector<std
 }
 
 void write_ply(const std::string& path, const PatchMesh& mesh,
-               const std::vector<glm::vec3>& radiosity, float exposure) {
+               const std::vector<glm::vec3>& radiosity, float exposure, double error_estimate) {
   // Step 1: validate what the body refers to.
   if (radiosity.size() != mesh.size())
     fail("cannot write {}: {} radiosity values for {} patches", path, radiosity.size(),
@@ -410,6 +410,8 @@ void write_ply(const std::string& path, const PatchMesh& mesh,
   // faces (sirad image reads them back: scene/ply.h).
   std::string view_comments = fmt::format("comment sirad background {} {} {}\n", mesh.background.x, mesh.background.y, mesh.background.z);
   if (mesh.camera) view_comments += "comment sirad camera " + camera_spec(*mesh.camera) + "\n";
+  if (error_estimate >= 0.0 && std::isfinite(error_estimate))
+    view_comments += fmt::format("comment sirad error estimate {}\n", error_estimate);
   std::string header = fmt::format(
       "ply\n"
       "format binary_little_endian 1.0\n"

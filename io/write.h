@@ -47,8 +47,9 @@ std::vector<unsigned char> png_bytes(const std::string& what, const Image& image
 // PatchMesh::in_gap); a vertex per welded position and corner value (corner_radiosity:
 // shared within one smooth surface of one material, split at creases and material borders)
 // with red green blue = the tone map of the PNG (times 2^exposure, clamped, sRGB bytes), the
-// vertex colours Blender's PLY importer shows.
+// vertex colours Blender's PLY importer shows. `error_estimate` (the run's, >= 0) goes into the
+// comment `sirad error estimate E`: a warm start from the file counts it (solver/warm_start.h).
 void write_ply(const std::string& path, const PatchMesh& mesh,
-               const std::vector<glm::vec3>& radiosity, float exposure = 0.0f);
+               const std::vector<glm::vec3>& radiosity, float exposure = 0.0f, double error_estimate = -1.0);
 
 }  // namespace sirad

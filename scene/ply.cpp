@@ -134,6 +134,7 @@ struct Header {
   std::vector<Element> elements;
   int format = -1;  // 0 ascii, 1 little endian, 2 big endian
   std::optional<Camera> camera;
+  double error_estimate = -1.0;  // `sirad error estimate E`: the run's (a solution's PLY)
   glm::vec3 background{0.0f};
   std::size_t body = 0;
 };
@@ -167,6 +168,13 @@ Header read_header(const std::string& path, const std::string& data) {
       std::getline(words, rest);
       try {
         if (word == "camera") out.camera = parse_camera(rest);
+        if (word == "error") {
+          std::istringstream e(rest);
+          std::string estimate;
+          double v = -1.0;
+          if (!(e >> estimate >> v) || estimate != "estimate" || !(v >= 0.0 && v < 1e6)) fail("'estimate E', E >= 0, expected");
+          out.error_estimate = v;
+        }
         if (word == "background") {
           std::istringstream rgb(rest);
           glm::vec3 bg;
@@ -315,9 +323,10 @@ void read_body(const std::string& path, const std::string& data, const Header& h
 
 }  // namespace
 
-Scene import_ply(const std::string& path, const ImportOptions& options, std::vector<glm::vec3>* radiosity) {
+Scene import_ply(const std::string& path, const ImportOptions& options, std::vector<glm::vec3>* radiosity, double* error_estimate) {
   const std::string data = import::read_file(path, path);
   const Header header = read_header(path, data);
+  if (error_estimate) *error_estimate = header.error_estimate;
   std::vector<glm::vec3> positions;
   std::vector<Face> faces;
   read_body(path, data, header, radiosity != nullptr, positions, faces);

@@ -13,6 +13,8 @@ namespace sirad {
 // naming the file and the element. The comments `sirad camera SPEC` and `sirad background R G B`
 // (sirad's own PLY) give the scene's camera and background. `radiosity`, if given, gets each
 // triangle's float face properties radiosity_r/g/b (a solution's PLY); a file without them is refused.
-Scene import_ply(const std::string& path, const ImportOptions& options, std::vector<glm::vec3>* radiosity = nullptr);
+// `error_estimate`, if given, gets the comment `sirad error estimate E` (the run's), or -1.
+Scene import_ply(const std::string& path, const ImportOptions& options, std::vector<glm::vec3>* radiosity = nullptr,
+                 double* error_estimate = nullptr);
 
 }  // namespace sirad

@@ -70,6 +70,24 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   source_.resize(n);
   for (std::size_t j = 0; j < n; ++j) source_[j] = glm::dvec3(mesh.emission(j));
   state_ = source_;
+  if (const WarmStart* w = options.warm) {
+    if (options.rule != UpdateRule::chain || shots_) fail("a warm start needs the chain rule and no first shot");
+    if (!w->before || !w->engine || w->match.size() != n || w->radiosity.size() != w->before->size())
+      fail("warm start: {} matches for {} patches, {} values for the previous run's patches", w->match.size(), n,
+           w->radiosity.size());
+    if (w->before->bound_radius != mesh.bound_radius || w->before->bound_center != mesh.bound_center)
+      fail("warm start: the previous run's patches and these do not share one bounding sphere (share_bound)");
+    warm_input_.resize(w->before->size());
+    for (std::size_t i = 0; i < warm_input_.size(); ++i) warm_input_[i] = glm::vec4(w->radiosity[i], 0.0f);
+    warm_offset_.assign(n, glm::dvec3(0.0));
+    for (std::size_t j = 0; j < n; ++j)
+      if (const int64_t i = w->match[j]; i >= 0) {
+        if (static_cast<std::size_t>(i) >= w->before->size()) fail("warm start: patch {} matched to {} of {}", j, i, w->before->size());
+        const auto k = static_cast<uint32_t>(i);
+        state_[j] = glm::dvec3(w->radiosity[k]);
+        warm_offset_[j] = glm::dvec3(w->radiosity[k]) - glm::dvec3(w->before->emission(k));
+      }
+  }
   input_.resize(n);
   incoming_sum_.assign(n, glm::dvec3(0.0));
   direct_sum_.assign(n, glm::dvec3(0.0));
@@ -82,6 +100,13 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
     transport(result_);
     state_.swap(next_state_);
   }
+}
+
+double Solver::error_estimate() const {
+  if (!batches_) return -1.0;
+  const double own = batches_->relative_error(mesh_);
+  if (own < 0.0 || !options_.warm) return own;
+  return std::sqrt(own * own + options_.warm->error * options_.warm->error);
 }
 
 bool Solver::error_estimate_ready() const {
@@ -119,6 +144,10 @@ void Solver::run_bundle(uint64_t index, Stream stream) {
   SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream, sampling_);
   engine_.run(b, input_, result_);
   crossings_ += result_.crossings;
+  if (const WarmStart* w = options_.warm) {  // the same lines through the old scene, carrying P
+    w->engine->run(make_bundle(*w->before, grid_, options_.seed, index, stream, sampling_), warm_input_, warm_result_);
+    crossings_ += warm_result_.crossings;
+  }
 }
 
 const std::vector<glm::dvec3>& Solver::transport(const BundleResult& r) {
@@ -146,12 +175,21 @@ const std::vector<glm::dvec3>& Solver::transport(const BundleResult& r) {
   const double past = incoming_count_ > 0 ? 1.0 / static_cast<double>(incoming_count_) : 0.0;
   std::vector<glm::dvec3>& out = estimate_;
   out.resize(mesh_.size());
+  const WarmStart* warm = options_.warm;
   for (std::size_t j = 0; j < out.size(); ++j) {
     double w = two_delta_ / mesh_.area[j];
     glm::dvec3 in = w * glm::dvec3(r.gathered[j]);
-    if (cv) in += incoming_sum_[j] * past * (1.0 - w * static_cast<double>(r.hits[j]));
+    const int64_t old = warm ? warm->match[j] : -1;
+    // P's control variate (warm_start.h) where the patch was one of the last run's; it takes the
+    // place of the constant one, whose lattice noise the same lines' old estimate cancels.
+    if (cv && old < 0) in += incoming_sum_[j] * past * (1.0 - w * static_cast<double>(r.hits[j]));
     incoming_sum_[j] += in;
     glm::dvec3 reflected = glm::dvec3(mesh_.reflectance(j)) * in;
+    if (old >= 0) {
+      const auto i = static_cast<uint32_t>(old);
+      const glm::dvec3 in_old = (two_delta_ / warm->before->area[i]) * glm::dvec3(warm_result_.gathered[i]);
+      reflected += warm_offset_[j] - glm::dvec3(warm->before->reflectance(i)) * in_old;
+    }
     out[j] = source_[j] + reflected;
     next_state_[j] = shots_ ? glm::dvec3(mesh_.emission(j)) + direct_sum_[j] * shots + reflected : out[j];
   }

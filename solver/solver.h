@@ -21,6 +21,7 @@
 #include "engine/shot.h"
 #include "scene/mesh.h"
 #include "solver/error_estimate.h"
+#include "solver/warm_start.h"
 
 namespace sirad {
 
@@ -45,6 +46,9 @@ struct SolverOptions {
   // The transport's constant control variate (Solver::transport): unbiased either way; on,
   // it removes the noise of how many lines happen to cross a patch and of their cosine.
   bool control_variate = true;
+  // A start from the last run (solver/warm_start.h): chain rule, no first shot. Its patches'
+  // state starts at P (elsewhere at E), and each step's estimate there takes P's control variate.
+  const WarmStart* warm = nullptr;
   // Asked between burn-in bundles (a burn-in may run up to 2^20 of them); true: the solver's
   // construction stops with sirad::Error "set-up interrupted" (a node told to stop).
   std::function<bool()> cancelled;
@@ -84,7 +88,8 @@ class Solver {
   uint64_t shots_rendered() const { return shots_rendered_; }
   // With options.track_error: the estimated relative RMS error of estimate() per non-emitting
   // patch (solver/error_estimate.h), or a negative value while there are too few bundles.
-  double error_estimate() const { return batches_ ? batches_->relative_error(mesh_) : -1.0; }
+  // With a warm start, P's own error is in it too (the run's answer carries it: warm_start.h).
+  double error_estimate() const;
   int batch_count() const { return batches_ ? batches_->full_batches() : 0; }
   // Whether error_estimate() can be trusted for stopping: at least 8 full batches, each long
   // against the correlations between consecutive estimates: the chain's (a few steps) and, with
@@ -150,6 +155,11 @@ class Solver {
   uint64_t direct_shots_ = 0;
   std::vector<glm::dvec3> next_state_;     // the chain's next input, made by transport()
   std::vector<glm::dvec3> estimate_;       // the last transport's estimate L'(m)
+  // Warm start: P as the old engine's input, the same bundle's result on the old patches, and
+  // per new patch P_i - E_i (i its old patch; 0 where none).
+  std::vector<glm::vec4> warm_input_;
+  BundleResult warm_result_;
+  std::vector<glm::dvec3> warm_offset_;
   BundleResult result_;
   uint64_t count_ = 0, crossings_ = 0;
 };

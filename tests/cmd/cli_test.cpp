@@ -134,6 +134,36 @@ TEST_F(Cli, TargetErrorLiftsTheDefaultCapAndSaysWhenItFallsShort) {
 
 // No output ever overwrites the scene file that was read: a scene named like one of the outputs
 // (NAME.ply) is refused before anything is read or written, and stays as it was.
+// --warm-start from the same scene's PLY: every patch is found where it was, the result is the
+// PLY's solution (the control variate cancels each bundle to the last bit: warm_start_test.cpp),
+// its error is the previous run's (its PLY says it, and so does the new one); and what a warm
+// start cannot do is refused in one line before any solve.
+TEST_F(Cli, AWarmStartFromTheSameSceneKeepsItsSolution) {
+  Outcome r = sirad("render cornell --patches 300 --bundles 256 --width 16 --height 16 --out before -q");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::string before = slurp((dir_ / "before.ply").string());
+  ASSERT_NE(before.find("comment sirad error estimate "), std::string::npos);
+  r = sirad("render cornell --patches 300 --bundles 64 --width 16 --height 16 --warm-start before.ply --out after");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("warm start from before.ply: 298 of 298 patches"), std::string::npos) << r.err;
+  auto estimate = [](const std::string& ply) {
+    const std::size_t at = ply.find("comment sirad error estimate ");
+    return at == std::string::npos ? -1.0 : std::stod(ply.substr(at + 29, 24));
+  };
+  const std::string after = slurp((dir_ / "after.ply").string());
+  EXPECT_DOUBLE_EQ(estimate(after), estimate(before));
+  // The faces (after the header's comments) carry the same values.
+  EXPECT_EQ(after.substr(after.find("element vertex")), before.substr(before.find("element vertex")));
+  fs::create_directory(dir_ / "prev");  // out of the way of expect_error's check that a refusal writes nothing
+  fs::rename(dir_ / "before.ply", dir_ / "prev" / "before.ply");
+  for (const char* f : {"before.exr", "before.png", "before.glb", "after.exr", "after.png", "after.ply", "after.glb"}) fs::remove(dir_ / f);
+  expect_error(sirad("render cornell --patches 300 --warm-start prev/before.glb"), "give the previous run's PLY");
+  expect_error(sirad("render cornell --patches 300 --warm-start prev/before.ply --nodes 2"), "runs on one node");
+  expect_error(sirad("render cornell --patches 300 --warm-start prev/before.ply --shots-per-bundle 1"), "takes no first shot");
+  expect_error(sirad("render cornell --patches 300 --warm-start prev/missing.ply"), "missing.ply");
+  expect_error(sirad("render cornell --patches 300 --warm-start prev/before.ply --target-error 0.001"), "cannot reach the target");
+}
+
 TEST_F(Cli, OutputsNeverOverwriteTheScene) {
   write("room.ply", "ply\nformat ascii 1.0\nend_header\n");
   Outcome r = sirad("render room.ply --bundles 4");
