@@ -1,8 +1,10 @@
 // sirad tests: lightmaps baked from a solution (render/bake.h): a floor's texels under a square
 // light against the closed form, no light through a zero-thickness wall into a dark room, no
 // samples inside a solid standing on a floor, gutters filled from their own chart, and the same
-// lightmap on any number of threads.
+// lightmap on any number of threads; and the rest of the leak suite: a free-standing panel's
+// back, a rug on a floor at zero gap.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -285,6 +287,83 @@ TEST(Bake, FacesCutAtAWallsFootKeepTwoRoomsTexelsApart) {
   }
   EXPECT_GT(lit, 1000);
   EXPECT_GT(dark, 1000);
+}
+
+// The rest of the leak suite: a room [0, 2] x [0, 1] x [0, 1] lit by its wall x = 0 (the lamp,
+// facing +x), with a free-standing zero-thickness panel at x = 1 (two one-sided planes back to
+// back, its front facing the lamp) and a rug lying on the floor at zero gap (a plane at z = 0,
+// facing up, over x 1.3..1.7, y 0.3..0.7). The solution gives B = 1 to the lamp and the panel's
+// front and 0 to everything else. No direct light can reach the panel's back: the lamp faces +x
+// and the back faces +x too (no direction leaves it towards x = 0). So each of its texels has
+// exactly no direct light, with all its samples kept (a sample taken on the front side of the
+// same place, or a shadow ray through the panel, would bring some). Its indirect light is not 0:
+// a gather ray that lands close by on the floor traces the floor's own light from the lamp. The
+// rug lies on top of the floor (the later face at one place: DESIGN.md, coincident faces): its
+// texels keep their samples and are lit.
+TEST(Bake, AFreeStandingPanelsBackTakesNoDirectLightAndARugOnAFloorIsLit) {
+  QuadScene q;
+  const uint32_t white = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t lamp = q.material(glm::vec3(0.5f), glm::vec3(2.0f));
+  q.quad({0, 0, 0}, {2, 0, 0}, {2, 1, 0}, {0, 1, 0}, white);  // floor, +z
+  q.quad({0, 0, 1}, {0, 1, 1}, {2, 1, 1}, {2, 0, 1}, white);  // ceiling, -z
+  q.quad({0, 0, 0}, {0, 0, 1}, {2, 0, 1}, {2, 0, 0}, white);  // y = 0, +y
+  q.quad({0, 1, 0}, {2, 1, 0}, {2, 1, 1}, {0, 1, 1}, white);  // y = 1, -y
+  q.quad({0, 0, 0}, {0, 1, 0}, {0, 1, 1}, {0, 0, 1}, lamp);   // x = 0, +x: the lamp
+  q.quad({2, 0, 0}, {2, 0, 1}, {2, 1, 1}, {2, 1, 0}, white);  // x = 2, -x
+  const float lo = 0.2f, hi = 0.8f;
+  q.quad({1, lo, lo}, {1, lo, hi}, {1, hi, hi}, {1, hi, lo}, white);  // the panel's front, -x
+  q.quad({1, lo, lo}, {1, hi, lo}, {1, hi, hi}, {1, lo, hi}, white);  // its back, +x
+  const float rx0 = 1.3f, rx1 = 1.7f, ry0 = 0.3f, ry1 = 0.7f;
+  q.quad({rx0, ry0, 0}, {rx1, ry0, 0}, {rx1, ry1, 0}, {rx0, ry1, 0}, white);  // the rug, +z
+  const Scene cut = cut_at_contacts(q.scene);
+  const PatchMesh mesh = mesh_scene(cut, {.target_patches = 2000});
+  std::vector<glm::vec3> radiosity(mesh.size(), glm::vec3(0.0f));
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const glm::vec3 c = (mesh.vertices[mesh.patches[j][0]] + mesh.vertices[mesh.patches[j][1]] + mesh.vertices[mesh.patches[j][2]]) / 3.0f;
+    const bool front = std::abs(c.x - 1.0f) < 1e-6f && mesh.normal[j].x < 0;
+    if (mesh.emits(j) || front) radiosity[j] = glm::vec3(1.0f) + mesh.emission(j);
+  }
+  const FinalGather gather(mesh, radiosity, {.seed = 5});
+  const Atlas atlas = make_atlas(cut, {.texel_size = 0.025, .gutter = 1});
+  const Lightmap m = bake_lightmap(cut, atlas, gather, 16);
+  // A texel's four corners on its chart's plane.
+  const auto corners = [&](const Chart& c, int x, int y) {
+    std::array<glm::dvec3, 4> p;
+    for (int k = 0; k < 4; ++k)
+      p[static_cast<std::size_t>(k)] =
+          c.origin + c.u * ((x - c.x - 1 + (k & 1)) * atlas.texel_size) + c.v * ((y - c.y - 1 + (k >> 1)) * atlas.texel_size);
+    return p;
+  };
+  int back = 0, rug = 0;
+  for (const Chart& c : atlas.charts) {
+    const bool panel_back = std::abs(c.origin.x - 1.0) < 1e-6 && c.normal.x > 0.5;
+    const bool floor = std::abs(c.origin.z) < 1e-6 && c.normal.z > 0.5;
+    for (int y = c.y + 1; y < c.y + c.height - 1; ++y)
+      for (int x = c.x + 1; x < c.x + c.width - 1; ++x) {
+        const auto p = corners(c, x, y);
+        const float coverage = m.coverage[static_cast<std::size_t>(y) * atlas.width + x];
+        const glm::vec3 v = m.combined.at(x, y);
+        const auto in_panel = [&](const glm::dvec3& q) { return q.y >= lo && q.y <= hi && q.z >= lo && q.z <= hi; };
+        if (panel_back && std::all_of(p.begin(), p.end(), in_panel)) {
+          EXPECT_EQ(m.direct.at(x, y), glm::vec3(0.0f)) << "direct light on the panel's back at texel " << x << ", " << y;
+          EXPECT_EQ(coverage, 1.0f) << x << ", " << y;
+          ++back;
+        }
+        if (!floor) continue;
+        const auto in_rug = [&](const glm::dvec3& q) { return q.x > rx0 && q.x < rx1 && q.y > ry0 && q.y < ry1; };
+        if (!std::all_of(p.begin(), p.end(), in_rug)) continue;
+        bool is_rug = true;  // the rug's chart or the floor's: the rug's faces lie within its square
+        for (uint32_t t : c.triangles)
+          for (const glm::vec3& v3 : cut.triangles[t].p) is_rug = is_rug && v3.x >= rx0 - 1e-6f && v3.x <= rx1 + 1e-6f && v3.y >= ry0 - 1e-6f && v3.y <= ry1 + 1e-6f;
+        if (is_rug) {
+          EXPECT_GT(v.x, 0.0f) << "a rug texel unlit at " << x << ", " << y;
+          EXPECT_EQ(coverage, 1.0f) << x << ", " << y;
+          ++rug;
+        }
+      }
+  }
+  EXPECT_GT(back, 300);
+  EXPECT_GT(rug, 100);
 }
 
 }  // namespace
