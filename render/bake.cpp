@@ -24,6 +24,7 @@ struct Flat {
   std::array<glm::dvec2, 3> q;
   std::array<glm::dvec3, 3> p;
   glm::dvec3 normal, rho, emission;
+  uint32_t object = 0;
 };
 
 // Barycentric coordinates of point x in triangle q (false when x lies outside it).
@@ -123,7 +124,7 @@ class ChartCache {
     const auto f = std::find_if(flat_.begin(), flat_.end(), [&](const Flat& g) { return inside(g.q, at, w); });
     if (f == flat_.end()) return r;
     r.x = f->p[0] * w.x + f->p[1] * w.y + f->p[2] * w.z;
-    if (gather_.enclosed(r.x, chart_.normal)) return r;
+    if (gather_.enclosed(r.x, chart_.normal) || gather_.covered(r.x, chart_.normal, f->object)) return r;
     r.e = gather_.arriving(r.x, chart_.normal, kRecordRays, base_ + key, r.se, r.r, cast);
     r.valid = true;
     return r;
@@ -194,6 +195,7 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
       f.normal = glm::normalize(n);
       f.rho = glm::dvec3(scene.materials.at(tri.material).reflectance);
       f.emission = glm::dvec3(scene.materials.at(tri.material).emission);
+      f.object = tri.object;
       flat.push_back(f);
     }
     // Step 2: each texel's samples on the chart's faces, the light leaving them.
@@ -214,7 +216,8 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
           const auto f = std::find_if(flat.begin(), flat.end(), [&](const Flat& g) { return inside(g.q, at, w); });
           if (f == flat.end()) continue;  // beyond the chart's outline
           const glm::dvec3 p = f->p[0] * w.x + f->p[1] * w.y + f->p[2] * w.z;
-          if (gather.enclosed(p, f->normal)) continue;  // inside a solid
+          if (gather.enclosed(p, f->normal)) continue;             // inside a solid
+          if (gather.covered(p, f->normal, f->object)) continue;   // under a rug laid on it
           points.push_back({p, f->normal, f->rho, f->emission});
           kept.push_back({at.x, at.y});
         }
@@ -223,7 +226,7 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
         glm::dvec3 cached(0.0), cached_se(0.0);
         bool from_cache = true;
         for (std::size_t s = 0; s < points.size() && from_cache; ++s) {
-          glm::dvec3 e, se;
+          glm::dvec3 e(0.0), se(0.0);  // as they are where the cache has no block
           from_cache = cache.at(x, y, kept[s][0], kept[s][1], e, se, cast[c]);
           cached += points[s].rho * e, cached_se += points[s].rho * se;
         }

@@ -5,7 +5,8 @@
 //     chart's triangle that holds it, and takes that face's normal and material. A sample on no
 //     triangle of the chart (the texel straddles the chart's outline) is left out, and so is one
 //     inside a solid: the first face along its normal is met from behind (a floor under a wall
-//     that stands on it). So no sample lies where light cannot be, and a texel's value is the
+//     that stands on it), and one under a face of another object laid on it at zero gap (a rug:
+//     FinalGather::covered). So no sample lies where light cannot be, and a texel's value is the
 //     light of its own surface only.
 //   - Each kept sample is one estimate of FinalGather::leaving (emission, an emitter sample with
 //     its shadow ray, a gather ray); the texel is their mean, in radiance, in the passes' split.

@@ -77,6 +77,7 @@ struct FinalGather::Impl {
   // area-proportional choice (a Choice's cumulative probabilities).
   std::vector<Light> lights;
   std::vector<int32_t> light_of;
+  std::vector<uint8_t> overlapping;  // per object: whether any of its patches shares a place (covered)
   std::vector<double> by_area;
   // The cache records of the last view rendered (a view's tiles, rendered one after another,
   // share them).
@@ -104,6 +105,15 @@ struct FinalGather::Impl {
         offset(ray_offset(m)),
         rays(m, offset) {
     lights = find_lights(mesh, &light_of);
+    // The objects with a patch that shares a place with another facing the same way (a rug's, the
+    // floor's under it): only their points can be covered (FinalGather::covered).
+    for (std::size_t j = 0; j < mesh.size(); ++j) {
+      const uint32_t t = mesh.source_triangle[j];
+      if (t >= mesh.triangle_object.size() || !rays.overlapped(static_cast<uint32_t>(j))) continue;
+      const uint32_t o = mesh.triangle_object[t];
+      if (o >= overlapping.size()) overlapping.resize(o + 1, 0);
+      overlapping[o] = 1;
+    }
     double area = 0.0;
     for (const Light& l : lights) by_area.push_back(area += l.area);
     for (double& v : by_area) v /= area;
@@ -629,6 +639,15 @@ bool FinalGather::enclosed(const glm::dvec3& x, const glm::dvec3& n) const {
   for (const glm::dvec3& side : {u, -u, v, -v})
     if (!from_behind(n * c + side * s)) return false;
   return true;
+}
+
+bool FinalGather::covered(const glm::dvec3& x, const glm::dvec3& n, uint32_t object) const {
+  const Impl& m = *impl_;
+  if (object >= m.overlapping.size() || !m.overlapping[object]) return false;
+  const int64_t top = m.rays.on_top(x, n);
+  if (top < 0) return false;
+  const uint32_t t = m.mesh.source_triangle[static_cast<std::size_t>(top)];
+  return t < m.mesh.triangle_object.size() && m.mesh.triangle_object[t] != object;
 }
 
 GatherPasses GatherPasses::of_size(int width, int height) {

@@ -143,6 +143,11 @@ class FinalGather {
   // along each of four directions 60 degrees from it, is met from behind (a floor under a wall
   // standing on it; not one under a one-sided table top, which rays beside it pass).
   bool enclosed(const glm::dvec3& x, const glm::dvec3& n) const;
+  // Whether point x of a face of object `object` facing n lies under a face of another object
+  // at the same place facing the same way, on top of it by the coincident-face rule (a floor
+  // under a rug laid on it at zero gap: the solve gives it no light). Faces of one object at one
+  // place are not told apart (none is covered).
+  bool covered(const glm::dvec3& x, const glm::dvec3& n, uint32_t object) const;
 
  private:
   struct Impl;

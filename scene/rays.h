@@ -184,6 +184,15 @@ class RayScene {
     }
     return false;
   }
+  // The patch on top at place x among those facing the way n there (within the tie): the latest,
+  // by the coincident-face rule (a rug laid on a floor); -1 where none faces n at x.
+  int64_t on_top(const glm::dvec3& x, const glm::dvec3& n) const {
+    Hits h = hits_on(x - n * tie_, n, 0.0, 2.0 * tie_);
+    int64_t top = -1;
+    for (uint32_t k = 0; k < h.n; ++k)
+      if (glm::dot(glm::dvec3(mesh_.normal[h.prim[k]]), n) > 0.5) top = std::max<int64_t>(top, h.prim[k]);
+    return top;
+  }
   // Whether anything lies on the segment org + t (to - org), 0 <= t < 1.
   bool blocked(const glm::dvec3& org, const glm::dvec3& to) const {
     RTCIntersectContext ctx;

@@ -2,7 +2,7 @@
 // light against the closed form, no light through a zero-thickness wall into a dark room, no
 // samples inside a solid standing on a floor, gutters filled from their own chart, and the same
 // lightmap on any number of threads; and the rest of the leak suite: a free-standing panel's
-// back, a rug on a floor at zero gap.
+// back, the floor under a rug at zero gap.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -298,9 +298,10 @@ TEST(Bake, FacesCutAtAWallsFootKeepTwoRoomsTexelsApart) {
 // exactly no direct light, with all its samples kept (a sample taken on the front side of the
 // same place, or a shadow ray through the panel, would bring some). Its indirect light is not 0:
 // a gather ray that lands close by on the floor traces the floor's own light from the lamp. The
-// rug lies on top of the floor (the later face at one place: DESIGN.md, coincident faces): its
-// texels keep their samples and are lit.
-TEST(Bake, AFreeStandingPanelsBackTakesNoDirectLightAndARugOnAFloorIsLit) {
+// rug, an object of its own, lies on top of the floor (the later face at one place: DESIGN.md,
+// coincident faces): its texels keep their samples and are lit, and the floor's texels wholly
+// under it take no sample (coverage 0; they are filled from their chart, and never seen).
+TEST(Bake, AFreeStandingPanelsBackTakesNoDirectLightAndTheFloorUnderARugNoSample) {
   QuadScene q;
   const uint32_t white = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
   const uint32_t lamp = q.material(glm::vec3(0.5f), glm::vec3(2.0f));
@@ -315,6 +316,8 @@ TEST(Bake, AFreeStandingPanelsBackTakesNoDirectLightAndARugOnAFloorIsLit) {
   q.quad({1, lo, lo}, {1, hi, lo}, {1, hi, hi}, {1, lo, hi}, white);  // its back, +x
   const float rx0 = 1.3f, rx1 = 1.7f, ry0 = 0.3f, ry1 = 0.7f;
   q.quad({rx0, ry0, 0}, {rx1, ry0, 0}, {rx1, ry1, 0}, {rx0, ry1, 0}, white);  // the rug, +z
+  q.scene.objects.push_back("rug");  // an object of its own, as modellers make one
+  for (std::size_t t = q.scene.triangles.size() - 2; t < q.scene.triangles.size(); ++t) q.scene.triangles[t].object = 1;
   const Scene cut = cut_at_contacts(q.scene);
   const PatchMesh mesh = mesh_scene(cut, {.target_patches = 2000});
   std::vector<glm::vec3> radiosity(mesh.size(), glm::vec3(0.0f));
@@ -334,7 +337,7 @@ TEST(Bake, AFreeStandingPanelsBackTakesNoDirectLightAndARugOnAFloorIsLit) {
           c.origin + c.u * ((x - c.x - 1 + (k & 1)) * atlas.texel_size) + c.v * ((y - c.y - 1 + (k >> 1)) * atlas.texel_size);
     return p;
   };
-  int back = 0, rug = 0;
+  int back = 0, rug = 0, under = 0;
   for (const Chart& c : atlas.charts) {
     const bool panel_back = std::abs(c.origin.x - 1.0) < 1e-6 && c.normal.x > 0.5;
     const bool floor = std::abs(c.origin.z) < 1e-6 && c.normal.z > 0.5;
@@ -359,11 +362,15 @@ TEST(Bake, AFreeStandingPanelsBackTakesNoDirectLightAndARugOnAFloorIsLit) {
           EXPECT_GT(v.x, 0.0f) << "a rug texel unlit at " << x << ", " << y;
           EXPECT_EQ(coverage, 1.0f) << x << ", " << y;
           ++rug;
+        } else {
+          EXPECT_EQ(coverage, 0.0f) << "a sample on the floor under the rug at texel " << x << ", " << y;
+          ++under;
         }
       }
   }
   EXPECT_GT(back, 300);
   EXPECT_GT(rug, 100);
+  EXPECT_GT(under, 100);
 }
 
 }  // namespace
