@@ -113,8 +113,13 @@ void add_lightmap_flags(CLI::App* cmd, LightmapFlags& l, bool with_switch) {
   cmd->add_option("--texels", l.texels, "Lightmap texel budget: the texel size that covers the scene with about this many")
       ->check(CLI::Range(uint64_t{1024}, uint64_t{1} << 26))
       ->capture_default_str();
-  cmd->add_option("--texel-samples", l.samples, "Final-gather samples per lightmap texel (each: an emitter sample, a gather ray)")
+  cmd->add_option("--texel-samples", l.samples, "Final-gather samples per lightmap texel (each: --texel-lights emitter samples, a gather ray)")
       ->check(CLI::Range(2, 4096))
+      ->capture_default_str();
+  cmd->add_option("--texel-lights", l.lights,
+                  "Emitter samples per texel sample (more: less noise in the direct light for fewer gather rays; "
+                  "bench/RESULTS.md has the trade)")
+      ->check(CLI::Range(1, 64))
       ->capture_default_str();
 }
 

@@ -37,6 +37,7 @@ struct LightmapFlags {
   double texel_size = 0;                 // --texel-size (0: from the budget)
   uint64_t texels = uint64_t{1} << 20;   // --texels: the budget
   int samples = 64;                      // --texel-samples
+  int lights = 1;                        // --texel-lights: emitter samples per sample
 };
 
 struct OutputFlags {

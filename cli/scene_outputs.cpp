@@ -30,7 +30,7 @@ void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const s
   Scene faces;
   const Atlas atlas = lightmap_atlas(o.lightmap, m.scene, &faces);
   const FinalGather gather(m.mesh, radiosity, GatherOptions{});
-  const Lightmap lightmap = bake_lightmap(faces, atlas, gather, o.lightmap.samples);
+  const Lightmap lightmap = bake_lightmap(faces, atlas, gather, o.lightmap.samples, o.lightmap.lights);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   Attributes a = attrs;
   a.emplace_back("sirad.texel_samples", static_cast<int64_t>(o.lightmap.samples));

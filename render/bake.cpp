@@ -165,8 +165,9 @@ class ChartCache {
 
 }  // namespace
 
-Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples) {
+Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples, int lights) {
   if (samples < 1 || samples > 4096) fail("lightmap: {} samples per texel (1..4096)", samples);
+  if (lights < 1 || lights > 64) fail("lightmap: {} emitter samples per sample (1..64)", lights);
   if (atlas.uv.size() != scene.triangles.size() || atlas.width < 1 || atlas.height < 1)
     fail("lightmap: an atlas of {} triangles for a scene of {}", atlas.uv.size(), scene.triangles.size());
   const int W = atlas.width, H = atlas.height;
@@ -238,7 +239,7 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
         for (std::size_t h = 0; h < 2; ++h) {
           if (halves[h].empty()) continue;
           glm::dvec3 hd, hi;
-          gather.leaving(halves[h], key + h * texels, hd, hi, cast[c]);
+          gather.leaving(halves[h], key + h * texels, hd, hi, cast[c], lights);
           const double w = static_cast<double>(halves[h].size()) / static_cast<double>(points.size());
           d += w * hd, i += w * hi;
           (h == 0 ? a : b) = from_cache ? hd : hd + hi;

@@ -51,8 +51,9 @@ struct Lightmap {
 };
 
 // The lightmap of `atlas` (made from `scene`, whose faces `gather`'s mesh was meshed from) at
-// `samples` samples per texel (1..4096). Throws sirad::Error for samples out of range or an atlas
-// not of this scene.
-Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples);
+// `samples` samples per texel (1..4096), each with `lights` emitter samples (1..64:
+// FinalGather::leaving). Throws sirad::Error for counts out of range or an atlas not of this
+// scene.
+Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples, int lights = 1);
 
 }  // namespace sirad

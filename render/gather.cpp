@@ -199,7 +199,7 @@ struct FinalGather::Impl {
   // compact cell of a light. False where no ray is cast (no emitter, or one the point does not
   // face or that does not face it).
   bool light_sample(const glm::dvec3& x, const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& light, bool mis,
-                    Choice c, ShadowRay& out) const {
+                    Choice c, ShadowRay& out, double count = 1.0) const {
     if (lights.empty()) return false;
     const std::size_t k = std::min<std::size_t>(static_cast<std::size_t>(std::upper_bound(c, c + lights.size(), light[0]) - c), lights.size() - 1);
     const Light& e = lights[k];
@@ -214,8 +214,10 @@ struct FinalGather::Impl {
     const glm::dvec3 w = d / std::sqrt(r2);
     const double cos_x = glm::dot(n, w), cos_y = -glm::dot(ne, w);
     if (!(cos_x > 0.0 && cos_y > 0.0)) return false;
-    const double p_light = light_pdf(c, k, r2, cos_y), p_gather = mis ? cos_x / std::numbers::pi : 0.0;
-    // E cos_x / pi d(omega) / p_light, with MIS weight p_light / (p_light + p_gather).
+    const double p_light = count * light_pdf(c, k, r2, cos_y), p_gather = mis ? cos_x / std::numbers::pi : 0.0;
+    // E cos_x / pi d(omega) / p_light, with MIS weight p_light / (p_light + p_gather); with
+    // `count` emitter samples to one gather ray, each sample's share (Veach's balance heuristic
+    // with sample counts: the samples are summed).
     out = {origin, y + ne * offset, e.emission * (cos_x / std::numbers::pi / (p_light + p_gather))};
     return true;
   }
@@ -232,7 +234,7 @@ struct FinalGather::Impl {
     bool emitter = false;                                       // it met an emitter's front
   };
   Landed gathered(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, Rng& more, int depth, Choice c,
-                  glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
+                  glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast, double lights = 1.0) const {
     const glm::dvec3 g = cosine_direction(n, gather[0], gather[1]);
     const auto [seen, s] = rays.seen_at(origin, g);
     ++cast;
@@ -252,16 +254,17 @@ struct FinalGather::Impl {
     } else {
       indirect += radiosity_at(k, y) - e;
     }
-    return {s, emitter_met(k, n, g, s, c, direct)};
+    return {s, emitter_met(k, n, g, s, c, direct, lights)};
   }
 
   // Whether a gather ray along g from a point of normal n that meets patch k at distance s meets
   // an emitter's front; if so its light, weighted against the emitter sample, into `direct`.
-  bool emitter_met(uint32_t k, const glm::dvec3& n, const glm::dvec3& g, double s, Choice c, glm::dvec3& direct) const {
+  bool emitter_met(uint32_t k, const glm::dvec3& n, const glm::dvec3& g, double s, Choice c, glm::dvec3& direct,
+                   double lights = 1.0) const {
     if (!mesh.emits(k) || light_of[k] < 0) return false;
     const double cos_x = glm::dot(n, g), cos_y = -glm::dot(glm::dvec3(mesh.normal[k]), g);
     if (!(cos_x > 0.0 && cos_y > 0.0)) return false;
-    const double p_gather = cos_x / std::numbers::pi, p_light = light_pdf(c, static_cast<std::size_t>(light_of[k]), s * s, cos_y);
+    const double p_gather = cos_x / std::numbers::pi, p_light = lights * light_pdf(c, static_cast<std::size_t>(light_of[k]), s * s, cos_y);
     direct += glm::dvec3(mesh.emission(k)) * (p_gather / (p_light + p_gather));
     return true;
   }
@@ -585,24 +588,34 @@ int GatherOptions::thread_count() const {
 }
 
 void FinalGather::leaving(const std::vector<SurfacePoint>& points, uint64_t key, glm::dvec3& direct, glm::dvec3& indirect,
-                          uint64_t& cast) const {
+                          uint64_t& cast, int lights) const {
   direct = indirect = glm::dvec3(0.0);
   if (points.empty()) return;
+  if (lights < 1 || lights > 64) fail("leaving: {} emitter samples a point (1..64)", lights);
   const Impl& m = *impl_;
   const int n = static_cast<int>(points.size());
   Rng light(m.options.seed, key, 1, kLight), gather(m.options.seed, key, 1, kGather), more(m.options.seed, key, 1, kMore);
   std::vector<std::array<double, 2>> emitter_points, gathers;
   std::vector<double> cdf;
-  stratified_square(n, light, emitter_points);
+  stratified_square(n * lights, light, emitter_points);
   stratified_square(n, gather, gathers);
   const Impl::Choice pick = m.choice(&points[0].x, points[0].normal, cdf);
+  const double count = static_cast<double>(lights);
   for (int i = 0; i < n; ++i) {
     const SurfacePoint& p = points[static_cast<std::size_t>(i)];
     direct += p.emission;
     if (p.rho == glm::dvec3(0.0)) continue;
     glm::dvec3 d(0.0), r(0.0);
-    m.reflected(p.x, p.normal, emitter_points[static_cast<std::size_t>(i)], gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r,
-                cast);
+    // Impl::reflected with `lights` emitter samples to the one gather ray, weighed by their counts.
+    const glm::dvec3 origin = p.x + p.normal * m.offset;
+    for (int k = 0; k < lights; ++k) {
+      Impl::ShadowRay shadow;
+      if (m.light_sample(p.x, origin, p.normal, emitter_points[static_cast<std::size_t>(i * lights + k)], true, pick, shadow, count)) {
+        ++cast;
+        if (!m.rays.blocked(shadow.from, shadow.to)) d += shadow.light;
+      }
+    }
+    m.gathered(origin, p.normal, gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r, cast, count);
     direct += p.rho * d;
     indirect += p.rho * r;
   }

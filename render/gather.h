@@ -122,13 +122,15 @@ class FinalGather {
     glm::dvec3 x{0.0}, normal{0.0}, rho{0.0}, emission{0.0};
   };
   // The light leaving `points`, their mean, as a pixel's samples give it without the cache:
-  // per point its emission, one emitter sample with its shadow ray and one gather ray (the
+  // per point its emission, `lights` (1..64) emitter samples with their shadow rays and one
+  // gather ray, weighed against each other by the balance heuristic with those counts (the
   // emitter points and gather directions stratified over the points, in their order; the light
   // chosen as for a pixel whose first hit is the first point), in the passes' split: `direct`
   // the emission and the light reflected straight from the emitters, `indirect` the rest. It
-  // depends only on the seed, `key` (a texel's index) and the points. Rays cast into `cast`.
+  // depends only on the seed, `key` (a texel's index), `lights` and the points. Rays cast into
+  // `cast`.
   void leaving(const std::vector<SurfacePoint>& points, uint64_t key, glm::dvec3& direct, glm::dvec3& indirect,
-               uint64_t& cast) const;
+               uint64_t& cast, int lights = 1) const;
   // The light arriving at point x of a front facing n from everything but the emitters (what a
   // pixel's indirect pass reflects, before the reflectance), as the cache's records take it: the
   // mean over `rays` (2..65536) stratified cosine gather rays from the streams of `key`. Into

@@ -707,7 +707,7 @@ TEST_F(Cli, BakeWritesTheLightmapFilesBesideTheRunsOutputs) {
   ASSERT_NE(units, nullptr);
   EXPECT_EQ(units->value(), "radiance");
 
-  for (const char* bad : {"--texels 10", "--texel-samples 1", "--texel-size -1"}) {
+  for (const char* bad : {"--texels 10", "--texel-samples 1", "--texel-size -1", "--texel-lights 0", "--texel-lights 65"}) {
     Outcome b = sirad(std::string("bake cornell --bundles 4 --out d ") + bad);
     EXPECT_NE(b.status, 0) << bad;
     EXPECT_NE(b.err.find(std::string(bad).substr(0, std::string(bad).find(' '))), std::string::npos) << b.err;

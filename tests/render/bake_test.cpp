@@ -8,6 +8,7 @@
 #include <cmath>
 #include <numbers>
 
+#include <fmt/format.h>
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
 
@@ -44,7 +45,9 @@ std::vector<glm::vec3> lit_left_dark_right(const PatchMesh& mesh) {
 // its square: per sample the direct estimate D is at most 2 M (M = rho E A / (pi r^2), r >= 1
 // the height: each MIS term is at most rho E cos cos A / (pi r^2)), so Var D <= E[D^2] <= 2 M mu
 // and a texel of N samples is within 5 sqrt(2 M mu / N) of mu but with probability 6e-7 (normal
-// approximation of a mean of 256 bounded terms); 64 texels: 4e-5.
+// approximation of a mean of 256 bounded terms); 64 texels: 4e-5. With k emitter samples a
+// sample each of the k terms is at most 1 / k of that bound (their MIS weights count k), so the
+// same bound holds.
 TEST(Bake, AFloorsTexelsUnderASquareLightMatchTheClosedForm) {
   QuadScene q;
   const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
@@ -57,7 +60,9 @@ TEST(Bake, AFloorsTexelsUnderASquareLightMatchTheClosedForm) {
   const FinalGather gather(mesh, b, {.seed = 5});
   const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.5, .gutter = 2});
   const int samples = 256;
-  const Lightmap m = bake_lightmap(q.scene, atlas, gather, samples);
+  for (int lights : {1, 4}) {  // 4 emitter samples a sample: the counts' MIS stays unbiased
+  SCOPED_TRACE(fmt::format("{} emitter samples a sample", lights));
+  const Lightmap m = bake_lightmap(q.scene, atlas, gather, samples, lights);
   const Chart& c = atlas.charts[atlas.chart_of[0]];
   ASSERT_EQ(c.width, 8 + 4);
   ASSERT_EQ(c.height, 8 + 4);
@@ -93,6 +98,7 @@ TEST(Bake, AFloorsTexelsUnderASquareLightMatchTheClosedForm) {
   // The gutter's texels: no sample of theirs lands on the floor; each takes its chart's nearest.
   EXPECT_EQ(m.coverage[static_cast<std::size_t>(c.y) * atlas.width + c.x], 0.0f);
   EXPECT_EQ(m.combined.at(c.x, c.y), m.combined.at(c.x + 2, c.y + 2));
+  }
 }
 
 // Two closed rooms side by side sharing a zero-thickness wall (two planes back to back at
