@@ -216,7 +216,7 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
     send_file(res, fs::path(store_.folder(j->id)) / name, type);
   });
   // The 3D view of a job (/view?glb=/api/jobs/ID/glb&version=/api/jobs/ID/glb-version): the glb,
-  // and its version (size and modification time; "missing" while there is none) that the page
+  // and its version (glb_version: "missing" while there is none) that the page
   // polls to load a running job's newer preview and then its result.
   serve_viewer(s, "/view");
   s.Get(R"(/api/jobs/(\d+)/glb)", [this, job_of](const httplib::Request& req, httplib::Response& res) {
@@ -231,11 +231,8 @@ FarmHttp::FarmHttp(cluster::JobStore& store, FarmView& view, std::string token)
     std::optional<cluster::Job> j = job_of(req, res);
     if (!j) return;
     const std::optional<fs::path> glb = job_glb(*j, store_.folder(j->id));
-    std::error_code ec;
-    const auto size = glb ? fs::file_size(*glb, ec) : 0;
-    const auto time = glb ? fs::last_write_time(*glb, ec).time_since_epoch().count() : 0;
     res.set_header("Cache-Control", "no-store");
-    res.set_content(!glb || ec ? std::string("missing") : fmt::format("{}-{}-{}", glb->filename().string(), size, time), "text/plain");
+    res.set_content(glb ? glb_version(glb->string()) : std::string("missing"), "text/plain");
   });
   s.Post("/api/jobs", [this](const httplib::Request& req, httplib::Response& res) {
     try {

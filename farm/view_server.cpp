@@ -71,6 +71,14 @@ void serve_viewer(httplib::Server& s, const std::string& page) {
   }
 }
 
+std::string glb_version(const std::string& path) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  if (ec) return "missing";
+  const auto time = fs::last_write_time(path, ec).time_since_epoch().count();
+  return ec ? std::string("missing") : fmt::format("{}-{}-{}", fs::path(path).filename().string(), size, time);
+}
+
 struct ViewServer::Thread {
   std::thread t;
 };
@@ -100,11 +108,8 @@ ViewServer::ViewServer(std::string glb) : glb_(std::move(glb)), server_(std::mak
     res.set_content(std::move(bytes), "model/gltf-binary");
   });
   s.Get("/version", [this](const httplib::Request&, httplib::Response& res) {
-    std::error_code ec;
-    const auto size = fs::file_size(glb_, ec);
-    const auto time = fs::last_write_time(glb_, ec).time_since_epoch().count();
     res.set_header("Cache-Control", "no-store");
-    res.set_content(ec ? std::string("missing") : fmt::format("{}-{}", size, time), "text/plain");
+    res.set_content(glb_version(glb_), "text/plain");
   });
 }
 

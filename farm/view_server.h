@@ -1,7 +1,6 @@
 // sirad: `sirad view RESULT.glb`, the 3D view of a result on a local page: farm/viewer.html and
 // three.js (web/package.json's, embedded at build time) served with the glb by cpp-httplib on a
-// loopback port. The page loads /scene.glb and polls /version (the file's size and modification
-// time): a rebake, or a running job's newer glb, shows as it lands. The farm's page serves the
+// loopback port. The page loads /scene.glb and polls /version (glb_version): a rebake, or a running job's newer glb, shows as it lands. The farm's page serves the
 // same page for its jobs (serve_viewer).
 #pragma once
 #include <memory>
@@ -21,6 +20,10 @@ bool viewer_available();
 // map finds them (/three/...). The page loads /scene.glb and polls /version unless its query
 // names other paths of the same server (?glb=PATH&version=PATH: the farm's page shows a job's).
 void serve_viewer(httplib::Server& server, const std::string& page);
+
+// What the page polls to reload a glb: the file's name, size and modification time, or
+// "missing" where it cannot be read.
+std::string glb_version(const std::string& path);
 
 class ViewServer {
  public:

@@ -6,6 +6,7 @@
 #include <limits>
 #include <mutex>
 #include <numbers>
+#include <span>
 
 #include "render/record_store.h"
 #include "scene/camera.h"
@@ -248,7 +249,9 @@ struct FinalGather::Impl {
     const glm::dvec3 rho_k(mesh.reflectance(k));
     if (depth == 0 && s < kNear * std::sqrt(2.0 * mesh.area[k]) && rho_k != glm::dvec3(0.0)) {
       glm::dvec3 d(0.0), i(0.0);
-      reflected(y, glm::dvec3(mesh.normal[k]), {more.uniform(), more.uniform()}, {more.uniform(), more.uniform()}, more, 1,
+      const std::array<double, 2> gather_point{more.uniform(), more.uniform()};  // drawn before the light's point
+      const std::array<double, 2> light{more.uniform(), more.uniform()};
+      reflected(y, glm::dvec3(mesh.normal[k]), {&light, 1}, gather_point, more, 1,
                 by_area.data(), d, i, cast);
       indirect += rho_k * (d + i);
     } else {
@@ -279,18 +282,23 @@ struct FinalGather::Impl {
     if (seen >= 0) emitter_met(static_cast<uint32_t>(seen), n, g, s, c, direct);
   }
 
-  // The light reflected at point x (normal n) toward the viewer, before rho: one emitter sample
-  // with its shadow ray (light_sample, the light chosen by c) and one gather ray (gathered), ray
-  // by ray.
-  void reflected(const glm::dvec3& x, const glm::dvec3& n, const std::array<double, 2>& light, const std::array<double, 2>& gather,
-                 Rng& more, int depth, Choice c, glm::dvec3& direct, glm::dvec3& indirect, uint64_t& cast) const {
+  // The light reflected at point x (normal n) toward the viewer, before rho: an emitter sample
+  // with its shadow ray from each of the unit-square points `lights` (light_sample, the light
+  // chosen by c) and one gather ray (gathered), ray by ray, weighed against each other by the
+  // balance heuristic with those counts.
+  void reflected(const glm::dvec3& x, const glm::dvec3& n, std::span<const std::array<double, 2>> lights,
+                 const std::array<double, 2>& gather, Rng& more, int depth, Choice c, glm::dvec3& direct, glm::dvec3& indirect,
+                 uint64_t& cast) const {
     const glm::dvec3 origin = x + n * offset;
-    ShadowRay shadow;
-    if (light_sample(x, origin, n, light, true, c, shadow)) {
-      ++cast;
-      if (!rays.blocked(shadow.from, shadow.to)) direct += shadow.light;
+    const double count = static_cast<double>(lights.size());
+    for (const std::array<double, 2>& light : lights) {
+      ShadowRay shadow;
+      if (light_sample(x, origin, n, light, true, c, shadow, count)) {
+        ++cast;
+        if (!rays.blocked(shadow.from, shadow.to)) direct += shadow.light;
+      }
     }
-    gathered(origin, n, gather, more, depth, c, direct, indirect, cast);
+    gathered(origin, n, gather, more, depth, c, direct, indirect, cast, count);
   }
 
   // The gather rays of a cache record: 4 per sample of a pixel, within [256, 16384], so that the
@@ -600,22 +608,13 @@ void FinalGather::leaving(const std::vector<SurfacePoint>& points, uint64_t key,
   stratified_square(n * lights, light, emitter_points);
   stratified_square(n, gather, gathers);
   const Impl::Choice pick = m.choice(&points[0].x, points[0].normal, cdf);
-  const double count = static_cast<double>(lights);
   for (int i = 0; i < n; ++i) {
     const SurfacePoint& p = points[static_cast<std::size_t>(i)];
     direct += p.emission;
     if (p.rho == glm::dvec3(0.0)) continue;
     glm::dvec3 d(0.0), r(0.0);
-    // Impl::reflected with `lights` emitter samples to the one gather ray, weighed by their counts.
-    const glm::dvec3 origin = p.x + p.normal * m.offset;
-    for (int k = 0; k < lights; ++k) {
-      Impl::ShadowRay shadow;
-      if (m.light_sample(p.x, origin, p.normal, emitter_points[static_cast<std::size_t>(i * lights + k)], true, pick, shadow, count)) {
-        ++cast;
-        if (!m.rays.blocked(shadow.from, shadow.to)) d += shadow.light;
-      }
-    }
-    m.gathered(origin, p.normal, gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r, cast, count);
+    m.reflected(p.x, p.normal, std::span(emitter_points).subspan(static_cast<std::size_t>(i * lights), static_cast<std::size_t>(lights)),
+                gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r, cast);
     direct += p.rho * d;
     indirect += p.rho * r;
   }

@@ -113,6 +113,13 @@ std::pair<std::string, int> curl(const fs::path& dir, std::vector<std::string> a
   return {slurp(out), std::atoi(slurp(out.string() + ".status").c_str())};
 }
 
+// The Cornell box's red wall in an RGB image: pixels of high red and low green and blue.
+std::size_t red_wall_pixels(const std::vector<unsigned char>& rgb) {
+  std::size_t red = 0;
+  for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) red += rgb[i] > 100 && rgb[i + 1] < 60 && rgb[i + 2] < 60;
+  return red;
+}
+
 double furnace_mean(const fs::path& ply) {
   std::vector<glm::vec3> radiosity = ply_radiosity(ply);
   double sum = 0.0;
@@ -231,9 +238,7 @@ TEST(Farm, JobsThatCannotUseEveryNodeShareTheFarm) {
     int width = 0, height = 0;
     std::vector<unsigned char> rgb = sirad::test::read_png((dir / "preview.png").string(), width, height);
     EXPECT_EQ(width, 64);
-    std::size_t red_wall = 0;
-    for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) red_wall += rgb[i] > 100 && rgb[i + 1] < 60 && rgb[i + 2] < 60;
-    EXPECT_GT(red_wall, 64u * 64 / 20) << "no red wall in the preview";
+    EXPECT_GT(red_wall_pixels(rgb), 64u * 64 / 20) << "no red wall in the preview";
   }
   auto [glb, glb_code] = curl(dir, {farm.url + "/api/jobs/1/glb"});  // its 3D view's: the preview's
   EXPECT_EQ(glb_code, 200);
@@ -350,14 +355,13 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
   int width = 0, height = 0;
   std::vector<unsigned char> rgb = sirad::test::read_png((dir / "page.png").string(), width, height);
   ASSERT_EQ(rgb.size(), static_cast<std::size_t>(width) * height * 3);
-  std::size_t badge = 0, red_wall = 0;
+  std::size_t badge = 0;
   for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) {
     const int r = rgb[i], g = rgb[i + 1], b = rgb[i + 2];
     badge += std::abs(r - 0x2e) <= 3 && std::abs(g - 0x7d) <= 3 && std::abs(b - 0x32) <= 3;
-    red_wall += r > 100 && g < 60 && b < 60;
   }
   EXPECT_GT(badge, 50u) << "no done badge in the screenshot";
-  EXPECT_GT(red_wall, 500u) << "no image of the Cornell box in the screenshot";
+  EXPECT_GT(red_wall_pixels(rgb), 500u) << "no image of the Cornell box in the screenshot";
   // Its 3D view (where sirad was built with three.js): framed in the page, following the job's
   // glb (its result's version), and drawn from it by the viewer in a browser of its own with a
   // software GL (200 x 200: Chromium's headless screenshots of 96 to 128 pixel windows show no
@@ -374,9 +378,7 @@ TEST(Farm, ThePageShowsTheQueueInAHeadlessBrowser) {
                dir / "view.log");
     ASSERT_EQ(view.wait(sirad::test::kHangS), 0) << slurp(dir / "view.log");
     auto red_share = [](const std::vector<unsigned char>& rgb) {
-      std::size_t red = 0;
-      for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) red += rgb[i] > 100 && rgb[i + 1] < 60 && rgb[i + 2] < 60;
-      return static_cast<double>(red) / static_cast<double>(std::max<std::size_t>(rgb.size() / 3, 1));
+      return static_cast<double>(red_wall_pixels(rgb)) / static_cast<double>(std::max<std::size_t>(rgb.size() / 3, 1));
     };
     int iw = 0, ih = 0;
     const double in_view = red_share(sirad::test::read_png((dir / "view.png").string(), width, height));
