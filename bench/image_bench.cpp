@@ -93,6 +93,10 @@ Image read_rgb(const std::string& path, std::string layer = "") {
 struct Errors {
   double median = 0, p90 = 0, p99 = 0, rms = 0, rms_net = 0;
   double mean = 0;  // the signed mean of (image - reference) / reference: a bias of all one way
+  // The ratio of the sums less 1: the mean brightness's error. The per-pixel `mean` above also
+  // carries the reference's own noise, E[1 / b] > 1 / E[b]: about ref_var, the mean relative
+  // variance of the reference per pixel (0 with one reference), which `ratio` does not.
+  double ratio = 0, ref_var = 0;
   std::size_t pixels = 0;
 };
 
@@ -129,11 +133,12 @@ Errors compare(const Image& image, const Reference& ref, double light_above, con
   const std::vector<double> a = luminance(image);
   const std::vector<double>& b = ref.y;
   std::vector<double> rel;
-  double sq = 0.0, noise = 0.0, sum = 0.0;
+  double sq = 0.0, noise = 0.0, sum = 0.0, sum_a = 0.0, sum_b = 0.0;
   for (std::size_t i = 0; i < a.size(); ++i) {
     if (!counted(ref, light_above, region, which, i)) continue;
     rel.push_back(std::abs(a[i] - b[i]) / b[i]);
     sum += (a[i] - b[i]) / b[i];
+    sum_a += a[i], sum_b += b[i];
     sq += rel.back() * rel.back();
     noise += ref.rel_var[i];
   }
@@ -144,6 +149,8 @@ Errors compare(const Image& image, const Reference& ref, double light_above, con
   Errors e;
   e.pixels = rel.size();
   e.mean = sum / static_cast<double>(rel.size());
+  e.ratio = sum_a / sum_b - 1.0;
+  e.ref_var = noise / static_cast<double>(rel.size());
   e.rms = std::sqrt(sq / static_cast<double>(rel.size()));
   e.rms_net = std::sqrt(std::max(0.0, sq - noise) / static_cast<double>(rel.size()));
   std::sort(rel.begin(), rel.end());
@@ -264,9 +271,10 @@ void row(const std::string& method, const std::string& patches, const std::strin
   else
     std::printf(",,,,");
   if (pe)
-    std::printf(",%.5f,%.5f,%.5f,%.5f\n", pe->direct_mean, pe->direct_rms, pe->indirect_mean, pe->indirect_rms);
+    std::printf(",%.5f,%.5f,%.5f,%.5f", pe->direct_mean, pe->direct_rms, pe->indirect_mean, pe->indirect_rms);
   else
-    std::printf(",,,,\n");
+    std::printf(",,,,");
+  std::printf(",%.5f,%.5f\n", e.ratio, e.ref_var);
   std::fflush(stdout);
 }
 
@@ -317,7 +325,7 @@ int main(int argc, char** argv) {
     if (!solution.empty() && (patches.size() != 1 || bundles.size() != 1))
       fail("--solution {}: one solution, so one --patches and one --bundles to name it", solution);
     fs::create_directories(work);
-    std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net,mean,noise,noise_direct,noise_indirect,bias,direct_mean,direct_rms,indirect_mean,indirect_rms\n");
+    std::printf("method,patches,bundles,spp,solve_s,image_s,total_s,median,p90,p99,rel_rms,rel_rms_net,mean,noise,noise_direct,noise_indirect,bias,direct_mean,direct_rms,indirect_mean,indirect_rms,ratio,ref_var\n");
     for (const std::string& c : candidates) {
       const auto colon = c.rfind(':');
       if (colon == std::string::npos) fail("--candidate {}: FILE.exr:SECONDS", c);

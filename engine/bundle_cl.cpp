@@ -1,6 +1,8 @@
 // sirad: the OpenCL bundle engine: buffers, launches and read-back for one bundle.
 #include "engine/bundle_cl.h"
 
+#include "engine/bundle_cl_paths.h"
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
@@ -218,6 +220,14 @@ class ClEngine final : public BundleEngine {
 
 }  // namespace
 
+TransferPath parse_transfer_path(const std::string& name) {
+  if (name == "band") return TransferPath::band;
+  if (name == "wide") return TransferPath::wide;
+  fail("unknown transfer path '{}' (band, wide)", name);
+}
+
+const char* to_string(TransferPath path) { return path == TransferPath::band ? "band" : "wide"; }
+
 ClEngineOptions with_environment(ClEngineOptions o) {
   auto positive = [](const char* name) {
     const char* env = std::getenv(name);
@@ -228,12 +238,23 @@ ClEngineOptions with_environment(ClEngineOptions o) {
   if (!o.project8)
     if (const char* env = std::getenv("SIRAD_PROJECT8")) o.project8 = std::atoi(env) != 0;
   o.profile = o.profile || std::getenv("SIRAD_PROFILE") != nullptr;
+  if (!o.path)
+    if (const char* env = std::getenv("SIRAD_PATH")) {
+      try {
+        o.path = parse_transfer_path(env);
+      } catch (const Error& e) {
+        fail("SIRAD_PATH: {}", e.what());
+      }
+    }
   return o;
 }
 
 std::unique_ptr<BundleEngine> make_cl_engine(const PatchMesh& mesh, const ClEngineOptions& given) {
   const ClEngineOptions options = with_environment(given);
   try {
+    const TransferPath path = options.path.value_or(describe_device(select_device(options.device)).is_cpu ? TransferPath::band
+                                                                                                          : TransferPath::wide);
+    if (path == TransferPath::wide) return make_wide_engine(mesh, options);
     return std::make_unique<ClEngine>(mesh, options);
   } catch (const cl::Error& e) {
     fail("OpenCL: setting up {} patches on the device failed: {}", mesh.size(), describe_cl_error(e));

@@ -34,7 +34,10 @@ SiradBundle aligned(SiradBundle base, const float (&u)[3], const float (&v)[3], 
   return base;
 }
 
-void expect_same_bundle(const PatchMesh& mesh, BundleEngine& cl, BundleEngine& ref, const SiradBundle& b) {
+// The wide path adds each patch's crossings in the reference's order: its sums are the same
+// bits; the band path adds band by band, so its sums round differently where a patch spans bands.
+void expect_same_bundle(const PatchMesh& mesh, BundleEngine& cl, BundleEngine& ref, const SiradBundle& b,
+                        TransferPath path = TransferPath::band) {
   auto radiance = patch_radiance(mesh);
   BundleResult a, r;
   cl.run(b, radiance, a);
@@ -43,6 +46,10 @@ void expect_same_bundle(const PatchMesh& mesh, BundleEngine& cl, BundleEngine& r
   ASSERT_GT(r.crossings, 0u);
   for (std::size_t j = 0; j < mesh.size(); ++j) {
     ASSERT_EQ(a.hits[j], r.hits[j]) << "patch " << j;
+    if (path == TransferPath::wide) {
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(a.gathered[j][c], r.gathered[j][c]) << "patch " << j << " channel " << c;
+      continue;
+    }
     for (int c = 0; c < 3; ++c) {
       // Sums of up to a few hundred floats in the same order: relative 1e-5 is generous.
       float tol = 1e-5f * std::max(1.0f, std::fabs(r.gathered[j][c]));
@@ -51,16 +58,28 @@ void expect_same_bundle(const PatchMesh& mesh, BundleEngine& cl, BundleEngine& r
   }
 }
 
-TEST(BundleKernel, MatchesReferenceOnCornellRandomBundles) {
+// The tests below run on both transfer paths (engine/bundle_cl.h), on the same PoCL device.
+class BundlePaths : public testing::TestWithParam<TransferPath> {
+ protected:
+  std::unique_ptr<BundleEngine> engine(const PatchMesh& mesh, ClEngineOptions options = {}) {
+    options.path = GetParam();
+    return make_cl_engine(mesh, options);
+  }
+};
+
+INSTANTIATE_TEST_SUITE_P(Paths, BundlePaths, testing::Values(TransferPath::band, TransferPath::wide),
+                         [](const testing::TestParamInfo<TransferPath>& info) { return std::string(to_string(info.param)); });
+
+TEST_P(BundlePaths, MatchesReferenceOnCornellRandomBundles) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 800});
-  auto cl = make_cl_engine(mesh);
+  auto cl = engine(mesh);
   auto ref = make_reference_engine(mesh);
-  for (uint64_t k = 0; k < 6; ++k) expect_same_bundle(mesh, *cl, *ref, make_bundle(mesh, 96, 7, k));
+  for (uint64_t k = 0; k < 6; ++k) expect_same_bundle(mesh, *cl, *ref, make_bundle(mesh, 96, 7, k), GetParam());
 }
 
-TEST(BundleKernel, MatchesReferenceOnGrazingAndAxisDirections) {
+TEST_P(BundlePaths, MatchesReferenceOnGrazingAndAxisDirections) {
   PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 500});
-  auto cl = make_cl_engine(mesh);
+  auto cl = engine(mesh);
   auto ref = make_reference_engine(mesh);
   SiradBundle base = make_bundle(mesh, 64, 3, 0);
   // Directions along the axes (walls seen exactly edge-on), nearly grazing, and a grid offset
@@ -71,7 +90,7 @@ TEST(BundleKernel, MatchesReferenceOnGrazingAndAxisDirections) {
   for (int d = 0; d < 6; ++d) {
     SiradBundle b = aligned(base, frames[d][0], frames[d][1], dirs[d]);
     SCOPED_TRACE(d);
-    expect_same_bundle(mesh, *cl, *ref, b);
+    expect_same_bundle(mesh, *cl, *ref, b, GetParam());
   }
 }
 
@@ -81,9 +100,9 @@ TEST(BundleKernel, MatchesReferenceOnGrazingAndAxisDirections) {
 // patch. A crack along a shared edge (a line slipping between two patches) gathers background
 // 0 and a line given to both patches breaks the pairing; either makes gathered < hits.
 // Checked for random bundles and for axis-aligned ones whose lines run exactly along edges.
-TEST(BundleKernel, FurnaceIsWatertight) {
+TEST_P(BundlePaths, FurnaceIsWatertight) {
   PatchMesh mesh = mesh_scene(builtin_furnace(), {.target_patches = 3000});
-  auto cl = make_cl_engine(mesh);
+  auto cl = engine(mesh);
   std::vector<glm::vec4> one(mesh.size(), glm::vec4(1.0f, 1.0f, 1.0f, 0.0f));
   std::vector<SiradBundle> bundles;
   for (uint64_t k = 0; k < 8; ++k) bundles.push_back(make_bundle(mesh, 200, 21, k));
@@ -171,14 +190,14 @@ TEST(BundleKernel, RowBlocksDoNotChangeResults) {
 // background (0). Depths of the two faces come from different vertices and diagonals, so
 // they differ by rounding; the tie rule must still order them. Checked for the three ways of
 // writing the reversed face, on the kernels and on the reference.
-TEST(BundleKernel, CoincidentFacesOfAThinWallLookOutwards) {
+TEST_P(BundlePaths, CoincidentFacesOfAThinWallLookOutwards) {
   for (const char* reversed : {"f 8 7 6 5", "f 6 5 8 7", "f 7 6 5 8"}) {
     SCOPED_TRACE(reversed);
     std::string obj = std::string("mtllib w.mtl\nusemtl wall\nv 0 0 0\nv 3 0.2 0\nv 3.1 2 0.4\nv 0 2 0.4\n") +
                       "v 0 0 0\nv 3 0.2 0\nv 3.1 2 0.4\nv 0 2 0.4\nf 1 2 3 4\n" + reversed + "\n";
     PatchMesh mesh = mesh_scene(parse_obj("wall.obj", obj, {{"w.mtl", "newmtl wall\nKd 0.5 0.5 0.5\nKe 1 1 1\n"}}),
                                 {.target_patches = 400});
-    auto cl = make_cl_engine(mesh);
+    auto cl = engine(mesh);
     auto ref = make_reference_engine(mesh);
     std::vector<glm::vec4> one(mesh.size(), glm::vec4(1.0f, 1.0f, 1.0f, 0.0f));
     for (uint64_t k = 0; k < 6; ++k) {
@@ -198,14 +217,34 @@ TEST(BundleKernel, CoincidentFacesOfAThinWallLookOutwards) {
 // faces are cut differently, at an oblique angle, with T-junctions; a rug on a floor at zero
 // gap (which face is on top is decided by patch order, never by rounding); a free-standing
 // zero-thickness panel. The kernels and the C++ reference order the faces at one place alike.
-TEST(BundleKernel, MatchesReferenceOnCoincidentFaces) {
+TEST_P(BundlePaths, MatchesReferenceOnCoincidentFaces) {
   for (const Scene& scene : {test::two_rooms(0.0, test::oblique(37.0), 3), test::rug_room(0.0, test::oblique(23.0)),
                              test::panel_room(test::oblique(61.0))}) {
     SCOPED_TRACE(scene.name);
     PatchMesh mesh = mesh_scene(scene, {.target_patches = 800});
-    auto cl = make_cl_engine(mesh);
+    auto cl = engine(mesh);
     auto ref = make_reference_engine(mesh);
-    for (uint64_t k = 0; k < 6; ++k) expect_same_bundle(mesh, *cl, *ref, make_bundle(mesh, 96, 9, k));
+    for (uint64_t k = 0; k < 6; ++k) expect_same_bundle(mesh, *cl, *ref, make_bundle(mesh, 96, 9, k), GetParam());
+  }
+}
+
+// The wide path's scratch starts as small as one span and one crossing: it grows to what the
+// bundles need and runs them again, and the results are those of ample room, bit for bit, at
+// grids where a line is crossed by a few patches and by hundreds (a fine mesh, grid 32).
+TEST(BundleKernel, WidePathScratchGrowthDoesNotChangeResults) {
+  PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 3000});
+  auto roomy = make_cl_engine(mesh, {.path = TransferPath::wide});
+  auto tight = make_cl_engine(mesh, {.path = TransferPath::wide, .span_capacity = 1, .crossing_capacity = 1});
+  auto ref = make_reference_engine(mesh);
+  auto radiance = patch_radiance(mesh);
+  for (int grid : {32, 97, 400}) {
+    SCOPED_TRACE(grid);
+    SiradBundle b = make_bundle(mesh, grid, 13, static_cast<uint64_t>(grid));
+    BundleResult a, t;
+    roomy->run(b, radiance, a);
+    tight->run(b, radiance, t);
+    expect_identical(a, t);
+    expect_same_bundle(mesh, *tight, *ref, b, TransferPath::wide);
   }
 }
 

@@ -1,0 +1,293 @@
+// sirad: the OpenCL bundle engine's wide path (kernels/bundle_wide.cl): one work-item per patch,
+// per (patch, row) span or per line, for devices with many lanes. Buffers stay on the device
+// between bundles; per bundle the radiance goes up and the sums and two totals come down.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <glm/geometric.hpp>
+
+#include "engine/bundle_cl_paths.h"
+#include "util/check.h"
+#include "util/error.h"
+
+namespace sirad {
+
+namespace {
+
+// Upper bounds on one bundle's spans and crossings at `grid`: a patch reaches at most its
+// projected height in rows plus one, and its projected height is at most half its perimeter
+// (in cells); crossings as capacity_bound.
+uint64_t span_bound(const PatchMesh& mesh, int grid) {
+  double h = std::sqrt(cell_area(mesh, grid));
+  double total = 0.0;
+  for (std::size_t j = 0; j < mesh.size(); ++j) {
+    const auto& t = mesh.patches[j];
+    glm::dvec3 a(mesh.vertices[t[0]]), b(mesh.vertices[t[1]]), c(mesh.vertices[t[2]]);
+    double perimeter = glm::length(b - a) + glm::length(c - b) + glm::length(a - c);
+    total += perimeter / (2.0 * h) + 2.0;
+  }
+  return static_cast<uint64_t>(std::ceil(total * 1.01)) + 16;
+}
+
+class WideEngine final : public BundleEngine {
+ public:
+  WideEngine(const PatchMesh& mesh, const ClEngineOptions& options) : mesh_(mesh), n_(mesh.size()) {
+    device_ = select_device(options.device);
+    info_ = describe_device(device_);
+    context_ = cl::Context(device_);
+    profile_ = options.profile;
+    queue_ = cl::CommandQueue(context_, device_, profile_ ? CL_QUEUE_PROFILING_ENABLE : 0);
+    cl::Program program = build_program(context_, device_,
+                                        {"kernels/bundle_types.h", "kernels/bundle.cl", "kernels/bundle_wide.cl"},
+                                        kernel_build_options(device_));
+    project_ = cl::Kernel(program, "project_patches");
+    count_spans_ = cl::Kernel(program, "wide_count_spans");
+    count_crossings_ = cl::Kernel(program, "wide_count_crossings");
+    emit_ = cl::Kernel(program, "wide_emit");
+    gather_ = cl::Kernel(program, "wide_gather_lines");
+    sum_ = cl::Kernel(program, "wide_sum_patches");
+    scan_reduce_ = cl::Kernel(program, "scan_reduce");
+    scan_partials_ = cl::Kernel(program, "scan_partials");
+    scan_down_ = cl::Kernel(program, "scan_down");
+
+    std::vector<glm::vec4> verts = centred_vertices(mesh);
+    std::vector<cl_uint4> tris(n_);
+    for (std::size_t j = 0; j < n_; ++j) tris[j] = {{mesh.patches[j][0], mesh.patches[j][1], mesh.patches[j][2], 0u}};
+    vertices_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, verts.size() * sizeof(glm::vec4), verts.data());
+    patches_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tris.size() * sizeof(cl_uint4), tris.data());
+    params_ = cl::Buffer(context_, CL_MEM_READ_ONLY, sizeof(SiradBundle));
+    projected_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(n_, 1) * sizeof(SiradProjected));
+    rows_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(n_, 1) * sizeof(cl_int2));
+    radiance_ = cl::Buffer(context_, CL_MEM_READ_ONLY, std::max<std::size_t>(n_, 1) * sizeof(glm::vec4));
+    gathered_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(n_, 1) * sizeof(glm::vec4));
+    hits_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(n_, 1) * sizeof(cl_uint));
+    span_start_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (n_ + 1) * sizeof(cl_uint));
+    partial_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (kScanItems + 1) * sizeof(cl_uint));
+    lengths_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 2 * sizeof(cl_uint));
+    span_cap_ = options.span_capacity;
+    cross_cap_ = options.crossing_capacity;
+  }
+
+  std::string description() const override {
+    return fmt::format("{} / {} (wide path)", info_.platform_name, info_.device_name);
+  }
+
+  void run(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) override {
+    SIRAD_CHECK(radiance.size() == n_, "bundle engine: {} radiance values for {} patches", radiance.size(), n_);
+    if (static_cast<uint64_t>(bundle.grid) * static_cast<uint64_t>(bundle.grid) >= 0xffffffffu)
+      fail("bundle grid {} is beyond the wide path's 32-bit line numbers", bundle.grid);
+    try {
+      for (int attempt = 0;; ++attempt) {
+        Totals t = run_cl(bundle, radiance, result);
+        if (t.spans <= span_cap_ && t.crossings <= cross_cap_) return;
+        if (attempt == 2) fail("bundle scratch did not grow ({} spans, {} crossings)", t.spans, t.crossings);
+        // The crossings counted are all of them only when every span fitted.
+        if (t.spans > span_cap_) span_cap_ = t.spans + t.spans / 4 + 1024;
+        else cross_cap_ = t.crossings + t.crossings / 4 + 1024;
+      }
+    } catch (const cl::Error& e) {
+      fail("OpenCL on {}: {}", description(), describe_cl_error(e));
+    }
+  }
+
+ private:
+  static constexpr cl_uint kScanItems = 1024;  // work-items of each scan (chunks)
+
+  struct Totals {
+    uint64_t spans = 0, crossings = 0;
+  };
+
+  void allocate(const SiradBundle& bundle) {
+    // First sizes: the bounds (no bundle exceeds them), up to 2^26 entries; beyond that the
+    // scratch grows to what bundles need.
+    if (span_cap_ == 0) span_cap_ = std::min<uint64_t>(span_bound(mesh_, bundle.grid), uint64_t{1} << 26);
+    if (cross_cap_ == 0) cross_cap_ = std::min<uint64_t>(capacity_bound(mesh_, bundle.grid), uint64_t{1} << 26);
+    if (span_cap_ >= 0xffffffffu || cross_cap_ >= 0xffffffffu)
+      fail("bundle scratch of {} spans and {} crossings is beyond 32-bit indexing", span_cap_, cross_cap_);
+    if (bundle.grid != grid_) {
+      std::size_t lines = static_cast<std::size_t>(bundle.grid) * bundle.grid;
+      line_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE, lines * sizeof(cl_uint));
+      line_start_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (lines + 1) * sizeof(cl_uint));
+      queue_.enqueueFillBuffer(line_count_, cl_uint{0}, 0, lines * sizeof(cl_uint));
+      grid_ = bundle.grid;
+    }
+    if (span_cap_ != allocated_spans_) {
+      cross_start_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (span_cap_ + 1) * sizeof(cl_uint));
+      allocated_spans_ = span_cap_;
+    }
+    if (cross_cap_ != allocated_crossings_) {
+      std::size_t c = std::max<std::size_t>(cross_cap_, 1);
+      keys_ = cl::Buffer(context_, CL_MEM_READ_WRITE, c * sizeof(cl_ulong));
+      emit_numbers_ = cl::Buffer(context_, CL_MEM_READ_WRITE, c * sizeof(cl_uint));
+      seen_ = cl::Buffer(context_, CL_MEM_READ_WRITE, c * sizeof(glm::vec4));
+      allocated_crossings_ = cross_cap_;
+    }
+  }
+
+  // Exclusive scan of min(len[len_at], cap) entries of `in` into `out` (kernels/bundle_wide.cl).
+  void scan(const cl::Buffer& in, const cl::Buffer& out, const cl::Buffer& len, cl_uint len_at, cl_uint cap, int pass) {
+    const cl::NDRange items(kScanItems), one(group());
+    scan_reduce_.setArg(0, in);
+    scan_reduce_.setArg(1, len);
+    scan_reduce_.setArg(2, len_at);
+    scan_reduce_.setArg(3, cap);
+    scan_reduce_.setArg(4, partial_);
+    queue_.enqueueNDRangeKernel(scan_reduce_, cl::NullRange, items, one, nullptr, &first_[pass]);
+    scan_partials_.setArg(0, partial_);
+    scan_partials_.setArg(1, kScanItems);
+    queue_.enqueueNDRangeKernel(scan_partials_, cl::NullRange, cl::NDRange(1), cl::NDRange(1));
+    scan_down_.setArg(0, in);
+    scan_down_.setArg(1, out);
+    scan_down_.setArg(2, len);
+    scan_down_.setArg(3, len_at);
+    scan_down_.setArg(4, cap);
+    scan_down_.setArg(5, partial_);
+    queue_.enqueueNDRangeKernel(scan_down_, cl::NullRange, items, one, nullptr, &last_[pass]);
+  }
+
+  // Enqueues `kernel` as pass `pass` (its event kept for SIRAD_PROFILE).
+  void launch(const cl::Kernel& kernel, std::size_t count, int pass) {
+    queue_.enqueueNDRangeKernel(kernel, cl::NullRange, global(count), cl::NDRange(group()), nullptr, &first_[pass]);
+    last_[pass] = first_[pass];
+  }
+
+  // Global size: `count` rounded up to the work-group size.
+  cl::NDRange global(std::size_t count) const {
+    std::size_t g = group();
+    return cl::NDRange(std::max<std::size_t>((count + g - 1) / g * g, g));
+  }
+  std::size_t group() const { return info_.is_cpu ? 1 : 64; }
+
+  Totals run_cl(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) {
+    allocate(bundle);
+    params_host_ = bundle;
+    const cl_uint n = static_cast<cl_uint>(n_), span_cap = static_cast<cl_uint>(span_cap_),
+                  cross_cap = static_cast<cl_uint>(cross_cap_);
+    const cl_uint lines = static_cast<cl_uint>(bundle.grid) * static_cast<cl_uint>(bundle.grid);
+    lengths_host_[0] = n;
+    lengths_host_[1] = lines;
+    queue_.enqueueWriteBuffer(params_, CL_FALSE, 0, sizeof(SiradBundle), &params_host_);
+    queue_.enqueueWriteBuffer(lengths_, CL_FALSE, 0, sizeof(lengths_host_), lengths_host_);
+    queue_.enqueueWriteBuffer(radiance_, CL_FALSE, 0, n_ * sizeof(glm::vec4), radiance.data());
+
+    project_.setArg(0, vertices_);
+    project_.setArg(1, patches_);
+    project_.setArg(2, n);
+    project_.setArg(3, cl_uint{1});
+    project_.setArg(4, params_);
+    project_.setArg(5, projected_);
+    project_.setArg(6, rows_);
+    launch(project_, n_, 0);
+
+    count_spans_.setArg(0, rows_);
+    count_spans_.setArg(1, n);
+    count_spans_.setArg(2, span_start_);
+    launch(count_spans_, n_, 1);
+    scan(span_start_, span_start_, lengths_, 0, n, 2);
+
+    int arg = 0;
+    for (const cl::Buffer* b : {&projected_, &rows_}) count_crossings_.setArg(arg++, *b);
+    count_crossings_.setArg(arg++, n);
+    count_crossings_.setArg(arg++, params_);
+    count_crossings_.setArg(arg++, span_start_);
+    count_crossings_.setArg(arg++, span_cap);
+    count_crossings_.setArg(arg++, cross_start_);
+    count_crossings_.setArg(arg++, line_count_);
+    launch(count_crossings_, span_cap_, 3);
+    scan(cross_start_, cross_start_, span_start_, n, span_cap, 4);
+    scan(line_count_, line_start_, lengths_, 1, lines, 5);
+
+    arg = 0;
+    for (const cl::Buffer* b : {&projected_, &rows_}) emit_.setArg(arg++, *b);
+    emit_.setArg(arg++, n);
+    emit_.setArg(arg++, params_);
+    emit_.setArg(arg++, span_start_);
+    emit_.setArg(arg++, span_cap);
+    emit_.setArg(arg++, cross_start_);
+    emit_.setArg(arg++, line_start_);
+    emit_.setArg(arg++, cross_cap);
+    emit_.setArg(arg++, line_count_);
+    emit_.setArg(arg++, keys_);
+    emit_.setArg(arg++, emit_numbers_);
+    launch(emit_, span_cap_, 6);
+
+    arg = 0;
+    gather_.setArg(arg++, params_);
+    gather_.setArg(arg++, line_start_);
+    gather_.setArg(arg++, cross_cap);
+    gather_.setArg(arg++, keys_);
+    gather_.setArg(arg++, emit_numbers_);
+    gather_.setArg(arg++, radiance_);
+    gather_.setArg(arg++, seen_);
+    launch(gather_, lines, 7);
+
+    arg = 0;
+    sum_.setArg(arg++, n);
+    sum_.setArg(arg++, span_start_);
+    sum_.setArg(arg++, span_cap);
+    sum_.setArg(arg++, cross_start_);
+    sum_.setArg(arg++, params_);
+    sum_.setArg(arg++, line_start_);
+    sum_.setArg(arg++, cross_cap);
+    sum_.setArg(arg++, seen_);
+    sum_.setArg(arg++, gathered_);
+    sum_.setArg(arg++, hits_);
+    launch(sum_, n_, 8);
+
+    result.gathered.resize(n_);
+    result.hits.resize(n_);
+    cl_uint totals[2] = {0, 0};
+    queue_.enqueueReadBuffer(gathered_, CL_FALSE, 0, n_ * sizeof(glm::vec4), result.gathered.data());
+    queue_.enqueueReadBuffer(hits_, CL_FALSE, 0, n_ * sizeof(cl_uint), result.hits.data());
+    queue_.enqueueReadBuffer(span_start_, CL_FALSE, n_ * sizeof(cl_uint), sizeof(cl_uint), &totals[0]);
+    queue_.enqueueReadBuffer(line_start_, CL_TRUE, lines * sizeof(cl_uint), sizeof(cl_uint), &totals[1]);
+    Totals t{totals[0], totals[1]};
+    if (t.spans <= span_cap_ && t.crossings <= cross_cap_) {
+      result.crossings = t.crossings;
+      if (profile_) report_profile();
+    }
+    return t;
+  }
+
+  // SIRAD_PROFILE set: per-pass device times (a scan's from its first kernel's start to its
+  // last one's end), printed every 10 bundles.
+  void report_profile() {
+    for (int k = 0; k < kEvents; ++k)
+      kernel_ns_[k] += static_cast<double>(last_[k].getProfilingInfo<CL_PROFILING_COMMAND_END>() -
+                                           first_[k].getProfilingInfo<CL_PROFILING_COMMAND_START>());
+    if (++profiled_ % 10 != 0) return;
+    static const char* const names[kEvents] = {"project", "count_spans", "scan_spans", "count_crossings", "scan_crossings",
+                                               "scan_lines", "emit", "gather_lines", "sum_patches"};
+    std::string line = "sirad profile (ms/bundle, wide path):";
+    for (int k = 0; k < kEvents; ++k) line += fmt::format(" {} {:.3f}", names[k], kernel_ns_[k] * 1e-6 / profiled_);
+    std::fprintf(stderr, "%s\n", line.c_str());
+  }
+
+  static constexpr int kEvents = 9;
+  const PatchMesh& mesh_;
+  std::size_t n_;
+  cl::Device device_;
+  DeviceInfo info_;
+  cl::Context context_;
+  cl::CommandQueue queue_;
+  cl::Kernel project_, count_spans_, count_crossings_, emit_, gather_, sum_, scan_reduce_, scan_partials_, scan_down_;
+  cl::Buffer vertices_, patches_, params_, projected_, rows_, radiance_, gathered_, hits_;
+  cl::Buffer span_start_, partial_, lengths_, line_count_, line_start_, cross_start_, keys_, emit_numbers_, seen_;
+  uint64_t span_cap_ = 0, cross_cap_ = 0, allocated_spans_ = 0, allocated_crossings_ = 0;
+  int grid_ = 0;
+  SiradBundle params_host_{};
+  cl_uint lengths_host_[2] = {0, 0};
+  bool profile_ = false;
+  cl::Event first_[kEvents], last_[kEvents];
+  double kernel_ns_[kEvents] = {};
+  int profiled_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<BundleEngine> make_wide_engine(const PatchMesh& mesh, const ClEngineOptions& options) {
+  return std::make_unique<WideEngine>(mesh, options);
+}
+
+}  // namespace sirad
