@@ -2,7 +2,9 @@
 // of the C++ reference, measured in the same run, on the Cornell box; then the relative RMS
 // difference between two independent runs against bundles. Prints CSV on stdout.
 //   sirad_bench_bundle [--patches N] [--grids 256,512,1024] [--bundles K] [--reference-bundles K]
-//                      [--error-bundles K] [--auto-patches 5000,20000] [--device D]
+//                      [--error-bundles K] [--auto-patches 5000,20000] [--device D] [--paths band,wide]
+// --paths: the transfer paths to time (engine/bundle_cl.h), each a row `opencl-PATH`; without
+// it the device's own choice, rows `opencl`.
 // --grids none skips the fixed grids; --reference-bundles 0 skips the reference.
 // --auto-patches: for each size, the Cornell box at that size and its auto grid (auto_grid, as
 // `sirad render cornell --patches N` uses): the engine alone (engine_auto) and one whole
@@ -15,6 +17,8 @@
 #include <cstdio>
 #include <cmath>
 #include <cstring>
+#include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -99,6 +103,7 @@ int main(int argc, char** argv) {
     std::vector<std::size_t> auto_patches;
     int bundles = 30, ref_bundles = 3, error_bundles = 1024;
     std::string device;
+    std::vector<std::optional<TransferPath>> paths = {std::nullopt};
     for (int i = 1; i + 1 < argc; i += 2) {
       std::string k = argv[i], v = argv[i + 1];
       if (k == "--patches") patches = std::stoul(v);
@@ -106,6 +111,11 @@ int main(int argc, char** argv) {
       else if (k == "--reference-bundles") ref_bundles = std::stoi(v);
       else if (k == "--error-bundles") error_bundles = std::stoi(v);
       else if (k == "--device") device = v;
+      else if (k == "--paths") {
+        paths.clear();
+        std::stringstream ss(v);
+        for (std::string g; std::getline(ss, g, ',');) paths.push_back(parse_transfer_path(g));
+      }
       else if (k == "--grids") {
         grids.clear();
         std::stringstream ss(v);
@@ -117,22 +127,32 @@ int main(int argc, char** argv) {
       } else fail("unknown flag {}", k);
     }
     PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = patches});
-    auto cl = make_cl_engine(mesh, {.device = device});
+    std::vector<std::unique_ptr<BundleEngine>> engines;
+    std::vector<std::string> names;
+    for (const auto& path : paths) {
+      engines.push_back(make_cl_engine(mesh, {.device = device, .path = path}));
+      names.push_back(path ? std::string("opencl-") + to_string(*path) : "opencl");
+    }
+    auto& cl = engines.front();
     auto ref = make_reference_engine(mesh);
     std::printf("# device: %s; cornell, %zu patches\n", cl->description().c_str(), mesh.size());
     std::printf("engine,grid,patches,ms_per_bundle_median,crossings_per_s,ms_per_bundle_min,cpu_ms_per_bundle\n");
     for (int grid : grids) {
-      print_row("opencl", grid, mesh.size(), time_engine(mesh, *cl, grid, bundles));
+      for (std::size_t e = 0; e < engines.size(); ++e)
+        print_row(names[e].c_str(), grid, mesh.size(), time_engine(mesh, *engines[e], grid, bundles));
       if (ref_bundles > 0) print_row("reference", grid, mesh.size(), time_engine(mesh, *ref, grid, ref_bundles));
       std::fflush(stdout);
     }
     for (std::size_t target : auto_patches) {
       PatchMesh m = mesh_scene(builtin_cornell(), {.target_patches = target});
-      auto engine = make_cl_engine(m, {.device = device});
-      int grid = auto_grid(m);
-      print_row("engine_auto", grid, m.size(), time_engine(m, *engine, grid, bundles));
-      print_row("solver_auto", grid, m.size(), time_solver(m, *engine, bundles));
-      std::fflush(stdout);
+      for (const auto& path : paths) {
+        auto engine = make_cl_engine(m, {.device = device, .path = path});
+        int grid = auto_grid(m);
+        const std::string suffix = path ? std::string("-") + to_string(*path) : "";
+        print_row(("engine_auto" + suffix).c_str(), grid, m.size(), time_engine(m, *engine, grid, bundles));
+        print_row(("solver_auto" + suffix).c_str(), grid, m.size(), time_solver(m, *engine, bundles));
+        std::fflush(stdout);
+      }
     }
     if (error_bundles > 0) {
       // Relative RMS difference of two independent runs, divided by sqrt(2): the error of one.

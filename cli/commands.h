@@ -22,6 +22,7 @@ struct RenderArgs {
   RunFlags run;
   OutputFlags output;
   std::string device;
+  std::optional<TransferPath> transfer;  // --transfer: the bundle engine's path (default: the device's)
   bool quiet = false;
   // The embedded cluster: N local nodes over ZeroMQ inproc (0: the plain single-node solver).
   int nodes = 0;

@@ -38,6 +38,7 @@ Outcome run(cluster::RunConfig config, const PatchMesh& mesh, const Options& o) 
           node::serve(context, endpoint,
                       {.name = fmt::format("{}{}", o.name_prefix, i),
                        .device = o.device,
+                       .transfer = o.transfer,
                        .stop = &stop,
                        .poll_ms = o.poll_ms,
                        .gather_threads = gather_threads});

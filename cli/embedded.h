@@ -3,10 +3,12 @@
 // as a cluster of processes. `sirad render --nodes N`, the benches and the tests all run it.
 #pragma once
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "cluster/result.h"
 #include "cluster/settings.h"
+#include "engine/bundle_cl.h"
 #include "scene/mesh.h"
 
 namespace sirad::embedded {
@@ -16,6 +18,7 @@ struct Options {
   std::string endpoint = "inproc://sirad-embedded";  // or tcp://127.0.0.1:* (a port the system picks)
   std::string name_prefix = "local-";                // nodes are named PREFIX0, PREFIX1, ...
   std::string device;                                // each node's OpenCL device (select_device)
+  std::optional<TransferPath> transfer;              // their bundle engines' path (default: the device's)
   int poll_ms = 100;                                 // the nodes' NodeOptions::poll_ms
   // Threads each node renders a final gather's tiles on (NodeOptions::gather_threads); 0: the
   // machine's cores split among the nodes, so that N nodes on one machine do not start N times

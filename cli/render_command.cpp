@@ -128,7 +128,7 @@ int render_embedded(const RenderArgs& a, const cluster::RunSettings& settings, c
   rc.status = std::ref(reporter);
   rc.final_gather = final_gather_of(cli::result_options(a.output));  // the image's tiles rendered by the node threads
   std::string short_of;
-  embedded::Options eo{.nodes = a.nodes, .device = a.device};
+  embedded::Options eo{.nodes = a.nodes, .device = a.device, .transfer = a.transfer};
   eo.on_done = [&](const cluster::RunResult& result) {
     reporter.finish();
     Attributes attrs = cluster::run_attributes(rc, cluster::outcome_of(result), m.mesh, a.scene, true);
@@ -171,7 +171,7 @@ struct Warm {
       fail("--warm-start {}: its own error {:.4f} is not below --target-error {}: a run from it cannot reach the target; "
            "run without --warm-start", a.warm_start, *before.error_estimate, s.target_error);
     share_bound(mesh, before.mesh);
-    engine = make_cl_engine(before.mesh, {.device = a.device});
+    engine = make_cl_engine(before.mesh, {.device = a.device, .path = a.transfer});
     start.before = &before.mesh;
     start.radiosity = before.radiosity;
     start.engine = engine.get();
@@ -226,7 +226,7 @@ int render(RenderArgs a) {
       setenv("POCL_DEVICES", "basic", 0);
     return render_embedded(a, settings, m, out, std::move(profile));
   }
-  auto engine = make_cl_engine(mesh, {.device = a.device});
+  auto engine = make_cl_engine(mesh, {.device = a.device, .path = a.transfer});
   SolverOptions so = cluster::solver_options(settings, mesh, 0);
   so.track_error = settings.target_error > 0 || mesh.size() <= kTrackErrorMaxPatches;
   if (warm) so.warm = &warm->start;
@@ -298,7 +298,7 @@ int emulate(EmulateArgs& e) {
   ec.tile_s = e.tile_ms / 1e3;
   ec.run.final_gather = final_gather_of(cli::result_options(a.output));  // the image's tiles rendered by the emulated nodes
   cluster::check_emulation(ec, mesh.size());
-  auto engine = make_cl_engine(mesh, {.device = a.device});
+  auto engine = make_cl_engine(mesh, {.device = a.device, .path = a.transfer});
   std::unique_ptr<ShotEngine> shots;
   if (settings.shots_per_bundle > 0) shots = make_cl_shot_engine(mesh, a.device);
   if (!a.quiet)

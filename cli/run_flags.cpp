@@ -45,6 +45,15 @@ CLI::Validator finite_in(double lo, double hi) {
   return reads_as([lo, hi](const std::string& t) { real_in(t, lo, hi); }, fmt::format("[{}, {}]", lo, hi));
 }
 
+void add_transfer_flag(CLI::App* cmd, std::optional<TransferPath>& path) {
+  cmd->add_option_function<std::string>(
+         "--transfer", [&path](const std::string& name) { path = parse_transfer_path(name); },
+         "Bundle transfer path: band (one work-item per band of rows: CPUs) or wide (one per patch, span or line: GPUs); "
+         "default: the device's (env SIRAD_PATH)")
+      ->check(CLI::IsMember({"band", "wide"}))
+      ->type_name("band|wide");
+}
+
 std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& r, const std::vector<std::string_view>& only) {
   std::vector<std::string> names;
   for (const cluster::SettingRow& row : cluster::setting_rows()) {

@@ -15,6 +15,7 @@
 #include <CLI/CLI.hpp>
 
 #include "cluster/settings.h"
+#include "engine/bundle_cl.h"
 #include "io/results.h"
 #include "scene/mesh.h"
 #include "scene/scene.h"
@@ -60,6 +61,9 @@ void add_scene_argument(CLI::App* cmd, std::string& scene);
 // alone; returns their long names ("--bundles", ...). Each flag's value is checked as it is
 // parsed (its row's parse).
 std::vector<std::string> add_run_flags(CLI::App* cmd, RunFlags& flags, const std::vector<std::string_view>& only = {});
+// --transfer band|wide: the bundle engine's transfer path (engine/bundle_cl.h); unset, the
+// device's own (band on a CPU, wide elsewhere; or SIRAD_PATH).
+void add_transfer_flag(CLI::App* cmd, std::optional<TransferPath>& path);
 // The rows of the meshing: what `sirad reference` and `sirad model --scene` take of a run's flags.
 inline const std::vector<std::string_view> kMeshFlags = {"patches", "max-edge", "max-patches"};
 

@@ -99,6 +99,7 @@ void add_run_options(CLI::App* cmd, RenderArgs& r) {
   cli::add_run_flags(cmd, r.run);
   cli::add_output_flags(cmd, r.output);
   cmd->add_option("--device", r.device, "OpenCL device: P:D, or part of its name (env SIRAD_DEVICE)");
+  add_transfer_flag(cmd, r.transfer);
   cmd->add_flag("-q,--quiet", r.quiet, "No progress output");
 }
 

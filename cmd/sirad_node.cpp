@@ -10,6 +10,7 @@
 
 #include "cli/log_flags.h"
 #include "cli/program.h"
+#include "cli/run_flags.h"
 #include "cli/stop_signals.h"
 #include "engine/opencl.h"
 #include "engine/version.h"
@@ -29,6 +30,7 @@ int main(int argc, char** argv) {
   sirad::node::NodeOptions options;
   app.add_option("--connect", endpoint, "Coordinator endpoint, e.g. tcp://host:5555")->required();
   app.add_option("--device", device, "OpenCL device: P:D or part of its name (env SIRAD_DEVICE)");
+  sirad::cli::add_transfer_flag(&app, options.transfer);
   app.add_option("--name", name, "Name shown by the coordinator")->capture_default_str();
   app.add_option("--max-patches", options.max_patches, "Refuse runs of more patches (bounds this node's memory and largest message)")
       ->check(CLI::Range(uint32_t{1}, uint32_t{1} << 31))

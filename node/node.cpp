@@ -435,7 +435,7 @@ class Node {
       joining.mesh = mesh_scene(scene, mesh_options);
       if (joining.mesh.hash != run.scene_hash())
         fail("meshed scene hash {} differs from the run's {}", joining.mesh.hash, run.scene_hash());
-      joining.engine = make_cl_engine(joining.mesh, {.device = options_.device});
+      joining.engine = make_cl_engine(joining.mesh, {.device = options_.device, .path = options_.transfer});
       if (settings.shots_per_bundle > 0) joining.shots = make_cl_shot_engine(joining.mesh, options_.device);
       auto t0 = Clock::now();
       const std::vector<uint32_t> starts(run.chunk_starts().begin(), run.chunk_starts().end());

@@ -5,10 +5,12 @@
 // it waits for the next run. The bundle engine and the solver know nothing of the network.
 #pragma once
 #include <atomic>
+#include <optional>
 #include <string>
 
 #include <zmq.hpp>
 
+#include "engine/bundle_cl.h"
 #include "proto/security.h"
 
 namespace sirad::node {
@@ -16,6 +18,7 @@ namespace sirad::node {
 struct NodeOptions {
   std::string name = "node";
   std::string device;                      // see select_device
+  std::optional<TransferPath> transfer;    // the bundle engine's path (engine/bundle_cl.h; default: the device's)
   const std::atomic<bool>* stop = nullptr; // set: leave after the current message
   int poll_ms = 100;
   // Reconnecting to a coordinator that went away: ZeroMQ retries after reconnect_ms, doubling up

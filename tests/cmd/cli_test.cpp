@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include "cluster/status.h"
+#include "io/read_solution.h"
 #include "tests/cli_fixture.h"
 #include "tests/exr_content.h"
 #include "tests/png_util.h"
@@ -162,6 +163,29 @@ TEST_F(Cli, AWarmStartFromTheSameSceneKeepsItsSolution) {
   expect_error(sirad("render cornell --patches 300 --warm-start prev/before.ply --shots-per-bundle 1"), "takes no first shot");
   expect_error(sirad("render cornell --patches 300 --warm-start prev/missing.ply"), "missing.ply");
   expect_error(sirad("render cornell --patches 300 --warm-start prev/before.ply --target-error 0.001"), "cannot reach the target");
+}
+
+// --transfer picks the bundle engine's path on any device: a run on the wide path solves to
+// the band path's answer. The two paths find the same crossings and add them in different
+// orders (per patch in row-major order, or band by band), so each bundle's sums differ by
+// float rounding (relative 1e-7 a sum) and the chain, a contraction, keeps the solutions
+// within a few times that: 1e-5 relative per patch is far above it and far below any
+// difference in the crossings (one line more or less moves a 300-patch Cornell patch's
+// estimate by about 1/150 a bundle).
+TEST_F(Cli, TheTransferPathKeepsTheAnswer) {
+  fs::create_directory(dir_ / "runs");  // out of the way of expect_error's check that a refusal writes nothing
+  for (const char* path : {"band", "wide"}) {
+    Outcome r = sirad(fmt::format("render cornell --patches 300 --bundles 128 --width 8 --height 8 --transfer {} --out runs/{} -q", path, path));
+    ASSERT_EQ(r.status, 0) << r.err;
+  }
+  const sirad::Solution band = sirad::read_solution((dir_ / "runs" / "band.ply").string()),
+                       wide = sirad::read_solution((dir_ / "runs" / "wide.ply").string());
+  ASSERT_EQ(band.radiosity.size(), wide.radiosity.size());
+  ASSERT_GT(band.radiosity.size(), 200u);
+  for (std::size_t j = 0; j < band.radiosity.size(); ++j)
+    for (int c = 0; c < 3; ++c)
+      ASSERT_NEAR(wide.radiosity[j][c], band.radiosity[j][c], 1e-5f * std::max(1e-3f, band.radiosity[j][c])) << "patch " << j;
+  expect_error(sirad("render cornell --patches 300 --transfer narrow"), "--transfer");
 }
 
 TEST_F(Cli, OutputsNeverOverwriteTheScene) {
