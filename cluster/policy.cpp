@@ -207,9 +207,11 @@ std::string Policy::lost_reason(const Range& bundles) {
 uint64_t Policy::grant_size() const {
   uint64_t n = config_.exchange_every > 0 ? config_.exchange_every
                                           : std::max<uint64_t>(1, config_.bundles / (8 * std::max<uint32_t>(1, nodes())));
-  // A run that ends at a target error hears of it with each report: without exchanges, a
-  // report (no chunks, a few bytes) every kTargetReportBundles at the most.
-  if (config_.exchange_every == 0 && config_.target_error > 0) n = std::min<uint64_t>(n, kTargetReportBundles);
+  // A run that ends at a target error or a time limit hears of it with each report (no
+  // grant goes out after the limit, and the run ends when the last is in): without exchanges,
+  // a report (no chunks, a few bytes) every kTargetReportBundles at the most.
+  if (config_.exchange_every == 0 && (config_.target_error > 0 || config_.time_limit_s > 0))
+    n = std::min<uint64_t>(n, kTargetReportBundles);
   // Whole multiples of the grant unit, so ranges start at multiples of it (the ledger hands out
   // its free ranges from the front).
   return (n + config_.grant_unit - 1) / config_.grant_unit * config_.grant_unit;

@@ -259,7 +259,8 @@ class Policy {
   // (by speed) of the bundles not granted yet (guided self-scheduling), down to one bundle: the
   // nodes run out of work together (see the .cpp).
   // Without exchanges (I = 0) a grant is K / (8 P), and at most kTargetReportBundles when the
-  // run ends at a target error (its estimate comes with each report).
+  // run ends at a target error (its estimate comes with each report) or a time limit (no grant
+  // of K / (8 P) bundles outlasting it by hours).
   uint64_t grant_size() const;
   static constexpr uint64_t kTargetReportBundles = 64;
   uint64_t grant_size(uint32_t n) const;
