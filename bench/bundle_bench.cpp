@@ -3,8 +3,10 @@
 // difference between two independent runs against bundles. Prints CSV on stdout.
 //   sirad_bench_bundle [--patches N] [--grids 256,512,1024] [--bundles K] [--reference-bundles K]
 //                      [--error-bundles K] [--auto-patches 5000,20000] [--device D] [--paths band,wide]
+//                      [--batches 1,8,32]
 // --paths: the transfer paths to time (engine/bundle_cl.h), each a row `opencl-PATH`; without
-// it the device's own choice, rows `opencl`.
+// it the device's own choice, rows `opencl`. --batches: bundles per run_batch at the fixed grids
+// (rows `opencl-PATH-xB` for B > 1; the band path runs a batch's bundles in turn).
 // --grids none skips the fixed grids; --reference-bundles 0 skips the reference.
 // --auto-patches: for each size, the Cornell box at that size and its auto grid (auto_grid, as
 // `sirad render cornell --patches N` uses): the engine alone (engine_auto) and one whole
@@ -52,26 +54,31 @@ struct Timing {
   double crossings_per_s = 0;
 };
 
-// Per bundle over `bundles` bundles (after one warm-up): median and least wall ms, mean CPU
-// ms, and crossings per second of wall time.
-Timing time_engine(const PatchMesh& mesh, BundleEngine& engine, int grid, int bundles) {
+// Per bundle over `bundles` bundles (after one warm-up), run `batch` at a time (run_batch):
+// median and least wall ms of a batch over its bundles, mean CPU ms, and crossings per second
+// of wall time.
+Timing time_engine(const PatchMesh& mesh, BundleEngine& engine, int grid, int bundles, int batch = 1) {
   std::vector<glm::vec4> radiance(mesh.size(), glm::vec4(1.0f));
-  BundleResult r;
-  engine.run(make_bundle(mesh, grid, 1, 1000000), radiance, r);
+  std::vector<BundleResult> r(static_cast<std::size_t>(batch));
+  std::vector<SiradBundle> b(static_cast<std::size_t>(batch));
+  for (int i = 0; i < batch; ++i) b[static_cast<std::size_t>(i)] = make_bundle(mesh, grid, 1, 1000000 + static_cast<uint64_t>(i));
+  engine.run_batch(b, radiance, r);
   std::vector<double> ms;
   uint64_t crossings = 0;
   double total = 0, cpu0 = cpu_seconds();
-  for (int k = 0; k < bundles; ++k) {
-    SiradBundle b = make_bundle(mesh, grid, 1, static_cast<uint64_t>(k));
+  const int batches = std::max(1, bundles / batch);
+  for (int k = 0; k < batches; ++k) {
+    for (int i = 0; i < batch; ++i)
+      b[static_cast<std::size_t>(i)] = make_bundle(mesh, grid, 1, static_cast<uint64_t>(k * batch + i));
     auto t0 = std::chrono::steady_clock::now();
-    engine.run(b, radiance, r);
+    engine.run_batch(b, radiance, r);
     double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    ms.push_back(1e3 * s);
+    ms.push_back(1e3 * s / batch);
     total += s;
-    crossings += r.crossings;
+    for (const BundleResult& x : r) crossings += x.crossings;
   }
   double cpu = cpu_seconds() - cpu0;
-  return {median(ms), *std::min_element(ms.begin(), ms.end()), 1e3 * cpu / bundles, crossings / total};
+  return {median(ms), *std::min_element(ms.begin(), ms.end()), 1e3 * cpu / (batches * batch), crossings / total};
 }
 
 // One Solver::step (chain rule, no burn-in) after one warm-up step, as time_engine.
@@ -104,6 +111,7 @@ int main(int argc, char** argv) {
     int bundles = 30, ref_bundles = 3, error_bundles = 1024;
     std::string device;
     std::vector<std::optional<TransferPath>> paths = {std::nullopt};
+    std::vector<int> batch_sizes = {1};
     for (int i = 1; i + 1 < argc; i += 2) {
       std::string k = argv[i], v = argv[i + 1];
       if (k == "--patches") patches = std::stoul(v);
@@ -111,7 +119,11 @@ int main(int argc, char** argv) {
       else if (k == "--reference-bundles") ref_bundles = std::stoi(v);
       else if (k == "--error-bundles") error_bundles = std::stoi(v);
       else if (k == "--device") device = v;
-      else if (k == "--paths") {
+      else if (k == "--batches") {
+        batch_sizes.clear();
+        std::stringstream ss(v);
+        for (std::string g; std::getline(ss, g, ',');) batch_sizes.push_back(std::max(1, std::stoi(g)));
+      } else if (k == "--paths") {
         paths.clear();
         std::stringstream ss(v);
         for (std::string g; std::getline(ss, g, ',');) paths.push_back(parse_transfer_path(g));
@@ -139,7 +151,10 @@ int main(int argc, char** argv) {
     std::printf("engine,grid,patches,ms_per_bundle_median,crossings_per_s,ms_per_bundle_min,cpu_ms_per_bundle\n");
     for (int grid : grids) {
       for (std::size_t e = 0; e < engines.size(); ++e)
-        print_row(names[e].c_str(), grid, mesh.size(), time_engine(mesh, *engines[e], grid, bundles));
+        for (int batch : batch_sizes) {
+          const std::string name = batch > 1 ? names[e] + "-x" + std::to_string(batch) : names[e];
+          print_row(name.c_str(), grid, mesh.size(), time_engine(mesh, *engines[e], grid, std::max(bundles, batch), batch));
+        }
       if (ref_bundles > 0) print_row("reference", grid, mesh.size(), time_engine(mesh, *ref, grid, ref_bundles));
       std::fflush(stdout);
     }

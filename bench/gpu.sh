@@ -8,8 +8,9 @@
 # a machine that has none of them) it goes first on LD_LIBRARY_PATH.
 # Rows: section,device,path,patches,grid,value,unit
 #   bundle   sirad_bench_bundle on the Cornell box, both transfer paths: 20k patches at grids 256
-#            to 2048, then 100k and 1M patches at their auto grids (engine alone, and a whole
-#            solver step): ms per bundle (median) and crossings/s
+#            to 2048, one bundle a launch and 16 (path wide-x16), then 100k and 1M patches at
+#            their auto grids (engine alone, and a whole solver step): ms per bundle (median)
+#            and crossings/s
 #   solve    `sirad render cornell --patches 100000 --target-error 0.01` on the device (its own
 #            path), at most SOLVE_SECONDS (default 60): bundles, seconds, the error estimate
 #   cluster  a coordinator on loopback TCP with one node on the first GPU and one on the first
@@ -50,10 +51,10 @@ for line in "${DEVICES[@]}"; do
   if is_cpu "$line"; then [ -z "$cpu" ] && cpu=$id; else [ -z "$gpu" ] && gpu=$id; fi
 
   # bundle: both paths, CSV rows engine,grid,patches,ms_median,crossings_per_s,ms_min,cpu_ms.
-  [[ " ${SECTIONS:-bundle solve cluster} " == *" bundle "* ]] && "$BENCH" --device "$id" --paths band,wide --patches $PATCHES --grids $GRIDS --bundles 20 \
+  [[ " ${SECTIONS:-bundle solve cluster} " == *" bundle "* ]] && "$BENCH" --device "$id" --paths band,wide --batches 1,16 --patches $PATCHES --grids $GRIDS --bundles 32 \
       --reference-bundles 0 --error-bundles 0 --auto-patches $AUTO 2>"$WORK/bench.err" |
-    awk -F, -v dev="$name" 'NF == 7 && $1 ~ /-(band|wide)$/ {
-        n = split($1, part, "-"); path = part[n]; what = substr($1, 1, length($1) - length(path) - 1)
+    awk -F, -v dev="$name" 'NF == 7 && $1 ~ /-(band|wide)(-x[0-9]+)?$/ {
+        what = substr($1, 1, index($1, "-") - 1); path = substr($1, index($1, "-") + 1)
         printf "bundle,%s,%s,%s,%s,%s,ms_per_bundle_%s\n", dev, path, $3, $2, $4, what
         if ($5 > 0) printf "bundle,%s,%s,%s,%s,%s,crossings_per_s_%s\n", dev, path, $3, $2, $5, what }'
   grep -is "error" "$WORK/bench.err" >&2

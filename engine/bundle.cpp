@@ -8,6 +8,7 @@
 #include <Random123/philox.h>
 #include <glm/geometric.hpp>
 
+#include "util/check.h"
 #include "util/error.h"
 
 namespace sirad {
@@ -226,6 +227,12 @@ std::vector<glm::vec4> centred_vertices(const PatchMesh& mesh) {
     out[i] = glm::vec4(static_cast<float>(q.x), static_cast<float>(q.y), static_cast<float>(q.z), 0.0f);
   }
   return out;
+}
+
+void BundleEngine::run_batch(std::span<const SiradBundle> bundles, std::span<const glm::vec4> radiance,
+                             std::span<BundleResult> results) {
+  SIRAD_CHECK(results.size() == bundles.size(), "run_batch: {} results for {} bundles", results.size(), bundles.size());
+  for (std::size_t k = 0; k < bundles.size(); ++k) run(bundles[k], radiance, results[k]);
 }
 
 }  // namespace sirad

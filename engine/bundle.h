@@ -107,6 +107,11 @@ class BundleEngine {
   virtual ~BundleEngine() = default;
   virtual void run(const SiradBundle& bundle, std::span<const glm::vec4> radiance,
                    BundleResult& result) = 0;
+  // Runs every bundle of `bundles` over the same radiance: results[k] is what run(bundles[k],
+  // radiance, results[k]) gives, bit for bit. The bundles share one grid. Engines that launch
+  // several bundles at once (the OpenCL wide path) override it; the others run them in turn.
+  virtual void run_batch(std::span<const SiradBundle> bundles, std::span<const glm::vec4> radiance,
+                         std::span<BundleResult> results);
   virtual std::string description() const = 0;
 };
 

@@ -1,6 +1,7 @@
 // sirad: the OpenCL bundle engine's wide path (kernels/bundle_wide.cl): one work-item per patch,
-// per (patch, row) span or per line, for devices with many lanes. Buffers stay on the device
-// between bundles; per bundle the radiance goes up and the sums and two totals come down.
+// per (patch, row) span or per line, for devices with many lanes, and a batch of bundles per
+// launch. Buffers stay on the device between batches; per batch the radiance and the bundles go
+// up and the sums and two totals come down.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -41,7 +42,7 @@ class WideEngine final : public BundleEngine {
     cl::Program program = build_program(context_, device_,
                                         {"kernels/bundle_types.h", "kernels/bundle.cl", "kernels/bundle_wide.cl"},
                                         kernel_build_options(device_));
-    project_ = cl::Kernel(program, "project_patches");
+    project_ = cl::Kernel(program, "wide_project");
     count_spans_ = cl::Kernel(program, "wide_count_spans");
     count_crossings_ = cl::Kernel(program, "wide_count_crossings");
     emit_ = cl::Kernel(program, "wide_emit");
@@ -56,17 +57,14 @@ class WideEngine final : public BundleEngine {
     for (std::size_t j = 0; j < n_; ++j) tris[j] = {{mesh.patches[j][0], mesh.patches[j][1], mesh.patches[j][2], 0u}};
     vertices_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, verts.size() * sizeof(glm::vec4), verts.data());
     patches_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tris.size() * sizeof(cl_uint4), tris.data());
-    params_ = cl::Buffer(context_, CL_MEM_READ_ONLY, sizeof(SiradBundle));
-    projected_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(n_, 1) * sizeof(SiradProjected));
-    rows_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(n_, 1) * sizeof(cl_int2));
     radiance_ = cl::Buffer(context_, CL_MEM_READ_ONLY, std::max<std::size_t>(n_, 1) * sizeof(glm::vec4));
-    gathered_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(n_, 1) * sizeof(glm::vec4));
-    hits_ = cl::Buffer(context_, CL_MEM_READ_WRITE, std::max<std::size_t>(n_, 1) * sizeof(cl_uint));
-    span_start_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (n_ + 1) * sizeof(cl_uint));
     partial_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (kScanItems + 1) * sizeof(cl_uint));
     lengths_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 2 * sizeof(cl_uint));
     span_cap_ = options.span_capacity;
     cross_cap_ = options.crossing_capacity;
+    given_capacities_ = span_cap_ > 0 && cross_cap_ > 0;
+    span_cap_ = std::max<uint64_t>(span_cap_, 1);
+    cross_cap_ = std::max<uint64_t>(cross_cap_, 1);
   }
 
   std::string description() const override {
@@ -74,12 +72,23 @@ class WideEngine final : public BundleEngine {
   }
 
   void run(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) override {
+    run_batch(std::span<const SiradBundle>(&bundle, 1), radiance, std::span<BundleResult>(&result, 1));
+  }
+
+  void run_batch(std::span<const SiradBundle> bundles, std::span<const glm::vec4> radiance,
+                 std::span<BundleResult> results) override {
     SIRAD_CHECK(radiance.size() == n_, "bundle engine: {} radiance values for {} patches", radiance.size(), n_);
-    if (static_cast<uint64_t>(bundle.grid) * static_cast<uint64_t>(bundle.grid) >= 0xffffffffu)
-      fail("bundle grid {} is beyond the wide path's 32-bit line numbers", bundle.grid);
+    SIRAD_CHECK(results.size() == bundles.size(), "run_batch: {} results for {} bundles", results.size(), bundles.size());
+    if (bundles.empty()) return;
+    for (const SiradBundle& b : bundles)
+      SIRAD_CHECK(b.grid == bundles[0].grid, "run_batch: bundles of grids {} and {} in one batch", bundles[0].grid, b.grid);
+    const uint64_t lines = static_cast<uint64_t>(bundles[0].grid) * static_cast<uint64_t>(bundles[0].grid);
+    if (lines * bundles.size() >= 0xffffffffu || static_cast<uint64_t>(n_) * bundles.size() >= 0xffffffffu)
+      fail("a batch of {} bundles of grid {} over {} patches is beyond the wide path's 32-bit numbering", bundles.size(),
+           bundles[0].grid, n_);
     try {
       for (int attempt = 0;; ++attempt) {
-        Totals t = run_cl(bundle, radiance, result);
+        Totals t = run_cl(bundles, radiance, results);
         if (t.spans <= span_cap_ && t.crossings <= cross_cap_) return;
         if (attempt == 2) fail("bundle scratch did not grow ({} spans, {} crossings)", t.spans, t.crossings);
         // The crossings counted are all of them only when every span fitted.
@@ -98,19 +107,30 @@ class WideEngine final : public BundleEngine {
     uint64_t spans = 0, crossings = 0;
   };
 
-  void allocate(const SiradBundle& bundle) {
-    // First sizes: the bounds (no bundle exceeds them), up to 2^26 entries; beyond that the
-    // scratch grows to what bundles need.
-    if (span_cap_ == 0) span_cap_ = std::min<uint64_t>(span_bound(mesh_, bundle.grid), uint64_t{1} << 26);
-    if (cross_cap_ == 0) cross_cap_ = std::min<uint64_t>(capacity_bound(mesh_, bundle.grid), uint64_t{1} << 26);
+  void allocate(int grid, std::size_t batch) {
+    // Sizes not given: the bounds (no bundle exceeds them; a batch's are B times a bundle's),
+    // up to 2^26 entries; beyond that, and from sizes given, the scratch grows to what the
+    // bundles need (run_batch).
+    if (!given_capacities_ && (grid != grid_ || batch > batch_)) {
+      span_cap_ = std::max(span_cap_, std::min<uint64_t>(span_bound(mesh_, grid) * batch, uint64_t{1} << 26));
+      cross_cap_ = std::max(cross_cap_, std::min<uint64_t>(capacity_bound(mesh_, grid) * batch, uint64_t{1} << 26));
+    }
     if (span_cap_ >= 0xffffffffu || cross_cap_ >= 0xffffffffu)
       fail("bundle scratch of {} spans and {} crossings is beyond 32-bit indexing", span_cap_, cross_cap_);
-    if (bundle.grid != grid_) {
-      std::size_t lines = static_cast<std::size_t>(bundle.grid) * bundle.grid;
+    if (grid != grid_ || batch > batch_) {
+      const std::size_t patches = std::max<std::size_t>(n_ * batch, 1);
+      params_ = cl::Buffer(context_, CL_MEM_READ_ONLY, batch * sizeof(SiradBundle));
+      projected_ = cl::Buffer(context_, CL_MEM_READ_WRITE, patches * sizeof(SiradProjected));
+      rows_ = cl::Buffer(context_, CL_MEM_READ_WRITE, patches * sizeof(cl_int2));
+      gathered_ = cl::Buffer(context_, CL_MEM_READ_WRITE, patches * sizeof(glm::vec4));
+      hits_ = cl::Buffer(context_, CL_MEM_READ_WRITE, patches * sizeof(cl_uint));
+      span_start_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (n_ * batch + 1) * sizeof(cl_uint));
+      std::size_t lines = static_cast<std::size_t>(grid) * grid * batch;
       line_count_ = cl::Buffer(context_, CL_MEM_READ_WRITE, lines * sizeof(cl_uint));
       line_start_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (lines + 1) * sizeof(cl_uint));
       queue_.enqueueFillBuffer(line_count_, cl_uint{0}, 0, lines * sizeof(cl_uint));
-      grid_ = bundle.grid;
+      grid_ = grid;
+      batch_ = batch;
     }
     if (span_cap_ != allocated_spans_) {
       cross_start_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (span_cap_ + 1) * sizeof(cl_uint));
@@ -159,107 +179,109 @@ class WideEngine final : public BundleEngine {
   }
   std::size_t group() const { return info_.is_cpu ? 1 : 64; }
 
-  Totals run_cl(const SiradBundle& bundle, std::span<const glm::vec4> radiance, BundleResult& result) {
-    allocate(bundle);
-    params_host_ = bundle;
-    const cl_uint n = static_cast<cl_uint>(n_), span_cap = static_cast<cl_uint>(span_cap_),
-                  cross_cap = static_cast<cl_uint>(cross_cap_);
-    const cl_uint lines = static_cast<cl_uint>(bundle.grid) * static_cast<cl_uint>(bundle.grid);
-    lengths_host_[0] = n;
+  Totals run_cl(std::span<const SiradBundle> bundles, std::span<const glm::vec4> radiance, std::span<BundleResult> results) {
+    const std::size_t batch = bundles.size();
+    allocate(bundles[0].grid, batch);
+    const cl_uint n = static_cast<cl_uint>(n_), b = static_cast<cl_uint>(batch), patches = n * b,
+                  span_cap = static_cast<cl_uint>(span_cap_), cross_cap = static_cast<cl_uint>(cross_cap_);
+    const cl_uint lines = static_cast<cl_uint>(bundles[0].grid) * static_cast<cl_uint>(bundles[0].grid) * b;
+    params_host_.assign(bundles.begin(), bundles.end());
+    lengths_host_[0] = patches;
     lengths_host_[1] = lines;
-    queue_.enqueueWriteBuffer(params_, CL_FALSE, 0, sizeof(SiradBundle), &params_host_);
+    queue_.enqueueWriteBuffer(params_, CL_FALSE, 0, batch * sizeof(SiradBundle), params_host_.data());
     queue_.enqueueWriteBuffer(lengths_, CL_FALSE, 0, sizeof(lengths_host_), lengths_host_);
     queue_.enqueueWriteBuffer(radiance_, CL_FALSE, 0, n_ * sizeof(glm::vec4), radiance.data());
 
-    project_.setArg(0, vertices_);
-    project_.setArg(1, patches_);
-    project_.setArg(2, n);
-    project_.setArg(3, cl_uint{1});
-    project_.setArg(4, params_);
-    project_.setArg(5, projected_);
-    project_.setArg(6, rows_);
-    launch(project_, n_, 0);
+    int arg = 0;
+    for (const cl::Buffer* x : {&vertices_, &patches_}) project_.setArg(arg++, *x);
+    project_.setArg(arg++, n);
+    project_.setArg(arg++, b);
+    for (const cl::Buffer* x : {&params_, &projected_, &rows_}) project_.setArg(arg++, *x);
+    launch(project_, patches, 0);
 
     count_spans_.setArg(0, rows_);
-    count_spans_.setArg(1, n);
+    count_spans_.setArg(1, patches);
     count_spans_.setArg(2, span_start_);
-    launch(count_spans_, n_, 1);
-    scan(span_start_, span_start_, lengths_, 0, n, 2);
+    launch(count_spans_, patches, 1);
+    scan(span_start_, span_start_, lengths_, 0, patches, 2);
 
-    int arg = 0;
-    for (const cl::Buffer* b : {&projected_, &rows_}) count_crossings_.setArg(arg++, *b);
+    arg = 0;
+    for (const cl::Buffer* x : {&projected_, &rows_}) count_crossings_.setArg(arg++, *x);
     count_crossings_.setArg(arg++, n);
+    count_crossings_.setArg(arg++, b);
     count_crossings_.setArg(arg++, params_);
     count_crossings_.setArg(arg++, span_start_);
     count_crossings_.setArg(arg++, span_cap);
     count_crossings_.setArg(arg++, cross_start_);
     count_crossings_.setArg(arg++, line_count_);
     launch(count_crossings_, span_cap_, 3);
-    scan(cross_start_, cross_start_, span_start_, n, span_cap, 4);
+    scan(cross_start_, cross_start_, span_start_, patches, span_cap, 4);
     scan(line_count_, line_start_, lengths_, 1, lines, 5);
 
     arg = 0;
-    for (const cl::Buffer* b : {&projected_, &rows_}) emit_.setArg(arg++, *b);
+    for (const cl::Buffer* x : {&projected_, &rows_}) emit_.setArg(arg++, *x);
     emit_.setArg(arg++, n);
+    emit_.setArg(arg++, b);
     emit_.setArg(arg++, params_);
     emit_.setArg(arg++, span_start_);
     emit_.setArg(arg++, span_cap);
     emit_.setArg(arg++, cross_start_);
     emit_.setArg(arg++, line_start_);
     emit_.setArg(arg++, cross_cap);
-    emit_.setArg(arg++, line_count_);
-    emit_.setArg(arg++, keys_);
-    emit_.setArg(arg++, emit_numbers_);
+    for (const cl::Buffer* x : {&line_count_, &keys_, &emit_numbers_}) emit_.setArg(arg++, *x);
     launch(emit_, span_cap_, 6);
 
     arg = 0;
+    gather_.setArg(arg++, b);
     gather_.setArg(arg++, params_);
     gather_.setArg(arg++, line_start_);
     gather_.setArg(arg++, cross_cap);
-    gather_.setArg(arg++, keys_);
-    gather_.setArg(arg++, emit_numbers_);
-    gather_.setArg(arg++, radiance_);
-    gather_.setArg(arg++, seen_);
+    for (const cl::Buffer* x : {&keys_, &emit_numbers_, &radiance_, &seen_}) gather_.setArg(arg++, *x);
     launch(gather_, lines, 7);
 
     arg = 0;
     sum_.setArg(arg++, n);
+    sum_.setArg(arg++, b);
+    sum_.setArg(arg++, params_);
     sum_.setArg(arg++, span_start_);
     sum_.setArg(arg++, span_cap);
     sum_.setArg(arg++, cross_start_);
-    sum_.setArg(arg++, params_);
     sum_.setArg(arg++, line_start_);
     sum_.setArg(arg++, cross_cap);
-    sum_.setArg(arg++, seen_);
-    sum_.setArg(arg++, gathered_);
-    sum_.setArg(arg++, hits_);
-    launch(sum_, n_, 8);
+    for (const cl::Buffer* x : {&seen_, &gathered_, &hits_}) sum_.setArg(arg++, *x);
+    launch(sum_, patches, 8);
 
-    result.gathered.resize(n_);
-    result.hits.resize(n_);
+    for (std::size_t k = 0; k < batch; ++k) {
+      results[k].gathered.resize(n_);
+      results[k].hits.resize(n_);
+      queue_.enqueueReadBuffer(gathered_, CL_FALSE, k * n_ * sizeof(glm::vec4), n_ * sizeof(glm::vec4), results[k].gathered.data());
+      queue_.enqueueReadBuffer(hits_, CL_FALSE, k * n_ * sizeof(cl_uint), n_ * sizeof(cl_uint), results[k].hits.data());
+    }
     cl_uint totals[2] = {0, 0};
-    queue_.enqueueReadBuffer(gathered_, CL_FALSE, 0, n_ * sizeof(glm::vec4), result.gathered.data());
-    queue_.enqueueReadBuffer(hits_, CL_FALSE, 0, n_ * sizeof(cl_uint), result.hits.data());
-    queue_.enqueueReadBuffer(span_start_, CL_FALSE, n_ * sizeof(cl_uint), sizeof(cl_uint), &totals[0]);
-    queue_.enqueueReadBuffer(line_start_, CL_TRUE, lines * sizeof(cl_uint), sizeof(cl_uint), &totals[1]);
+    queue_.enqueueReadBuffer(span_start_, CL_FALSE, static_cast<std::size_t>(patches) * sizeof(cl_uint), sizeof(cl_uint), &totals[0]);
+    queue_.enqueueReadBuffer(line_start_, CL_TRUE, static_cast<std::size_t>(lines) * sizeof(cl_uint), sizeof(cl_uint), &totals[1]);
     Totals t{totals[0], totals[1]};
     if (t.spans <= span_cap_ && t.crossings <= cross_cap_) {
-      result.crossings = t.crossings;
-      if (profile_) report_profile();
+      for (BundleResult& r : results) {  // a bundle's crossings are its patches' hits
+        r.crossings = 0;
+        for (uint32_t h : r.hits) r.crossings += h;
+      }
+      if (profile_) report_profile(batch);
     }
     return t;
   }
 
-  // SIRAD_PROFILE set: per-pass device times (a scan's from its first kernel's start to its
-  // last one's end), printed every 10 bundles.
-  void report_profile() {
+  // SIRAD_PROFILE set: per-pass device times per bundle (a scan's from its first kernel's start
+  // to its last one's end), printed every 10 batches.
+  void report_profile(std::size_t batch) {
     for (int k = 0; k < kEvents; ++k)
       kernel_ns_[k] += static_cast<double>(last_[k].getProfilingInfo<CL_PROFILING_COMMAND_END>() -
                                            first_[k].getProfilingInfo<CL_PROFILING_COMMAND_START>());
-    if (++profiled_ % 10 != 0) return;
+    profiled_ += static_cast<int>(batch);
+    if (++batches_ % 10 != 0) return;
     static const char* const names[kEvents] = {"project", "count_spans", "scan_spans", "count_crossings", "scan_crossings",
                                                "scan_lines", "emit", "gather_lines", "sum_patches"};
-    std::string line = "sirad profile (ms/bundle, wide path):";
+    std::string line = fmt::format("sirad profile (ms/bundle, wide path, {} a batch):", batch);
     for (int k = 0; k < kEvents; ++k) line += fmt::format(" {} {:.3f}", names[k], kernel_ns_[k] * 1e-6 / profiled_);
     std::fprintf(stderr, "%s\n", line.c_str());
   }
@@ -276,12 +298,14 @@ class WideEngine final : public BundleEngine {
   cl::Buffer span_start_, partial_, lengths_, line_count_, line_start_, cross_start_, keys_, emit_numbers_, seen_;
   uint64_t span_cap_ = 0, cross_cap_ = 0, allocated_spans_ = 0, allocated_crossings_ = 0;
   int grid_ = 0;
-  SiradBundle params_host_{};
+  std::size_t batch_ = 0;
+  bool given_capacities_ = false;  // ClEngineOptions' first sizes (tests): grown, never reset
+  std::vector<SiradBundle> params_host_;
   cl_uint lengths_host_[2] = {0, 0};
   bool profile_ = false;
   cl::Event first_[kEvents], last_[kEvents];
   double kernel_ns_[kEvents] = {};
-  int profiled_ = 0;
+  int profiled_ = 0, batches_ = 0;  // bundles and batches profiled
 };
 
 }  // namespace

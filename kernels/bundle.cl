@@ -199,58 +199,68 @@ SIRAD_INLINE void set_edge(SiradProjected* p, int k, float ax, float ay, float b
   if (dy < 0.0f || (dy == 0.0f && dx > 0.0f)) p->flags |= 1u << k;
 }
 
-/* Project every patch onto the grid plane of this bundle. `vertices` are relative to the
- * scene's bounding-sphere centre. rows[j] repeats the patch's row range compactly for the
- * band pass, which scans it once per band. Work-item i takes patches
+/* Patch j projected onto the grid plane of bundle *b (a private copy: callers hold their
+ * bundles in constant or global memory), with its row range. `vertices` are relative to the
+ * scene's bounding-sphere centre. */
+SIRAD_INLINE void project_one(__global const float4* vertices, __global const uint4* patches, uint j,
+                              const SiradBundle* b, SiradProjected* out) {
+  uint4 idx = patches[j];
+  float4 q0 = vertices[idx.x], q1 = vertices[idx.y], q2 = vertices[idx.z];
+#define SIRAD_PROJECT(q, X, Y, Z)                                                   \
+  float X = (q.x * b->u[0] + q.y * b->u[1] + q.z * b->u[2]) * b->scale + b->offset_x; \
+  float Y = (q.x * b->v[0] + q.y * b->v[1] + q.z * b->v[2]) * b->scale + b->offset_y; \
+  float Z = q.x * b->w[0] + q.y * b->w[1] + q.z * b->w[2];
+  SIRAD_PROJECT(q0, X0, Y0, Z0)
+  SIRAD_PROJECT(q1, X1, Y1, Z1)
+  SIRAD_PROJECT(q2, X2, Y2, Z2)
+#undef SIRAD_PROJECT
+  float area2 = edge_raw(X0, Y0, X1, Y1, X2, Y2);
+  /* Counter-clockwise in (X, Y) means the normal has a positive component along +w;
+   * otherwise swap the last two vertices. */
+  bool front_pos = area2 > 0.0f;
+  float x1 = front_pos ? X1 : X2, y1 = front_pos ? Y1 : Y2, z1 = front_pos ? Z1 : Z2;
+  float x2 = front_pos ? X2 : X1, y2 = front_pos ? Y2 : Y1, z2 = front_pos ? Z2 : Z1;
+  SiradProjected p;
+  p.flags = front_pos ? SIRAD_FRONT_POS : 0u;
+  set_edge(&p, 0, X0, Y0, x1, y1);
+  set_edge(&p, 1, x1, y1, x2, y2);
+  set_edge(&p, 2, x2, y2, X0, Y0);
+  p.x0 = X0;
+  p.y0 = Y0;
+  p.xmin = fmin(X0, fmin(x1, x2));
+  p.xmax = fmax(X0, fmax(x1, x2));
+  p.pad = 0u;
+  float a = fabs(area2);
+  if (!(a > 0.0f)) {
+    /* Seen edge-on: crosses no line. */
+    p.z0 = 0.0f;
+    p.dzdx = 0.0f;
+    p.dzdy = 0.0f;
+    p.rows[0] = 0x7fffffff; /* an empty range that no band's filter lets through */
+    p.rows[1] = -0x7fffffff;
+  } else {
+    p.z0 = Z0;
+    p.dzdx = ((z1 - Z0) * (y2 - Y0) - (z2 - Z0) * (y1 - Y0)) / a;
+    p.dzdy = ((z2 - Z0) * (x1 - X0) - (z1 - Z0) * (x2 - X0)) / a;
+    float ylo = fmin(Y0, fmin(y1, y2));
+    float yhi = fmax(Y0, fmax(y1, y2));
+    p.rows[0] = (int)ceil(fmax(ylo, 0.0f));
+    p.rows[1] = (int)floor(fmin(yhi, (float)(b->grid - 1)));
+  }
+  *out = p;
+}
+
+/* Project every patch onto the grid plane of this bundle. rows[j] repeats the patch's row
+ * range compactly for the band pass, which scans it once per band. Work-item i takes patches
  * [i * per_item, (i + 1) * per_item). */
 __kernel void project_patches(__global const float4* vertices, __global const uint4* patches,
                               uint patch_count, uint per_item, __constant SiradBundle* b,
                               __global SiradProjected* projected, __global int2* rows) {
   uint last = min((uint)get_global_id(0) * per_item + per_item, patch_count);
+  const SiradBundle bundle = *b;
   for (uint j = get_global_id(0) * per_item; j < last; ++j) {
-    uint4 idx = patches[j];
-    float4 q0 = vertices[idx.x], q1 = vertices[idx.y], q2 = vertices[idx.z];
-#define SIRAD_PROJECT(q, X, Y, Z)                                                   \
-    float X = (q.x * b->u[0] + q.y * b->u[1] + q.z * b->u[2]) * b->scale + b->offset_x; \
-    float Y = (q.x * b->v[0] + q.y * b->v[1] + q.z * b->v[2]) * b->scale + b->offset_y; \
-    float Z = q.x * b->w[0] + q.y * b->w[1] + q.z * b->w[2];
-    SIRAD_PROJECT(q0, X0, Y0, Z0)
-    SIRAD_PROJECT(q1, X1, Y1, Z1)
-    SIRAD_PROJECT(q2, X2, Y2, Z2)
-#undef SIRAD_PROJECT
-    float area2 = edge_raw(X0, Y0, X1, Y1, X2, Y2);
-    /* Counter-clockwise in (X, Y) means the normal has a positive component along +w;
-     * otherwise swap the last two vertices. */
-    bool front_pos = area2 > 0.0f;
-    float x1 = front_pos ? X1 : X2, y1 = front_pos ? Y1 : Y2, z1 = front_pos ? Z1 : Z2;
-    float x2 = front_pos ? X2 : X1, y2 = front_pos ? Y2 : Y1, z2 = front_pos ? Z2 : Z1;
     SiradProjected p;
-    p.flags = front_pos ? SIRAD_FRONT_POS : 0u;
-    set_edge(&p, 0, X0, Y0, x1, y1);
-    set_edge(&p, 1, x1, y1, x2, y2);
-    set_edge(&p, 2, x2, y2, X0, Y0);
-    p.x0 = X0;
-    p.y0 = Y0;
-    p.xmin = fmin(X0, fmin(x1, x2));
-    p.xmax = fmax(X0, fmax(x1, x2));
-    p.pad = 0u;
-    float a = fabs(area2);
-    if (!(a > 0.0f)) {
-      /* Seen edge-on: crosses no line. */
-      p.z0 = 0.0f;
-      p.dzdx = 0.0f;
-      p.dzdy = 0.0f;
-      p.rows[0] = 0x7fffffff; /* an empty range that no band's filter lets through */
-      p.rows[1] = -0x7fffffff;
-    } else {
-      p.z0 = Z0;
-      p.dzdx = ((z1 - Z0) * (y2 - Y0) - (z2 - Z0) * (y1 - Y0)) / a;
-      p.dzdy = ((z2 - Z0) * (x1 - X0) - (z1 - Z0) * (x2 - X0)) / a;
-      float ylo = fmin(Y0, fmin(y1, y2));
-      float yhi = fmax(Y0, fmax(y1, y2));
-      p.rows[0] = (int)ceil(fmax(ylo, 0.0f));
-      p.rows[1] = (int)floor(fmin(yhi, (float)(b->grid - 1)));
-    }
+    project_one(vertices, patches, j, &bundle, &p);
     projected[j] = p;
     rows[j] = (int2)(p.rows[0], p.rows[1]);
   }

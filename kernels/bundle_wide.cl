@@ -5,8 +5,8 @@
  *
  * No work-item scans the mesh: every pass is one work-item per patch, per span (one patch's
  * crossings of one grid row) or per line, and each does work proportional to its own item.
- * Per bundle the host enqueues:
- *   project_patches       (per patch)  patches -> grid plane (kernels/bundle.cl)
+ * Per batch of bundles (see "The passes") the host enqueues:
+ *   wide_project          (per patch)  patches -> grid plane (kernels/bundle.cl project_one)
  *   wide_count_spans      (per patch)  rows each patch reaches            -> span_start
  *   scan                               span_start becomes each patch's first span
  *   wide_count_crossings  (per span)   lines the span covers              -> cross_start;
@@ -75,20 +75,36 @@ __kernel void scan_down(__global const uint* in, __global uint* out, __global co
   if (i == items - 1) out[n] = partial[items];
 }
 
-/* ---- The passes ---- */
+/* ---- The passes ----
+ * A launch runs a batch of bundles with the same grid over the same radiance: "patch p" is
+ * patch p % n of bundle p / n (n patches a bundle), line l is line l % grid^2 of bundle
+ * l / grid^2, and every total and offset counts over the whole batch. */
 
-/* span_start[j] = the rows patch j reaches (0 for a patch seen edge-on). */
-__kernel void wide_count_spans(__global const int2* restrict rows, uint patch_count, __global uint* restrict span_start) {
-  uint j = get_global_id(0);
-  if (j >= patch_count) return;
-  int2 r = rows[j];
-  span_start[j] = r.y >= r.x ? (uint)(r.y - r.x + 1) : 0u;
+/* Patch p projected by its bundle (kernels/bundle.cl project_one); rows as project_patches. */
+__kernel void wide_project(__global const float4* restrict vertices, __global const uint4* restrict patches, uint n,
+                           uint batch, __global const SiradBundle* restrict bundles,
+                           __global SiradProjected* restrict projected, __global int2* restrict rows) {
+  uint p = get_global_id(0);
+  if (p >= n * batch) return;
+  const SiradBundle b = bundles[p / n];
+  SiradProjected q;
+  project_one(vertices, patches, p % n, &b, &q);
+  projected[p] = q;
+  rows[p] = (int2)(q.rows[0], q.rows[1]);
 }
 
-/* The patch of span s: the last j with span_start[j] <= s (a patch with no spans shares its
+/* span_start[p] = the rows patch p reaches (0 for a patch seen edge-on). */
+__kernel void wide_count_spans(__global const int2* restrict rows, uint patches, __global uint* restrict span_start) {
+  uint p = get_global_id(0);
+  if (p >= patches) return;
+  int2 r = rows[p];
+  span_start[p] = r.y >= r.x ? (uint)(r.y - r.x + 1) : 0u;
+}
+
+/* The patch of span s: the last p with span_start[p] <= s (a patch with no spans shares its
  * start with the next, so the last one is the patch that has s). */
-SIRAD_INLINE uint span_patch(__global const uint* span_start, uint patch_count, uint s) {
-  uint lo = 0, hi = patch_count; /* span_start[lo] <= s < span_start[hi] */
+SIRAD_INLINE uint span_patch(__global const uint* span_start, uint patches, uint s) {
+  uint lo = 0, hi = patches; /* span_start[lo] <= s < span_start[hi] */
   while (hi - lo > 1) {
     uint mid = lo + (hi - lo) / 2;
     if (span_start[mid] <= s) lo = mid;
@@ -99,18 +115,21 @@ SIRAD_INLINE uint span_patch(__global const uint* span_start, uint patch_count, 
 
 /* cross_start[s] = the lines span s covers; each of them counted on its line. */
 __kernel void wide_count_crossings(__global const SiradProjected* restrict projected, __global const int2* restrict rows,
-                                   uint patch_count, __constant SiradBundle* b, __global const uint* restrict span_start,
-                                   uint span_cap, __global uint* restrict cross_start, __global uint* line_count) {
+                                   uint n, uint batch, __global const SiradBundle* restrict bundles,
+                                   __global const uint* restrict span_start, uint span_cap,
+                                   __global uint* restrict cross_start, __global uint* line_count) {
   uint s = get_global_id(0);
-  uint spans = min(span_start[patch_count], span_cap);
+  const uint patches = n * batch;
+  uint spans = min(span_start[patches], span_cap);
   if (s >= spans) return;
-  const int grid = b->grid;
-  uint j = span_patch(span_start, patch_count, s);
-  int y = rows[j].x + (int)(s - span_start[j]);
-  SiradProjected p = projected[j];
+  const int grid = bundles[0].grid;
+  uint p = span_patch(span_start, patches, s);
+  int y = rows[p].x + (int)(s - span_start[p]);
+  SiradProjected q = projected[p];
+  __global uint* count = line_count + (size_t)(p / n) * (uint)grid * (uint)grid;
   uint c = 0;
-  FOR_EACH_COVERED(&p, y, grid, x) {
-    atomic_inc(&line_count[y * grid + x]);
+  FOR_EACH_COVERED(&q, y, grid, x) {
+    atomic_inc(&count[y * grid + x]);
     ++c;
   }
   cross_start[s] = c;
@@ -118,25 +137,27 @@ __kernel void wide_count_crossings(__global const SiradProjected* restrict proje
 
 /* Each crossing of span s: its key into a free slot of its line, with its emit number (the
  * span's first crossing plus its place in the span). Slots are taken by counting line_count
- * back down, which leaves it 0 for the next bundle. */
-__kernel void wide_emit(__global const SiradProjected* restrict projected, __global const int2* restrict rows,
-                        uint patch_count, __constant SiradBundle* b, __global const uint* restrict span_start, uint span_cap,
-                        __global const uint* restrict cross_start, __global const uint* restrict line_start, uint cross_cap,
-                        __global uint* line_count, __global ulong* restrict keys, __global uint* restrict emit) {
+ * back down, which leaves it 0 for the next batch. */
+__kernel void wide_emit(__global const SiradProjected* restrict projected, __global const int2* restrict rows, uint n,
+                        uint batch, __global const SiradBundle* restrict bundles, __global const uint* restrict span_start,
+                        uint span_cap, __global const uint* restrict cross_start, __global const uint* restrict line_start,
+                        uint cross_cap, __global uint* line_count, __global ulong* restrict keys, __global uint* restrict emit) {
   uint s = get_global_id(0);
-  uint spans = min(span_start[patch_count], span_cap);
+  const uint patches = n * batch;
+  uint spans = min(span_start[patches], span_cap);
   if (s >= spans) return;
-  const int grid = b->grid;
-  uint j = span_patch(span_start, patch_count, s);
-  int y = rows[j].x + (int)(s - span_start[j]);
-  SiradProjected p = projected[j];
-  uint front_pos = (p.flags & SIRAD_FRONT_POS) ? 1u : 0u;
+  const int grid = bundles[0].grid;
+  uint p = span_patch(span_start, patches, s);
+  int y = rows[p].x + (int)(s - span_start[p]);
+  SiradProjected q = projected[p];
+  uint front_pos = (q.flags & SIRAD_FRONT_POS) ? 1u : 0u;
+  const uint line0 = (p / n) * (uint)grid * (uint)grid; /* the bundle's first line */
   uint e = cross_start[s];
-  FOR_EACH_COVERED(&p, y, grid, x) {
-    uint l = (uint)(y * grid + x);
+  FOR_EACH_COVERED(&q, y, grid, x) {
+    uint l = line0 + (uint)(y * grid + x);
     uint at = line_start[l] + atomic_dec(&line_count[l]) - 1u;
     if (at < cross_cap) {
-      keys[at] = crossing_key(depth_at(&p, x, y), front_pos, j);
+      keys[at] = crossing_key(depth_at(&q, x, y), front_pos, p % n);
       emit[at] = e;
     }
     ++e;
@@ -186,14 +207,15 @@ SIRAD_INLINE void order_coincident_pairs(__global ulong* s, __global uint* vals,
 /* Line l: its crossings in depth order, then each takes its front neighbour's radiance (the
  * next crossing towards the side its normal points to, if that one faces back; else the
  * background) into seen[its emit number]. */
-__kernel void wide_gather_lines(__constant SiradBundle* b, __global const uint* restrict line_start, uint cross_cap,
-                                __global ulong* restrict keys, __global uint* restrict emit,
+__kernel void wide_gather_lines(uint batch, __global const SiradBundle* restrict bundles, __global const uint* restrict line_start,
+                                uint cross_cap, __global ulong* restrict keys, __global uint* restrict emit,
                                 __global const float4* restrict radiance, __global float4* restrict seen) {
   uint l = get_global_id(0);
-  const uint lines = (uint)b->grid * (uint)b->grid;
+  const uint per_bundle = (uint)bundles[0].grid * (uint)bundles[0].grid, lines = per_bundle * batch;
   if (l >= lines || line_start[lines] > cross_cap) return;
   uint start = line_start[l], end = line_start[l + 1], n = end - start;
   if (n == 0) return;
+  __global const SiradBundle* b = bundles + l / per_bundle;
   __global ulong* k = keys + start;
   __global uint* v = emit + start;
   if (n > 1) {
@@ -214,19 +236,21 @@ __kernel void wide_gather_lines(__constant SiradBundle* b, __global const uint* 
   }
 }
 
-/* gathered[j] = what patch j's crossings see, added in emit order; hits[j] = their number.
+/* gathered[p] = what patch p's crossings see, added in emit order; hits[p] = their number.
  * Nothing is written when the spans or the crossings did not fit. */
-__kernel void wide_sum_patches(uint patch_count, __global const uint* restrict span_start, uint span_cap,
-                               __global const uint* restrict cross_start, __constant SiradBundle* b,
-                               __global const uint* restrict line_start, uint cross_cap, __global const float4* restrict seen,
-                               __global float4* restrict gathered, __global uint* restrict hits) {
-  uint j = get_global_id(0);
-  if (j >= patch_count) return;
-  const uint lines = (uint)b->grid * (uint)b->grid;
-  if (span_start[patch_count] > span_cap || line_start[lines] > cross_cap) return;
-  uint a = cross_start[span_start[j]], e = cross_start[span_start[j + 1]];
+__kernel void wide_sum_patches(uint n, uint batch, __global const SiradBundle* restrict bundles,
+                               __global const uint* restrict span_start, uint span_cap,
+                               __global const uint* restrict cross_start, __global const uint* restrict line_start,
+                               uint cross_cap, __global const float4* restrict seen, __global float4* restrict gathered,
+                               __global uint* restrict hits) {
+  uint p = get_global_id(0);
+  const uint patches = n * batch;
+  if (p >= patches) return;
+  const uint lines = (uint)bundles[0].grid * (uint)bundles[0].grid * batch;
+  if (span_start[patches] > span_cap || line_start[lines] > cross_cap) return;
+  uint a = cross_start[span_start[p]], e = cross_start[span_start[p + 1]];
   float4 sum = (float4)(0.0f);
   for (uint i = a; i < e; ++i) sum += seen[i];
-  gathered[j] = sum;
-  hits[j] = e - a;
+  gathered[p] = sum;
+  hits[p] = e - a;
 }
