@@ -1,6 +1,7 @@
 // sirad: a run on one node (see single_node.h).
 #include "cluster/single_node.h"
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 #include <utility>
@@ -17,9 +18,11 @@ SingleRun run_single(Solver& solver, const RunSettings& s, const std::atomic<boo
   auto elapsed = [&] { return setup_s + std::chrono::duration<double>(Clock::now() - start).count(); };
   const CloseRule rule{s.time_limit_s, s.target_error};
   SingleRun r;
-  for (uint64_t k = 0; k < s.bundles; ++k) {
-    solver.step(k);
-    r.bundles = k + 1;
+  for (uint64_t k = 0; k < s.bundles;) {
+    const auto count = static_cast<uint32_t>(std::min<uint64_t>(solver.batch(), s.bundles - k));
+    solver.step_batch(k, count);
+    k += count;
+    r.bundles = k;
     if (r.bundles == s.bundles) break;
     if (close && close->load()) {
       r.ended_by = close_why ? close_why() : "interrupted";
@@ -27,7 +30,8 @@ SingleRun run_single(Solver& solver, const RunSettings& s, const std::atomic<boo
     }
     const double t = elapsed();
     if (progress) progress(r.bundles, t);
-    const bool look = rule.wants_estimate() && r.bundles % 16 == 0 && solver.error_estimate_ready();
+    // Every 16 bundles (a batch may step over the multiple itself).
+    const bool look = rule.wants_estimate() && r.bundles / 16 != (r.bundles - count) / 16 && solver.error_estimate_ready();
     if (std::string why = rule.check(t, look ? solver.error_estimate() : -1.0); !why.empty()) {
       r.ended_by = std::move(why);
       break;

@@ -1,6 +1,8 @@
 // sirad: a node's part of one run (see worker.h).
 #include "cluster/worker.h"
 
+#include <algorithm>
+
 #include "util/error.h"
 
 namespace sirad::cluster {
@@ -35,9 +37,12 @@ Worker::Worker(const PatchMesh& mesh, BundleEngine& engine, ShotEngine* shots, c
 }
 
 bool Worker::run(std::span<const Range> ranges, const std::function<bool()>& between) {
+  // The solver's batches (one launch of several bundles on a GPU) within each range.
   for (const Range& r : ranges)
-    for (uint64_t k = r.first; k < r.last; ++k) {
-      solver_->step(k);
+    for (uint64_t k = r.first; k < r.last;) {
+      const auto count = static_cast<uint32_t>(std::min<uint64_t>(solver_->batch(), r.last - k));
+      solver_->step_batch(k, count);
+      k += count;
       if (between && !between()) return false;
     }
   return true;

@@ -113,6 +113,8 @@ class BundleEngine {
   virtual void run_batch(std::span<const SiradBundle> bundles, std::span<const glm::vec4> radiance,
                          std::span<BundleResult> results);
   virtual std::string description() const = 0;
+  // The bundles a run_batch should hold for this engine to run at its speed (1: one at a time).
+  virtual uint32_t preferred_batch() const { return 1; }
 };
 
 // The plain, single-threaded C++ reference of one bundle (engine/bundle_reference.cpp).

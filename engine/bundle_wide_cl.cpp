@@ -67,6 +67,11 @@ class WideEngine final : public BundleEngine {
     cross_cap_ = std::max<uint64_t>(cross_cap_, 1);
   }
 
+  // A GPU wants 1e5-1e6 work-items in flight; one bundle of 20k patches has a few hundred
+  // thousand crossings and a grid of 10^5 lines: 16 of them fill it.
+  uint32_t preferred_batch() const override { return kBatch; }
+  static constexpr uint32_t kBatch = 16;
+
   std::string description() const override {
     return fmt::format("{} / {} (wide path)", info_.platform_name, info_.device_name);
   }

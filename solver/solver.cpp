@@ -56,6 +56,7 @@ Solver::Solver(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions&
   if (options.grid < 0 || options.grid == 1) fail("grid must be at least 2 (got {})", options.grid);
   grid_ = options.grid == 0 ? auto_grid(mesh) : options.grid;
   burn_in_ = options.rule == UpdateRule::average ? 0 : (options.burn_in < 0 ? auto_burn_in(mesh) : options.burn_in);
+  batch_ = options.warm ? 1 : options.batch > 0 ? options.batch : std::max<uint32_t>(1, engine.preferred_batch());
   if (options.directions == Directions::stratified && options.rule != UpdateRule::chain)
     fail("stratified directions need the chain rule (under average they bias the estimate: engine/bundle.cpp)");
   sampling_ = sampling_plan(mesh, options.directions);
@@ -113,6 +114,8 @@ bool Solver::error_estimate_ready() const {
   if (!batches_ || batches_->full_batches() < 8) return false;
   double x = shots_ ? options_.shots_per_bundle : 0.0;
   double shared = x > 0.0 && x < 1.0 ? std::ceil(4.0 / x) : 4.0;
+  // The estimates of one batch share their state: a batch of means spans at least four of them.
+  shared = std::max(shared, 4.0 * static_cast<double>(batch_));
   return static_cast<double>(batches_->batch_size()) >= std::max(4.0, shared);
 }
 
@@ -206,6 +209,41 @@ void Solver::step(uint64_t index) {
   if (batches_) batches_->add(estimate);
   if (options_.rule == UpdateRule::chain) {
     state_.swap(next_state_);
+  } else {
+    update_average_state();
+  }
+}
+
+void Solver::step_batch(uint64_t first, uint32_t count) {
+  if (count <= 1 || options_.warm) {
+    for (uint32_t i = 0; i < count; ++i) step(first + i);
+    return;
+  }
+  // Every bundle of the batch transports the same input (run_bundle's).
+  for (std::size_t j = 0; j < state_.size(); ++j)
+    input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - shot_emission_[j] : state_[j]), 0.0f);
+  batch_bundles_.resize(count);
+  batch_results_.resize(count);
+  for (uint32_t i = 0; i < count; ++i)
+    batch_bundles_[i] = make_bundle(mesh_, grid_, options_.seed, first + i, Stream::bundles, sampling_);
+  engine_.run_batch(batch_bundles_, input_, batch_results_);
+  batch_next_.assign(state_.size(), glm::dvec3(0.0));
+  for (uint32_t i = 0; i < count; ++i) {
+    // Each estimate as step() makes it: its own shots, the control variate's constant from the
+    // incoming estimates before it (fixed given the bundles before: this one's directions are
+    // independent of theirs), so each is unbiased for E + T (state) on its own.
+    update_source(first + i, Stream::shots);
+    crossings_ += batch_results_[i].crossings;
+    const std::vector<glm::dvec3>& estimate = transport(batch_results_[i]);
+    ++count_;
+    for (std::size_t j = 0; j < estimate.size(); ++j) sum_[j] += estimate[j];
+    if (batches_) batches_->add(estimate);
+    for (std::size_t j = 0; j < estimate.size(); ++j) batch_next_[j] += next_state_[j];
+  }
+  result_ = batch_results_.back();
+  if (options_.rule == UpdateRule::chain) {
+    const double inv = 1.0 / static_cast<double>(count);
+    for (std::size_t j = 0; j < state_.size(); ++j) state_[j] = batch_next_[j] * inv;
   } else {
     update_average_state();
   }

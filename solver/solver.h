@@ -49,6 +49,10 @@ struct SolverOptions {
   // A start from the last run (solver/warm_start.h): chain rule, no first shot. Its patches'
   // state starts at P (elsewhere at E), and each step's estimate there takes P's control variate.
   const WarmStart* warm = nullptr;
+  // Bundles per step of the chain (step_batch; DESIGN.md "Batches"): B bundles from one state,
+  // the next state their mean. 0: the engine's preference (BundleEngine::preferred_batch: 1 but
+  // on the wide path). A warm start runs single bundles.
+  uint32_t batch = 0;
   // Asked between burn-in bundles (a burn-in may run up to 2^20 of them); true: the solver's
   // construction stops with sirad::Error "set-up interrupted" (a node told to stop).
   std::function<bool()> cancelled;
@@ -81,6 +85,13 @@ class Solver {
 
   // Runs counted bundle `index` of the run and adds its estimate to the average.
   void step(uint64_t index);
+  // Runs counted bundles first .. first + count - 1 as one step of the chain: every one of
+  // them from the same state (one launch where the engine batches), each estimate added to the
+  // average as step() adds it, and the next state the mean of their next states (chain rule;
+  // the average rule's input is the running average, as after step()). count 1 is step(first).
+  void step_batch(uint64_t first, uint32_t count);
+  // The bundles step_batch takes at a time: options.batch, else the engine's preference.
+  uint32_t batch() const { return batch_; }
 
   uint64_t bundles() const { return count_; }
   bool first_shot() const { return shots_ != nullptr; }
@@ -129,6 +140,10 @@ class Solver {
   SolverOptions options_;
   int grid_;
   int burn_in_;
+  uint32_t batch_ = 1;
+  std::vector<SiradBundle> batch_bundles_;      // step_batch's scratch
+  std::vector<BundleResult> batch_results_;
+  std::vector<glm::dvec3> batch_next_;
   Sampling sampling_;
   double two_delta_;
   void update_average_state();

@@ -21,6 +21,17 @@ inline Solver solve(const PatchMesh& mesh, BundleEngine& engine, const SolverOpt
   return solver;
 }
 
+// solve() in the solver's batches (Solver::step_batch; options.batch, else the engine's).
+inline Solver solve_batched(const PatchMesh& mesh, BundleEngine& engine, const SolverOptions& options, uint64_t bundles) {
+  Solver solver(mesh, engine, options);
+  for (uint64_t k = 0; k < bundles;) {
+    const auto count = static_cast<uint32_t>(std::min<uint64_t>(solver.batch(), bundles - k));
+    solver.step_batch(k, count);
+    k += count;
+  }
+  return solver;
+}
+
 // A closed room (cube of side 4, inward normals) with one emitting wall (Ke 1) and a closed
 // block inside (outward normals), every surface with reflectance rho.
 inline Scene closed_room(float rho) {

@@ -330,7 +330,8 @@ void check_transport(const char* name, const Scene& scene, std::size_t patches, 
 
 void check_solver(const char* name, const Scene& scene, std::size_t patches, int runs, double shots_per_bundle = 0.0,
                   uint64_t default_bundles = 1024, bool demand_power = false,
-                  Directions directions = Directions::random) {
+                  Directions directions = Directions::random, std::optional<TransferPath> path = std::nullopt,
+                  uint32_t batch = 1) {
   const char* env = std::getenv("SIRAD_REFERENCE_BUNDLES");
   const uint64_t bundles = env ? std::stoull(env) : default_bundles;
   Compared c = compared(scene, patches, {.rays_per_patch = 2048, .light_samples = 256, .batches = 8, .seed = 22});
@@ -341,7 +342,7 @@ void check_solver(const char* name, const Scene& scene, std::size_t patches, int
     ref_d.push_back((v.x + v.y + v.z) / c.den - 1.0);
   }
   const double se_ref = mean_sd(ref_d).second / std::sqrt(static_cast<double>(ref_d.size()));
-  auto engine = make_cl_engine(mesh);
+  auto engine = make_cl_engine(mesh, {.path = path});
   auto shots = shots_per_bundle > 0 ? make_cl_shot_engine(mesh) : nullptr;
   std::vector<double> d;
   std::vector<dvec3> pooled(mesh.size(), dvec3(0.0));
@@ -349,8 +350,9 @@ void check_solver(const char* name, const Scene& scene, std::size_t patches, int
   for (int k = 0; k < runs; ++k) {
     SolverOptions so{.seed = 7000 + static_cast<uint64_t>(k), .chain_id = static_cast<uint64_t>(k), .directions = directions};
     so.shots_per_bundle = shots_per_bundle;
+    so.batch = batch;
     Solver s(mesh, *engine, so, shots.get());
-    for (uint64_t b = 0; b < bundles; ++b) s.step(b);
+    for (uint64_t b = 0; b < bundles; b += batch) s.step_batch(b, static_cast<uint32_t>(std::min<uint64_t>(batch, bundles - b)));
     auto est = s.estimate();
     for (std::size_t j = 0; j < mesh.size(); ++j) pooled[j] += dvec3(est[j]) / static_cast<double>(runs);
     dvec3 a = aggregate(mesh, [&](std::size_t j) { return est[j]; });
@@ -383,6 +385,13 @@ TEST(ReferenceAgreement, BundleTransportCornell) { check_transport("cornell", bu
 TEST(ReferenceAgreement, BundleTransportBrightRoom) { check_transport("bright-room", builtin_bright_room(), 1200, 24); }
 TEST(ReferenceAgreement, BundleTransportThreeLights) { check_transport("three-lights", builtin_three_lights(), 1500, 40); }
 TEST(ReferenceAgreement, BundleSolverCornell) { check_solver("cornell", builtin_cornell(), 1200, 6); }
+// The same in batches of 16 bundles from one state (Solver::step_batch) on the wide path, with
+// the first shot and stratified directions as a run's defaults have them: a batch's bundles
+// are the paper's processors side by side for one step, and the chain's fixed point is the
+// same (DESIGN.md "Batches").
+TEST(ReferenceAgreement, BatchedSolverCornellOnTheWidePath) {
+  check_solver("cornell", builtin_cornell(), 1200, 6, 0.25, 1024, false, Directions::stratified, TransferPath::wide, 16);
+}
 // 12 runs for the bright room, whose runs scatter most: the SE comes from the runs' own spread,
 // and with 6 (5 degrees of freedom) |t| > 3 has a 3 % chance. On the mesh split at its boxes'
 // feet the six runs of seeds 7000-7005 read -1.39 % +- 0.42 % (t = -3.3), six of 7100-7105
