@@ -67,10 +67,14 @@ class WideEngine final : public BundleEngine {
     cross_cap_ = std::max<uint64_t>(cross_cap_, 1);
   }
 
-  // A GPU wants 1e5-1e6 work-items in flight; one bundle of 20k patches has a few hundred
-  // thousand crossings and a grid of 10^5 lines: 16 of them fill it.
-  uint32_t preferred_batch() const override { return kBatch; }
-  static constexpr uint32_t kBatch = 16;
+  // A GPU wants 1e5-1e6 work-items in flight: a batch of about 2^20 patches (a bundle's
+  // crossings are a few per patch at the auto grid), in a power of two from 1 to 16 bundles:
+  // 16 at 20k patches, 8 at 100k, 1 from a million.
+  uint32_t preferred_batch() const override {
+    std::size_t b = 16;
+    while (b > 1 && b * n_ > (std::size_t{1} << 20)) b /= 2;
+    return static_cast<uint32_t>(b);
+  }
 
   std::string description() const override {
     return fmt::format("{} / {} (wide path)", info_.platform_name, info_.device_name);
