@@ -1,12 +1,12 @@
-// sirad: the OpenCL bundle engine: buffers, launches and read-back for one bundle.
+// sirad: the OpenCL bundle engine's band path (buffers, launches and read-back for one bundle),
+// and make_cl_engine, which chooses a path for the device.
 #include "engine/bundle_cl.h"
-
-#include "engine/bundle_cl_paths.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 
+#include "engine/bundle_cl_paths.h"
 #include "util/check.h"
 #include "util/error.h"
 

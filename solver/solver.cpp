@@ -240,7 +240,7 @@ void Solver::step_batch(uint64_t first, uint32_t count) {
     if (batches_) batches_->add(estimate);
     for (std::size_t j = 0; j < estimate.size(); ++j) batch_next_[j] += next_state_[j];
   }
-  result_ = batch_results_.back();
+  std::swap(result_, batch_results_.back());  // last(): the batch's last bundle (no copy)
   if (options_.rule == UpdateRule::chain) {
     const double inv = 1.0 / static_cast<double>(count);
     for (std::size_t j = 0; j < state_.size(); ++j) state_[j] = batch_next_[j] * inv;
