@@ -1,5 +1,5 @@
-/* sirad: one bundle of parallel global lines for devices with many lanes (GPUs): the "wide"
- * transfer path. The host prepends kernels/bundle_types.h and kernels/bundle.cl (whose
+/* sirad: bundles of parallel global lines for devices with many lanes (GPUs), a batch of them
+ * per launch: the "wide" transfer path. The host prepends kernels/bundle_types.h and kernels/bundle.cl (whose
  * helpers, `covers`, FOR_EACH_COVERED, crossing_key and the coincident-face order, decide
  * every crossing here exactly as on the band path and in the C++ reference).
  *
@@ -24,8 +24,8 @@
  * line's slots, and every line is then sorted by its keys, which are unique (a patch crosses a
  * line at most once); every float is written by one work-item and added in a fixed order.
  * Capacities: spans and crossings are placed only below span_cap and cross_cap; the host reads
- * the totals (span_start[n], line_start[grid^2]) and runs the bundle again with room when one
- * did not fit.
+ * the batch's totals (span_start[patches], line_start[lines]) and runs the batch again with room
+ * when one did not fit.
  */
 
 /* ---- Exclusive scan of n = min(len[len_at], cap) uints, in place or not: out[i] = in[0] +
