@@ -195,7 +195,11 @@ SiradBundle make_bundle(const PatchMesh& mesh, int grid, uint64_t seed, uint64_t
   return b;
 }
 
-uint64_t capacity_bound(const PatchMesh& mesh, int grid) {
+namespace {
+
+// sum over patches of per_patch(area, perimeter) in cells of the grid, with a 1 % margin.
+template <class PerPatch>
+uint64_t bound_over_patches(const PatchMesh& mesh, int grid, PerPatch per_patch) {
   double h = std::sqrt(cell_area(mesh, grid));
   double total = 0.0;
   for (std::size_t j = 0; j < mesh.size(); ++j) {
@@ -203,9 +207,19 @@ uint64_t capacity_bound(const PatchMesh& mesh, int grid) {
     glm::vec3 a = mesh.vertices[t[0]], b = mesh.vertices[t[1]], c = mesh.vertices[t[2]];
     double perimeter = glm::length(glm::dvec3(b - a)) + glm::length(glm::dvec3(c - b)) +
                        glm::length(glm::dvec3(a - c));
-    total += mesh.area[j] / (h * h) + perimeter / (2.0 * h) + 1.0;
+    total += per_patch(mesh.area[j] / (h * h), perimeter / h);
   }
   return static_cast<uint64_t>(std::ceil(total * 1.01)) + 16;
+}
+
+}  // namespace
+
+uint64_t capacity_bound(const PatchMesh& mesh, int grid) {
+  return bound_over_patches(mesh, grid, [](double area, double perimeter) { return area + perimeter / 2.0 + 1.0; });
+}
+
+uint64_t span_bound(const PatchMesh& mesh, int grid) {
+  return bound_over_patches(mesh, grid, [](double, double perimeter) { return perimeter / 2.0 + 2.0; });
 }
 
 int auto_grid(const PatchMesh& mesh) {

@@ -85,6 +85,9 @@ double cell_area(const PatchMesh& mesh, int grid);
 // <= area + perimeter / 2 + 1 (in cell units), with the projected area and perimeter bounded
 // by the patch's own.
 uint64_t capacity_bound(const PatchMesh& mesh, int grid);
+// An upper bound on the (patch, row) spans of any bundle: a patch reaches at most its projected
+// height in rows plus one, and its projected height is at most half its perimeter (in cells).
+uint64_t span_bound(const PatchMesh& mesh, int grid);
 
 // A grid that gives the median patch about 4 crossings per bundle (clamped to [32, 2048]).
 int auto_grid(const PatchMesh& mesh);

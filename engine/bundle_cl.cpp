@@ -43,13 +43,9 @@ class ClEngine final : public BundleEngine {
     patch_items_ = runs.items;
     per_item_ = runs.per_item;
 
-    // Geometry: vertices relative to the bounding-sphere centre, patches as uint4.
-    std::vector<glm::vec4> verts = centred_vertices(mesh);
-    std::vector<cl_uint4> tris(n_);
-    for (std::size_t j = 0; j < n_; ++j)
-      tris[j] = {{mesh.patches[j][0], mesh.patches[j][1], mesh.patches[j][2], 0u}};
-    vertices_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, verts.size() * sizeof(glm::vec4), verts.data());
-    patches_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tris.size() * sizeof(cl_uint4), tris.data());
+    MeshBuffers geometry = upload_mesh(context_, mesh);
+    vertices_ = geometry.vertices;
+    patches_ = geometry.patches;
     params_ = cl::Buffer(context_, CL_MEM_READ_ONLY, sizeof(SiradBundle));
     projected_ = cl::Buffer(context_, CL_MEM_READ_WRITE, n_ * sizeof(SiradProjected));
     rows_ = cl::Buffer(context_, CL_MEM_READ_WRITE, n_ * sizeof(cl_int2));
@@ -138,31 +134,15 @@ class ClEngine final : public BundleEngine {
     cl::NDRange patch_global(patch_items_);
     cl::NDRange one_per_group = info_.is_cpu ? cl::NDRange(1) : cl::NullRange;
 
-    project_.setArg(0, vertices_);
-    project_.setArg(1, patches_);
-    project_.setArg(2, n);
-    project_.setArg(3, per_item_);
-    project_.setArg(4, params_);
-    project_.setArg(5, projected_);
-    project_.setArg(6, rows_);
+    set_args(project_, vertices_, patches_, n, per_item_, params_, projected_, rows_);
     queue_.enqueueNDRangeKernel(project_, cl::NullRange, patch_global, one_per_group, nullptr, &events_[0]);
 
-    int arg = 0;
-    for (const cl::Buffer* buf : {&projected_, &rows_}) transfer_.setArg(arg++, *buf);
-    transfer_.setArg(arg++, n);
-    transfer_.setArg(arg++, static_cast<cl_int>(block_rows));
-    for (const cl::Buffer* buf : {&params_, &radiance_, &band_list_, &e_x_, &e_sort_, &s_sort_,
-                                  &line_count_, &partial_patch_, &partial_sum_, &partial_hits_, &band_radiance_, &band_stats_})
-      transfer_.setArg(arg++, *buf);
+    set_args(transfer_, projected_, rows_, n, static_cast<cl_int>(block_rows), params_, radiance_, band_list_, e_x_, e_sort_,
+             s_sort_, line_count_, partial_patch_, partial_sum_, partial_hits_, band_radiance_, band_stats_);
     queue_.enqueueNDRangeKernel(transfer_, cl::NullRange, cl::NDRange(static_cast<std::size_t>(params_host_.bands)),
                                 one_per_group, nullptr, &events_[1]);
 
-    combine_.setArg(0, rows_);
-    combine_.setArg(1, n);
-    combine_.setArg(2, per_item_);
-    arg = 3;
-    for (const cl::Buffer* buf : {&params_, &partial_patch_, &partial_sum_, &partial_hits_, &band_stats_, &gathered_, &hits_})
-      combine_.setArg(arg++, *buf);
+    set_args(combine_, rows_, n, per_item_, params_, partial_patch_, partial_sum_, partial_hits_, band_stats_, gathered_, hits_);
     queue_.enqueueNDRangeKernel(combine_, cl::NullRange, patch_global, one_per_group, nullptr, &events_[2]);
 
     result.gathered.resize(n_);
@@ -219,6 +199,14 @@ class ClEngine final : public BundleEngine {
 };
 
 }  // namespace
+
+MeshBuffers upload_mesh(const cl::Context& context, const PatchMesh& mesh) {
+  std::vector<glm::vec4> verts = centred_vertices(mesh);
+  std::vector<cl_uint4> tris(std::max<std::size_t>(mesh.size(), 1), cl_uint4{});
+  for (std::size_t j = 0; j < mesh.size(); ++j) tris[j] = {{mesh.patches[j][0], mesh.patches[j][1], mesh.patches[j][2], 0u}};
+  return {cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, verts.size() * sizeof(glm::vec4), verts.data()),
+          cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tris.size() * sizeof(cl_uint4), tris.data())};
+}
 
 TransferPath parse_transfer_path(const std::string& name) {
   if (name == "band") return TransferPath::band;

@@ -7,6 +7,13 @@
 
 namespace sirad {
 
+// The mesh as both paths' kernels read it: vertices relative to the bounding-sphere centre
+// (centred_vertices) and patches as uint4, in read-only device buffers.
+struct MeshBuffers {
+  cl::Buffer vertices, patches;
+};
+MeshBuffers upload_mesh(const cl::Context& context, const PatchMesh& mesh);
+
 // The wide path (kernels/bundle_wide.cl): one work-item per patch, per (patch, row) span or per
 // line; for devices with many lanes.
 std::unique_ptr<BundleEngine> make_wide_engine(const PatchMesh& mesh, const ClEngineOptions& options);

@@ -3,10 +3,7 @@
 // launch. Buffers stay on the device between batches; per batch the radiance and the bundles go
 // up and the sums and two totals come down.
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
-
-#include <glm/geometric.hpp>
 
 #include "engine/bundle_cl_paths.h"
 #include "util/check.h"
@@ -15,21 +12,6 @@
 namespace sirad {
 
 namespace {
-
-// Upper bounds on one bundle's spans and crossings at `grid`: a patch reaches at most its
-// projected height in rows plus one, and its projected height is at most half its perimeter
-// (in cells); crossings as capacity_bound.
-uint64_t span_bound(const PatchMesh& mesh, int grid) {
-  double h = std::sqrt(cell_area(mesh, grid));
-  double total = 0.0;
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    const auto& t = mesh.patches[j];
-    glm::dvec3 a(mesh.vertices[t[0]]), b(mesh.vertices[t[1]]), c(mesh.vertices[t[2]]);
-    double perimeter = glm::length(b - a) + glm::length(c - b) + glm::length(a - c);
-    total += perimeter / (2.0 * h) + 2.0;
-  }
-  return static_cast<uint64_t>(std::ceil(total * 1.01)) + 16;
-}
 
 class WideEngine final : public BundleEngine {
  public:
@@ -52,11 +34,9 @@ class WideEngine final : public BundleEngine {
     scan_partials_ = cl::Kernel(program, "scan_partials");
     scan_down_ = cl::Kernel(program, "scan_down");
 
-    std::vector<glm::vec4> verts = centred_vertices(mesh);
-    std::vector<cl_uint4> tris(n_);
-    for (std::size_t j = 0; j < n_; ++j) tris[j] = {{mesh.patches[j][0], mesh.patches[j][1], mesh.patches[j][2], 0u}};
-    vertices_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, verts.size() * sizeof(glm::vec4), verts.data());
-    patches_ = cl::Buffer(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, tris.size() * sizeof(cl_uint4), tris.data());
+    MeshBuffers geometry = upload_mesh(context_, mesh);
+    vertices_ = geometry.vertices;
+    patches_ = geometry.patches;
     radiance_ = cl::Buffer(context_, CL_MEM_READ_ONLY, std::max<std::size_t>(n_, 1) * sizeof(glm::vec4));
     partial_ = cl::Buffer(context_, CL_MEM_READ_WRITE, (kScanItems + 1) * sizeof(cl_uint));
     lengths_ = cl::Buffer(context_, CL_MEM_READ_WRITE, 2 * sizeof(cl_uint));
@@ -157,21 +137,11 @@ class WideEngine final : public BundleEngine {
   // Exclusive scan of min(len[len_at], cap) entries of `in` into `out` (kernels/bundle_wide.cl).
   void scan(const cl::Buffer& in, const cl::Buffer& out, const cl::Buffer& len, cl_uint len_at, cl_uint cap, int pass) {
     const cl::NDRange items(kScanItems), one(group());
-    scan_reduce_.setArg(0, in);
-    scan_reduce_.setArg(1, len);
-    scan_reduce_.setArg(2, len_at);
-    scan_reduce_.setArg(3, cap);
-    scan_reduce_.setArg(4, partial_);
+    set_args(scan_reduce_, in, len, len_at, cap, partial_);
     queue_.enqueueNDRangeKernel(scan_reduce_, cl::NullRange, items, one, nullptr, &first_[pass]);
-    scan_partials_.setArg(0, partial_);
-    scan_partials_.setArg(1, kScanItems);
+    set_args(scan_partials_, partial_, kScanItems);
     queue_.enqueueNDRangeKernel(scan_partials_, cl::NullRange, cl::NDRange(1), cl::NDRange(1));
-    scan_down_.setArg(0, in);
-    scan_down_.setArg(1, out);
-    scan_down_.setArg(2, len);
-    scan_down_.setArg(3, len_at);
-    scan_down_.setArg(4, cap);
-    scan_down_.setArg(5, partial_);
+    set_args(scan_down_, in, out, len, len_at, cap, partial_);
     queue_.enqueueNDRangeKernel(scan_down_, cl::NullRange, items, one, nullptr, &last_[pass]);
   }
 
@@ -201,63 +171,26 @@ class WideEngine final : public BundleEngine {
     queue_.enqueueWriteBuffer(lengths_, CL_FALSE, 0, sizeof(lengths_host_), lengths_host_);
     queue_.enqueueWriteBuffer(radiance_, CL_FALSE, 0, n_ * sizeof(glm::vec4), radiance.data());
 
-    int arg = 0;
-    for (const cl::Buffer* x : {&vertices_, &patches_}) project_.setArg(arg++, *x);
-    project_.setArg(arg++, n);
-    project_.setArg(arg++, b);
-    for (const cl::Buffer* x : {&params_, &projected_, &rows_}) project_.setArg(arg++, *x);
+    set_args(project_, vertices_, patches_, n, b, params_, projected_, rows_);
     launch(project_, patches, 0);
 
-    count_spans_.setArg(0, rows_);
-    count_spans_.setArg(1, patches);
-    count_spans_.setArg(2, span_start_);
+    set_args(count_spans_, rows_, patches, span_start_);
     launch(count_spans_, patches, 1);
     scan(span_start_, span_start_, lengths_, 0, patches, 2);
 
-    arg = 0;
-    for (const cl::Buffer* x : {&projected_, &rows_}) count_crossings_.setArg(arg++, *x);
-    count_crossings_.setArg(arg++, n);
-    count_crossings_.setArg(arg++, b);
-    count_crossings_.setArg(arg++, params_);
-    count_crossings_.setArg(arg++, span_start_);
-    count_crossings_.setArg(arg++, span_cap);
-    count_crossings_.setArg(arg++, cross_start_);
-    count_crossings_.setArg(arg++, line_count_);
+    set_args(count_crossings_, projected_, rows_, n, b, params_, span_start_, span_cap, cross_start_, line_count_);
     launch(count_crossings_, span_cap_, 3);
     scan(cross_start_, cross_start_, span_start_, patches, span_cap, 4);
     scan(line_count_, line_start_, lengths_, 1, lines, 5);
 
-    arg = 0;
-    for (const cl::Buffer* x : {&projected_, &rows_}) emit_.setArg(arg++, *x);
-    emit_.setArg(arg++, n);
-    emit_.setArg(arg++, b);
-    emit_.setArg(arg++, params_);
-    emit_.setArg(arg++, span_start_);
-    emit_.setArg(arg++, span_cap);
-    emit_.setArg(arg++, cross_start_);
-    emit_.setArg(arg++, line_start_);
-    emit_.setArg(arg++, cross_cap);
-    for (const cl::Buffer* x : {&line_count_, &keys_, &emit_numbers_}) emit_.setArg(arg++, *x);
+    set_args(emit_, projected_, rows_, n, b, params_, span_start_, span_cap, cross_start_, line_start_, cross_cap, line_count_,
+             keys_, emit_numbers_);
     launch(emit_, span_cap_, 6);
 
-    arg = 0;
-    gather_.setArg(arg++, b);
-    gather_.setArg(arg++, params_);
-    gather_.setArg(arg++, line_start_);
-    gather_.setArg(arg++, cross_cap);
-    for (const cl::Buffer* x : {&keys_, &emit_numbers_, &radiance_, &seen_}) gather_.setArg(arg++, *x);
+    set_args(gather_, b, params_, line_start_, cross_cap, keys_, emit_numbers_, radiance_, seen_);
     launch(gather_, lines, 7);
 
-    arg = 0;
-    sum_.setArg(arg++, n);
-    sum_.setArg(arg++, b);
-    sum_.setArg(arg++, params_);
-    sum_.setArg(arg++, span_start_);
-    sum_.setArg(arg++, span_cap);
-    sum_.setArg(arg++, cross_start_);
-    sum_.setArg(arg++, line_start_);
-    sum_.setArg(arg++, cross_cap);
-    for (const cl::Buffer* x : {&seen_, &gathered_, &hits_}) sum_.setArg(arg++, *x);
+    set_args(sum_, n, b, params_, span_start_, span_cap, cross_start_, line_start_, cross_cap, seen_, gathered_, hits_);
     launch(sum_, patches, 8);
 
     for (std::size_t k = 0; k < batch; ++k) {

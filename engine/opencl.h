@@ -45,6 +45,13 @@ struct WorkRuns {
 };
 WorkRuns work_runs(const DeviceInfo& info, std::size_t count);
 
+// Sets `kernel`'s arguments 0, 1, 2, ... to `args`, in order.
+template <class... Args>
+void set_args(cl::Kernel& kernel, const Args&... args) {
+  cl_uint index = 0;
+  (kernel.setArg(index++, args), ...);
+}
+
 // "clEnqueueNDRangeKernel: CL_OUT_OF_RESOURCES (-5)".
 std::string describe_cl_error(const cl::Error& e);
 

@@ -113,18 +113,24 @@ SIRAD_INLINE uint span_patch(__global const uint* span_start, uint patches, uint
   return lo;
 }
 
+/* Span s of the batch: its patch *p and its row *y; false for s beyond the spans placed. */
+SIRAD_INLINE bool span_at(uint s, __global const uint* span_start, uint patches, uint span_cap, __global const int2* rows,
+                          uint* p, int* y) {
+  if (s >= min(span_start[patches], span_cap)) return false;
+  *p = span_patch(span_start, patches, s);
+  *y = rows[*p].x + (int)(s - span_start[*p]);
+  return true;
+}
+
 /* cross_start[s] = the lines span s covers; each of them counted on its line. */
 __kernel void wide_count_crossings(__global const SiradProjected* restrict projected, __global const int2* restrict rows,
                                    uint n, uint batch, __global const SiradBundle* restrict bundles,
                                    __global const uint* restrict span_start, uint span_cap,
                                    __global uint* restrict cross_start, __global uint* line_count) {
-  uint s = get_global_id(0);
-  const uint patches = n * batch;
-  uint spans = min(span_start[patches], span_cap);
-  if (s >= spans) return;
+  uint s = get_global_id(0), p;
+  int y;
+  if (!span_at(s, span_start, n * batch, span_cap, rows, &p, &y)) return;
   const int grid = bundles[0].grid;
-  uint p = span_patch(span_start, patches, s);
-  int y = rows[p].x + (int)(s - span_start[p]);
   SiradProjected q = projected[p];
   __global uint* count = line_count + (size_t)(p / n) * (uint)grid * (uint)grid;
   uint c = 0;
@@ -142,13 +148,10 @@ __kernel void wide_emit(__global const SiradProjected* restrict projected, __glo
                         uint batch, __global const SiradBundle* restrict bundles, __global const uint* restrict span_start,
                         uint span_cap, __global const uint* restrict cross_start, __global const uint* restrict line_start,
                         uint cross_cap, __global uint* line_count, __global ulong* restrict keys, __global uint* restrict emit) {
-  uint s = get_global_id(0);
-  const uint patches = n * batch;
-  uint spans = min(span_start[patches], span_cap);
-  if (s >= spans) return;
+  uint s = get_global_id(0), p;
+  int y;
+  if (!span_at(s, span_start, n * batch, span_cap, rows, &p, &y)) return;
   const int grid = bundles[0].grid;
-  uint p = span_patch(span_start, patches, s);
-  int y = rows[p].x + (int)(s - span_start[p]);
   SiradProjected q = projected[p];
   uint front_pos = (q.flags & SIRAD_FRONT_POS) ? 1u : 0u;
   const uint line0 = (p / n) * (uint)grid * (uint)grid; /* the bundle's first line */

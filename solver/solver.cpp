@@ -138,12 +138,22 @@ void Solver::update_source(uint64_t index, Stream stream) {
   cached_ = range;
 }
 
-void Solver::run_bundle(uint64_t index, Stream stream) {
+void Solver::set_input() {
   // With a first shot the bundles transport Y = B - E_s, E_s the emission of the emitters shot
   // from (their light is already in D); the other emitters' emission E_l stays in Y:
   // Y = E_l + D + rho F Y, and the estimate E + D_m + rho T(Y) has mean E_s + Y = B.
   for (std::size_t j = 0; j < state_.size(); ++j)
     input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - shot_emission_[j] : state_[j]), 0.0f);
+}
+
+void Solver::add_estimate(const std::vector<glm::dvec3>& estimate) {
+  ++count_;
+  for (std::size_t j = 0; j < estimate.size(); ++j) sum_[j] += estimate[j];
+  if (batches_) batches_->add(estimate);
+}
+
+void Solver::run_bundle(uint64_t index, Stream stream) {
+  set_input();
   SiradBundle b = make_bundle(mesh_, grid_, options_.seed, index, stream, sampling_);
   engine_.run(b, input_, result_);
   crossings_ += result_.crossings;
@@ -203,10 +213,7 @@ const std::vector<glm::dvec3>& Solver::transport(const BundleResult& r) {
 void Solver::step(uint64_t index) {
   update_source(index, Stream::shots);
   run_bundle(index, Stream::bundles);
-  const std::vector<glm::dvec3>& estimate = transport(result_);
-  ++count_;
-  for (std::size_t j = 0; j < estimate.size(); ++j) sum_[j] += estimate[j];
-  if (batches_) batches_->add(estimate);
+  add_estimate(transport(result_));
   if (options_.rule == UpdateRule::chain) {
     state_.swap(next_state_);
   } else {
@@ -219,9 +226,7 @@ void Solver::step_batch(uint64_t first, uint32_t count) {
     for (uint32_t i = 0; i < count; ++i) step(first + i);
     return;
   }
-  // Every bundle of the batch transports the same input (run_bundle's).
-  for (std::size_t j = 0; j < state_.size(); ++j)
-    input_[j] = glm::vec4(glm::vec3(shots_ ? state_[j] - shot_emission_[j] : state_[j]), 0.0f);
+  set_input();  // every bundle of the batch transports it
   batch_bundles_.resize(count);
   batch_results_.resize(count);
   for (uint32_t i = 0; i < count; ++i)
@@ -234,11 +239,8 @@ void Solver::step_batch(uint64_t first, uint32_t count) {
     // independent of theirs), so each is unbiased for E + T (state) on its own.
     update_source(first + i, Stream::shots);
     crossings_ += batch_results_[i].crossings;
-    const std::vector<glm::dvec3>& estimate = transport(batch_results_[i]);
-    ++count_;
-    for (std::size_t j = 0; j < estimate.size(); ++j) sum_[j] += estimate[j];
-    if (batches_) batches_->add(estimate);
-    for (std::size_t j = 0; j < estimate.size(); ++j) batch_next_[j] += next_state_[j];
+    add_estimate(transport(batch_results_[i]));
+    for (std::size_t j = 0; j < batch_next_.size(); ++j) batch_next_[j] += next_state_[j];
   }
   std::swap(result_, batch_results_.back());  // last(): the batch's last bundle (no copy)
   if (options_.rule == UpdateRule::chain) {

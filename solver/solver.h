@@ -133,6 +133,10 @@ class Solver {
   const std::vector<glm::dvec3>& transport(const BundleResult& gathered);
 
  private:
+  // input_ from the state: what the next bundle (or batch) transports.
+  void set_input();
+  // Adds one step's estimate to the average and the error's batch means.
+  void add_estimate(const std::vector<glm::dvec3>& estimate);
   void run_bundle(uint64_t index, Stream stream);
 
   const PatchMesh& mesh_;
