@@ -11,6 +11,10 @@
 # light reflected straight from the emitters is Emit + DiffDir x DiffCol, the rest DiffInd x
 # DiffCol, what sirad image writes as its `direct` and `indirect` passes
 # (bench/image_bench.cpp --reference-passes compares them).
+# An MTL line `sirad_back black` (written by solution_to_obj.py) makes a material's back side black
+# and absorbing, as the back of a one-sided face is in sirad's model: Cycles then renders sirad's
+# own mesh with sirad's sidedness, so that the difference from sirad's image is its transport and
+# patches alone, not how it reads the scene.
 # (Debian's `blender` 3.4; deploy/install-deps.sh does not install it: apt-get install blender.)
 # The figures of bench/RESULTS.md ("Images against Cycles") used SPP 4096 at 128 x 128 and 2048
 # at 512 x 512, seeds 0 and 2 for the two references, 1 for the candidates.
@@ -75,9 +79,13 @@ with open(mtl_file) as f:
             continue
         if w[0] == "newmtl":
             name = w[1]
-            materials[name] = {"Kd": (0.8, 0.8, 0.8), "Ke": (0.0, 0.0, 0.0)}
+            materials[name] = {"Kd": (0.8, 0.8, 0.8), "Ke": (0.0, 0.0, 0.0), "black_back": False}
         elif w[0] in ("Kd", "Ke"):
             materials[name][w[0]] = tuple(float(x) for x in w[1:4])
+        elif w[0] == "sirad_back":
+            if w[1:] != ["black"]:
+                sys.exit(f"render_obj.py: {mtl_file}: sirad_back takes `black` only, not {' '.join(w[1:])!r}")
+            materials[name]["black_back"] = True
 
 
 
@@ -144,6 +152,7 @@ for n in names:
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
     diffuse.inputs["Color"].default_value = (*materials[n]["Kd"], 1.0)
+    surface = diffuse.outputs[0]
     ke = materials[n]["Ke"]
     if max(ke) > 0:
         emission = nt.nodes.new("ShaderNodeEmission")
@@ -152,9 +161,17 @@ for n in names:
         add = nt.nodes.new("ShaderNodeAddShader")
         nt.links.new(emission.outputs[0], add.inputs[0])
         nt.links.new(diffuse.outputs[0], add.inputs[1])
-        nt.links.new(add.outputs[0], out.inputs["Surface"])
-    else:
-        nt.links.new(diffuse.outputs[0], out.inputs["Surface"])
+        surface = add.outputs[0]
+    if materials[n]["black_back"]:
+        black = nt.nodes.new("ShaderNodeBsdfDiffuse")
+        black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        geometry = nt.nodes.new("ShaderNodeNewGeometry")
+        mix = nt.nodes.new("ShaderNodeMixShader")
+        nt.links.new(geometry.outputs["Backfacing"], mix.inputs[0])
+        nt.links.new(surface, mix.inputs[1])
+        nt.links.new(black.outputs[0], mix.inputs[2])
+        surface = mix.outputs[0]
+    nt.links.new(surface, out.inputs["Surface"])
     mesh.materials.append(m)
 for poly, (idx, mat) in zip(mesh.polygons, faces):
     poly.material_index = names.index(mat)
