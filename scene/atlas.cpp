@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <numeric>
 #include <utility>
 
@@ -17,26 +18,19 @@ namespace sirad {
 
 namespace {
 
-// Faces are one chart's when their normals are within this (cos 0.08 degrees) and each one's
-// corners lie within kPlaneTolerance of the scene's extent of the other's plane.
-constexpr double kCoplanarCos = 1.0 - 1e-6;
-constexpr double kPlaneTolerance = 1e-6;
+// A chart grows from its first face across shared edges to faces whose normals are within
+// kChartAngle of that first face's normal (not of the neighbour's: the bound does not accumulate
+// along a curved surface) and whose corners lie within the same angle of its plane as seen from
+// its first corner (a gently sloped ramp that winds back over itself stays two charts). A
+// quad whose two triangles are not quite in one plane (the Cornell box's red wall, a face
+// exported from a tolerance-free modeller) is then one chart: no seam across it. Projected
+// onto the chart's plane, a face tilted by the angle loses at most 1 - cos 2 degrees (0.06 %)
+// of its texels.
+constexpr double kChartAngleDegrees = 2.0;
+
 // From a budget, the texel size grows by this until the atlas fits max_side, at most this often.
 constexpr double kGrow = 1.25;
 constexpr int kMaxTries = 64;
-
-struct UnionFind {
-  std::vector<uint32_t> parent;
-  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-  uint32_t find(uint32_t a) {
-    while (parent[a] != a) a = parent[a] = parent[parent[a]];
-    return a;
-  }
-  void join(uint32_t a, uint32_t b) {
-    a = find(a), b = find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  }
-};
 
 glm::dvec3 corner(const Triangle& t, int k) { return glm::dvec3(t.p[static_cast<std::size_t>(k)]); }
 
@@ -55,53 +49,65 @@ bool along(const std::vector<ContactSegment>& segments, const glm::dvec3& a, con
   return false;
 }
 
-// The triangles' charts: those of one object joined across a shared edge (corners at the same
-// float positions) where they lie in one plane and the edge is not along a contact segment of
-// either (a wall's foot). Each chart's triangles in scene order.
-std::vector<std::vector<uint32_t>> find_charts(const Scene& scene, const std::vector<glm::dvec3>& normal, double extent) {
+// The triangles' charts: those of one object grown across shared edges (corners at the same
+// float positions) within kChartAngleDegrees of the chart's first face, where the edge is not
+// along a contact segment of either face (a wall's foot). Each chart's triangles in scene order.
+std::vector<std::vector<uint32_t>> find_charts(const Scene& scene, const std::vector<glm::dvec3>& normal) {
   const double tolerance = 10 * contact_tolerance(scene);
   const std::vector<std::vector<ContactSegment>> contacts = contact_segments(scene, contact_tolerance(scene));
   const std::size_t n = scene.triangles.size();
   std::map<std::array<float, 3>, uint32_t> vertex_id;
+  std::vector<std::array<uint32_t, 3>> ids(n);
   std::map<std::pair<uint32_t, uint32_t>, std::vector<uint32_t>> edges;
   for (std::size_t i = 0; i < n; ++i) {
-    std::array<uint32_t, 3> id{};
-    for (int k = 0; k < 3; ++k) {
-      const glm::vec3& p = scene.triangles[i].p[static_cast<std::size_t>(k)];
-      id[static_cast<std::size_t>(k)] = vertex_id.emplace(std::array<float, 3>{p.x, p.y, p.z}, static_cast<uint32_t>(vertex_id.size())).first->second;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const glm::vec3& p = scene.triangles[i].p[k];
+      ids[i][k] = vertex_id.emplace(std::array<float, 3>{p.x, p.y, p.z}, static_cast<uint32_t>(vertex_id.size())).first->second;
     }
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t a = id[static_cast<std::size_t>(k)], b = id[static_cast<std::size_t>((k + 1) % 3)];
+    for (std::size_t k = 0; k < 3; ++k) {
+      const uint32_t a = ids[i][k], b = ids[i][(k + 1) % 3];
       edges[{std::min(a, b), std::max(a, b)}].push_back(static_cast<uint32_t>(i));
     }
   }
-  const auto coplanar = [&](uint32_t a, uint32_t b) {
-    const Triangle &ta = scene.triangles[a], &tb = scene.triangles[b];
-    if (ta.object != tb.object || !(glm::dot(normal[a], normal[b]) >= kCoplanarCos)) return false;
-    for (int k = 0; k < 3; ++k) {
-      if (std::abs(glm::dot(normal[a], corner(tb, k) - corner(ta, 0))) > kPlaneTolerance * extent) return false;
-      if (std::abs(glm::dot(normal[b], corner(ta, k) - corner(tb, 0))) > kPlaneTolerance * extent) return false;
-    }
-    return true;
-  };
   std::vector<glm::dvec3> position(vertex_id.size());
   for (const auto& [p, id] : vertex_id) position[id] = glm::dvec3(p[0], p[1], p[2]);
-  UnionFind sets(n);
-  for (const auto& [edge, faces] : edges)
-    for (std::size_t i = 0; i < faces.size(); ++i)
-      for (std::size_t j = i + 1; j < faces.size(); ++j)
-        if (coplanar(faces[i], faces[j]) && !along(contacts[faces[i]], position[edge.first], position[edge.second], tolerance) &&
-            !along(contacts[faces[j]], position[edge.first], position[edge.second], tolerance))
-          sets.join(faces[i], faces[j]);
+  const double cos_bound = std::cos(kChartAngleDegrees * std::numbers::pi / 180.0);
+  const double sin_bound = std::sin(kChartAngleDegrees * std::numbers::pi / 180.0);
   std::vector<std::vector<uint32_t>> charts;
-  std::vector<uint32_t> index(n, UINT32_MAX);
-  for (uint32_t i = 0; i < n; ++i) {
-    const uint32_t root = sets.find(i);
-    if (index[root] == UINT32_MAX) {
-      index[root] = static_cast<uint32_t>(charts.size());
-      charts.emplace_back();
+  std::vector<bool> taken(n, false);
+  std::vector<uint32_t> queue;
+  for (uint32_t seed = 0; seed < n; ++seed) {
+    if (taken[seed]) continue;
+    const Triangle& first = scene.triangles[seed];
+    const glm::dvec3 up = normal[seed], origin = corner(first, 0);
+    // Whether face f may join the chart grown from `seed`.
+    const auto fits = [&](uint32_t f) {
+      if (scene.triangles[f].object != first.object || !(glm::dot(up, normal[f]) >= cos_bound)) return false;
+      for (int k = 0; k < 3; ++k) {
+        const glm::dvec3 d = corner(scene.triangles[f], k) - origin;
+        if (std::abs(glm::dot(up, d)) > sin_bound * glm::length(d)) return false;
+      }
+      return true;
+    };
+    taken[seed] = true;
+    charts.emplace_back(1, seed);
+    queue.assign(1, seed);
+    while (!queue.empty()) {
+      const uint32_t t = queue.back();
+      queue.pop_back();
+      for (std::size_t k = 0; k < 3; ++k) {
+        const uint32_t a = ids[t][k], b = ids[t][(k + 1) % 3];
+        for (const uint32_t f : edges[{std::min(a, b), std::max(a, b)}]) {
+          if (taken[f] || !fits(f) || along(contacts[t], position[a], position[b], tolerance) ||
+              along(contacts[f], position[a], position[b], tolerance))
+            continue;
+          taken[f] = true;
+          charts.back().push_back(f);
+          queue.push_back(f);
+        }
+      }
     }
-    charts[index[root]].push_back(i);
+    std::sort(charts.back().begin(), charts.back().end());
   }
   return charts;
 }
@@ -309,7 +315,7 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
   // Step 2: the charts and their frames.
   Atlas atlas;
   atlas.gutter = o.gutter;
-  const std::vector<std::vector<uint32_t>> groups = find_charts(scene, normal, extent);
+  const std::vector<std::vector<uint32_t>> groups = find_charts(scene, normal);
   std::vector<Frame> frames;
   for (const auto& g : groups) {
     frames.push_back(chart_frame(scene, g, normal, area));

@@ -1,8 +1,9 @@
 // sirad: a lightmap atlas of a scene (issue 38): its input faces grouped into charts, each chart
 // laid flat on its plane and packed, with gutters, into one texture of texels of a set size.
-//   - A chart is a set of triangles of one object that share edges and lie in one plane (the
-//     faces of a wall, a door cut out of it by a Boolean included): no seam crosses a flat
-//     surface, so filtering and the texels' samples see one continuous surface.
+//   - A chart is a set of triangles of one object that share edges and lie within 2 degrees of
+//     its first face's plane (the faces of a wall, a door cut out of it by a Boolean included, a
+//     quad not quite in one plane too): no seam crosses a flat surface, so filtering and the
+//     texels' samples see one continuous surface.
 //   - Each chart is projected onto its plane and turned to its least bounding rectangle (the
 //     rotating calipers over its convex hull: a wall at 30 degrees costs no more texels than one
 //     on the axes); a texel is texel_size on a side in the scene's units, so every surface has

@@ -1,7 +1,8 @@
-// sirad tests: the lightmap atlas (scene/atlas.h): one chart per flat connected surface of an
-// object, charts that never overlap (gutters included), every corner's UV inside its chart, one
-// texel density everywhere (an affine map: a triangle's texels are its area over texel_size^2,
-// to float rounding), the least rectangle for a turned wall, a budget kept, sizes refused.
+// sirad tests: the lightmap atlas (scene/atlas.h): one chart per flat (within 2 degrees)
+// connected surface of an object, charts that never overlap (gutters included), every corner's
+// UV inside its chart, one texel density everywhere (a projection onto the chart's plane: a
+// triangle's texels are its area times its cosine to that plane over texel_size^2, to float
+// rounding), the least rectangle for a turned wall, a budget kept, sizes refused.
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -39,7 +40,8 @@ Scene cube() {
 double area3(const Triangle& t) { return 0.5 * glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))); }
 
 // What every atlas must be: rectangles inside the atlas and apart; each triangle's UVs inside its
-// chart's rectangle less the gutter; its area in texels its area over texel_size^2.
+// chart's rectangle less the gutter; its area in texels its area, projected onto the chart's
+// plane, over texel_size^2.
 void expect_sound(const Scene& s, const Atlas& a) {
   ASSERT_EQ(a.uv.size(), s.triangles.size());
   for (std::size_t i = 0; i < a.charts.size(); ++i) {
@@ -66,7 +68,9 @@ void expect_sound(const Scene& s, const Atlas& a) {
     }
     texel_area = 0.5 * std::abs((q[1].x - q[0].x) * (q[2].y - q[0].y) - (q[1].y - q[0].y) * (q[2].x - q[0].x));
     // UVs are floats: a corner's place is exact to about 1e-7 of the atlas's side.
-    const double expect = area3(s.triangles[t]) / (a.texel_size * a.texel_size);
+    const Triangle& tri = s.triangles[t];
+    const glm::dvec3 n = glm::normalize(glm::cross(glm::dvec3(tri.p[1] - tri.p[0]), glm::dvec3(tri.p[2] - tri.p[0])));
+    const double expect = area3(tri) * std::abs(glm::dot(n, c.normal)) / (a.texel_size * a.texel_size);
     EXPECT_NEAR(texel_area, expect, 1e-5 * std::max(a.width, a.height) * std::sqrt(expect) + 1e-6 * expect) << t;
   }
 }
@@ -87,9 +91,10 @@ TEST(Atlas, EachFlatConnectedSurfaceIsOneChart) {
   EXPECT_EQ(a.height % 4, 0);
 }
 
-// Coplanar faces of two objects, or two flat faces meeting at an edge at an angle (a fold of
-// 0.1 degrees), are separate charts; a face cut by a door (an L of three quads sharing whole
-// edges, as Blender triangulates an n-gon) is one.
+// Coplanar faces of two objects, or two flat faces meeting at an edge at an angle beyond 2
+// degrees (a fold of 3), are separate charts; a face cut by a door (an L of three quads sharing
+// whole edges, as Blender triangulates an n-gon) is one, and so are faces folded by 0.1 and 1.9
+// degrees (a quad not quite in one plane).
 TEST(Atlas, ChartsFollowObjectsAndPlanes) {
   Scene s;
   s.name = "walls";
@@ -99,16 +104,52 @@ TEST(Atlas, ChartsFollowObjectsAndPlanes) {
   quad(s, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}, 2);  // an L: three quads in one plane
   quad(s, {1, 0, 1}, {2, 0, 1}, {2, 1, 1}, {1, 1, 1}, 2);
   quad(s, {0, 1, 1}, {1, 1, 1}, {1, 2, 1}, {0, 2, 1}, 2);
-  const float dz = static_cast<float>(std::tan(0.1 * std::numbers::pi / 180.0));
-  quad(s, {0, 0, 5}, {1, 0, 5}, {1, 1, 5}, {0, 1, 5}, 3);  // folded by 0.1 degrees along x = 1
-  quad(s, {1, 0, 5}, {2, 0, 5 + dz}, {2, 1, 5 + dz}, {1, 1, 5}, 3);
+  const auto rise = [](double degrees) { return static_cast<float>(std::tan(degrees * std::numbers::pi / 180.0)); };
+  for (const auto& [z, degrees] : {std::pair{5.0f, 0.1}, {7.0f, 1.9}, {9.0f, 3.0}}) {  // folded along x = 1
+    const uint32_t object = 3 + static_cast<uint32_t>(z);
+    quad(s, {0, 0, z}, {1, 0, z}, {1, 1, z}, {0, 1, z}, object);
+    quad(s, {1, 0, z}, {2, 0, z + rise(degrees)}, {2, 1, z + rise(degrees)}, {1, 1, z}, object);
+  }
   const Atlas a = make_atlas(s, {.texel_size = 0.05});
-  ASSERT_EQ(a.charts.size(), 5u);
+  ASSERT_EQ(a.charts.size(), 7u);
   EXPECT_EQ(a.chart_of[0], a.chart_of[1]);
   EXPECT_NE(a.chart_of[0], a.chart_of[2]);
   EXPECT_EQ(a.chart_of[4], a.chart_of[6]);
   EXPECT_EQ(a.chart_of[4], a.chart_of[8]);
-  EXPECT_NE(a.chart_of[10], a.chart_of[12]);
+  EXPECT_EQ(a.chart_of[10], a.chart_of[12]);  // 0.1 degrees
+  EXPECT_EQ(a.chart_of[14], a.chart_of[16]);  // 1.9
+  EXPECT_NE(a.chart_of[18], a.chart_of[20]);  // 3
+  expect_sound(s, a);
+}
+
+// A curved strip (a quarter of a cylinder of 60 facets, 1.5 degrees each) is cut into charts
+// whose faces all lie within 2 degrees of their chart's first face: the bound does not grow
+// along the curve, so no chart spans more than three facets, and each chart is a run of
+// neighbouring facets.
+TEST(Atlas, ACurvedSurfaceIsNotFlattenedIntoOneChart) {
+  Scene s;
+  s.name = "curve";
+  s.materials = {Material{"white", glm::vec3(0.5f), glm::vec3(0.0f)}};
+  constexpr int kFacets = 60;
+  const auto at = [](int i, float y) {
+    const double a = 0.5 * std::numbers::pi * i / kFacets;
+    return glm::vec3(static_cast<float>(std::cos(a)), y, static_cast<float>(std::sin(a)));
+  };
+  for (int i = 0; i < kFacets; ++i) quad(s, at(i, 0), at(i, 1), at(i + 1, 1), at(i + 1, 0));
+  const Atlas a = make_atlas(s, {.texel_size = 0.01});
+  EXPECT_GE(a.charts.size(), static_cast<std::size_t>(kFacets / 3));
+  EXPECT_LT(a.charts.size(), static_cast<std::size_t>(kFacets));
+  for (const Chart& c : a.charts) {
+    EXPECT_LE(c.triangles.size(), 6u);
+    const glm::dvec3 first = glm::normalize(glm::cross(glm::dvec3(s.triangles[c.triangles[0]].p[1] - s.triangles[c.triangles[0]].p[0]),
+                                                       glm::dvec3(s.triangles[c.triangles[0]].p[2] - s.triangles[c.triangles[0]].p[0])));
+    for (uint32_t t : c.triangles) {
+      const Triangle& tri = s.triangles[t];
+      const glm::dvec3 n = glm::normalize(glm::cross(glm::dvec3(tri.p[1] - tri.p[0]), glm::dvec3(tri.p[2] - tri.p[0])));
+      EXPECT_GE(glm::dot(n, first), std::cos(2.0 * std::numbers::pi / 180.0)) << t;
+      EXPECT_LE(std::abs(static_cast<int>(t / 2) - static_cast<int>(c.triangles[0] / 2)), 2) << t;
+    }
+  }
   expect_sound(s, a);
 }
 
