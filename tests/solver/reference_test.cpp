@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "io/read_solution.h"
 #include "solver/reference.h"
 #include "tests/agreement.h"
 #include "tests/cli_fixture.h"
@@ -507,6 +508,41 @@ TEST_F(ReferenceCli, WritesOutputsAndTheFileRoundTrips) {
   refused(with_line(1, "# mesh_hash 00000000000000000000000000000000 patches 200"), "bad.ref.csv:2: computed for mesh");
   refused(with_line(0, "hello"), "bad.ref.csv:1: not a sirad reference file");
   refused(good + "1,2,3\n", "unexpected text after the last patch");
+}
+
+// A reference's PLY says its own error (relative_rms_se, the measure of the solver's estimate),
+// and that is its error: two references of the Cornell box with other seeds differ by d, the
+// relative RMS difference per patch, with E[d^2] = e1^2 + e2^2 for independent errors. At 300
+// patches (about 100 patches' worth of independent weight) d^2 is within about 15 % of that
+// (one standard deviation), and each e from 8 batches is a variance estimate whose relative
+// error, averaged over the patches, is a few per cent: d / sqrt(e1^2 + e2^2) in [0.75, 1.33] is
+// more than three standard deviations wide. Then the PLY starts a warm run, which keeps its
+// solution (the same scene) and reports its error.
+TEST_F(ReferenceCli, ItsPlySaysItsErrorAndStartsAWarmRun) {
+  for (const char* seed : {"1", "2"}) {
+    Outcome r = sirad(std::string("reference cornell --patches 300 --rays 256 --light-samples 16 --seed ") + seed +
+                      " --width 16 --height 16 --out ref" + seed + " -q");
+    ASSERT_EQ(r.status, 0) << r.err;
+  }
+  const Solution a = read_solution((dir_ / "ref1.ply").string()), b = read_solution((dir_ / "ref2.ply").string());
+  ASSERT_TRUE(a.error_estimate && b.error_estimate);
+  ASSERT_EQ(a.mesh.size(), b.mesh.size());
+  double num = 0, den = 0;
+  for (std::size_t j = 0; j < a.mesh.size(); ++j) {
+    if (a.mesh.emits(j)) continue;
+    const glm::dvec3 d = glm::dvec3(a.radiosity[j]) - glm::dvec3(b.radiosity[j]);
+    num += a.mesh.area[j] * glm::dot(d, d);
+    den += a.mesh.area[j] * glm::dot(glm::dvec3(b.radiosity[j]), glm::dvec3(b.radiosity[j]));
+  }
+  const double ratio = std::sqrt(num / den) / std::hypot(*a.error_estimate, *b.error_estimate);
+  EXPECT_GT(ratio, 0.75) << *a.error_estimate << " " << *b.error_estimate;
+  EXPECT_LT(ratio, 1.33) << *a.error_estimate << " " << *b.error_estimate;
+  Outcome r = sirad("render cornell --patches 300 --bundles 64 --width 16 --height 16 --warm-start ref1.ply --out warm");
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("warm start from ref1.ply: 298 of 298 patches"), std::string::npos) << r.err;
+  const Solution warm = read_solution((dir_ / "warm.ply").string());
+  ASSERT_TRUE(warm.error_estimate);
+  EXPECT_DOUBLE_EQ(*warm.error_estimate, *a.error_estimate);
 }
 
 TEST_F(ReferenceCli, BadInputIsOneLine) {
