@@ -40,12 +40,9 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
-#include <OpenEXR/ImfChannelList.h>
-#include <OpenEXR/ImfFrameBuffer.h>
-#include <OpenEXR/ImfHeader.h>
-#include <OpenEXR/ImfInputFile.h>
 #include <fmt/format.h>
 
+#include "bench/exr_rgb.h"
 #include "io/read_solution.h"
 #include "io/write.h"
 #include "render/gather.h"
@@ -66,29 +63,7 @@ std::vector<double> luminance(const Image& image) {
   return y;
 }
 
-// The R, G, B channels of an EXR, or of one layer's (LAYER.R, ...) of a multilayer one.
-// The RGB of `layer`; with no layer, the plain R, G, B or else a multilayer EXR's combined image
-// (render_obj.py ... passes writes ViewLayer.Combined.R, ...).
-Image read_rgb(const std::string& path, std::string layer = "") {
-  Imf::InputFile in(path.c_str());
-  if (layer.empty() && !in.header().channels().findChannel("R") && in.header().channels().findChannel("ViewLayer.Combined.R"))
-    layer = "ViewLayer.Combined";
-  const Imath::Box2i dw = in.header().dataWindow();
-  Image image;
-  image.width = dw.max.x - dw.min.x + 1;
-  image.height = dw.max.y - dw.min.y + 1;
-  image.pixels.assign(static_cast<std::size_t>(image.width) * image.height, glm::vec3(0.0f));
-  char* base = reinterpret_cast<char*>(image.pixels.data()) - (dw.min.x + static_cast<std::ptrdiff_t>(dw.min.y) * image.width) * sizeof(glm::vec3);
-  Imf::FrameBuffer fb;
-  for (int c = 0; c < 3; ++c) {
-    const std::string name = (layer.empty() ? "" : layer + ".") + std::string(1, "RGB"[c]);
-    if (!in.header().channels().findChannel(name)) fail("{}: no channel {}", path, name);  // OpenEXR would read zeros
-    fb.insert(name, Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(glm::vec3), sizeof(glm::vec3) * image.width));
-  }
-  in.setFrameBuffer(fb);
-  in.readPixels(dw.min.y, dw.max.y);
-  return image;
-}
+using bench::read_rgb;
 
 struct Errors {
   double median = 0, p90 = 0, p99 = 0, rms = 0, rms_net = 0;
