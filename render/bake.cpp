@@ -239,7 +239,7 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
         for (std::size_t h = 0; h < 2; ++h) {
           if (halves[h].empty()) continue;
           glm::dvec3 hd, hi;
-          gather.leaving(halves[h], key + h * texels, hd, hi, cast[c], lights);
+          gather.leaving(halves[h], key + h * texels, hd, hi, cast[c], lights, !from_cache);
           const double w = static_cast<double>(halves[h].size()) / static_cast<double>(points.size());
           d += w * hd, i += w * hi;
           (h == 0 ? a : b) = from_cache ? hd : hd + hi;

@@ -274,21 +274,23 @@ struct FinalGather::Impl {
 
   // The gather ray of the direct light alone (a sample that takes the indirect light from the
   // cache, where emitters are large): what it brings if it meets an emitter, into `direct`.
+  // `lights`: the emitter samples it is weighed against, as in gathered.
   void emitter_ray(const glm::dvec3& origin, const glm::dvec3& n, const std::array<double, 2>& gather, Choice c, glm::dvec3& direct,
-                   uint64_t& cast) const {
+                   uint64_t& cast, double lights = 1.0) const {
     const glm::dvec3 g = cosine_direction(n, gather[0], gather[1]);
     const auto [seen, s] = rays.seen_at(origin, g);
     ++cast;
-    if (seen >= 0) emitter_met(static_cast<uint32_t>(seen), n, g, s, c, direct);
+    if (seen >= 0) emitter_met(static_cast<uint32_t>(seen), n, g, s, c, direct, lights);
   }
 
   // The light reflected at point x (normal n) toward the viewer, before rho: an emitter sample
   // with its shadow ray from each of the unit-square points `lights` (light_sample, the light
   // chosen by c) and one gather ray (gathered), ray by ray, weighed against each other by the
-  // balance heuristic with those counts.
+  // balance heuristic with those counts. Without `indirect_too` the gather ray only looks for
+  // an emitter (emitter_ray: the same direct light, to the bit, and nothing into `indirect`).
   void reflected(const glm::dvec3& x, const glm::dvec3& n, std::span<const std::array<double, 2>> lights,
                  const std::array<double, 2>& gather, Rng& more, int depth, Choice c, glm::dvec3& direct, glm::dvec3& indirect,
-                 uint64_t& cast) const {
+                 uint64_t& cast, bool indirect_too = true) const {
     const glm::dvec3 origin = x + n * offset;
     const double count = static_cast<double>(lights.size());
     for (const std::array<double, 2>& light : lights) {
@@ -298,7 +300,8 @@ struct FinalGather::Impl {
         if (!rays.blocked(shadow.from, shadow.to)) direct += shadow.light;
       }
     }
-    gathered(origin, n, gather, more, depth, c, direct, indirect, cast, count);
+    if (indirect_too) gathered(origin, n, gather, more, depth, c, direct, indirect, cast, count);
+    else emitter_ray(origin, n, gather, c, direct, cast, count);
   }
 
   // The gather rays of a cache record: 4 per sample of a pixel, within [256, 16384], so that the
@@ -596,7 +599,7 @@ int GatherOptions::thread_count() const {
 }
 
 void FinalGather::leaving(const std::vector<SurfacePoint>& points, uint64_t key, glm::dvec3& direct, glm::dvec3& indirect,
-                          uint64_t& cast, int lights) const {
+                          uint64_t& cast, int lights, bool indirect_too) const {
   direct = indirect = glm::dvec3(0.0);
   if (points.empty()) return;
   if (lights < 1 || lights > 64) fail("leaving: {} emitter samples a point (1..64)", lights);
@@ -614,7 +617,7 @@ void FinalGather::leaving(const std::vector<SurfacePoint>& points, uint64_t key,
     if (p.rho == glm::dvec3(0.0)) continue;
     glm::dvec3 d(0.0), r(0.0);
     m.reflected(p.x, p.normal, std::span(emitter_points).subspan(static_cast<std::size_t>(i * lights), static_cast<std::size_t>(lights)),
-                gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r, cast);
+                gathers[static_cast<std::size_t>(i)], more, 0, pick, d, r, cast, indirect_too);
     direct += p.rho * d;
     indirect += p.rho * r;
   }

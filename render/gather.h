@@ -128,9 +128,11 @@ class FinalGather {
   // chosen as for a pixel whose first hit is the first point), in the passes' split: `direct`
   // the emission and the light reflected straight from the emitters, `indirect` the rest. It
   // depends only on the seed, `key` (a texel's index), `lights` and the points. Rays cast into
-  // `cast`.
+  // `cast`. Without `indirect_too` (a texel whose indirect light comes from elsewhere: the
+  // bake's chart cache) `indirect` is 0 and `direct` the same to the bit, for fewer rays: the
+  // gather rays only look for emitters, and no bounce is traced further where one lands near.
   void leaving(const std::vector<SurfacePoint>& points, uint64_t key, glm::dvec3& direct, glm::dvec3& indirect,
-               uint64_t& cast, int lights = 1) const;
+               uint64_t& cast, int lights = 1, bool indirect_too = true) const;
   // The light arriving at point x of a front facing n from everything but the emitters (what a
   // pixel's indirect pass reflects, before the reflectance), as the cache's records take it: the
   // mean over `rays` (2..65536) stratified cosine gather rays from the streams of `key`. Into

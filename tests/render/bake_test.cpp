@@ -223,6 +223,33 @@ TEST(Bake, TheCachesIndirectLightInTheFurnaceIsExact) {
   EXPECT_GT(m.cached, static_cast<uint64_t>(covered) / 2) << covered << " texels with samples";
 }
 
+// A texel whose indirect light the chart's cache gives asks `leaving` for the direct light
+// alone: the same bits as the full call's direct light (the gather rays go the same ways and
+// meet the same emitters), no indirect light, and fewer rays (no bounce traced further where a
+// gather ray lands near). Points on the Cornell box's floor, on a grid that runs up to the walls
+// and the blocks' feet (where rays land near), with 1 and 3 emitter samples a point.
+TEST(Bake, TheDirectLightAloneIsTheFullCallsToTheBit) {
+  const PatchMesh mesh = mesh_scene(builtin_cornell(), {.target_patches = 1000});
+  std::vector<glm::vec3> b(mesh.size(), glm::vec3(0.3f));
+  const FinalGather gather(mesh, b, {.seed = 7});
+  std::vector<FinalGather::SurfacePoint> points;
+  for (int i = 0; i < 24; ++i)
+    for (int j = 0; j < 24; ++j)
+      points.push_back({.x = {2.0 + 548.0 * i / 23.0, 0.0, 2.0 + 555.0 * j / 23.0}, .normal = {0.0, 1.0, 0.0},
+                        .rho = {0.7, 0.7, 0.7}, .emission = {0.0, 0.0, 0.0}});
+  for (int lights : {1, 3}) {
+    glm::dvec3 full_direct, full_indirect, direct, indirect;
+    uint64_t full_cast = 0, cast = 0;
+    gather.leaving(points, 11, full_direct, full_indirect, full_cast, lights, true);
+    gather.leaving(points, 11, direct, indirect, cast, lights, false);
+    EXPECT_EQ(direct, full_direct) << lights;
+    EXPECT_GT(full_direct.x, 0.0) << lights;
+    EXPECT_EQ(indirect, glm::dvec3(0.0)) << lights;
+    EXPECT_GT(full_indirect.x, 0.0) << lights;
+    EXPECT_LT(cast, full_cast) << lights;
+  }
+}
+
 // One floor and one ceiling slab run under and over a zero-thickness wall (two one-sided
 // planes back to back at x = 1) between a lit room (its ceiling the lamp, its surfaces B = 1)
 // and a dark one (B = 0). Baked on the faces as they come, the floor is one chart and its texels
