@@ -12,11 +12,15 @@
 # Prints "cycles bake: W x H, SPP spp, SECONDS s" (the bake's own time).
 import json
 import math
+import os
 import struct
 import sys
 import time
 
 import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cycles_setup  # noqa: E402
 
 args = sys.argv[sys.argv.index("--") + 1:]
 glb_path, out_path, width, height, spp = args[0], args[1], int(args[2]), int(args[3]), int(args[4])
@@ -98,7 +102,7 @@ for points, uv, material in triangles:
         e2 = [points[2][i] - points[0][i] for i in range(3)]
         cr = (e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0])
         twice_area = math.sqrt(sum(x * x for x in cr))
-        n = min(64, max(1, math.ceil((longest * twice_area / 1e-4) ** (1 / 3))))
+        n = min(64, cycles_setup.area_sampling_cuts(longest, twice_area))
         cuts.append(n)
     for piece in pieces(n):
         base = len(verts)
@@ -124,23 +128,8 @@ for poly in mesh.polygons:
 target = bpy.data.images.new("bake", width=width, height=height, alpha=True, float_buffer=True)
 target.generated_color = (0.0, 0.0, 0.0, 0.0)
 for name, kd, ke in materials:
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
+    m = cycles_setup.material(name, kd, ke)
     nt = m.node_tree
-    nt.nodes.clear()
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (*kd, 1.0)
-    surface = diffuse.outputs[0]
-    if max(ke) > 0:
-        emission = nt.nodes.new("ShaderNodeEmission")
-        emission.inputs["Color"].default_value = (*ke, 1.0)
-        emission.inputs["Strength"].default_value = 1.0
-        add = nt.nodes.new("ShaderNodeAddShader")
-        nt.links.new(emission.outputs[0], add.inputs[0])
-        nt.links.new(diffuse.outputs[0], add.inputs[1])
-        surface = add.outputs[0]
-    nt.links.new(surface, out.inputs["Surface"])
     texture = nt.nodes.new("ShaderNodeTexImage")  # the bake's target, selected and active
     texture.image = target
     for node in nt.nodes:
@@ -154,30 +143,7 @@ bpy.context.view_layer.objects.active = obj
 obj.select_set(True)
 
 scene = bpy.context.scene
-scene.world = bpy.data.worlds.new("black")
-scene.world.use_nodes = True
-scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-scene.render.engine = "CYCLES"
-cy = scene.cycles
-cy.device = "CPU"
-cy.samples = spp
-cy.use_adaptive_sampling = False
-cy.use_denoising = False
-cy.seed = seed
-cy.max_bounces = 64
-cy.diffuse_bounces = 64
-cy.glossy_bounces = 0
-cy.transmission_bounces = 0
-cy.volume_bounces = 0
-cy.transparent_max_bounces = 0
-cy.caustics_reflective = False
-cy.caustics_refractive = False
-cy.sample_clamp_direct = 0.0
-cy.sample_clamp_indirect = 0.0
-scene.view_settings.view_transform = "Standard"
-scene.view_settings.look = "None"
-scene.view_settings.exposure = 0.0
-scene.view_settings.gamma = 1.0
+cycles_setup.converged(scene, spp, seed)
 bake = scene.render.bake
 bake.margin = 0
 bake.use_pass_direct = True

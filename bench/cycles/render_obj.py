@@ -41,6 +41,9 @@ import time
 import bpy
 import mathutils
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cycles_setup  # noqa: E402
+
 args = sys.argv[sys.argv.index("--") + 1:]
 obj_path, out_path, width, height, spp = args[0], args[1], int(args[2]), int(args[3]), int(args[4])
 seed = int(args[5]) if len(args) > 5 else 0
@@ -115,7 +118,7 @@ def pieces_for_area_sampling(idx):
     twice_area = (p[1] - p[0]).cross(p[2] - p[0]).length
     if len(p) == 4:
         twice_area = max(twice_area, (p[2] - p[0]).cross(p[3] - p[0]).length)
-    return max(1, math.ceil((longest * twice_area / 1e-4) ** (1 / 3)))
+    return cycles_setup.area_sampling_cuts(longest, twice_area)
 
 
 if not asis:
@@ -145,33 +148,7 @@ mesh = bpy.data.meshes.new("scene")
 mesh.from_pydata(verts, [], [f[0] for f in faces])
 mesh.update()
 for n in names:
-    m = bpy.data.materials.new(n)
-    m.use_nodes = True
-    nt = m.node_tree
-    nt.nodes.clear()
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    diffuse = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (*materials[n]["Kd"], 1.0)
-    surface = diffuse.outputs[0]
-    ke = materials[n]["Ke"]
-    if max(ke) > 0:
-        emission = nt.nodes.new("ShaderNodeEmission")
-        emission.inputs["Color"].default_value = (*ke, 1.0)
-        emission.inputs["Strength"].default_value = 1.0
-        add = nt.nodes.new("ShaderNodeAddShader")
-        nt.links.new(emission.outputs[0], add.inputs[0])
-        nt.links.new(diffuse.outputs[0], add.inputs[1])
-        surface = add.outputs[0]
-    if materials[n]["black_back"]:
-        black = nt.nodes.new("ShaderNodeBsdfDiffuse")
-        black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-        geometry = nt.nodes.new("ShaderNodeNewGeometry")
-        mix = nt.nodes.new("ShaderNodeMixShader")
-        nt.links.new(geometry.outputs["Backfacing"], mix.inputs[0])
-        nt.links.new(surface, mix.inputs[1])
-        nt.links.new(black.outputs[0], mix.inputs[2])
-        surface = mix.outputs[0]
-    nt.links.new(surface, out.inputs["Surface"])
+    m = cycles_setup.material(n, materials[n]["Kd"], materials[n]["Ke"], materials[n]["black_back"])
     mesh.materials.append(m)
 for poly, (idx, mat) in zip(mesh.polygons, faces):
     poly.material_index = names.index(mat)
@@ -200,36 +177,14 @@ bpy.context.scene.collection.objects.link(cam)
 
 scene = bpy.context.scene
 scene.camera = cam
-scene.world = bpy.data.worlds.new("black")
-scene.world.use_nodes = True
-scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-scene.render.engine = "CYCLES"
+cycles_setup.converged(scene, spp, seed)
 cy = scene.cycles
-cy.device = "CPU"
-cy.samples = spp
-cy.use_adaptive_sampling = False
-cy.use_denoising = False
-cy.seed = seed
-cy.max_bounces = 64
-cy.diffuse_bounces = 64
-cy.glossy_bounces = 0
-cy.transmission_bounces = 0
-cy.volume_bounces = 0
-cy.transparent_max_bounces = 0
-cy.caustics_reflective = False
-cy.caustics_refractive = False
-cy.sample_clamp_direct = 0.0
-cy.sample_clamp_indirect = 0.0
 cy.pixel_filter_type = "BOX"
 cy.filter_width = 1.0
 scene.render.resolution_x = width
 scene.render.resolution_y = height
 scene.render.resolution_percentage = 100
 scene.render.film_transparent = False
-scene.view_settings.view_transform = "Standard"
-scene.view_settings.look = "None"
-scene.view_settings.exposure = 0.0
-scene.view_settings.gamma = 1.0
 scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER" if passes else "OPEN_EXR"
 if passes:
     layer = scene.view_layers[0]
