@@ -1,5 +1,6 @@
-// sirad bench: an EXR's R, G, B (or one layer's) as an Image, and one channel alone: what the
-// benches that compare with Cycles read (image_bench.cpp, lightmap_bench.cpp).
+// sirad bench: an EXR's R, G, B (or one layer's) as an Image, one channel alone, and the
+// luminance they are compared by: what the benches that compare with Cycles share
+// (image_bench.cpp, lightmap_bench.cpp).
 #pragma once
 #include <cstddef>
 #include <string>
@@ -14,6 +15,9 @@
 #include "util/error.h"
 
 namespace sirad::bench {
+
+// Rec. 709 luminance of linear RGB.
+inline double luminance(const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
 
 // The RGB of `layer` (LAYER.R, ...); with no layer, the plain R, G, B or else a multilayer EXR's
 // combined image (render_obj.py ... passes writes ViewLayer.Combined.R, ...).

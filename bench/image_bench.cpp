@@ -59,7 +59,7 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 std::vector<double> luminance(const Image& image) {
   std::vector<double> y(image.pixels.size());
   for (std::size_t i = 0; i < y.size(); ++i)
-    y[i] = 0.2126 * image.pixels[i].x + 0.7152 * image.pixels[i].y + 0.0722 * image.pixels[i].z;
+    y[i] = bench::luminance(image.pixels[i]);
   return y;
 }
 

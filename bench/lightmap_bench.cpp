@@ -26,11 +26,7 @@
 
 using namespace sirad;
 
-namespace {
-
-double luminance(const glm::vec3& c) { return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z; }
-
-}  // namespace
+using bench::luminance;
 
 int main(int argc, char** argv) {
   CLI::App app{"A lightmap against Cycles' bake of its layout, texel by texel (CSV)"};
