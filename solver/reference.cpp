@@ -333,16 +333,6 @@ double mean_relative_se(const PatchMesh& mesh, const ReferenceSolution& s) {
   return den > 0.0 ? num / den : 0.0;
 }
 
-double relative_rms_se(const PatchMesh& mesh, const ReferenceSolution& s) {
-  double num = 0.0, den = 0.0;
-  for (std::size_t j = 0; j < mesh.size(); ++j) {
-    if (mesh.emits(j)) continue;
-    num += mesh.area[j] * glm::dot(s.radiosity_se[j], s.radiosity_se[j]);
-    den += mesh.area[j] * glm::dot(s.radiosity[j], s.radiosity[j]);
-  }
-  return den > 0.0 ? std::sqrt(num / den) : 0.0;
-}
-
 namespace {
 constexpr const char* kMagic = "# sirad reference v1";
 constexpr const char* kColumns = "patch,B_r,B_g,B_b,Bse_r,Bse_g,Bse_b,D_r,D_g,D_b,Dse_r,Dse_g,Dse_b";

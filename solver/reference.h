@@ -61,11 +61,6 @@ ReferenceSolution solve_reference(const PatchMesh& mesh, const ReferenceOptions&
 // The area-weighted mean over non-emitting patches of radiosity_se / radiosity (all channels:
 // sum A |se| / sum A |B|, |.| the Euclidean norm over RGB): the headline relative error.
 double mean_relative_se(const PatchMesh& mesh, const ReferenceSolution& solution);
-// The solution's expected relative RMS error per patch, in the measure of solver/metrics.h and
-// of the bundle solver's error estimate (non-emitting patches, area-weighted, all channels):
-// sqrt(sum A |se|^2 / sum A |B|^2). Its PLY carries it as the run's error estimate, so a
-// reference can be a warm start's previous solution.
-double relative_rms_se(const PatchMesh& mesh, const ReferenceSolution& solution);
 
 // NAME.ref.csv: a header with the mesh hash, then one line per patch in patch order:
 //   patch,B_r,B_g,B_b,Bse_r,Bse_g,Bse_b,D_r,D_g,D_b,Dse_r,Dse_g,Dse_b

@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 
 #include "io/read_solution.h"
+#include "solver/metrics.h"
 #include "solver/reference.h"
 #include "tests/agreement.h"
 #include "tests/cli_fixture.h"
@@ -510,8 +511,8 @@ TEST_F(ReferenceCli, WritesOutputsAndTheFileRoundTrips) {
   refused(good + "1,2,3\n", "unexpected text after the last patch");
 }
 
-// A reference's PLY says its own error (relative_rms_se, the measure of the solver's estimate),
-// and that is its error: two references of the Cornell box with other seeds differ by d, the
+// A reference's PLY says its own error (its standard errors' relative RMS, the measure of the
+// solver's estimate), and that is its error: two references of the Cornell box with other seeds differ by d, the
 // relative RMS difference per patch, with E[d^2] = e1^2 + e2^2 for independent errors. At 300
 // patches (about 100 patches' worth of independent weight) d^2 is within about 15 % of that
 // (one standard deviation), and each e from 8 batches is a variance estimate whose relative
@@ -527,14 +528,7 @@ TEST_F(ReferenceCli, ItsPlySaysItsErrorAndStartsAWarmRun) {
   const Solution a = read_solution((dir_ / "ref1.ply").string()), b = read_solution((dir_ / "ref2.ply").string());
   ASSERT_TRUE(a.error_estimate && b.error_estimate);
   ASSERT_EQ(a.mesh.size(), b.mesh.size());
-  double num = 0, den = 0;
-  for (std::size_t j = 0; j < a.mesh.size(); ++j) {
-    if (a.mesh.emits(j)) continue;
-    const glm::dvec3 d = glm::dvec3(a.radiosity[j]) - glm::dvec3(b.radiosity[j]);
-    num += a.mesh.area[j] * glm::dot(d, d);
-    den += a.mesh.area[j] * glm::dot(glm::dvec3(b.radiosity[j]), glm::dvec3(b.radiosity[j]));
-  }
-  const double ratio = std::sqrt(num / den) / std::hypot(*a.error_estimate, *b.error_estimate);
+  const double ratio = relative_rms(a.mesh, a.radiosity, b.radiosity) / std::hypot(*a.error_estimate, *b.error_estimate);
   EXPECT_GT(ratio, 0.75) << *a.error_estimate << " " << *b.error_estimate;
   EXPECT_LT(ratio, 1.33) << *a.error_estimate << " " << *b.error_estimate;
   Outcome r = sirad("render cornell --patches 300 --bundles 64 --width 16 --height 16 --warm-start ref1.ply --out warm");
