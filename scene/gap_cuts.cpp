@@ -1,5 +1,5 @@
-// sirad: surfaces cut along the outline of an emitter that nearly touches them (scene/scene.h
-// cut_near_emitters; DESIGN.md section 1, "Light in gaps").
+// sirad: faces cut along the outline of a surface that nearly touches them, an emitter or any
+// other (scene/scene.h cut_along_gaps; DESIGN.md section 1, "Light in gaps").
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -9,6 +9,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "scene/contacts.h"
 #include "scene/import.h"
 #include "scene/scene.h"
 #include "util/error.h"
@@ -62,37 +63,41 @@ Poly convex_outline(const std::vector<Triangle>& triangles, const std::vector<st
   return out;
 }
 
-// An emitter as the cuts see it: its outline, its normal, and the box within its reach.
-struct Emitter {
+// A surface as the cuts see it: its outline, its normal, and the box within its reach.
+struct Outline {
   Poly p;  // a convex outline, counter-clockwise seen from the front
   glm::dvec3 n;
   double extent;  // the outline's longest extent
-  double reach;   // the largest gap cut for: kGapCut x its extent
+  double reach;   // the largest gap cut for: kGapCut (an emitter) or kGapCutSurface x its extent
+  bool emits;     // an emitter's (an emitter's back is a surface like any other)
   glm::dvec3 lo, hi;
 };
 
 constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
 
-// The scene's emitters as outlines, and each emitting triangle's outline (kNone: none).
+// Surfaces as outlines, and each of their triangles' outline (kNone: none).
 struct Outlines {
-  std::vector<Emitter> emitters;
-  std::vector<std::size_t> emitter_of;
+  std::vector<Outline> outlines;
+  std::vector<std::size_t> outline_of;
 };
 
-// Emitting triangles grouped: one material, one plane (normals within 1e-4 rad, offsets within
-// 1e-6 of their extent), joined where they share a corner. A group that fills its convex hull
-// (a panel of two triangles, a disc cut into a fan) is one outline; else each triangle is one.
-// None when the scene has more pairs of emitting and other triangles than kMaxGapCutPairs.
-Outlines emitter_outlines(const Scene& scene) {
-  std::vector<std::size_t> lights;
+// The emitting triangles (`emitting`), or all triangles, grouped: one material, one plane (normals
+// within 1e-4 rad, offsets within 1e-6 of their extent), joined where they share a corner. A group
+// that fills its convex hull (a panel of two triangles, a disc cut into a fan, a wardrobe's back)
+// is one outline. Else, of the emitters each triangle is one; of all triangles, a group of one
+// triangle is one and a larger group none (a wall with a door cut by a Boolean: its triangles'
+// edges are no outline). Emitters: none when the scene has more pairs of emitting and other
+// triangles than kMaxGapCutPairs.
+Outlines surface_outlines(const Scene& scene, bool emitting) {
+  std::vector<std::size_t> lights;  // the triangles grouped
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
     const Triangle& t = scene.triangles[i];
-    if (!scene.materials[t.material].emits()) continue;
+    if (emitting && !scene.materials[t.material].emits()) continue;
     if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) continue;
     lights.push_back(i);
   }
   if (lights.empty()) return {};
-  if (static_cast<double>(lights.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return {};
+  if (emitting && static_cast<double>(lights.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return {};
   auto normal_of = [&](std::size_t i) {
     const Triangle& t = scene.triangles[i];
     return glm::normalize(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0])));
@@ -124,14 +129,14 @@ Outlines emitter_outlines(const Scene& scene) {
   std::map<std::size_t, std::vector<std::size_t>> groups;
   for (std::size_t a = 0; a < lights.size(); ++a) groups[find(a)].push_back(lights[a]);
   Outlines out;
-  std::vector<Emitter>& emitters = out.emitters;
-  std::vector<std::size_t>& emitter_of = out.emitter_of;
+  std::vector<Outline>& emitters = out.outlines;
+  std::vector<std::size_t>& emitter_of = out.outline_of;
   emitter_of.assign(scene.triangles.size(), kNone);
-  auto add = [&](Poly outline, const glm::dvec3& n) {
-    Emitter em{std::move(outline), n, 0.0, 0.0, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
+  auto add = [&](Poly outline, const glm::dvec3& n, bool emits) {
+    Outline em{std::move(outline), n, 0.0, 0.0, emits, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
     for (const glm::dvec3& a : em.p)
       for (const glm::dvec3& b : em.p) em.extent = std::max(em.extent, glm::length(b - a));
-    em.reach = kGapCut * em.extent;
+    em.reach = (emitting ? kGapCut : kGapCutSurface) * em.extent;  // an emitter's back: kGapCutSurface
     for (const glm::dvec3& a : em.p) em.lo = glm::min(em.lo, a), em.hi = glm::max(em.hi, a);
     em.lo -= glm::dvec3(em.reach);
     em.hi += glm::dvec3(em.reach);
@@ -139,15 +144,17 @@ Outlines emitter_outlines(const Scene& scene) {
   };
   for (const auto& [root, members] : groups) {
     const glm::dvec3 n = normal_of(members[0]);
+    const bool emits = scene.materials[scene.triangles[members[0]].material].emits();
     Poly outline = members.size() > 1 ? convex_outline(scene.triangles, members, n) : Poly{};
     if (!outline.empty() && outline.size() <= 256) {
-      add(std::move(outline), n);
+      add(std::move(outline), n, emits);
       for (std::size_t i : members) emitter_of[i] = emitters.size() - 1;
       continue;
     }
+    if (!emitting && members.size() > 1) continue;
     for (std::size_t i : members) {
       const Triangle& t = scene.triangles[i];
-      add(Poly{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, normal_of(i));
+      add(Poly{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, normal_of(i), emits);
       emitter_of[i] = emitters.size() - 1;
     }
   }
@@ -172,7 +179,7 @@ class Cutter {
   // corners are mitred). The marks of the pieces inside become (marks | set) & ~clear; the others
   // keep theirs. A cut that would leave a part of less than `least` area is not made: the part
   // stays with the larger side. Returns whether any piece lies partly or wholly inside.
-  bool cut(const Emitter& em, double gap, double offset, uint8_t set, uint8_t clear, double tiny, double least) {
+  bool cut(const Outline& em, double gap, double offset, uint8_t set, uint8_t clear, double tiny, double least) {
     std::swap(pending, pieces);
     std::swap(pending_over, over);
     pieces.clear();
@@ -255,19 +262,90 @@ class Cutter {
   Poly inside, part_in, part_out;
 };
 
+// Outlines binned to a uniform grid over the scene's box by their boxes within reach, so that a
+// face looks only at the outlines near it. An outline over more than kWide cells is looked at by
+// every face instead. Queries count the outlines they hand out (`looked`).
+class OutlineGrid {
+ public:
+  OutlineGrid(const std::vector<Outline>& outlines, const glm::dvec3& lo, const glm::dvec3& hi) : lo_(lo) {
+    const std::size_t g = std::clamp<std::size_t>(static_cast<std::size_t>(std::cbrt(static_cast<double>(outlines.size()))), 1, 64);
+    cells_ = glm::ivec3(static_cast<int>(g));
+    size_ = glm::max((hi - lo) / static_cast<double>(g), glm::dvec3(1e-12));
+    bins_.resize(g * g * g);
+    seen_.assign(outlines.size(), 0);
+    for (std::size_t k = 0; k < outlines.size(); ++k) {
+      const glm::ivec3 a = cell(outlines[k].lo), b = cell(outlines[k].hi);
+      const glm::ivec3 span = b - a + 1;
+      if (static_cast<std::size_t>(span.x) * static_cast<std::size_t>(span.y) * static_cast<std::size_t>(span.z) > kWide) {
+        wide_.push_back(k);
+        continue;
+      }
+      for (int z = a.z; z <= b.z; ++z)
+        for (int y = a.y; y <= b.y; ++y)
+          for (int x = a.x; x <= b.x; ++x) bins_[index(x, y, z)].push_back(k);
+    }
+  }
+
+  // Calls f(k) once for each outline whose box within reach may overlap [lo, hi], in ascending k.
+  template <class F>
+  void near(const glm::dvec3& lo, const glm::dvec3& hi, F&& f) {
+    ++stamp_;
+    found_.clear();
+    auto take = [&](std::size_t k) {
+      if (seen_[k] == stamp_) return;
+      seen_[k] = stamp_;
+      found_.push_back(k);
+    };
+    for (std::size_t k : wide_) take(k);
+    const glm::ivec3 a = cell(lo), b = cell(hi);
+    for (int z = a.z; z <= b.z; ++z)
+      for (int y = a.y; y <= b.y; ++y)
+        for (int x = a.x; x <= b.x; ++x)
+          for (std::size_t k : bins_[index(x, y, z)]) take(k);
+    std::sort(found_.begin(), found_.end());
+    looked += static_cast<double>(found_.size());
+    for (std::size_t k : found_) f(k);
+  }
+
+  double looked = 0.0;
+
+ private:
+  static constexpr std::size_t kWide = 4096;
+  glm::ivec3 cell(const glm::dvec3& p) const {
+    const glm::dvec3 c = glm::floor((p - lo_) / size_);
+    return glm::clamp(glm::ivec3(glm::clamp(c, glm::dvec3(-1.0), glm::dvec3(1e6))), glm::ivec3(0), cells_ - 1);
+  }
+  std::size_t index(int x, int y, int z) const {
+    return (static_cast<std::size_t>(z) * static_cast<std::size_t>(cells_.y) + static_cast<std::size_t>(y)) * static_cast<std::size_t>(cells_.x) +
+           static_cast<std::size_t>(x);
+  }
+  glm::dvec3 lo_, size_;
+  glm::ivec3 cells_;
+  std::vector<std::vector<std::size_t>> bins_;
+  std::vector<std::size_t> wide_, found_;
+  std::vector<uint64_t> seen_;
+  uint64_t stamp_ = 0;
+};
+
 }  // namespace
 
-void cut_near_emitters(Scene& scene) {
-  const Outlines outlines = emitter_outlines(scene);
-  const std::vector<Emitter>& emitters = outlines.emitters;
-  const std::vector<std::size_t>& emitter_of = outlines.emitter_of;
-  if (emitters.empty()) return;
-  // Pairs looked at are bounded: a scene of very many emitters and faces is left uncut.
-  if (static_cast<double>(emitters.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return;
+void cut_along_gaps(Scene& scene) {
+  const Outlines lit = surface_outlines(scene, true);
+  const std::vector<Outline>& emitters = lit.outlines;
+  const std::vector<std::size_t>& emitter_of = lit.outline_of;
+  const Outlines all = surface_outlines(scene, false);
+  const std::vector<Outline>& others = all.outlines;
+  if (emitters.empty() && others.empty()) return;
+  glm::dvec3 scene_lo(std::numeric_limits<double>::infinity()), scene_hi(-std::numeric_limits<double>::infinity());
+  for (const Triangle& t : scene.triangles)
+    for (const glm::vec3& q : t.p) scene_lo = glm::min(scene_lo, glm::dvec3(q)), scene_hi = glm::max(scene_hi, glm::dvec3(q));
+  OutlineGrid grid(others, scene_lo, scene_hi);
+  const double coincident = contact_tolerance(scene);
   Cutter cutter;
 
   // Faces across a gap from an emitter: cut along its outline, and along the strips on both
-  // sides of it where the gap is wide enough to matter.
+  // sides of it where the gap is wide enough to matter. Faces across a gap from another surface,
+  // facing it or its back: cut along its outline.
   std::vector<double> nearest(emitters.size(), std::numeric_limits<double>::infinity());  // each emitter's narrowest gap
   std::vector<Triangle> out;
   out.reserve(scene.triangles.size());
@@ -286,7 +364,7 @@ void cut_near_emitters(Scene& scene) {
     const double tiny = 1e-9 * glm::length(cr);
     cutter.start(Poly{a, b, c}, static_cast<uint8_t>((t.in_gap ? kOver : 0) | (t.whole ? kStrip : 0)));
     for (std::size_t e = 0; e < emitters.size(); ++e) {
-      const Emitter& em = emitters[e];
+      const Outline& em = emitters[e];
       if (cutter.pieces_count() > kMaxPiecesPerFace) break;  // many emitters over one face: cut no further
       if (glm::any(glm::lessThan(hi, em.lo)) || glm::any(glm::greaterThan(lo, em.hi))) continue;
       if (!(glm::dot(n, em.n) < -0.9999)) continue;  // facing the emitter, parallel
@@ -301,6 +379,23 @@ void cut_near_emitters(Scene& scene) {
       for (std::size_t k = 0; k + 1 < kGapStripsIn.size(); ++k) cutter.cut(em, gap, -kGapStripsIn[k] * gap, 0, 0, tiny, least);
       cutter.cut(em, gap, -kGapStripsIn.back() * gap, 0, kStrip, tiny, least);  // their inner edge
     }
+    if (grid.looked <= kMaxGapCutPairs)
+      grid.near(lo, hi, [&](std::size_t k) {
+        const Outline& s = others[k];
+        if (cutter.pieces_count() > kMaxPiecesPerFace) return;
+        if (glm::any(glm::lessThan(hi, s.lo)) || glm::any(glm::greaterThan(lo, s.hi))) return;
+        const double facing = glm::dot(n, s.n);
+        if (!(std::abs(facing) > 0.9999)) return;  // parallel, its front or its back towards the face
+        if (s.emits && facing < 0.0) return;        // an emitter's front: cut with its strips above
+        // The surface lies in front of the face, further than the coincident-face rule's tie
+        // (closer, it is the same place, or the face's own surface).
+        const double gap = glm::dot(s.p[0] - a, n);
+        if (!(gap > coincident && gap <= s.reach)) return;
+        // An outline edge that runs along one of the face's own edges (a wardrobe's back and the
+        // wall both end at the floor) leaves, after float rounding, slivers up to about 1e-7 m wide
+        // on either side: a part under 1e-6 of the face's double area stays with its neighbour.
+        cutter.cut(s, facing < 0.0 ? gap : -gap, 0.0, kOver, 0, tiny, 1e-6 * glm::length(cr));
+      });
     cutter.emit(t, n, tiny, scene.name, out);
   }
   // The emitters' own strips along their rims, where a face lies across a gap from them.
@@ -313,7 +408,7 @@ void cut_near_emitters(Scene& scene) {
       continue;
     }
     const std::size_t e = emitting[next++].second;
-    const Emitter& em = emitters[e];
+    const Outline& em = emitters[e];
     const double gap = nearest[e];  // infinite where no face lies across a gap from it
     const Triangle& t = out[j];
     if (!std::isfinite(gap) || gap < kGapStripsFrom * em.extent) {

@@ -497,7 +497,7 @@ Scene with_options(Scene scene, const ImportOptions& options) {
   if (options.two_sided)
     for (Material& m : scene.materials) m.two_sided = true;
   add_back_faces(scene);
-  cut_near_emitters(scene);
+  cut_along_gaps(scene);
   mark_unlit_faces(scene);
   return scene;
 }

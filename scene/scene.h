@@ -44,11 +44,12 @@ struct Triangle {
   // No light reaches its front (mark_unlit_faces): the mesher leaves it one patch, so that the
   // patch budget goes to the surfaces light reaches. Only the meshing depends on it.
   bool unlit = false;
-  // A piece of a face over an emitter across a small gap (cut_near_emitters): the light trapped in
-  // the gap. Outputs and the final gather do not blend its values with the face's beyond the
-  // emitter's outline (corner_radiosity); the solve does not depend on it.
+  // A piece of a face over an emitter, or another surface, across a small gap (cut_along_gaps):
+  // the light trapped in the gap, or the shadow there. Outputs and the final gather do not blend
+  // its values with the face's beyond the outline (corner_radiosity); the solve does not depend
+  // on it.
   bool in_gap = false;
-  // A strip along the rim of such a gap, on either face or on the emitter (cut_near_emitters):
+  // A strip along the rim of such a gap, on either face or on the emitter (cut_along_gaps):
   // its width is set by the gap, so the mesher leaves it whole, one patch however long.
   bool whole = false;
 };
@@ -110,7 +111,16 @@ void add_back_faces(Scene& scene);
 // (scene/gap_cuts.cpp; DESIGN.md section 1, "Light in gaps"). Strips are Triangle::whole. The
 // pieces keep the face's material, object and line (at most about 1024 pieces a face). Scenes
 // with more than kMaxGapCutPairs (emitter, face) pairs are left as they are.
+// Every face that faces another surface (its front or its back) across a gap of at most
+// kGapCutSurface times that surface's extent (and more than contact_tolerance: closer, the two
+// are one place, under the coincident-face rule) (a wall 5 cm behind a wardrobe's back, a floor under
+// a rug or a sofa) is cut along its outline too, where the surface is one outline (its triangles
+// of one material and plane fill their convex hull, or it is one triangle), so that no patch
+// averages the light of the room with the shadow in the gap; no strips (the gap is dark, not
+// bright). Its pieces over the surface are Triangle::in_gap as well. Faces look at the surfaces
+// near them through a grid; past kMaxGapCutPairs looked at, the rest are not cut for surfaces.
 inline constexpr double kGapCut = 0.25;
+inline constexpr double kGapCutSurface = 1.0 / 8.0;
 inline constexpr double kGapStripsFrom = 1.0 / 256.0;
 inline constexpr std::array<double, 1> kGapStripsOut = {1.0};
 inline constexpr std::array<double, 2> kGapStripsIn = {0.5, 2.0};
@@ -121,7 +131,7 @@ inline constexpr std::array<double, 1> kGapStripsEmitter = {2.0};
 // face's own edges cut off a strip's corner stay with the piece beside them.
 inline constexpr double kGapStripLeast = 1.0 / 8.0;
 inline constexpr double kMaxGapCutPairs = 1e8;
-void cut_near_emitters(Scene& scene);
+void cut_along_gaps(Scene& scene);
 // Marks the faces no light reaches (Triangle::unlit): no random walk from a face's front
 // (scene/light_walks.h) meets or sees an emitter's front: the outer faces of a building's walls
 // and slabs that face away from every light. Emitting faces are never marked. The mesher leaves

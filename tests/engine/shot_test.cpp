@@ -422,7 +422,7 @@ TEST(FirstShot, LightsThatLightANearSurfaceAreLeftToTheBundles) {
 
 
 // A lamp 1.5 cm under a ceiling, two-sided: the ceiling is cut along the lamp's outline (scene/scene.h
-// cut_near_emitters), so that no ceiling triangle, and so no patch, lies partly over the lamp
+// cut_along_gaps), so that no ceiling triangle, and so no patch, lies partly over the lamp
 // (where the gap's light is trapped) and partly beside it. The ceiling keeps its area.
 TEST(GapCuts, ACeilingOverALampIsCutAlongItsOutline) {
   const Scene s = test::lamp_under_ceiling(0.015);

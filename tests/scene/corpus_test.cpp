@@ -98,9 +98,12 @@ TEST_P(CorpusScenes, SpendTheirPatchesWhereLightReaches) {
     const double x = xs * std::cos(t) + ys * std::sin(t), y = -xs * std::sin(t) + ys * std::cos(t);
     bool inside = false;
     for (const auto& r : plan.rooms) inside = inside || (x > r[0] && x < r[1] && y > r[2] && y < r[3] && p.y > 0 && p.y < plan.height);
-    // The apartment's table legs' tops, under the table's top, face into the room and see nothing.
+    // The apartment's table legs' tops, under the table's top, face into the room and see nothing;
+    // its wardrobe's back faces a slot 5 cm wide behind it, which light reaches only through the
+    // slit (Cycles: 1e-5 of the median), so its walks may find none.
     const bool leg_top = glb.objects.at(tri.object).starts_with("TableLeg") && p.y > 0.725;
-    if (inside && !leg_top) {
+    const bool slot = glb.objects.at(tri.object) == "Wardrobe" && x > 7.9;
+    if (inside && !leg_top && !slot) {
       EXPECT_FALSE(tri.unlit) << "triangle " << i << " of " << glb.objects.at(tri.object) << " faces into a room, at " << x << " " << y << " "
                               << p.y;
     }
@@ -130,7 +133,7 @@ TEST_P(CorpusScenes, SpendTheirPatchesWhereLightReaches) {
 
 INSTANTIATE_TEST_SUITE_P(
     Blender, CorpusScenes,
-    ::testing::Values(CorpusPlan{"apartment.glb", 0.0, 0.0, 0.0, 2.6, {{0, 5, 0, 4}, {0, 5, 4, 6}, {5, 8, 0, 3.5}, {5, 8, 3.5, 6}}},
+    ::testing::Values(CorpusPlan{"apartment.glb", 0.0, 0.0, 0.0, 2.6, {{0, 4.95, 0, 4}, {0, 4.95, 4, 6}, {5.05, 8, 0, 3.5}, {5.05, 8, 3.5, 6}}},
                       CorpusPlan{"studio.glb", 30.0, 1.0, -0.5, 2.7, {{0, 4.45, 0, 4}, {4.55, 6, 0, 2.45}, {4.55, 6, 2.55, 4}}}),
     [](const ::testing::TestParamInfo<CorpusPlan>& info) { return info.param.file.substr(0, info.param.file.find('.')); });
 
