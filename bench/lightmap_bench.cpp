@@ -9,11 +9,19 @@
 //              their mean is the reference and (a - b)^2 / 4 its variance, subtracted;
 //   median, p90 the per-texel relative difference's percentiles;
 //   estimate   the RMS of sirad's own per-texel error estimate (the EXR's `error` layer)
-//              relative to the reference: against rel_rms_net, how honest it is.
+//              relative to the reference: against rel_rms_net, how honest it is;
+//   charts     the charts compared: 4-connected groups of at least kChartTexels compared texels
+//              whose reference mean is at least kChartFloor of the median texel (a chart under a
+//              wall, dark to 1e-3 in both, says nothing relative);
+//   chart_rms  the texel-weighted RMS of their sums' ratios less 1: a chart's bias, which its
+//              texels' noise hides in rel_rms (per-texel noise averages out over a chart);
+//   charts_off those off by more than 2 % and by three times their reference's own noise (the two
+//              bakes' sums differ by twice it), listed on stderr with their place in the atlas.
 //
 //   sirad_bench_lightmap --lightmap NAME-lightmap.exr --reference C0.exr [--reference2 C2.exr]
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -27,6 +35,9 @@
 using namespace sirad;
 
 using bench::luminance;
+
+constexpr std::size_t kChartTexels = 50;
+constexpr double kChartFloor = 0.02;
 
 int main(int argc, char** argv) {
   CLI::App app{"A lightmap against Cycles' bake of its layout, texel by texel (CSV)"};
@@ -76,6 +87,7 @@ int main(int argc, char** argv) {
     }
     double sum_mine = 0, sum_ref = 0, sq = 0, sq_var = 0, sq_estimate = 0;
     std::vector<double> rel;
+    std::vector<uint8_t> compared(ref.size(), 0);
     for (int y = 1; y + 1 < H; ++y)
       for (int x = 1; x + 1 < W; ++x) {
         bool interior = true;
@@ -90,14 +102,60 @@ int main(int argc, char** argv) {
         const double e = luminance(error.pixels[i]) / ref[i];
         sq_estimate += e * e;
         rel.push_back(std::abs(d));
+        compared[i] = 1;
       }
     if (rel.empty()) fail("no texel to compare (is the reference a bake of this lightmap's layout?)");
     const double n = static_cast<double>(rel.size());
     std::sort(rel.begin(), rel.end());
-    std::printf("texels,ratio,rel_rms,rel_rms_net,median,p90,estimate\n");
-    std::printf("%zu,%.5f,%.5f,%.5f,%.5f,%.5f,%.5f\n", rel.size(), sum_mine / sum_ref - 1, std::sqrt(sq / n),
+
+    // Charts: flood fill over the compared texels.
+    std::vector<double> lit;
+    for (std::size_t i = 0; i < ref.size(); ++i)
+      if (compared[i]) lit.push_back(ref[i]);
+    std::nth_element(lit.begin(), lit.begin() + static_cast<std::ptrdiff_t>(lit.size() / 2), lit.end());
+    const double floor = kChartFloor * lit[lit.size() / 2];
+    std::vector<int32_t> label(ref.size(), -1);
+    std::vector<std::size_t> stack, members;
+    double chart_sq = 0, chart_texels = 0;
+    std::size_t charts = 0, off = 0;
+    for (std::size_t start = 0; start < ref.size(); ++start) {
+      if (!compared[start] || label[start] >= 0) continue;
+      members.clear();
+      stack.assign(1, start);
+      label[start] = 0;
+      while (!stack.empty()) {
+        const std::size_t i = stack.back();
+        stack.pop_back();
+        members.push_back(i);
+        const int x = static_cast<int>(i % W), y = static_cast<int>(i / W);
+        const int nx[4] = {x - 1, x + 1, x, x}, ny[4] = {y, y, y - 1, y + 1};
+        for (int k = 0; k < 4; ++k) {
+          if (nx[k] < 0 || ny[k] < 0 || nx[k] >= W || ny[k] >= H) continue;
+          const std::size_t j = static_cast<std::size_t>(ny[k]) * W + nx[k];
+          if (compared[j] && label[j] < 0) label[j] = 0, stack.push_back(j);
+        }
+      }
+      double m = 0, r = 0, r0 = 0, r2 = 0;
+      for (std::size_t i : members) {
+        m += luminance(mine.pixels[i]), r += ref[i];
+        if (b) r0 += luminance(a.pixels[i]), r2 += luminance(b->pixels[i]);
+      }
+      const double k = static_cast<double>(members.size());
+      if (members.size() < kChartTexels || r / k < floor) continue;
+      const double d = m / r - 1, noise = b ? std::abs(r0 - r2) / (2 * r) : 0.0;
+      ++charts;
+      chart_sq += k * d * d, chart_texels += k;
+      if (std::abs(d) > 0.02 && std::abs(d) > 3 * noise) {
+        ++off;
+        const std::size_t c = members.front();
+        std::fprintf(stderr, "chart at %zu,%zu (%zu texels, mean %.4g): %+.2f %% (its reference's noise %.2f %%)\n", c % W, c / W,
+                     members.size(), r / k, 100 * d, 100 * noise);
+      }
+    }
+    std::printf("texels,ratio,rel_rms,rel_rms_net,median,p90,estimate,charts,chart_rms,charts_off\n");
+    std::printf("%zu,%.5f,%.5f,%.5f,%.5f,%.5f,%.5f,%zu,%.5f,%zu\n", rel.size(), sum_mine / sum_ref - 1, std::sqrt(sq / n),
                 std::sqrt(std::max(0.0, (sq - sq_var) / n)), rel[rel.size() / 2], rel[static_cast<std::size_t>(0.9 * (n - 1))],
-                std::sqrt(sq_estimate / n));
+                std::sqrt(sq_estimate / n), charts, charts ? std::sqrt(chart_sq / chart_texels) : 0.0, off);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sirad_bench_lightmap: %s\n", e.what());
     return 1;
