@@ -70,6 +70,7 @@ struct Outline {
   double extent;  // the outline's longest extent
   double reach;   // the largest gap cut for: kGapCut (an emitter) or kGapCutSurface x its extent
   bool emits;     // an emitter's (an emitter's back is a surface like any other)
+  std::size_t first;  // its first triangle: of two faces at one place facing one way, the later is on top
   glm::dvec3 lo, hi;
 };
 
@@ -132,8 +133,8 @@ Outlines surface_outlines(const Scene& scene, bool emitting) {
   std::vector<Outline>& emitters = out.outlines;
   std::vector<std::size_t>& emitter_of = out.outline_of;
   emitter_of.assign(scene.triangles.size(), kNone);
-  auto add = [&](Poly outline, const glm::dvec3& n, bool emits) {
-    Outline em{std::move(outline), n, 0.0, 0.0, emits, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
+  auto add = [&](Poly outline, const glm::dvec3& n, bool emits, std::size_t first) {
+    Outline em{std::move(outline), n, 0.0, 0.0, emits, first, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
     for (const glm::dvec3& a : em.p)
       for (const glm::dvec3& b : em.p) em.extent = std::max(em.extent, glm::length(b - a));
     em.reach = (emitting ? kGapCut : kGapCutSurface) * em.extent;  // an emitter's back: kGapCutSurface
@@ -147,14 +148,14 @@ Outlines surface_outlines(const Scene& scene, bool emitting) {
     const bool emits = scene.materials[scene.triangles[members[0]].material].emits();
     Poly outline = members.size() > 1 ? convex_outline(scene.triangles, members, n) : Poly{};
     if (!outline.empty() && outline.size() <= 256) {
-      add(std::move(outline), n, emits);
+      add(std::move(outline), n, emits, *std::min_element(members.begin(), members.end()));
       for (std::size_t i : members) emitter_of[i] = emitters.size() - 1;
       continue;
     }
     if (!emitting && members.size() > 1) continue;
     for (std::size_t i : members) {
       const Triangle& t = scene.triangles[i];
-      add(Poly{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, normal_of(i), emits);
+      add(Poly{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, normal_of(i), emits, i);
       emitter_of[i] = emitters.size() - 1;
     }
   }
@@ -387,10 +388,12 @@ void cut_along_gaps(Scene& scene) {
         const double facing = glm::dot(n, s.n);
         if (!(std::abs(facing) > 0.9999)) return;  // parallel, its front or its back towards the face
         if (s.emits && facing < 0.0) return;        // an emitter's front: cut with its strips above
-        // The surface lies in front of the face, further than the coincident-face rule's tie
-        // (closer, it is the same place, or the face's own surface).
+        // The surface lies in front of the face, further than the coincident-face rule's tie; or
+        // within the tie, facing the same way and later, so on top of it (a rug laid on a floor).
+        // (Within the tie and earlier, it is under the face, or the face's own surface.)
         const double gap = glm::dot(s.p[0] - a, n);
-        if (!(gap > coincident && gap <= s.reach)) return;
+        const bool on_top = std::abs(gap) <= coincident && facing > 0.0 && s.first > i;
+        if (!on_top && !(gap > coincident && gap <= s.reach)) return;
         // An outline edge that runs along one of the face's own edges (a wardrobe's back and the
         // wall both end at the floor) leaves, after float rounding, slivers up to about 1e-7 m wide
         // on either side: a part under 1e-6 of the face's double area stays with its neighbour.

@@ -112,13 +112,14 @@ void add_back_faces(Scene& scene);
 // pieces keep the face's material, object and line (at most about 1024 pieces a face). Scenes
 // with more than kMaxGapCutPairs (emitter, face) pairs are left as they are.
 // Every face that faces another surface (its front or its back) across a gap of at most
-// kGapCutSurface times that surface's extent (and more than contact_tolerance: closer, the two
-// are one place, under the coincident-face rule) (a wall 5 cm behind a wardrobe's back, a floor under
-// a rug or a sofa) is cut along its outline too, where the surface is one outline (its triangles
-// of one material and plane fill their convex hull, or it is one triangle), so that no patch
-// averages the light of the room with the shadow in the gap; no strips (the gap is dark, not
-// bright). Its pieces over the surface are Triangle::in_gap as well. Faces look at the surfaces
-// near them through a grid; past kMaxGapCutPairs looked at, the rest are not cut for surfaces.
+// kGapCutSurface times that surface's extent (a wall 5 cm behind a wardrobe's back, a floor
+// under a rug or a sofa) is cut along its outline too, so that no patch averages the light of the
+// room with the shadow in the gap; and so is a face that another surface lies on, within
+// contact_tolerance, facing its way and later (on top by the coincident-face rule: a rug laid on
+// a floor). Only a surface that is one outline cuts (its triangles of one material and plane fill
+// their convex hull, or it is one triangle). No strips: the gap is dark, not bright. The pieces
+// over the surface are Triangle::in_gap as well. Faces look at the surfaces near them through a
+// grid; past kMaxGapCutPairs looked at, the rest are not cut for surfaces.
 inline constexpr double kGapCut = 0.25;
 inline constexpr double kGapCutSurface = 1.0 / 8.0;
 inline constexpr double kGapStripsFrom = 1.0 / 256.0;

@@ -219,7 +219,7 @@ TEST(Coincident, FreeStandingZeroThicknessPanel) {
   Solved s = solved(panel_room(rot), 1500);
   auto regions = panel_regions(s.mesh, rot);
   expect_transport_agrees("panel room", s, regions, 48);
-  expect_direct_agrees("panel room", s, regions, 512);
+  expect_direct_agrees("panel room", s, regions, 1024);
 }
 
 // The floor patches wholly under the rug (their vertices inside its footprint), and beside it.
@@ -246,7 +246,9 @@ TEST(Coincident, RugAtZeroGapCoversTheFloor) {
   test::Region under = floor_part(s.mesh, rot, true);
   std::size_t count = 0;
   for (std::size_t j = 0; j < s.mesh.size(); ++j) count += under.in[j];
-  ASSERT_GT(count, 10u);
+  // The floor is cut along the rug's outline (scene.h cut_along_gaps), and its pieces under the
+  // rug, which no light reaches, are meshed whole (Triangle::unlit): a few patches.
+  ASSERT_GT(count, 0u);
   auto engine = make_cl_engine(s.mesh);
   std::vector<glm::vec4> input(s.mesh.size());
   for (std::size_t j = 0; j < s.mesh.size(); ++j) input[j] = glm::vec4(glm::vec3(s.ref.radiosity[j]), 0.0f);

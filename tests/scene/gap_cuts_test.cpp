@@ -105,25 +105,37 @@ TEST(GapCuts, ASurfaceThatIsNoConvexOutlineCutsNothing) {
   EXPECT_EQ(behind, 0.0);
 }
 
-// A rug 2 mm over the floor: the floor is cut along its outline (the rug's back faces the floor),
-// and the pieces under it are marked.
+// A rug 2 mm over the floor, or laid on it (zero gap: the later face is on top by the
+// coincident-face rule): the floor is cut along the rug's outline (the rug's back faces the
+// floor), the pieces under it are marked, and the rug itself, the later face, is neither cut nor
+// marked.
 TEST(GapCuts, AFloorUnderARugIsCutAlongItsOutline) {
   const glm::dmat3 r = test::oblique(-31.0);
-  const Scene s = test::rug_room(0.002, r);
-  const glm::dmat3 back = glm::transpose(r);
-  double under = 0.0, floor = 0.0;
-  for (const Triangle& t : s.triangles) {
-    const dvec3 a = back * dvec3(t.p[0]), b = back * dvec3(t.p[1]), c = back * dvec3(t.p[2]);
-    const dvec3 n = glm::cross(b - a, c - a);
-    if (!(std::abs(a.y) < 1e-5 && std::abs(b.y) < 1e-5 && std::abs(c.y) < 1e-5 && n.y > 0.0)) continue;
-    const dvec3 m = (a + b + c) / 3.0;
-    const bool centre_in = m.x > 1.1 && m.x < 2.7 && m.z > 1.3 && m.z < 2.5;
-    EXPECT_EQ(t.in_gap, centre_in) << "x " << m.x << " z " << m.z;
-    floor += 0.5 * glm::length(n);
-    if (centre_in) under += 0.5 * glm::length(n);
+  for (const double gap : {0.002, 0.0}) {
+    SCOPED_TRACE(gap);
+    const Scene s = test::rug_room(gap, r);
+    const glm::dmat3 back = glm::transpose(r);
+    double under = 0.0, floor = 0.0;
+    std::size_t rug = 0;
+    for (const Triangle& t : s.triangles) {
+      if (s.materials[t.material].name == "rug") {
+        ++rug;
+        EXPECT_FALSE(t.in_gap);
+        continue;
+      }
+      const dvec3 a = back * dvec3(t.p[0]), b = back * dvec3(t.p[1]), c = back * dvec3(t.p[2]);
+      const dvec3 n = glm::cross(b - a, c - a);
+      if (!(std::abs(a.y) < 1e-5 && std::abs(b.y) < 1e-5 && std::abs(c.y) < 1e-5 && n.y > 0.0)) continue;
+      const dvec3 m = (a + b + c) / 3.0;
+      const bool centre_in = m.x > 1.1 && m.x < 2.7 && m.z > 1.3 && m.z < 2.5;
+      EXPECT_EQ(t.in_gap, centre_in) << "x " << m.x << " z " << m.z;
+      floor += 0.5 * glm::length(n);
+      if (centre_in) under += 0.5 * glm::length(n);
+    }
+    EXPECT_EQ(rug, 2u);
+    EXPECT_NEAR(floor, 16.0, 1e-4);
+    EXPECT_NEAR(under, 1.6 * 1.2, 1e-4);
   }
-  EXPECT_NEAR(floor, 16.0, 1e-4);
-  EXPECT_NEAR(under, 1.6 * 1.2, 1e-4);
 }
 
 // A one-sided lamp 1.5 cm under a ceiling: its back, black, faces the ceiling, which is cut along

@@ -179,13 +179,14 @@ TEST(SceneFile, LoadsObjWithMtlCameraAndLines) {
 }
 
 TEST(SceneFile, ParseObjPolygonsAndDefaultMaterial) {
-  // A pentagon fan-triangulated into 3 triangles with the default material, plus an emitter.
+  // A pentagon fan-triangulated into 3 triangles with the default material, plus an emitter 1 m
+  // above it (on it, it would cut the pentagon: scene.h cut_along_gaps).
   const std::string obj =
       "mtllib lib.mtl\n"
-      "v 0 0 0\nv 2 0 0\nv 3 1 0\nv 1 2 0\nv -1 1 0\n"
+      "v 0 0 0\nv 2 0 0\nv 3 1 0\nv 1 2 0\nv -1 1 0\nv 0 0 1\nv 2 0 1\nv 1 2 1\n"
       "f 1 2 3 4 5\n"
       "usemtl light\n"
-      "f 1/1/1 2/2/2 4//4\n";
+      "f 6/1/1 7/2/2 8//4\n";
   const Scene s = parse_obj("mem", obj, {{"lib.mtl", kMtl}});
   ASSERT_EQ(s.triangles.size(), 4u);
   EXPECT_FALSE(s.camera.has_value());
