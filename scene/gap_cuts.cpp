@@ -334,7 +334,7 @@ void cut_along_gaps(Scene& scene) {
   const Outlines lit = surface_outlines(scene, true);
   const std::vector<Outline>& emitters = lit.outlines;
   const std::vector<std::size_t>& emitter_of = lit.outline_of;
-  const Outlines all = surface_outlines(scene, false);
+  const Outlines all = scene.triangles.size() <= kMaxSurfaceCutFaces ? surface_outlines(scene, false) : Outlines{};
   const std::vector<Outline>& others = all.outlines;
   if (emitters.empty() && others.empty()) return;
   glm::dvec3 scene_lo(std::numeric_limits<double>::infinity()), scene_hi(-std::numeric_limits<double>::infinity());

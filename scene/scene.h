@@ -119,7 +119,9 @@ void add_back_faces(Scene& scene);
 // a floor). Only a surface that is one outline cuts (its triangles of one material and plane fill
 // their convex hull, or it is one triangle). No strips: the gap is dark, not bright. The pieces
 // over the surface are Triangle::in_gap as well. Faces look at the surfaces near them through a
-// grid; past kMaxGapCutPairs looked at, the rest are not cut for surfaces.
+// grid; past kMaxGapCutPairs looked at, the rest are not cut for surfaces, and a scene of more
+// than kMaxSurfaceCutFaces triangles is cut for its emitters only (grouping every triangle into
+// surfaces would take minutes and gigabytes).
 inline constexpr double kGapCut = 0.25;
 inline constexpr double kGapCutSurface = 1.0 / 8.0;
 inline constexpr double kGapStripsFrom = 1.0 / 256.0;
@@ -132,6 +134,7 @@ inline constexpr std::array<double, 1> kGapStripsEmitter = {2.0};
 // face's own edges cut off a strip's corner stay with the piece beside them.
 inline constexpr double kGapStripLeast = 1.0 / 8.0;
 inline constexpr double kMaxGapCutPairs = 1e8;
+inline constexpr std::size_t kMaxSurfaceCutFaces = std::size_t{1} << 20;
 void cut_along_gaps(Scene& scene);
 // Marks the faces no light reaches (Triangle::unlit): no random walk from a face's front
 // (scene/light_walks.h) meets or sees an emitter's front: the outer faces of a building's walls
