@@ -90,34 +90,34 @@ struct Outlines {
 // edges are no outline). Emitters: none when the scene has more pairs of emitting and other
 // triangles than kMaxGapCutPairs.
 Outlines surface_outlines(const Scene& scene, bool emitting) {
-  std::vector<std::size_t> lights;  // the triangles grouped
+  std::vector<std::size_t> faces;  // the triangles grouped
   for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
     const Triangle& t = scene.triangles[i];
     if (emitting && !scene.materials[t.material].emits()) continue;
     if (!(glm::length(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0]))) > 0.0)) continue;
-    lights.push_back(i);
+    faces.push_back(i);
   }
-  if (lights.empty()) return {};
-  if (emitting && static_cast<double>(lights.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return {};
+  if (faces.empty()) return {};
+  if (emitting && static_cast<double>(faces.size()) * static_cast<double>(scene.triangles.size()) > kMaxGapCutPairs) return {};
   auto normal_of = [&](std::size_t i) {
     const Triangle& t = scene.triangles[i];
     return glm::normalize(glm::cross(glm::dvec3(t.p[1] - t.p[0]), glm::dvec3(t.p[2] - t.p[0])));
   };
-  std::vector<std::size_t> parent(lights.size());
+  std::vector<std::size_t> parent(faces.size());
   for (std::size_t a = 0; a < parent.size(); ++a) parent[a] = a;
   auto find = [&](std::size_t a) {
     while (parent[a] != a) a = parent[a] = parent[parent[a]];
     return a;
   };
   {
-    std::map<std::array<float, 3>, std::vector<std::size_t>> at;  // corner -> lights there (a few each)
-    for (std::size_t a = 0; a < lights.size(); ++a)
-      for (const glm::vec3& q : scene.triangles[lights[a]].p) {
+    std::map<std::array<float, 3>, std::vector<std::size_t>> at;  // corner -> faces there (a few each)
+    for (std::size_t a = 0; a < faces.size(); ++a)
+      for (const glm::vec3& q : scene.triangles[faces[a]].p) {
         std::vector<std::size_t>& here = at[{q.x, q.y, q.z}];
-        const glm::dvec3 na = normal_of(lights[a]);
+        const glm::dvec3 na = normal_of(faces[a]);
         for (std::size_t b : here) {
-          const Triangle &ta = scene.triangles[lights[a]], &tb = scene.triangles[lights[b]];
-          if (ta.material != tb.material || !(glm::dot(na, normal_of(lights[b])) > 1.0 - 5e-9)) continue;
+          const Triangle &ta = scene.triangles[faces[a]], &tb = scene.triangles[faces[b]];
+          if (ta.material != tb.material || !(glm::dot(na, normal_of(faces[b])) > 1.0 - 5e-9)) continue;
           double extent = 0.0;
           for (const glm::vec3& r : tb.p) extent = std::max(extent, glm::length(glm::dvec3(r - ta.p[0])));
           bool plane = true;
@@ -128,11 +128,11 @@ Outlines surface_outlines(const Scene& scene, bool emitting) {
       }
   }
   std::map<std::size_t, std::vector<std::size_t>> groups;
-  for (std::size_t a = 0; a < lights.size(); ++a) groups[find(a)].push_back(lights[a]);
+  for (std::size_t a = 0; a < faces.size(); ++a) groups[find(a)].push_back(faces[a]);
   Outlines out;
-  std::vector<Outline>& emitters = out.outlines;
-  std::vector<std::size_t>& emitter_of = out.outline_of;
-  emitter_of.assign(scene.triangles.size(), kNone);
+  std::vector<Outline>& outlines = out.outlines;
+  std::vector<std::size_t>& outline_of = out.outline_of;
+  outline_of.assign(scene.triangles.size(), kNone);
   auto add = [&](Poly outline, const glm::dvec3& n, bool emits, std::size_t first) {
     Outline em{std::move(outline), n, 0.0, 0.0, emits, first, glm::dvec3(std::numeric_limits<double>::infinity()), glm::dvec3(-std::numeric_limits<double>::infinity())};
     for (const glm::dvec3& a : em.p)
@@ -141,7 +141,7 @@ Outlines surface_outlines(const Scene& scene, bool emitting) {
     for (const glm::dvec3& a : em.p) em.lo = glm::min(em.lo, a), em.hi = glm::max(em.hi, a);
     em.lo -= glm::dvec3(em.reach);
     em.hi += glm::dvec3(em.reach);
-    emitters.push_back(std::move(em));
+    outlines.push_back(std::move(em));
   };
   for (const auto& [root, members] : groups) {
     const glm::dvec3 n = normal_of(members[0]);
@@ -149,24 +149,24 @@ Outlines surface_outlines(const Scene& scene, bool emitting) {
     Poly outline = members.size() > 1 ? convex_outline(scene.triangles, members, n) : Poly{};
     if (!outline.empty() && outline.size() <= 256) {
       add(std::move(outline), n, emits, *std::min_element(members.begin(), members.end()));
-      for (std::size_t i : members) emitter_of[i] = emitters.size() - 1;
+      for (std::size_t i : members) outline_of[i] = outlines.size() - 1;
       continue;
     }
     if (!emitting && members.size() > 1) continue;
     for (std::size_t i : members) {
       const Triangle& t = scene.triangles[i];
       add(Poly{glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, normal_of(i), emits, i);
-      emitter_of[i] = emitters.size() - 1;
+      outline_of[i] = outlines.size() - 1;
     }
   }
   return out;
 }
 
-// Each piece's marks: kOver, it lies over an emitter's outline (Triangle::in_gap); kStrip, it
+// Each piece's marks: kOver, it lies over an outline (Triangle::in_gap); kStrip, it
 // lies in a strip along the outline (Triangle::whole).
 constexpr uint8_t kOver = 1, kStrip = 2;
 
-// One face's pieces as the cuts along emitters' outlines leave them, with their marks.
+// One face's pieces as the cuts along outlines leave them, with their marks.
 class Cutter {
  public:
   // Starts a face: one piece, with `marks`.
