@@ -114,15 +114,15 @@ int main(int argc, char** argv) {
       if (compared[i]) lit.push_back(ref[i]);
     std::nth_element(lit.begin(), lit.begin() + static_cast<std::ptrdiff_t>(lit.size() / 2), lit.end());
     const double floor = kChartFloor * lit[lit.size() / 2];
-    std::vector<int32_t> label(ref.size(), -1);
+    std::vector<uint8_t> seen(ref.size(), 0);  // flooded into a chart
     std::vector<std::size_t> stack, members;
     double chart_sq = 0, chart_texels = 0;
     std::size_t charts = 0, off = 0;
     for (std::size_t start = 0; start < ref.size(); ++start) {
-      if (!compared[start] || label[start] >= 0) continue;
+      if (!compared[start] || seen[start]) continue;
       members.clear();
       stack.assign(1, start);
-      label[start] = 0;
+      seen[start] = 1;
       while (!stack.empty()) {
         const std::size_t i = stack.back();
         stack.pop_back();
@@ -132,7 +132,7 @@ int main(int argc, char** argv) {
         for (int k = 0; k < 4; ++k) {
           if (nx[k] < 0 || ny[k] < 0 || nx[k] >= W || ny[k] >= H) continue;
           const std::size_t j = static_cast<std::size_t>(ny[k]) * W + nx[k];
-          if (compared[j] && label[j] < 0) label[j] = 0, stack.push_back(j);
+          if (compared[j] && !seen[j]) seen[j] = 1, stack.push_back(j);
         }
       }
       double m = 0, r = 0, r0 = 0, r2 = 0;

@@ -2,9 +2,7 @@
 // or any other's (scene/scene.h cut_along_gaps). The lamp's cuts and strips are tested with the
 // first shot (tests/engine/shot_test.cpp, GapCuts.*); these are the other surfaces'.
 #include <cmath>
-#include <string>
 
-#include <fmt/format.h>
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <gtest/gtest.h>

@@ -512,12 +512,12 @@ TEST_F(ReferenceCli, WritesOutputsAndTheFileRoundTrips) {
 }
 
 // A reference's PLY says its own error (its standard errors' relative RMS, the measure of the
-// solver's estimate), and that is its error: two references of the Cornell box with other seeds differ by d, the
-// relative RMS difference per patch, with E[d^2] = e1^2 + e2^2 for independent errors. At 300
-// patches (about 100 patches' worth of independent weight) d^2 is within about 15 % of that
-// (one standard deviation), and each e from 8 batches is a variance estimate whose relative
-// error, averaged over the patches, is a few per cent: d / sqrt(e1^2 + e2^2) in [0.75, 1.33] is
-// more than three standard deviations wide. Then the PLY starts a warm run, which keeps its
+// solver's estimate), and that is its error: two references of the Cornell box with other
+// seeds differ by d, the relative RMS difference per patch, with E[d^2] = e1^2 + e2^2 for
+// independent errors. At 300 patches (about 100 patches' worth of independent weight) d^2 is
+// within about 15 % of that (one standard deviation), and each e from 8 batches is a variance
+// estimate whose relative error, averaged over the patches, is a few per cent:
+// d / sqrt(e1^2 + e2^2) in [0.75, 1.33] is more than three standard deviations wide. Then the PLY starts a warm run, which keeps its
 // solution (the same scene) and reports its error.
 TEST_F(ReferenceCli, ItsPlySaysItsErrorAndStartsAWarmRun) {
   for (const char* seed : {"1", "2"}) {
