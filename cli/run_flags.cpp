@@ -130,6 +130,9 @@ void add_lightmap_flags(CLI::App* cmd, LightmapFlags& l, bool with_switch) {
                   "bench/RESULTS.md has the trade)")
       ->check(CLI::Range(1, 64))
       ->capture_default_str();
+  cmd->add_flag("--own-atlas", l.own_atlas,
+                "Lay the lightmap out in sirad's own charts even where the scene has its own lightmap UV set (glTF TEXCOORD_1, "
+                "used by default)");
 }
 
 std::vector<std::string> output_args(const OutputFlags& o) {

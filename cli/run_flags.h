@@ -39,6 +39,7 @@ struct LightmapFlags {
   uint64_t texels = uint64_t{1} << 20;   // --texels: the budget
   int samples = 64;                      // --texel-samples
   int lights = 1;                        // --texel-lights: emitter samples per sample
+  bool own_atlas = false;                // --own-atlas: sirad's charts even where the scene has TEXCOORD_1
 };
 
 struct OutputFlags {

@@ -56,10 +56,11 @@ void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const s
   const double median = lit ? relative[lit / 2] : 0.0, rms = values > 0 ? std::sqrt(errors / values) : 0.0;
   namespace fs = std::filesystem;
   for (const std::string& f : {files.exr, files.png, files.glb}) std::printf("wrote %s\n", fs::absolute(f).c_str());
-  std::printf("lightmap %dx%d texels of %.4g, %zu charts (%.0f %% of the atlas), %d samples a texel, %.2f s, "
+  std::printf("lightmap %dx%d texels of %.4g (%s), %zu charts (%.0f %% of the atlas), %d samples a texel, %.2f s, "
               "relative error per texel %.3g %% (median; %.3g %% RMS) over %zu lit texels; the indirect light of %.0f %% of "
               "the texels from the cache\n",
-              atlas.width, atlas.height, atlas.texel_size, atlas.charts.size(), 100 * atlas.fill(), o.lightmap.samples, seconds,
+              atlas.width, atlas.height, atlas.texel_size, atlas.file_side > 0 ? "the scene's TEXCOORD_1" : "sirad's charts",
+              atlas.charts.size(), 100 * atlas.fill(), o.lightmap.samples, seconds,
               100 * median, 100 * rms, lit, covered > 0 ? 100.0 * static_cast<double>(lightmap.cached) / covered : 0.0);
 }
 
@@ -67,7 +68,10 @@ void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const s
 
 Atlas lightmap_atlas(const LightmapFlags& flags, const Scene& scene, Scene* faces) {
   Scene cut = cut_at_contacts(scene);  // no chart across a wall's foot
-  Atlas atlas = make_atlas(cut, {.texel_size = flags.texel_size, .texel_budget = flags.texels});
+  Atlas atlas = make_atlas(cut, {.texel_size = flags.texel_size, .texel_budget = flags.texels, .file_layout = !flags.own_atlas});
+  if (atlas.shared_texels > 0)
+    std::fprintf(stderr, "warning: %s: %zu lightmap texels lie under more than one island of its TEXCOORD_1 (overlapping UVs): "
+                 "each takes the island that covers most of it\n", scene.name.c_str(), atlas.shared_texels);
   if (faces) *faces = std::move(cut);
   return atlas;
 }

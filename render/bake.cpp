@@ -37,14 +37,64 @@ bool inside(const std::array<glm::dvec2, 3>& q, const glm::dvec2& x, glm::dvec3&
   return w.x >= 0.0 && w.y >= 0.0 && w.z >= 0.0;
 }
 
-// Fills the texels of chart rectangle [x0, x1) x [y0, y1) that have no value (coverage 0) with
-// the mean of their neighbours (8-connected) that have one, ring by ring, each ring from the
-// values before it.
-void dilate(Lightmap& m, int x0, int y0, int x1, int y1) {
+// A chart's flat triangles by texel: those whose bounds reach each texel of its rectangle, so
+// that a point finds its triangle among a few (a UV island of a curved surface has thousands).
+class FlatIndex {
+ public:
+  FlatIndex(const Chart& chart, const std::vector<Flat>& flat) : chart_(chart), flat_(flat), start_(cells() + 1, 0) {
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<uint32_t> at(start_.begin(), start_.end() - 1);
+      for (std::size_t f = 0; f < flat.size(); ++f) {
+        const auto& q = flat[f].q;
+        const int x0 = clamp_x(std::min({q[0].x, q[1].x, q[2].x})), x1 = clamp_x(std::max({q[0].x, q[1].x, q[2].x}));
+        const int y0 = clamp_y(std::min({q[0].y, q[1].y, q[2].y})), y1 = clamp_y(std::max({q[0].y, q[1].y, q[2].y}));
+        for (int y = y0; y <= y1; ++y)
+          for (int x = x0; x <= x1; ++x) {
+            const std::size_t cell = static_cast<std::size_t>(y) * static_cast<std::size_t>(chart.width) + static_cast<std::size_t>(x);
+            if (pass == 0) ++start_[cell + 1];
+            else items_[at[cell]++] = static_cast<uint32_t>(f);
+          }
+      }
+      if (pass == 0) {
+        for (std::size_t k = 1; k < start_.size(); ++k) start_[k] += start_[k - 1];
+        items_.resize(start_.back());
+      }
+    }
+  }
+
+  // The first triangle (in the chart's order) that holds texel point `at`, with its barycentric
+  // coordinates; nullptr where none does.
+  const Flat* find(const glm::dvec2& at, glm::dvec3& w) const {
+    if (chart_.width <= 0 || chart_.height <= 0) return nullptr;
+    const std::size_t cell = static_cast<std::size_t>(clamp_y(at.y)) * static_cast<std::size_t>(chart_.width) + static_cast<std::size_t>(clamp_x(at.x));
+    for (uint32_t k = start_[cell]; k < start_[cell + 1]; ++k)
+      if (inside(flat_[items_[k]].q, at, w)) return &flat_[items_[k]];
+    return nullptr;
+  }
+
+ private:
+  std::size_t cells() const { return static_cast<std::size_t>(std::max(chart_.width, 0)) * static_cast<std::size_t>(std::max(chart_.height, 0)); }
+  int clamp_x(double x) const { return std::clamp(static_cast<int>(std::floor(x)) - chart_.x, 0, std::max(chart_.width - 1, 0)); }
+  int clamp_y(double y) const { return std::clamp(static_cast<int>(std::floor(y)) - chart_.y, 0, std::max(chart_.height - 1, 0)); }
+
+  const Chart& chart_;
+  const std::vector<Flat>& flat_;
+  std::vector<uint32_t> start_, items_;
+};
+
+// Fills chart c's texels in its rectangle [x0, x1) x [y0, y1) that have no value (coverage 0)
+// with the mean of their neighbours (8-connected) of the chart that have one, ring by ring, each
+// ring from the values before it. Texels of other charts are neither read nor written.
+void dilate(Lightmap& m, const std::vector<uint32_t>& owner, uint32_t c, int x0, int y0, int x1, int y1) {
   const int w = m.combined.width;
   std::vector<uint8_t> has(static_cast<std::size_t>((x1 - x0) * (y1 - y0)));
   for (int y = y0; y < y1; ++y)
-    for (int x = x0; x < x1; ++x) has[static_cast<std::size_t>((y - y0) * (x1 - x0) + (x - x0))] = m.coverage[static_cast<std::size_t>(y) * w + x] > 0;
+    for (int x = x0; x < x1; ++x) {
+      const std::size_t k = static_cast<std::size_t>(y) * w + x;
+      // Another chart's texel counts as one with a value: it is never filled from this one's.
+      has[static_cast<std::size_t>((y - y0) * (x1 - x0) + (x - x0))] = owner[k] != c || m.coverage[k] > 0;
+    }
+  const auto mine = [&](int a, int b) { return owner[static_cast<std::size_t>(b) * w + a] == c; };
   for (int ring = 0; ring < (x1 - x0) + (y1 - y0); ++ring) {
     std::vector<std::array<int, 2>> filled;
     for (int y = y0; y < y1; ++y)
@@ -55,7 +105,7 @@ void dilate(Lightmap& m, int x0, int y0, int x1, int y1) {
         for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
             const int a = x + dx, b = y + dy;
-            if (a < x0 || a >= x1 || b < y0 || b >= y1 || !has[static_cast<std::size_t>((b - y0) * (x1 - x0) + (a - x0))]) continue;
+            if (a < x0 || a >= x1 || b < y0 || b >= y1 || !mine(a, b) || !has[static_cast<std::size_t>((b - y0) * (x1 - x0) + (a - x0))]) continue;
             d += m.direct.at(a, b), i += m.indirect.at(a, b), e += m.error.at(a, b), ++n;
           }
         if (n == 0) continue;
@@ -85,14 +135,18 @@ constexpr double kCacheContrast = 1.25, kCacheWard = 0.25;
 
 struct Record {
   bool valid = false;
-  glm::dvec3 x{0.0}, e{0.0}, se{0.0};
+  glm::dvec3 x{0.0}, normal{0.0}, e{0.0}, se{0.0};
   double r = 0.0;
 };
 
+// A block's corners lie in one plane within this (a curved chart of the file's layout is
+// interpolated only where it is flat within 2 degrees, as sirad's charts are).
+const double kCacheFlat = std::cos(2.0 * 3.14159265358979323846 / 180.0);
+
 class ChartCache {
  public:
-  ChartCache(const Chart& chart, const std::vector<Flat>& flat, const FinalGather& gather, uint64_t base, int width, double texel)
-      : chart_(chart), flat_(flat), gather_(gather), base_(base), width_(width), texel_(texel) {}
+  ChartCache(const Chart& chart, const FlatIndex& flat, const FinalGather& gather, uint64_t base, int width)
+      : chart_(chart), flat_(flat), gather_(gather), base_(base), width_(width), texel_(chart.texel) {}
 
   // The arriving indirect light (before the reflectance) at texel point (sx, sy) of texel (x, y),
   // and its standard error's estimate; false where the texel's block is not usable.
@@ -121,11 +175,12 @@ class ChartCache {
     Record& r = it->second;
     const glm::dvec2 at(gx, gy);
     glm::dvec3 w;
-    const auto f = std::find_if(flat_.begin(), flat_.end(), [&](const Flat& g) { return inside(g.q, at, w); });
-    if (f == flat_.end()) return r;
+    const Flat* f = flat_.find(at, w);
+    if (!f) return r;
     r.x = f->p[0] * w.x + f->p[1] * w.y + f->p[2] * w.z;
-    if (gather_.enclosed(r.x, chart_.normal) || gather_.covered(r.x, chart_.normal, f->object)) return r;
-    r.e = gather_.arriving(r.x, chart_.normal, kRecordRays, base_ + key, r.se, r.r, cast);
+    r.normal = chart_.flat ? chart_.normal : f->normal;
+    if (gather_.enclosed(r.x, r.normal) || gather_.covered(r.x, r.normal, f->object)) return r;
+    r.e = gather_.arriving(r.x, r.normal, kRecordRays, base_ + key, r.se, r.r, cast);
     r.valid = true;
     return r;
   }
@@ -142,19 +197,20 @@ class ChartCache {
       if (!ok) break;
       const double y = a->e.x + a->e.y + a->e.z, se = a->se.x + a->se.y + a->se.z;
       dim = std::min(dim, y + 2 * se), bright = std::max(bright, y - 2 * se), r = std::min(r, a->r);
+      ok = glm::dot(a->normal, c[0]->normal) >= kCacheFlat;
     }
     ok = ok && bright <= kCacheContrast * dim && (side <= kCacheSides.back() || side * texel_ * std::sqrt(2.0) <= kCacheWard * r);
     for (std::size_t a = 0; a < 4 && ok; ++a)
       for (std::size_t b = a + 1; b < 4 && ok; ++b) {
         ++cast;
-        ok = gather_.in_sight(c[a]->x, c[b]->x, chart_.normal);
+        ok = gather_.in_sight(c[a]->x, c[b]->x, c[a]->normal);
       }
     blocks_.emplace(key, ok);
     return ok;
   }
 
   const Chart& chart_;
-  const std::vector<Flat>& flat_;
+  const FlatIndex& flat_;
   const FinalGather& gather_;
   uint64_t base_;
   int width_;
@@ -168,7 +224,8 @@ class ChartCache {
 Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples, int lights) {
   if (samples < 1 || samples > 4096) fail("lightmap: {} samples per texel (1..4096)", samples);
   if (lights < 1 || lights > 64) fail("lightmap: {} emitter samples per sample (1..64)", lights);
-  if (atlas.uv.size() != scene.triangles.size() || atlas.width < 1 || atlas.height < 1)
+  if (atlas.uv.size() != scene.triangles.size() || atlas.width < 1 || atlas.height < 1 ||
+      atlas.owner.size() != static_cast<std::size_t>(atlas.width) * static_cast<std::size_t>(atlas.height))
     fail("lightmap: an atlas of {} triangles for a scene of {}", atlas.uv.size(), scene.triangles.size());
   const int W = atlas.width, H = atlas.height;
   Lightmap m;
@@ -204,18 +261,20 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
     std::vector<FinalGather::SurfacePoint> points;
     std::array<std::vector<FinalGather::SurfacePoint>, 2> halves;
     std::vector<std::array<double, 2>> kept;  // the kept samples' texel points
-    ChartCache cache(chart, flat, gather, 2 * texels, W, atlas.texel_size);
+    const FlatIndex index(chart, flat);
+    ChartCache cache(chart, index, gather, 2 * texels, W);
     for (int y = chart.y; y < chart.y + chart.height; ++y)
       for (int x = chart.x; x < chart.x + chart.width; ++x) {
         const uint64_t key = static_cast<uint64_t>(y) * static_cast<uint64_t>(W) + static_cast<uint64_t>(x);
+        if (atlas.owner[static_cast<std::size_t>(key)] != c) continue;  // another chart's (the file's layout)
         Rng jitter(seed, key, 1, kTexelJitter);
         stratified_square(samples, jitter, positions);
         points.clear(), kept.clear();
         for (const auto& [sx, sy] : positions) {
           const glm::dvec2 at(x + sx, y + sy);
           glm::dvec3 w;
-          const auto f = std::find_if(flat.begin(), flat.end(), [&](const Flat& g) { return inside(g.q, at, w); });
-          if (f == flat.end()) continue;  // beyond the chart's outline
+          const Flat* f = index.find(at, w);
+          if (!f) continue;  // beyond the chart's outline
           const glm::dvec3 p = f->p[0] * w.x + f->p[1] * w.y + f->p[2] * w.z;
           if (gather.enclosed(p, f->normal)) continue;             // inside a solid
           if (gather.covered(p, f->normal, f->object)) continue;   // under a rug laid on it
@@ -256,7 +315,7 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
         m.coverage[k] = static_cast<float>(points.size()) / static_cast<float>(samples);
       }
     // Step 3: the empty texels from their chart's.
-    dilate(m, chart.x, chart.y, chart.x + chart.width, chart.y + chart.height);
+    dilate(m, atlas.owner, static_cast<uint32_t>(c), chart.x, chart.y, chart.x + chart.width, chart.y + chart.height);
   });
   for (uint64_t n : cast) m.rays += n;
   for (uint64_t n : cached_texels) m.cached += n;

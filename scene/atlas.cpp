@@ -189,8 +189,9 @@ Frame chart_frame(const Scene& scene, const std::vector<uint32_t>& tris, const s
 
 // The charts' rectangles at `texel` packed in shelves, tallest first, into a width near the
 // square root of their area; false when a side passes max_side.
+// With fixed_width > 0, the shelves are that wide (or as wide as the widest chart).
 bool pack(std::vector<Chart>& charts, const std::vector<Frame>& frames, double texel, const AtlasOptions& o, int& width,
-          int& height) {
+          int& height, int fixed_width = 0) {
   double texels = 0;
   for (std::size_t c = 0; c < charts.size(); ++c) {
     const double w = std::ceil(frames[c].extent_u / texel) + 2.0 * o.gutter, h = std::ceil(frames[c].extent_v / texel) + 2.0 * o.gutter;
@@ -207,7 +208,7 @@ bool pack(std::vector<Chart>& charts, const std::vector<Frame>& frames, double t
   });
   int widest = 0;
   for (const Chart& c : charts) widest = std::max(widest, c.width);
-  width = std::max(widest, static_cast<int>(std::ceil(std::sqrt(texels))));
+  width = std::max(widest, fixed_width > 0 ? fixed_width : static_cast<int>(std::ceil(std::sqrt(texels))));
   int x = 0, y = 0, shelf = 0;
   for (std::size_t i : order) {
     Chart& c = charts[i];
@@ -226,9 +227,7 @@ bool pack(std::vector<Chart>& charts, const std::vector<Frame>& frames, double t
 }  // namespace
 
 double Atlas::fill() const {
-  double used = 0;
-  for (const Chart& c : charts) used += double(c.width - 2 * gutter) * (c.height - 2 * gutter);
-  return width > 0 && height > 0 ? used / (double(width) * height) : 0.0;
+  return width > 0 && height > 0 ? static_cast<double>(face_texels) / (double(width) * height) : 0.0;
 }
 
 Scene cut_at_contacts(const Scene& scene) {
@@ -289,6 +288,136 @@ Scene cut_at_contacts(const Scene& scene) {
   return out;
 }
 
+namespace {
+
+// Sirad's charts of the triangles `groups` holds, packed at `texel` (fixed_width as pack's), with
+// their corners' UV in texels (atlas.uv, over the atlas's size later) and their texels' owners.
+bool place_own(const Scene& scene, const std::vector<std::vector<uint32_t>>& groups, const std::vector<glm::dvec3>& normal,
+               const std::vector<double>& area, double texel, const AtlasOptions& o, int fixed_width, std::vector<Chart>& charts,
+               int& width, int& height) {
+  std::vector<Frame> frames;
+  charts.clear();
+  for (const auto& g : groups) {
+    frames.push_back(chart_frame(scene, g, normal, area));
+    Chart c;
+    c.triangles = g;
+    c.origin = frames.back().origin, c.u = frames.back().u, c.v = frames.back().v, c.normal = frames.back().normal;
+    c.texel = texel;
+    charts.push_back(std::move(c));
+  }
+  return texel > 0 && pack(charts, frames, texel, o, width, height, fixed_width);
+}
+
+// Each corner of sirad's charts at its place in its chart's frame, in texels.
+void own_uv(const Scene& scene, const std::vector<Chart>& charts, int gutter, std::vector<std::array<glm::dvec2, 3>>& uv) {
+  for (const Chart& ch : charts)
+    for (uint32_t t : ch.triangles)
+      for (int k = 0; k < 3; ++k) {
+        const glm::dvec3 d = corner(scene.triangles[t], k) - ch.origin;
+        uv[t][static_cast<std::size_t>(k)] = {ch.x + gutter + glm::dot(d, ch.u) / ch.texel, ch.y + gutter + glm::dot(d, ch.v) / ch.texel};
+      }
+}
+
+bool inside2(const std::array<glm::dvec2, 3>& q, const glm::dvec2& x) {
+  const double a = cross2(q[0], q[1], x), b = cross2(q[1], q[2], x), c = cross2(q[2], q[0], x);
+  return (a >= 0 && b >= 0 && c >= 0) || (a <= 0 && b <= 0 && c <= 0);
+}
+
+// The file's charts: its placed faces joined by corners at the same place with the same UV.
+std::vector<std::vector<uint32_t>> file_charts(const Scene& scene, const std::vector<uint8_t>& placed,
+                                               const std::vector<std::array<glm::dvec2, 3>>& uv) {
+  const std::size_t n = scene.triangles.size();
+  std::vector<uint32_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0u);
+  const auto root = [&](uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  std::map<std::array<float, 5>, uint32_t> first;
+  for (uint32_t i = 0; i < n; ++i) {
+    if (!placed[i]) continue;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const glm::vec3& p = scene.triangles[i].p[k];
+      const std::array<float, 5> key = {p.x, p.y, p.z, static_cast<float>(uv[i][k].x), static_cast<float>(uv[i][k].y)};
+      const auto [it, added] = first.emplace(key, i);
+      if (!added) {
+        const uint32_t a = root(i), b = root(it->second);
+        parent[std::max(a, b)] = std::min(a, b);
+      }
+    }
+  }
+  std::vector<std::vector<uint32_t>> charts;
+  std::vector<uint32_t> chart_of_root(n, kNoChart);
+  for (uint32_t i = 0; i < n; ++i) {
+    if (!placed[i]) continue;
+    uint32_t& c = chart_of_root[root(i)];
+    if (c == kNoChart) c = static_cast<uint32_t>(charts.size()), charts.emplace_back();
+    charts[c].push_back(i);
+  }
+  return charts;
+}
+
+// The owners of the file's square of `side` texels (Atlas::owner, `width` wide): each texel the
+// chart whose faces cover most of its 4 x 4 points, then `gutter` rings around them. Returns the
+// texels of the faces; counts in `shared` those that a second chart covers 4 points of.
+std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, const std::vector<std::array<glm::dvec2, 3>>& uv, int side,
+                            int width, int gutter, std::vector<uint32_t>& owner, std::size_t& shared) {
+  const std::size_t texels = static_cast<std::size_t>(side) * static_cast<std::size_t>(side);
+  std::vector<uint16_t> best(texels, 0), here(texels, 0);
+  std::vector<uint8_t> contested(texels, 0);
+  std::vector<uint32_t> touched;
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    touched.clear();
+    for (uint32_t t : charts[c]) {
+      std::array<glm::dvec2, 3> q;
+      for (std::size_t k = 0; k < 3; ++k) q[k] = uv[t][k] * double(side);
+      const glm::dvec2 lo = glm::min(q[0], glm::min(q[1], q[2])), hi = glm::max(q[0], glm::max(q[1], q[2]));
+      const int x0 = std::clamp(static_cast<int>(std::floor(lo.x)), 0, side - 1), x1 = std::clamp(static_cast<int>(std::floor(hi.x)), 0, side - 1);
+      const int y0 = std::clamp(static_cast<int>(std::floor(lo.y)), 0, side - 1), y1 = std::clamp(static_cast<int>(std::floor(hi.y)), 0, side - 1);
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x) {
+          int count = 0;
+          for (int s = 0; s < 16; ++s) count += inside2(q, {x + (s % 4 + 0.5) / 4, y + (s / 4 + 0.5) / 4});
+          if (count == 0) continue;
+          const std::size_t k = static_cast<std::size_t>(y) * static_cast<std::size_t>(side) + static_cast<std::size_t>(x);
+          if (here[k] == 0) touched.push_back(static_cast<uint32_t>(k));
+          here[k] = static_cast<uint16_t>(std::min(16, here[k] + count));
+        }
+    }
+    for (uint32_t k : touched) {
+      const std::size_t at = (k / static_cast<uint32_t>(side)) * static_cast<std::size_t>(width) + k % static_cast<uint32_t>(side);
+      if (best[k] >= 4 && here[k] >= 4) contested[k] = 1;
+      if (here[k] > best[k]) best[k] = here[k], owner[at] = static_cast<uint32_t>(c);
+      here[k] = 0;
+    }
+  }
+  std::size_t faces = 0;
+  for (std::size_t k = 0; k < texels; ++k) faces += best[k] > 0, shared += contested[k];
+  // The gutters: ring by ring, an empty texel next to (8-connected) a chart's takes the lowest.
+  std::vector<std::pair<std::size_t, uint32_t>> ring;
+  for (int r = 0; r < gutter; ++r) {
+    ring.clear();
+    for (int y = 0; y < side; ++y)
+      for (int x = 0; x < side; ++x) {
+        const std::size_t at = static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
+        if (owner[at] != kNoChart) continue;
+        uint32_t c = kNoChart;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int a = x + dx, b = y + dy;
+            if (a >= 0 && a < side && b >= 0 && b < side)
+              c = std::min(c, owner[static_cast<std::size_t>(b) * static_cast<std::size_t>(width) + static_cast<std::size_t>(a)]);
+          }
+        if (c != kNoChart) ring.emplace_back(at, c);
+      }
+    if (ring.empty()) break;
+    for (const auto& [at, c] : ring) owner[at] = c;
+  }
+  return faces;
+}
+
+}  // namespace
+
 Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
   // Step 1: the options, and each triangle's normal and area.
   if (!(o.texel_size >= 0) || !std::isfinite(o.texel_size)) fail("atlas: texel size {} is not a finite length >= 0", o.texel_size);
@@ -312,23 +441,58 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
   }
   const double extent = glm::length(hi - lo);
 
-  // Step 2: the charts and their frames.
+  // Step 2: the faces the file places (fronts with a UV map of some area, in the unit square),
+  // their UV, and the UV area and surface they have.
+  std::vector<std::array<glm::dvec2, 3>> uv(n);
+  std::vector<uint8_t> placed(n, 0);
+  double uv_area = 0, placed_area = 0;
+  if (o.file_layout)
+    for (std::size_t i = 0; i < n; ++i) {
+      const Triangle& t = scene.triangles[i];
+      if (t.back || t.uv_map >= scene.uv_maps.size() || !(area[i] > 0)) continue;
+      bool in = true;
+      for (std::size_t k = 0; k < 3; ++k) {
+        uv[i][k] = scene.uv_maps[t.uv_map].at(corner(t, static_cast<int>(k)));
+        in = in && uv[i][k].x >= -1e-6 && uv[i][k].x <= 1 + 1e-6 && uv[i][k].y >= -1e-6 && uv[i][k].y <= 1 + 1e-6;
+      }
+      const double a = 0.5 * std::abs(cross2(uv[i][0], uv[i][1], uv[i][2]));
+      if (!in || !(a > 0)) continue;
+      placed[i] = 1, uv_area += a, placed_area += area[i];
+    }
+  const bool file = placed_area > 0;
+
+  // Step 3: sirad's charts (of the faces the file does not place).
   Atlas atlas;
   atlas.gutter = o.gutter;
-  const std::vector<std::vector<uint32_t>> groups = find_charts(scene, normal);
-  std::vector<Frame> frames;
-  for (const auto& g : groups) {
-    frames.push_back(chart_frame(scene, g, normal, area));
-    Chart c;
-    c.triangles = g;
-    c.origin = frames.back().origin, c.u = frames.back().u, c.v = frames.back().v, c.normal = frames.back().normal;
-    atlas.charts.push_back(std::move(c));
+  std::vector<std::vector<uint32_t>> groups = find_charts(scene, normal);
+  if (file) {
+    for (auto& g : groups) std::erase_if(g, [&](uint32_t t) { return placed[t] != 0; });
+    std::erase_if(groups, [](const std::vector<uint32_t>& g) { return g.empty(); });
   }
 
-  // Step 3: the texel size (given, or grown from the budget's until the atlas fits) and the packing.
+  // Step 4: the texel size (given, or grown from the budget's until the atlas fits) and the
+  // packing: the file's square (its side from the texel size) with sirad's charts below it.
   double texel = o.texel_size > 0 ? o.texel_size : std::sqrt(total / static_cast<double>(o.texel_budget));
+  int side = 0;
   for (int tries = 0;; ++tries) {
-    if (texel > 0 && pack(atlas.charts, frames, texel, o, atlas.width, atlas.height)) break;
+    bool fits = texel > 0;
+    if (fits && file) {
+      const double s = std::ceil(std::sqrt(placed_area / uv_area) / texel / 4) * 4;
+      fits = s <= o.max_side;
+      side = fits ? static_cast<int>(s) : 0;
+    }
+    int band_width = 0, band_height = 0;
+    if (fits && !groups.empty()) {
+      const double own = file ? std::sqrt(placed_area / uv_area) / side : texel;
+      AtlasOptions below = o;
+      below.max_side = o.max_side - side;
+      fits = below.max_side >= 1 && place_own(scene, groups, normal, area, own, below, side, atlas.charts, band_width, band_height);
+    }
+    if (fits) {
+      atlas.width = std::max(side, band_width), atlas.height = side + band_height;
+      fits = atlas.width <= o.max_side && atlas.height <= o.max_side;
+    }
+    if (fits) break;
     if (o.texel_size > 0)
       fail("atlas: texels of {:.6g} make an atlas of more than {} x {} texels for {} ({:.4g} of surface); larger texels "
            "are needed",
@@ -336,22 +500,61 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
     if (tries == kMaxTries) fail("atlas: {} does not fit an atlas of {} x {} texels", scene.name, o.max_side, o.max_side);
     texel = texel > 0 ? texel * kGrow : extent / o.max_side;
   }
-  atlas.texel_size = texel;
+  atlas.texel_size = file ? std::sqrt(placed_area / uv_area) / side : texel;
+  atlas.file_side = side;
+  atlas.owner.assign(static_cast<std::size_t>(atlas.width) * static_cast<std::size_t>(atlas.height), kNoChart);
 
-  // Step 4: each corner's UV: its place in its chart's frame, in texels, over the atlas's size.
-  atlas.chart_of.assign(n, 0);
-  atlas.uv.assign(n, {});
-  for (std::size_t c = 0; c < atlas.charts.size(); ++c) {
-    const Chart& ch = atlas.charts[c];
-    for (uint32_t t : ch.triangles) {
-      atlas.chart_of[t] = static_cast<uint32_t>(c);
-      for (int k = 0; k < 3; ++k) {
-        const glm::dvec3 d = corner(scene.triangles[t], k) - ch.origin;
-        const double x = ch.x + o.gutter + glm::dot(d, ch.u) / texel, y = ch.y + o.gutter + glm::dot(d, ch.v) / texel;
-        atlas.uv[t][static_cast<std::size_t>(k)] = glm::vec2(static_cast<float>(x / atlas.width), static_cast<float>(y / atlas.height));
+  // Step 5: sirad's charts' UV (in texels) and texels, below the file's square.
+  for (Chart& ch : atlas.charts) {
+    ch.y += side;
+    for (int y = ch.y; y < ch.y + ch.height; ++y)
+      for (int x = ch.x; x < ch.x + ch.width; ++x) atlas.owner[static_cast<std::size_t>(y) * static_cast<std::size_t>(atlas.width) + static_cast<std::size_t>(x)] = static_cast<uint32_t>(&ch - atlas.charts.data());
+    atlas.face_texels += static_cast<std::size_t>(ch.width - 2 * o.gutter) * static_cast<std::size_t>(ch.height - 2 * o.gutter);
+  }
+  own_uv(scene, atlas.charts, o.gutter, uv);
+
+  // Step 6: the file's charts, after sirad's: their texels, and their UV in texels.
+  if (file) {
+    const std::size_t first = atlas.charts.size();
+    const std::vector<std::vector<uint32_t>> islands = file_charts(scene, placed, uv);
+    std::vector<uint32_t> owner(static_cast<std::size_t>(atlas.width) * static_cast<std::size_t>(side), kNoChart);
+    atlas.face_texels += own_file_texels(islands, uv, side, atlas.width, o.gutter, owner, atlas.shared_texels);
+    for (std::size_t k = 0; k < owner.size(); ++k)
+      if (owner[k] != kNoChart) atlas.owner[k] = static_cast<uint32_t>(first + owner[k]);
+    std::vector<std::array<int, 4>> bounds(islands.size(), {side, side, -1, -1});
+    for (int y = 0; y < side; ++y)
+      for (int x = 0; x < side; ++x)
+        if (const uint32_t c = owner[static_cast<std::size_t>(y) * static_cast<std::size_t>(atlas.width) + static_cast<std::size_t>(x)]; c != kNoChart) {
+          auto& b = bounds[c];
+          b = {std::min(b[0], x), std::min(b[1], y), std::max(b[2], x), std::max(b[3], y)};
+        }
+    for (std::size_t c = 0; c < islands.size(); ++c) {
+      Chart ch;
+      ch.triangles = islands[c];
+      ch.flat = false;
+      double a_uv = 0, a = 0;
+      for (uint32_t t : ch.triangles) {
+        ch.normal += normal[t] * area[t], a += area[t];
+        a_uv += 0.5 * std::abs(cross2(uv[t][0], uv[t][1], uv[t][2]));
+        for (auto& q : uv[t]) q *= double(side);
       }
+      ch.normal = glm::length(ch.normal) > 0 ? glm::normalize(ch.normal) : glm::dvec3(0, 0, 1);
+      ch.texel = std::sqrt(a / a_uv) / side;
+      const auto& b = bounds[c];
+      if (b[2] >= 0) ch.x = b[0], ch.y = b[1], ch.width = b[2] - b[0] + 1, ch.height = b[3] - b[1] + 1;
+      atlas.charts.push_back(std::move(ch));
     }
   }
+
+  // Step 7: each corner's UV over the atlas's size.
+  atlas.chart_of.assign(n, 0);
+  atlas.uv.assign(n, {});
+  for (std::size_t c = 0; c < atlas.charts.size(); ++c)
+    for (uint32_t t : atlas.charts[c].triangles) {
+      atlas.chart_of[t] = static_cast<uint32_t>(c);
+      for (std::size_t k = 0; k < 3; ++k)
+        atlas.uv[t][k] = glm::vec2(static_cast<float>(uv[t][k].x / atlas.width), static_cast<float>(uv[t][k].y / atlas.height));
+    }
   return atlas;
 }
 

@@ -11,6 +11,18 @@
 //   - The charts, each with `gutter` empty texels around it, are packed in shelves (tallest
 //     first) into an atlas about as wide as it is tall; a filter reaching `gutter` texels beyond
 //     a chart never reaches another.
+// A scene whose file has its own lightmap UV set (glTF TEXCOORD_1: Scene::uv_maps) is laid out as
+// the file says, unless told otherwise (AtlasOptions::file_layout):
+//   - The file's unit UV square becomes the atlas's top-left file_side x file_side texels; its
+//     charts are the faces joined by corners at the same place with the same UV (a UV island,
+//     curved or not), and a texel is the chart's that covers most of it (16 points tried) or,
+//     within `gutter` texels of one, the nearest chart's (ring by ring, lowest chart first).
+//   - The faces the file gives no place (back sides of two-sided faces, which share their
+//     front's UV; faces without TEXCOORD_1 or with no area or corners outside [0, 1] in it) get
+//     sirad's own charts, packed in shelves below the square at the file's mean texel size. With
+//     none, the layout is the file's exactly.
+//   - file_side is the texel size's (the file's UV area against its faces' area) or the
+//     budget's square root, whole blocks of 4.
 // Texel (i, j) covers [i, i + 1) x [j, j + 1) in texel units, rows top first; a triangle
 // corner's UV is its texel position over the atlas size, as glTF's TEXCOORD_1 takes it (u right,
 // v down). Plain geometry: no rays, no radiosity.
@@ -35,7 +47,11 @@ struct AtlasOptions {
   // The atlas's largest side: a texel_size that needs more is refused; from a budget, the texel
   // size grows until the atlas fits. 16..16384.
   int max_side = 8192;
+  // The file's own lightmap UV set where the scene has one (above); false: sirad's charts only.
+  bool file_layout = true;
 };
+
+inline constexpr uint32_t kNoChart = 0xffffffffu;
 
 struct Chart {
   std::vector<uint32_t> triangles;  // the scene's, in their order
@@ -43,7 +59,13 @@ struct Chart {
   // of the chart's rectangle, inside its gutter.
   glm::dvec3 origin{0.0}, u{0.0}, v{0.0}, normal{0.0};
   // Its rectangle in the atlas, in texels, gutters included: [x, x + width) x [y, y + height).
+  // In the file's layout, the bounds of its texels (Atlas::owner), which other charts' may share.
   int x = 0, y = 0, width = 0, height = 0;
+  // A texel's side on its surface, in the scene's units (the atlas's; in the file's layout, the
+  // chart's mean), and whether its faces lie in one plane (sirad's charts; origin, u and v are
+  // then its frame, else zero and `normal` its faces' mean).
+  double texel = 0;
+  bool flat = true;
 };
 
 struct Atlas {
@@ -53,7 +75,15 @@ struct Atlas {
   std::vector<Chart> charts;
   std::vector<uint32_t> chart_of;               // per scene triangle
   std::vector<std::array<glm::vec2, 3>> uv;     // per scene triangle, its corners' UV in [0, 1]
-  // The texels the charts' rectangles cover, gutters left out, over the atlas's.
+  // Per texel, rows top first: the chart whose texel it is (its faces' or its gutter's), or kNoChart.
+  std::vector<uint32_t> owner;
+  // The file's layout: its UV square's side in texels (0: sirad's own layout), and the texels
+  // more than one chart covers a quarter of (overlapping islands in the file's UV set).
+  int file_side = 0;
+  std::size_t shared_texels = 0;
+  // The texels of the charts' faces (in sirad's layout their rectangles, gutters left out; in
+  // the file's, those a face covers most of), and their share of the atlas.
+  std::size_t face_texels = 0;
   double fill() const;
 };
 
@@ -68,7 +98,8 @@ struct Atlas {
 inline constexpr std::size_t kMaxPiecesPerFace = 64;
 Scene cut_at_contacts(const Scene& scene);
 
-// The atlas of `scene` (every triangle, unlit ones included: they are surfaces a viewer sees).
+// The atlas of `scene` (every triangle, unlit ones included: they are surfaces a viewer sees),
+// in the file's layout where it has one and options.file_layout.
 // Faces are not joined across an edge that lies along a contact segment (cut_at_contacts).
 // Throws sirad::Error for options out of range, or a texel size that needs an atlas wider or
 // taller than max_side (naming the size it would take).

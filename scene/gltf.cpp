@@ -8,7 +8,8 @@
 // reflectance (times the mean linear colour of a baseColorTexture, said in a warning),
 // emissiveFactor times KHR_materials_emissive_strength as emitted radiance, doubleSided as
 // Material::two_sided (Blender exports doubleSided unless backface culling is on: as Cycles
-// renders it); the first perspective camera in the tree as the scene's camera. Punctual lights
+// renders it); TEXCOORD_1, the lightmap UV set, as each triangle's UvMap (the bake's layout);
+// the first perspective camera in the tree as the scene's camera. Punctual lights
 // (KHR_lights_punctual) are refused: sirad's light comes from emitting surfaces. Everything is
 // validated as the OBJ reader validates: one line naming the file and the element.
 //
@@ -116,6 +117,9 @@ class GltfReader {
     bool emits = false;
     for (const Material& mat : scene_.materials) emits = emits || mat.emits();
     if (!emits) fail("{}: scene has no emitter (no material with an emissiveFactor above 0)", path_);
+    if (flat_uv_ > 0)
+      scene_.warnings.push_back(fmt::format("{}: {} triangles have no area in TEXCOORD_1: they get texels of their own in the lightmap",
+                                            path_, flat_uv_));
     return scene_;
   }
 
@@ -305,6 +309,38 @@ class GltfReader {
     return mean;
   }
 
+  // The primitive's TEXCOORD_1 (its lightmap UV set), one per vertex; empty where it has none.
+  // Float, or normalized unsigned byte or short, VEC2, as glTF allows for texture coordinates.
+  std::vector<glm::dvec2> lightmap_uv(const tinygltf::Primitive& prim, std::size_t vertices, const std::string& what) const {
+    auto it = prim.attributes.find("TEXCOORD_1");
+    if (it == prim.attributes.end()) return {};
+    View v = view(it->second, what + " TEXCOORD_1");
+    const auto& acc = m_.accessors[static_cast<std::size_t>(it->second)];
+    const int type = acc.componentType;
+    const bool is_float = type == TINYGLTF_COMPONENT_TYPE_FLOAT;
+    if (v.components != 2 || v.count != vertices ||
+        !(is_float || (acc.normalized && (type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE || type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT))))
+      fail("{}: {}: TEXCOORD_1 is not VEC2 (float, or normalized unsigned byte or short) with one value per vertex", path_, what);
+    std::vector<glm::dvec2> uv(v.count);
+    for (std::size_t i = 0; i < v.count; ++i)
+      for (int k = 0; k < 2; ++k) {
+        const unsigned char* at = v.data + i * v.stride + static_cast<std::size_t>(k * v.component);
+        double x = 0;
+        if (is_float) {
+          float f;
+          std::memcpy(&f, at, sizeof f);
+          x = f;
+        } else if (v.component == 1) {
+          x = at[0] / 255.0;
+        } else {
+          x = (at[0] | (at[1] << 8)) / 65535.0;
+        }
+        if (!std::isfinite(x) || std::abs(x) > 1e6) fail("{}: {}: TEXCOORD_1 of vertex {} is not finite", path_, what, i);
+        uv[i][k] = x;
+      }
+    return uv;
+  }
+
   void mesh(const tinygltf::Node& n, int node, const glm::dmat4& world, const ImportOptions& options) {
     if (n.mesh >= static_cast<int>(m_.meshes.size())) fail("{}: {}: mesh {} does not exist", path_, where(node), n.mesh);
     const tinygltf::Mesh& mesh = m_.meshes[static_cast<std::size_t>(n.mesh)];
@@ -366,6 +402,7 @@ class GltfReader {
             if (!std::isfinite(radiance[i][k])) fail("{}: {}: _RADIANCE of vertex {} is not finite", path_, what, i);
         }
       }
+      const std::vector<glm::dvec2> uv1 = lightmap_uv(prim, points.size(), what);
       auto add = [&](uint32_t a, uint32_t b, uint32_t c) {
         if (mirrored) std::swap(b, c);
         Triangle t;
@@ -381,6 +418,15 @@ class GltfReader {
           return;
         }
         if (scene_.triangles.size() >= kMaxTriangles) fail("{}: more than {} triangles", path_, kMaxTriangles);
+        if (!uv1.empty()) {
+          UvMap map;
+          if (make_uv_map({glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, {uv1[a], uv1[b], uv1[c]}, map)) {
+            t.uv_map = static_cast<uint32_t>(scene_.uv_maps.size());
+            scene_.uv_maps.push_back(map);
+          } else {
+            ++flat_uv_;
+          }
+        }
         scene_.triangles.push_back(t);
         if (radiance_) radiance_->push_back({radiance[a], radiance[b], radiance[c]});
       };
@@ -437,6 +483,7 @@ class GltfReader {
   Scene scene_;
   std::map<int, uint32_t> material_of_;
   std::size_t skipped_ = 0;
+  std::size_t flat_uv_ = 0;  // triangles whose TEXCOORD_1 has no area
   std::vector<std::array<glm::vec3, 3>>* radiance_ = nullptr;
 
   // Three numbers in [lo, hi] from an `extras` value sirad wrote, or one error naming `what`.

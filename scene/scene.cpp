@@ -515,6 +515,29 @@ Scene parse_obj(const std::string& name, const std::string& obj_text,
   return with_options(import_obj(name, obj_text, source, options), options);
 }
 
+glm::dvec2 UvMap::at(const glm::dvec3& p) const {
+  const glm::dvec3 r = p - origin;
+  return uv0 + glm::dvec2(glm::dot(mu, r), glm::dot(mv, r));
+}
+
+bool make_uv_map(const std::array<glm::dvec3, 3>& p, const std::array<glm::dvec2, 3>& uv, UvMap& out) {
+  // p - p0 = s e1 + t e2 in the plane; (s, t) from the Gram matrix of e1 and e2, and the UV is
+  // uv0 + s d1 + t d2.
+  const glm::dvec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+  const glm::dvec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
+  const double a = glm::dot(e1, e1), b = glm::dot(e1, e2), c = glm::dot(e2, e2), det = a * c - b * b;
+  if (!(det > 1e-12 * a * c) || !(std::abs(d1.x * d2.y - d1.y * d2.x) > 0.0)) return false;
+  const glm::dvec3 f1 = (c * e1 - b * e2) / det, f2 = (a * e2 - b * e1) / det;
+  UvMap m;
+  m.origin = p[0], m.uv0 = uv[0];
+  m.mu = d1.x * f1 + d2.x * f2;
+  m.mv = d1.y * f1 + d2.y * f2;
+  for (const glm::dvec3& v : {m.mu, m.mv})
+    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) return false;
+  out = m;
+  return true;
+}
+
 bool is_builtin_scene(const std::string& name) {
   return name == "cornell" || name == "furnace" || name == "bright-room" || name == "three-lights";
 }

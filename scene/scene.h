@@ -8,6 +8,7 @@
 #include <string_view>
 #include <vector>
 
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 
 namespace sirad {
@@ -35,6 +36,22 @@ struct Camera {
   float vfov_deg = 40.0f;
 };
 
+// A face's place in the file's own lightmap UV set (glTF TEXCOORD_1), as an affine map of its
+// plane: uv(p) = uv0 + (mu . (p - origin), mv . (p - origin)). A piece cut from the face keeps
+// the face's map, so its corners land where the file put those points; a point off the plane
+// maps as its projection onto it.
+struct UvMap {
+  glm::dvec3 origin{0.0}, mu{0.0}, mv{0.0};
+  glm::dvec2 uv0{0.0};
+  glm::dvec2 at(const glm::dvec3& p) const;
+};
+
+// The map that puts corners p[k] at uv[k]; false (and `out` untouched) where either triangle
+// has no area.
+bool make_uv_map(const std::array<glm::dvec3, 3>& p, const std::array<glm::dvec2, 3>& uv, UvMap& out);
+
+inline constexpr uint32_t kNoUvMap = 0xffffffffu;
+
 // One input triangle, counter-clockwise seen from its front (the side its normal points to).
 struct Triangle {
   std::array<glm::vec3, 3> p;
@@ -52,12 +69,19 @@ struct Triangle {
   // A strip along the rim of such a gap, on either face or on the emitter (cut_along_gaps):
   // its width is set by the gap, so the mesher leaves it whole, one patch however long.
   bool whole = false;
+  // The reversed twin of a face of a two-sided material (add_back_faces).
+  bool back = false;
+  // Its face's map in Scene::uv_maps, or kNoUvMap where the file gives none.
+  uint32_t uv_map = kNoUvMap;
 };
 
 struct Scene {
   std::string name;                 // built-in name or file path, for messages
   std::vector<Material> materials;
   std::vector<Triangle> triangles;
+  // The file's lightmap UV maps (Triangle::uv_map; glTF TEXCOORD_1). Neither they nor
+  // Triangle::back travel in encode_scene: only the bake reads them.
+  std::vector<UvMap> uv_maps;
   std::optional<Camera> camera;     // from the file's `# sirad camera` line or built-in
   // The camera's width / height where the file says (glTF aspectRatio): the default image shape.
   std::optional<double> camera_aspect;

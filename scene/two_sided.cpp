@@ -25,6 +25,7 @@ void add_back_faces(Scene& scene) {
   for (const Triangle& t : scene.triangles) {
     if (!scene.materials[t.material].two_sided) continue;
     Triangle back = t;
+    back.back = true;
     std::swap(back.p[1], back.p[2]);
     all.push_back(back);
   }

@@ -2,7 +2,7 @@
 // light against the closed form, no light through a zero-thickness wall into a dark room, no
 // samples inside a solid standing on a floor, gutters filled from their own chart, and the same
 // lightmap on any number of threads; and the rest of the leak suite: a free-standing panel's
-// back, the floor under a rug at zero gap.
+// back, the floor under a rug at zero gap; a file's own UV layout, folded over a cube.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -17,6 +17,7 @@
 #include "scene/atlas.h"
 #include "scene/mesh.h"
 #include "tests/closed_forms.h"
+#include "tests/cube_net.h"
 #include "tests/quad_scene.h"
 #include "util/error.h"
 
@@ -221,6 +222,54 @@ TEST(Bake, TheCachesIndirectLightInTheFurnaceIsExact) {
       }
   EXPECT_GT(checked, 6 * 200);
   EXPECT_GT(m.cached, static_cast<uint64_t>(covered) / 2) << covered << " texels with samples";
+}
+
+// The furnace again, laid out in the file's UV set as a net (tests/cube_net.h): one chart that
+// folds at five edges. Every texel in the middle of a face takes the exact indirect light (from
+// the cache, whose records there take their own face's normal, or its own rays), each
+// texel of the net has samples on its own face (coverage 1 where the net covers it wholly), and
+// texels beside the net are filled from it and those beyond stay empty.
+TEST(Bake, AFilesFoldedLayoutBakesEachTexelOnItsOwnFace) {
+  Scene scene = builtin_furnace();
+  test::give_cube_net_uv(scene);
+  const PatchMesh mesh = mesh_scene(scene, {.target_patches = 2000});
+  std::vector<glm::vec3> b(mesh.size(), glm::vec3(2.0f));
+  const FinalGather gather(mesh, b, {.seed = 4});
+  const Atlas atlas = make_atlas(scene, {.texel_size = 0.02, .gutter = 1});
+  ASSERT_EQ(atlas.file_side, 200);
+  ASSERT_EQ(atlas.charts.size(), 1u);
+  const Lightmap m = bake_lightmap(scene, atlas, gather, 4);
+  // Whether texel (x, y) lies on a face of the net (50 texels a face).
+  const auto face = [](int x, int y) { return x >= 0 && y >= 0 && x < 200 && (y / 50 == 1 || (x < 50 && (y < 50 || (y >= 100 && y < 150)))); };
+  int checked = 0, whole = 0, empty = 0, beyond = 0, gutter = 0;
+  for (int y = 0; y < 200; ++y)
+    for (int x = 0; x < 200; ++x) {
+      const std::size_t k = static_cast<std::size_t>(y) * 200 + static_cast<std::size_t>(x);
+      const int sx = x % 50, sy = y % 50;
+      if (!face(x, y)) {
+        bool near = false;  // the gutter: next to a face's texel
+        for (int d = 0; d < 9; ++d) near = near || face(x + d % 3 - 1, y + d / 3 - 1);
+        if (near) {
+          gutter += atlas.owner[k] == 0 && m.coverage[k] == 0.0f && m.combined.pixels[k].x > 0.0f;
+        } else {
+          ++beyond;
+          empty += atlas.owner[k] == kNoChart && m.coverage[k] == 0.0f && m.combined.pixels[k] == glm::vec3(0.0f);
+        }
+        continue;
+      }
+      EXPECT_EQ(atlas.owner[k], 0u) << x << ", " << y;
+      whole += m.coverage[k] == 1.0f;
+      if (sx < 18 || sx >= 32 || sy < 18 || sy >= 32) continue;  // 0.36 from every edge of its face
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(m.indirect.pixels[k][c], 0.5f, 1e-6f) << x << ", " << y;
+      ++checked;
+    }
+  EXPECT_EQ(checked, 6 * 14 * 14);
+  EXPECT_EQ(whole, 6 * 50 * 50);
+  // Beside the floor (x = 50) and above the strip (y = 49); below the strip (y = 100), beside the
+  // ceiling and under it (y = 150).
+  EXPECT_EQ(gutter, (50 + 149) + (150 + 49 + 51));
+  EXPECT_EQ(empty, beyond);
+  EXPECT_GT(m.cached, static_cast<uint64_t>(whole) / 2);
 }
 
 // A texel whose indirect light the chart's cache gives asks `leaving` for the direct light

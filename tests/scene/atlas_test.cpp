@@ -2,7 +2,8 @@
 // connected surface of an object, charts that never overlap (gutters included), every corner's
 // UV inside its chart, one texel density everywhere (a projection onto the chart's plane: a
 // triangle's texels are its area times its cosine to that plane over texel_size^2, to float
-// rounding), the least rectangle for a turned wall, a budget kept, sizes refused.
+// rounding), the least rectangle for a turned wall, a budget kept, sizes refused; and the file's
+// own lightmap UV set kept as it is, with sirad's charts below it for the faces it does not place.
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -12,6 +13,7 @@
 
 #include "scene/atlas.h"
 #include "scene/gltf.h"
+#include "tests/cube_net.h"
 #include "util/error.h"
 
 namespace sirad {
@@ -258,6 +260,81 @@ TEST(Atlas, TheBlenderApartmentPacksSoundly) {
   EXPECT_GT(a.fill(), 0.5) << a.width << " x " << a.height << ", " << a.charts.size() << " charts";
   for (const Chart& c : a.charts)
     for (uint32_t t : c.triangles) EXPECT_EQ(s.triangles[t].object, s.triangles[c.triangles[0]].object);
+}
+
+// The cube with its lightmap UV as a net (tests/cube_net.h): its atlas is the file's layout as it
+// is. Every corner keeps its UV; the net is one chart (not flat); the texel size is the one
+// asked for (the net's faces are 0.25 in UV, 1 on the surface: 200 texels at 0.02 are 50 a face);
+// a texel is the chart's where the net covers it or within the gutter of it, and no chart's
+// beyond. sirad's own layout on request.
+TEST(Atlas, TheFilesLightmapUvIsKept) {
+  Scene s = cube();
+  test::give_cube_net_uv(s);
+  ASSERT_EQ(s.uv_maps.size(), 12u);
+  const Atlas a = make_atlas(s, {.texel_size = 0.02, .gutter = 1});
+  EXPECT_EQ(a.file_side, 200);
+  EXPECT_EQ(a.width, 200);
+  EXPECT_EQ(a.height, 200);
+  EXPECT_NEAR(a.texel_size, 0.02, 1e-12);
+  ASSERT_EQ(a.charts.size(), 1u);
+  EXPECT_FALSE(a.charts[0].flat);
+  EXPECT_EQ(a.shared_texels, 0u);
+  EXPECT_EQ(a.face_texels, 6u * 50 * 50);
+  for (std::size_t t = 0; t < s.triangles.size(); ++t)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const glm::dvec2 want = s.uv_maps[s.triangles[t].uv_map].at(glm::dvec3(s.triangles[t].p[k]));
+      EXPECT_NEAR(a.uv[t][k].x, want.x, 1e-6) << t;
+      EXPECT_NEAR(a.uv[t][k].y, want.y, 1e-6) << t;
+    }
+  const auto owner = [&](int x, int y) { return a.owner[static_cast<std::size_t>(y) * a.width + x]; };
+  EXPECT_EQ(owner(10, 10), 0u);         // the floor
+  EXPECT_EQ(owner(49, 10), 0u);         // its last column
+  EXPECT_EQ(owner(50, 10), 0u);         // the gutter beside it
+  EXPECT_EQ(owner(51, 10), kNoChart);   // beyond
+  EXPECT_EQ(owner(199, 60), 0u);        // the x = 0 wall at the square's right edge
+  EXPECT_EQ(owner(150, 10), kNoChart);  // no face there
+  EXPECT_EQ(owner(10, 160), kNoChart);  // below the ceiling
+
+  const Atlas own = make_atlas(s, {.texel_size = 0.02, .gutter = 1, .file_layout = false});
+  EXPECT_EQ(own.file_side, 0);
+  EXPECT_EQ(own.charts.size(), 6u);
+  expect_sound(s, own);
+}
+
+// Faces the file's square does not hold (the back side of a two-sided face, which shares its
+// front's UV; a face whose UV leaves the square) get sirad's charts in shelves below it, at its
+// texel size; the file's faces keep their UV, only squeezed by the square's share of the height.
+// Islands laid over each other (the ceiling moved onto the floor in UV) are counted.
+TEST(Atlas, FacesTheFilesSquareDoesNotHoldGoBelowIt) {
+  Scene s = cube();
+  test::give_cube_net_uv(s);
+  s.triangles[0].back = s.triangles[1].back = true;                       // the floor
+  s.uv_maps[s.triangles[2].uv_map].uv0.x += 2;                            // the ceiling's first half
+  const Atlas a = make_atlas(s, {.texel_size = 0.02, .gutter = 1});
+  EXPECT_EQ(a.file_side, 200);
+  EXPECT_EQ(a.width, 200);
+  ASSERT_GE(a.height, 200 + 50);
+  ASSERT_EQ(a.charts.size(), 3u);  // the floor, the ceiling's half, the rest in the file's layout
+  for (uint32_t t : {0u, 1u, 2u}) {
+    EXPECT_TRUE(a.charts[a.chart_of[t]].flat);
+    for (std::size_t k = 0; k < 3; ++k) EXPECT_GE(a.uv[t][k].y * a.height, 200.0 - 1e-3) << t;
+  }
+  for (std::size_t t = 3; t < s.triangles.size(); ++t)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const glm::dvec2 want = s.uv_maps[s.triangles[t].uv_map].at(glm::dvec3(s.triangles[t].p[k]));
+      EXPECT_NEAR(a.uv[t][k].x, want.x, 1e-6) << t;
+      EXPECT_NEAR(a.uv[t][k].y, want.y * 200 / a.height, 1e-6) << t;
+    }
+  for (const Chart& c : a.charts)
+    if (c.flat) EXPECT_NEAR(c.texel, 0.02, 1e-12);
+
+  Scene over = cube();
+  test::give_cube_net_uv(over);
+  for (uint32_t t : {2u, 3u}) over.uv_maps[over.triangles[t].uv_map].uv0.y -= 0.5;  // the ceiling onto the floor
+  const Atlas b = make_atlas(over, {.texel_size = 0.02, .gutter = 1});
+  EXPECT_EQ(b.charts.size(), 2u);
+  EXPECT_GE(b.shared_texels, 48u * 48);
+  EXPECT_LE(b.shared_texels, 50u * 50);
 }
 
 }  // namespace

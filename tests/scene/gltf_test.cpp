@@ -15,6 +15,7 @@
 #include <numbers>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <fcntl.h>
@@ -210,6 +211,69 @@ TEST_F(GltfFiles, AMinimalFileLoads) {
   ASSERT_EQ(s.triangles.size(), 1u);
   EXPECT_EQ(s.objects.at(s.triangles[0].object), "Tri");
   EXPECT_EQ(s.materials[0].emission, glm::vec3(1.0f));
+}
+
+// The lightmap UV set (TEXCOORD_1) as each triangle's map: the node's transform applied to its
+// corners, each corner maps to its UV; floats, or normalized unsigned shorts. A set that is not
+// VEC2 or not one per vertex is refused, and one with no area is said in a warning.
+TEST_F(GltfFiles, TheLightmapUvSetIsEachTrianglesMap) {
+  const auto with_uv = [&](const std::vector<unsigned char>& bytes, int type, bool normalized, const std::string& kind, int count) {
+    return gltf_text({
+        {"nodes", R"([{"mesh": 0, "name": "Tri", "scale": [2, 3, 1], "translation": [1, 0, 0]}])"},
+        {"meshes", R"([{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_1": 2}, "indices": 1, "material": 0}]}])"},
+        {"accessors", fmt::format(R"([{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}},
+                        {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}},
+                        {{"bufferView": 2, "componentType": {}, "normalized": {}, "count": {}, "type": "{}"}}])",
+                                  type, normalized ? "true" : "false", count, kind)},
+        {"bufferViews", fmt::format(R"([{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 6}},
+                          {{"buffer": 1, "byteOffset": 0, "byteLength": {}}}])", bytes.size())},
+        {"buffers", fmt::format(R"([{{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}},
+                      {{"byteLength": {}, "uri": "data:application/octet-stream;base64,{}"}}])",
+                                triangle_buffer().size(), base64(triangle_buffer()), bytes.size(), base64(bytes))},
+    });
+  };
+  const std::array<glm::dvec2, 3> want = {glm::dvec2(0.25, 0.5), glm::dvec2(0.75, 0.5), glm::dvec2(0.25, 1.0)};
+  std::vector<unsigned char> floats(24), shorts(12);
+  for (std::size_t i = 0; i < 3; ++i)
+    for (std::size_t k = 0; k < 2; ++k) {
+      const float f = static_cast<float>(want[i][k]);
+      std::memcpy(&floats[(i * 2 + k) * 4], &f, 4);
+      const uint16_t u = static_cast<uint16_t>(std::lround(want[i][k] * 65535));
+      shorts[(i * 2 + k) * 2] = static_cast<unsigned char>(u & 0xff), shorts[(i * 2 + k) * 2 + 1] = static_cast<unsigned char>(u >> 8);
+    }
+  for (const auto& [bytes, type, normalized] : {std::tuple{floats, 5126, false}, std::tuple{shorts, 5123, true}}) {
+    const Scene s = load_scene(write("uv.gltf", with_uv(bytes, type, normalized, "VEC2", 3)));
+    ASSERT_EQ(s.triangles.size(), 1u);
+    const Triangle& t = s.triangles[0];
+    EXPECT_EQ(t.p[1], glm::vec3(3, 0, 0));  // the node's transform
+    ASSERT_LT(t.uv_map, s.uv_maps.size());
+    const double step = type == 5126 ? 1e-6 : 1.0 / 65535;  // a short's quantum
+    for (std::size_t k = 0; k < 3; ++k) {
+      const glm::dvec2 uv = s.uv_maps[t.uv_map].at(glm::dvec3(t.p[k]));
+      EXPECT_NEAR(uv.x, want[k].x, step) << type;
+      EXPECT_NEAR(uv.y, want[k].y, step) << type;
+    }
+    // A point inside maps as the affine map of its corners does.
+    const glm::dvec2 mid = s.uv_maps[t.uv_map].at((glm::dvec3(t.p[0]) + glm::dvec3(t.p[1]) + glm::dvec3(t.p[2])) / 3.0);
+    EXPECT_NEAR(mid.x, (want[0].x + want[1].x + want[2].x) / 3, step);
+    EXPECT_NEAR(mid.y, (want[0].y + want[1].y + want[2].y) / 3, step);
+  }
+  const auto refused = [&](const std::string& text) {
+    try {
+      load_scene(write("bad-uv.gltf", text));
+      ADD_FAILURE() << "accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("bad-uv.gltf: node 0 'Tri' primitive 0: TEXCOORD_1 is not VEC2"), std::string::npos) << e.what();
+    }
+  };
+  refused(with_uv(floats, 5126, false, "VEC3", 2));
+  refused(with_uv(floats, 5126, false, "VEC2", 2));
+  refused(with_uv(shorts, 5123, false, "VEC2", 3));  // unsigned shorts that are not normalized
+  std::vector<unsigned char> flat(24, 0);
+  const Scene s = load_scene(write("flat-uv.gltf", with_uv(flat, 5126, false, "VEC2", 3)));
+  EXPECT_EQ(s.triangles[0].uv_map, kNoUvMap);
+  ASSERT_FALSE(s.warnings.empty());
+  EXPECT_NE(s.warnings.back().find("1 triangles have no area in TEXCOORD_1"), std::string::npos) << s.warnings.back();
 }
 
 // Every kind of bad file: one sirad::Error, one line, naming the file.
