@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <unordered_map>
 
 #include <glm/geometric.hpp>
@@ -219,9 +220,87 @@ class ChartCache {
   std::unordered_map<uint64_t, bool> blocks_;
 };
 
+// Seams (Atlas::seams) are matched by projections (Kaczmarz): at points kSeamPoints texels apart
+// along each, the bilinear lookups of its two sides are both moved to their mean, each by
+// changing its four texels in proportion to their weights; kSeamPasses passes over all seams in
+// order (on a floor's diagonal seam 16 passes left 1.1 % between the sides, 64 leave 0.02 %;
+// points half a texel apart left 0.6 %, the grids being turned to each other). A texel changes
+// only within a lookup's reach of a seam (1.5 texels).
+constexpr double kSeamPoints = 0.25;
+constexpr int kSeamPasses = 64;
+
+// One side of a seam point: the four texels of its bilinear lookup and their weights.
+struct Footprint {
+  std::array<std::size_t, 4> texel{};
+  std::array<double, 4> w{};
+  bool ok = false;
+};
+
+Footprint footprint(const Atlas& atlas, uint32_t chart, const glm::dvec2& at) {
+  Footprint f;
+  const double x = at.x - 0.5, y = at.y - 0.5;
+  const int i = static_cast<int>(std::floor(x)), j = static_cast<int>(std::floor(y));
+  const double fx = x - i, fy = y - j;
+  if (i < 0 || j < 0 || i + 1 >= atlas.width || j + 1 >= atlas.height) return f;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const std::size_t t = static_cast<std::size_t>(j + static_cast<int>(k >> 1)) * static_cast<std::size_t>(atlas.width) +
+                          static_cast<std::size_t>(i + static_cast<int>(k & 1));
+    f.texel[k] = t;
+    f.w[k] = ((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy);
+    if (f.w[k] > 0 && atlas.owner[t] != chart) return f;  // another chart's texel: no lookup here
+  }
+  f.ok = true;
+  return f;
+}
+
+void match_seams(Lightmap& m, const Atlas& atlas) {
+  if (atlas.seams.empty()) return;
+  const glm::dvec2 size(atlas.width, atlas.height);
+  std::vector<std::array<Footprint, 2>> points;
+  for (const Seam& seam : atlas.seams) {
+    const glm::dvec2 a0 = glm::dvec2(seam.uv_a[0]) * size, a1 = glm::dvec2(seam.uv_a[1]) * size;
+    const glm::dvec2 b0 = glm::dvec2(seam.uv_b[0]) * size, b1 = glm::dvec2(seam.uv_b[1]) * size;
+    const double length = std::max(glm::length(a1 - a0), glm::length(b1 - b0));
+    const int n = std::clamp(static_cast<int>(std::ceil(length / kSeamPoints)), 1, 1 << 16);
+    for (int s = 0; s < n; ++s) {
+      const double t = (s + 0.5) / n;
+      std::array<Footprint, 2> p = {footprint(atlas, atlas.chart_of[seam.a], a0 + t * (a1 - a0)),
+                                    footprint(atlas, atlas.chart_of[seam.b], b0 + t * (b1 - b0))};
+      if (p[0].ok && p[1].ok) points.push_back(p);
+    }
+  }
+  std::vector<glm::vec3> before = m.combined.pixels;
+  auto& v = m.combined.pixels;
+  for (int pass = 0; pass < kSeamPasses; ++pass)
+    for (const auto& p : points) {
+      std::array<glm::dvec3, 2> look{};
+      std::array<double, 2> norm{};
+      for (std::size_t side = 0; side < 2; ++side)
+        for (std::size_t k = 0; k < 4; ++k) look[side] += p[side].w[k] * glm::dvec3(v[p[side].texel[k]]), norm[side] += p[side].w[k] * p[side].w[k];
+      const glm::dvec3 mean = 0.5 * (look[0] + look[1]);
+      for (std::size_t side = 0; side < 2; ++side)
+        for (std::size_t k = 0; k < 4; ++k)
+          v[p[side].texel[k]] += glm::vec3(p[side].w[k] * (mean - look[side]) / norm[side]);
+    }
+  // The layers follow the sum: direct and indirect scaled by the texel's change (the change in
+  // the indirect light where the texel had none).
+  for (std::size_t k = 0; k < v.size(); ++k) {
+    if (v[k] == before[k]) continue;
+    v[k] = glm::max(v[k], glm::vec3(0.0f));
+    for (int c = 0; c < 3; ++c) {
+      if (before[k][c] > 0) {
+        const float r = v[k][c] / before[k][c];
+        m.direct.pixels[k][c] *= r, m.indirect.pixels[k][c] *= r;
+      } else {
+        m.indirect.pixels[k][c] = v[k][c] - m.direct.pixels[k][c];
+      }
+    }
+  }
+}
+
 }  // namespace
 
-Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples, int lights) {
+Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples, int lights, bool seams) {
   if (samples < 1 || samples > 4096) fail("lightmap: {} samples per texel (1..4096)", samples);
   if (lights < 1 || lights > 64) fail("lightmap: {} emitter samples per sample (1..64)", lights);
   if (atlas.uv.size() != scene.triangles.size() || atlas.width < 1 || atlas.height < 1 ||
@@ -317,6 +396,7 @@ Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather
     // Step 3: the empty texels from their chart's.
     dilate(m, atlas.owner, static_cast<uint32_t>(c), chart.x, chart.y, chart.x + chart.width, chart.y + chart.height);
   });
+  if (seams) match_seams(m, atlas);
   for (uint64_t n : cast) m.rays += n;
   for (uint64_t n : cached_texels) m.cached += n;
   return m;

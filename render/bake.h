@@ -28,6 +28,11 @@
 //   - Texels none of whose samples was kept take the mean of their kept neighbours in the same
 //     chart, ring by ring, out to the chart's gutter (dilation): filtering at a chart's edge then
 //     never reaches the background or another chart.
+//   - Seams (Atlas::seams: where two faces are one surface but have different texels): the
+//     bilinear lookups of the two sides agree along each, at points half a texel apart, by
+//     least changes to the texels within a lookup's reach (projections, bake.cpp): filtering
+//     shows no step where a surface crosses from one chart to another (`seams` false: as
+//     baked).
 // A texel's value depends only on the seed, the atlas and the texel: any split over threads
 // gives the same lightmap.
 #pragma once
@@ -54,6 +59,7 @@ struct Lightmap {
 // `samples` samples per texel (1..4096), each with `lights` emitter samples (1..64:
 // FinalGather::leaving). Throws sirad::Error for counts out of range or an atlas not of this
 // scene.
-Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples, int lights = 1);
+Lightmap bake_lightmap(const Scene& scene, const Atlas& atlas, const FinalGather& gather, int samples, int lights = 1,
+                       bool seams = true);
 
 }  // namespace sirad

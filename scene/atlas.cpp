@@ -52,25 +52,42 @@ bool along(const std::vector<ContactSegment>& segments, const glm::dvec3& a, con
 // The triangles' charts: those of one object grown across shared edges (corners at the same
 // float positions) within kChartAngleDegrees of the chart's first face, where the edge is not
 // along a contact segment of either face (a wall's foot). Each chart's triangles in scene order.
-std::vector<std::vector<uint32_t>> find_charts(const Scene& scene, const std::vector<glm::dvec3>& normal) {
-  const double tolerance = 10 * contact_tolerance(scene);
-  const std::vector<std::vector<ContactSegment>> contacts = contact_segments(scene, contact_tolerance(scene));
-  const std::size_t n = scene.triangles.size();
-  std::map<std::array<float, 3>, uint32_t> vertex_id;
-  std::vector<std::array<uint32_t, 3>> ids(n);
-  std::map<std::pair<uint32_t, uint32_t>, std::vector<uint32_t>> edges;
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t k = 0; k < 3; ++k) {
-      const glm::vec3& p = scene.triangles[i].p[k];
-      ids[i][k] = vertex_id.emplace(std::array<float, 3>{p.x, p.y, p.z}, static_cast<uint32_t>(vertex_id.size())).first->second;
+// The faces' shared edges: each corner's vertex (its float position), and per edge (its two
+// vertices, lower first) the faces that have it; with each face's contact segments.
+struct Edges {
+  std::vector<std::array<uint32_t, 3>> ids;
+  std::map<std::pair<uint32_t, uint32_t>, std::vector<uint32_t>> faces;
+  std::vector<glm::dvec3> position;
+  std::vector<std::vector<ContactSegment>> contacts;
+  double tolerance = 0;  // how near a contact segment an edge lies along it
+
+  explicit Edges(const Scene& scene)
+      : ids(scene.triangles.size()), contacts(contact_segments(scene, contact_tolerance(scene))), tolerance(10 * contact_tolerance(scene)) {
+    std::map<std::array<float, 3>, uint32_t> vertex_id;
+    for (std::size_t i = 0; i < scene.triangles.size(); ++i) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        const glm::vec3& p = scene.triangles[i].p[k];
+        ids[i][k] = vertex_id.emplace(std::array<float, 3>{p.x, p.y, p.z}, static_cast<uint32_t>(vertex_id.size())).first->second;
+      }
+      for (std::size_t k = 0; k < 3; ++k) {
+        const uint32_t a = ids[i][k], b = ids[i][(k + 1) % 3];
+        faces[{std::min(a, b), std::max(a, b)}].push_back(static_cast<uint32_t>(i));
+      }
     }
-    for (std::size_t k = 0; k < 3; ++k) {
-      const uint32_t a = ids[i][k], b = ids[i][(k + 1) % 3];
-      edges[{std::min(a, b), std::max(a, b)}].push_back(static_cast<uint32_t>(i));
-    }
+    position.resize(vertex_id.size());
+    for (const auto& [p, id] : vertex_id) position[id] = glm::dvec3(p[0], p[1], p[2]);
   }
-  std::vector<glm::dvec3> position(vertex_id.size());
-  for (const auto& [p, id] : vertex_id) position[id] = glm::dvec3(p[0], p[1], p[2]);
+
+  // Whether edge (a, b) lies along a contact segment of face t or face f (a wall's foot).
+  bool at_contact(uint32_t t, uint32_t f, uint32_t a, uint32_t b) const {
+    return along(contacts[t], position[a], position[b], tolerance) || along(contacts[f], position[a], position[b], tolerance);
+  }
+};
+
+std::vector<std::vector<uint32_t>> find_charts(const Scene& scene, const std::vector<glm::dvec3>& normal, Edges& e) {
+  const std::size_t n = scene.triangles.size();
+  const auto& ids = e.ids;
+  const auto& position = e.position;
   const double cos_bound = std::cos(kChartAngleDegrees * std::numbers::pi / 180.0);
   const double sin_bound = std::sin(kChartAngleDegrees * std::numbers::pi / 180.0);
   std::vector<std::vector<uint32_t>> charts;
@@ -97,10 +114,8 @@ std::vector<std::vector<uint32_t>> find_charts(const Scene& scene, const std::ve
       queue.pop_back();
       for (std::size_t k = 0; k < 3; ++k) {
         const uint32_t a = ids[t][k], b = ids[t][(k + 1) % 3];
-        for (const uint32_t f : edges[{std::min(a, b), std::max(a, b)}]) {
-          if (taken[f] || !fits(f) || along(contacts[t], position[a], position[b], tolerance) ||
-              along(contacts[f], position[a], position[b], tolerance))
-            continue;
+        for (const uint32_t f : e.faces[{std::min(a, b), std::max(a, b)}]) {
+          if (taken[f] || !fits(f) || e.at_contact(t, f, a, b)) continue;
           taken[f] = true;
           charts.back().push_back(f);
           queue.push_back(f);
@@ -464,7 +479,8 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
   // Step 3: sirad's charts (of the faces the file does not place).
   Atlas atlas;
   atlas.gutter = o.gutter;
-  std::vector<std::vector<uint32_t>> groups = find_charts(scene, normal);
+  Edges edges(scene);
+  std::vector<std::vector<uint32_t>> groups = find_charts(scene, normal, edges);
   if (file) {
     for (auto& g : groups) std::erase_if(g, [&](uint32_t t) { return placed[t] != 0; });
     std::erase_if(groups, [](const std::vector<uint32_t>& g) { return g.empty(); });
@@ -555,6 +571,33 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
       for (std::size_t k = 0; k < 3; ++k)
         atlas.uv[t][k] = glm::vec2(static_cast<float>(uv[t][k].x / atlas.width), static_cast<float>(uv[t][k].y / atlas.height));
     }
+
+  // Step 8: the seams: edges where two faces are one surface (one material, within
+  // kChartAngleDegrees, both in a gap or neither, not at a contact) but not one place in the
+  // atlas (two charts, or two places of one).
+  const double cos_bound = std::cos(kChartAngleDegrees * std::numbers::pi / 180.0);
+  for (const auto& [edge, faces] : edges.faces)
+    for (std::size_t x = 0; x < faces.size(); ++x)
+      for (std::size_t y = x + 1; y < faces.size(); ++y) {
+        const uint32_t t = faces[x], f = faces[y];
+        const Triangle &a = scene.triangles[t], &b = scene.triangles[f];
+        if (a.material != b.material || a.in_gap != b.in_gap || !(glm::dot(normal[t], normal[f]) >= cos_bound) ||
+            edges.at_contact(t, f, edge.first, edge.second))
+          continue;
+        Seam seam{.a = t, .b = f};
+        for (std::size_t end = 0; end < 2; ++end) {
+          const uint32_t v = end == 0 ? edge.first : edge.second;
+          for (std::size_t k = 0; k < 3; ++k) {
+            if (edges.ids[t][k] == v) seam.uv_a[end] = atlas.uv[t][k];
+            if (edges.ids[f][k] == v) seam.uv_b[end] = atlas.uv[f][k];
+          }
+        }
+        const auto apart = [&](const glm::vec2& p, const glm::vec2& q) {
+          return std::abs(p.x - q.x) * atlas.width > 1e-3 || std::abs(p.y - q.y) * atlas.height > 1e-3;
+        };
+        if (atlas.chart_of[t] != atlas.chart_of[f] || apart(seam.uv_a[0], seam.uv_b[0]) || apart(seam.uv_a[1], seam.uv_b[1]))
+          atlas.seams.push_back(seam);
+      }
   return atlas;
 }
 

@@ -68,6 +68,15 @@ struct Chart {
   bool flat = true;
 };
 
+// An edge where two faces are one surface (one material, within 2 degrees, both in a gap or
+// neither, not along a contact segment: no wall stands there) but have different texels: two
+// charts meet there, or one chart twice (the file's layout). Its two ends in each face's UV,
+// the same points in the same order.
+struct Seam {
+  uint32_t a = 0, b = 0;  // the faces
+  std::array<glm::vec2, 2> uv_a{}, uv_b{};
+};
+
 struct Atlas {
   int width = 0, height = 0;  // texels
   double texel_size = 0;
@@ -81,6 +90,7 @@ struct Atlas {
   // more than one chart covers a quarter of (overlapping islands in the file's UV set).
   int file_side = 0;
   std::size_t shared_texels = 0;
+  std::vector<Seam> seams;
   // The texels of the charts' faces (in sirad's layout their rectangles, gutters left out; in
   // the file's, those a face covers most of), and their share of the atlas.
   std::size_t face_texels = 0;

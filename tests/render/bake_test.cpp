@@ -272,6 +272,77 @@ TEST(Bake, AFilesFoldedLayoutBakesEachTexelOnItsOwnFace) {
   EXPECT_GT(m.cached, static_cast<uint64_t>(whole) / 2);
 }
 
+// A floor under a square light (as above), its two triangles two islands of the file's UV set,
+// the second turned a quarter: their diagonal is a seam. Baked as is, the two sides' bilinear
+// lookups along it differ by the texels' noise (64 samples: several per cent); matched, they
+// agree to a thousandth at any point (matched at points a quarter texel apart; between those,
+// two bilinear grids turned to each other can differ a little), and texels beyond a lookup's
+// reach of the seam (1.5 texels) keep their bits.
+TEST(Bake, TheTwoSidesOfASeamAgree) {
+  QuadScene q;
+  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(1.0f));
+  q.quad({-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}, floor);
+  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, light);
+  // Islands: the floor's first triangle at [0.05, 0.45]^2, its second turned (u from y, v from
+  // x) at [0.55, 0.95] x [0.05, 0.45], the light at [0.05, 0.45] x [0.55, 0.95].
+  const auto first = [](const glm::dvec3& p) { return glm::dvec2(0.05 + (p.x + 2) / 10, 0.05 + (p.y + 2) / 10); };
+  const auto second = [](const glm::dvec3& p) { return glm::dvec2(0.55 + (p.y + 2) / 10, 0.05 + (p.x + 2) / 10); };
+  const auto lamp = [](const glm::dvec3& p) { return glm::dvec2(0.05 + (p.x + 0.5) * 0.4, 0.55 + (p.y + 0.5) * 0.4); };
+  for (std::size_t t = 0; t < 4; ++t) {
+    Triangle& tri = q.scene.triangles[t];
+    std::array<glm::dvec3, 3> p;
+    std::array<glm::dvec2, 3> uv;
+    for (std::size_t k = 0; k < 3; ++k) p[k] = glm::dvec3(tri.p[k]), uv[k] = t == 0 ? first(p[k]) : t == 1 ? second(p[k]) : lamp(p[k]);
+    UvMap map;
+    ASSERT_TRUE(make_uv_map(p, uv, map));
+    tri.uv_map = static_cast<uint32_t>(q.scene.uv_maps.size());
+    q.scene.uv_maps.push_back(map);
+  }
+  const PatchMesh mesh = mesh_scene(q.scene, {.target_patches = 400});
+  std::vector<glm::vec3> b(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) b[j] = mesh.emission(j);
+  const FinalGather gather(mesh, b, {.seed = 5});
+  const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.1, .gutter = 1});
+  ASSERT_GT(atlas.file_side, 60);
+  ASSERT_EQ(atlas.seams.size(), 1u);  // the light's diagonal is one place in its island
+  const Lightmap raw = bake_lightmap(q.scene, atlas, gather, 64, 1, false);
+  const Lightmap matched = bake_lightmap(q.scene, atlas, gather, 64, 1, true);
+  const double side = atlas.file_side;
+  // The bilinear lookup of `m` at UV `uv` (texel centres at half-integers).
+  const auto lookup = [&](const Lightmap& m, const glm::dvec2& uv) {
+    const double x = uv.x * side - 0.5, y = uv.y * side - 0.5;
+    const int i = static_cast<int>(std::floor(x)), j = static_cast<int>(std::floor(y));
+    const double fx = x - i, fy = y - j;
+    const auto at = [&](int a, int c) { return double(m.combined.at(a, c).x); };
+    return (1 - fy) * ((1 - fx) * at(i, j) + fx * at(i + 1, j)) + fy * ((1 - fx) * at(i, j + 1) + fx * at(i + 1, j + 1));
+  };
+  double raw_worst = 0, matched_worst = 0;
+  for (int s = 0; s < 64; ++s) {
+    const double t = (s + 0.5) / 64;
+    const glm::dvec3 p(-2 + 4 * t, -2 + 4 * t, 0);
+    const double a = lookup(raw, first(p)), c = lookup(raw, second(p));
+    raw_worst = std::max(raw_worst, std::abs(a - c) / (a + c));
+    const double ma = lookup(matched, first(p)), mc = lookup(matched, second(p));
+    matched_worst = std::max(matched_worst, std::abs(ma - mc) / (ma + mc));
+
+  }
+  EXPECT_GT(raw_worst, 0.01);
+  EXPECT_LT(matched_worst, 1e-3);
+  // Texels whose centres lie 1.5 texels or more from the seam (the diagonal x = y in each
+  // island's own frame) are as baked.
+  int kept = 0;
+  for (int y = 0; y < atlas.height; ++y)
+    for (int x = 0; x < atlas.width; ++x) {
+      const double u = (x + 0.5) / side, v = (y + 0.5) / side;
+      const double off = u < 0.5 ? std::abs((u - 0.05) - (v - 0.05)) : std::abs((u - 0.55) - (v - 0.05));
+      if (off * side / std::sqrt(2.0) < 1.5 + 1.5) continue;
+      ASSERT_EQ(matched.combined.at(x, y), raw.combined.at(x, y)) << x << ", " << y;
+      ++kept;
+    }
+  EXPECT_GT(kept, atlas.width * atlas.height / 2);
+}
+
 // A texel whose indirect light the chart's cache gives asks `leaving` for the direct light
 // alone: the same bits as the full call's direct light (the gather rays go the same ways and
 // meet the same emitters), no indirect light, and fewer rays (no bounce traced further where a
