@@ -236,7 +236,12 @@ struct Footprint {
   bool ok = false;
 };
 
-Footprint footprint(const Atlas& atlas, uint32_t chart, const glm::dvec2& at) {
+// A side whose lookup has less than this weight on texels with samples of their own (the rest
+// dilated: a face under a solid, beyond its outline) says nothing of the light there: the
+// point is not matched, so no light is pulled from the other side into a hidden face.
+constexpr double kSeamSampled = 0.25;
+
+Footprint footprint(const Atlas& atlas, const std::vector<float>& coverage, uint32_t chart, const glm::dvec2& at) {
   Footprint f;
   const double x = at.x - 0.5, y = at.y - 0.5;
   const int i = static_cast<int>(std::floor(x)), j = static_cast<int>(std::floor(y));
@@ -249,7 +254,9 @@ Footprint footprint(const Atlas& atlas, uint32_t chart, const glm::dvec2& at) {
     f.w[k] = ((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy);
     if (f.w[k] > 0 && atlas.owner[t] != chart) return f;  // another chart's texel: no lookup here
   }
-  f.ok = true;
+  double sampled = 0;
+  for (std::size_t k = 0; k < 4; ++k) sampled += coverage[f.texel[k]] > 0 ? f.w[k] : 0.0;
+  f.ok = sampled >= kSeamSampled;
   return f;
 }
 
@@ -264,8 +271,8 @@ void match_seams(Lightmap& m, const Atlas& atlas) {
     const int n = std::clamp(static_cast<int>(std::ceil(length / kSeamPoints)), 1, 1 << 16);
     for (int s = 0; s < n; ++s) {
       const double t = (s + 0.5) / n;
-      std::array<Footprint, 2> p = {footprint(atlas, atlas.chart_of[seam.a], a0 + t * (a1 - a0)),
-                                    footprint(atlas, atlas.chart_of[seam.b], b0 + t * (b1 - b0))};
+      std::array<Footprint, 2> p = {footprint(atlas, m.coverage, atlas.chart_of[seam.a], a0 + t * (a1 - a0)),
+                                    footprint(atlas, m.coverage, atlas.chart_of[seam.b], b0 + t * (b1 - b0))};
       if (p[0].ok && p[1].ok) points.push_back(p);
     }
   }

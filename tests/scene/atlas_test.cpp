@@ -5,11 +5,16 @@
 // rounding), the least rectangle for a turned wall, a budget kept, sizes refused; and the file's
 // own lightmap UV set kept as it is, with sirad's charts below it for the faces it does not place.
 #include <cmath>
+#include <algorithm>
+#include <cstring>
+#include <set>
 #include <numbers>
 #include <string>
 
 #include <glm/geometric.hpp>
 #include <gtest/gtest.h>
+
+#include <tiny_gltf.h>
 
 #include "scene/atlas.h"
 #include "scene/gltf.h"
@@ -335,6 +340,75 @@ TEST(Atlas, FacesTheFilesSquareDoesNotHoldGoBelowIt) {
   EXPECT_EQ(b.charts.size(), 2u);
   EXPECT_GE(b.shared_texels, 48u * 48);
   EXPECT_LE(b.shared_texels, 50u * 50);
+}
+
+// The apartment with a lightmap UV set made by Blender's Lightmap Pack (every face an island,
+// tests/data/blender/add_lightmap_uv.py): its atlas is the file's layout. Each face that comes
+// through the import whole has the file's own TEXCOORD_1 at its corners (read here from the glb
+// by tinygltf); no islands overlap; the back
+// sides that take part get sirad's charts below the square; each quad's diagonal is a seam.
+TEST(Atlas, BlendersLightmapPackIsTheLayout) {
+  const std::string path = std::string(SIRAD_SOURCE_DIR) + "/tests/data/blender/apartment-uv2.glb";
+  const Scene s = import_gltf(path, {});
+  const Atlas a = make_atlas(s, {.texel_budget = uint64_t{1} << 18});
+  ASSERT_GT(a.file_side, 0);
+  EXPECT_EQ(a.shared_texels, 0u);
+  EXPECT_GT(a.seams.size(), 100u);
+  // The file's triangles by their TEXCOORD_1 (Lightmap Pack's islands do not overlap, so a
+  // triangle's three UVs name it), read by tinygltf; each corner rounded to 1e-5.
+  tinygltf::Model m;
+  tinygltf::TinyGLTF loader;
+  std::string err, warn;
+  ASSERT_TRUE(loader.LoadBinaryFromFile(&m, &err, &warn, path)) << err;
+  using Key = std::array<long, 6>;
+  const auto key_of = [](std::array<glm::dvec2, 3> uv) {
+    std::sort(uv.begin(), uv.end(), [](const glm::dvec2& p, const glm::dvec2& q) { return p.x < q.x || (p.x == q.x && p.y < q.y); });
+    Key k;
+    for (std::size_t c = 0; c < 3; ++c) k[2 * c] = std::lround(uv[c].x * 1e5), k[2 * c + 1] = std::lround(uv[c].y * 1e5);
+    return k;
+  };
+  std::set<Key> file;
+  for (const tinygltf::Mesh& mesh : m.meshes)
+    for (const tinygltf::Primitive& prim : mesh.primitives) {
+      const tinygltf::Accessor& ua = m.accessors[static_cast<std::size_t>(prim.attributes.at("TEXCOORD_1"))];
+      const tinygltf::BufferView& uv_view = m.bufferViews[static_cast<std::size_t>(ua.bufferView)];
+      ASSERT_EQ(ua.componentType, TINYGLTF_COMPONENT_TYPE_FLOAT);
+      const unsigned char* ub = m.buffers[static_cast<std::size_t>(uv_view.buffer)].data.data() + uv_view.byteOffset + ua.byteOffset;
+      const std::size_t stride = static_cast<std::size_t>(ua.ByteStride(uv_view));
+      const tinygltf::Accessor& ia = m.accessors[static_cast<std::size_t>(prim.indices)];
+      const tinygltf::BufferView& iv = m.bufferViews[static_cast<std::size_t>(ia.bufferView)];
+      const unsigned char* ib = m.buffers[static_cast<std::size_t>(iv.buffer)].data.data() + iv.byteOffset + ia.byteOffset;
+      for (std::size_t i = 0; i + 2 < ia.count; i += 3) {
+        std::array<glm::dvec2, 3> uv;
+        for (std::size_t k = 0; k < 3; ++k) {
+          uint32_t v = 0;
+          if (ia.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) {
+            uint16_t h;
+            std::memcpy(&h, ib + (i + k) * 2, 2);
+            v = h;
+          } else {
+            std::memcpy(&v, ib + (i + k) * 4, 4);
+          }
+          float f[2];
+          std::memcpy(f, ub + v * stride, sizeof f);
+          uv[k] = {f[0], f[1]};
+        }
+        file.insert(key_of(uv));
+      }
+    }
+  std::size_t found = 0, fronts = 0;
+  for (std::size_t t = 0; t < s.triangles.size(); ++t) {
+    if (s.triangles[t].back) continue;
+    ++fronts;
+    std::array<glm::dvec2, 3> uv;
+    for (std::size_t k = 0; k < 3; ++k)
+      uv[k] = {double(a.uv[t][k].x) * a.width / a.file_side, double(a.uv[t][k].y) * a.height / a.file_side};
+    found += file.count(key_of(uv));  // a piece cut by the import (gaps) is no triangle of the file
+  }
+  EXPECT_GT(found, fronts / 2) << found << " of " << fronts << " faces";
+  bool backs = false;
+  for (const Triangle& t : s.triangles) backs = backs || t.back;
+  EXPECT_EQ(a.height > a.file_side, backs);
 }
 
 }  // namespace
