@@ -248,7 +248,9 @@ class GltfReader {
       const auto& base = g.pbrMetallicRoughness.baseColorFactor;
       if (base.size() != 4) fail("{}: {}: baseColorFactor is not 4 numbers", path_, what);
       glm::dvec3 rho(base[0], base[1], base[2]);
-      if (int t = g.pbrMetallicRoughness.baseColorTexture.index; t >= 0) rho *= texture_mean(t, what);
+      // (A file sirad wrote says its reflectance in the extras, below: its texture is the bake.)
+      if (int t = g.pbrMetallicRoughness.baseColorTexture.index; t >= 0 && !g.extras.Has("sirad_reflectance"))
+        rho *= texture_mean(t, what);
       const auto& e = g.emissiveFactor;
       if (e.size() != 3) fail("{}: {}: emissiveFactor is not 3 numbers", path_, what);
       double strength = 1.0;

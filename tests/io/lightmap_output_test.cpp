@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@
 
 #include "io/write_gltf.h"
 #include "io/write_lightmap.h"
+#include "scene/gltf.h"
 #include "scene/atlas.h"
 #include "tests/quad_scene.h"
 #include "util/error.h"
@@ -166,6 +168,33 @@ TEST_F(LightmapFiles, TheGlbCarriesTheAtlasUvAndShowsTheLightmap) {
       }
     }
   for (std::size_t t = 0; t < found.size(); ++t) EXPECT_EQ(found[t], 1) << t;
+}
+
+// A baked glb read back as a scene (a rebake after an edit in Blender): its materials are the
+// extras' (no warning about the lightmap texture as a base colour), its faces one-sided (the
+// sides were pulled apart), and its atlas is its TEXCOORD_1: every face at the UV it was baked
+// at, no faces below the square.
+TEST_F(LightmapFiles, ABakedGlbRebakesInItsOwnLayout) {
+  Baked b;
+  const std::string name = (dir_ / "scene").string();
+  const auto files = write_lightmap(name, b.q.scene, b.atlas, b.map, 0.0f, nullptr, 1.5, {});
+  const Scene again = import_gltf(files.glb, {});
+  for (const std::string& w : again.warnings) EXPECT_EQ(w.find("texture"), std::string::npos) << w;
+  ASSERT_EQ(again.triangles.size(), b.q.scene.triangles.size());
+  EXPECT_EQ(again.materials.at(again.triangles[0].material).reflectance, glm::vec3(0.5f));
+  const Atlas a = make_atlas(again, {.texel_size = 0.25, .gutter = 1});
+  EXPECT_GT(a.file_side, 0);
+  EXPECT_EQ(a.height, a.file_side);
+  std::set<std::array<long, 6>> baked;
+  const auto key = [](const std::array<glm::vec2, 3>& uv) {
+    std::array<long, 6> k;
+    std::array<glm::vec2, 3> sorted = uv;
+    std::sort(sorted.begin(), sorted.end(), [](const glm::vec2& p, const glm::vec2& q) { return p.x < q.x || (p.x == q.x && p.y < q.y); });
+    for (std::size_t c = 0; c < 3; ++c) k[2 * c] = std::lround(sorted[c].x * 1e5), k[2 * c + 1] = std::lround(sorted[c].y * 1e5);
+    return k;
+  };
+  for (const auto& uv : b.atlas.uv) baked.insert(key(uv));
+  for (const auto& uv : a.uv) EXPECT_EQ(baked.count(key(uv)), 1u);
 }
 
 TEST_F(LightmapFiles, WhatHalfFloatsCannotHoldOrAnotherAtlasIsRefused) {
