@@ -2,7 +2,10 @@
 // layout (bench/cycles/bake_glb.py of NAME-baked.glb), texel by texel. Prints one CSV row:
 //   texels     the texels compared: covered by Cycles' bake with all eight neighbours covered too
 //              (a texel on a chart's edge is part outside it: Cycles bakes its centre, sirad the
-//              part inside), lit in both, emitters left out (their texels are mostly emission);
+//              part inside), wholly on a face no solid covers in sirad's (every sample kept: the
+//              EXR's coverage layer, where it has one; Cycles bakes the light inside a wall
+//              standing on a floor, sirad fills such texels from their visible neighbours), lit
+//              in both, emitters left out (their texels are mostly emission);
 //   ratio      the sums' ratio less 1 (the lightmap's mean brightness against Cycles');
 //   rel_rms    the RMS of the per-texel relative difference of the luminance (Rec. 709);
 //   rel_rms_net the same less Cycles' own noise, with two bakes of other seeds (--reference2):
@@ -51,6 +54,12 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   try {
     const Image mine = bench::read_rgb(lightmap), error = bench::read_rgb(lightmap, "error");
+    std::vector<float> coverage;  // empty: a lightmap without the layer (every texel counts)
+    {
+      Imf::InputFile in(lightmap.c_str());
+      int cw = 0, ch = 0;
+      if (in.header().channels().findChannel("coverage.R")) coverage = bench::read_channel(lightmap, "coverage.R", cw, ch);
+    }
     const Image a = bench::read_rgb(reference);
     int w = 0, h = 0;
     const std::vector<float> alpha = bench::read_channel(reference, "A", w, h);
@@ -95,7 +104,7 @@ int main(int argc, char** argv) {
           for (int dx = -1; dx <= 1 && interior; ++dx) interior = covered(x + dx, y + dy);
         const std::size_t i = static_cast<std::size_t>(y) * W + x;
         const double m = luminance(mine.pixels[i]);
-        if (!interior || !(ref[i] > 0) || !(m > 0) || ref[i] > emitter_above) continue;
+        if (!interior || !(ref[i] > 0) || !(m > 0) || ref[i] > emitter_above || (!coverage.empty() && coverage[i] < 1.0f)) continue;
         const double d = (m - ref[i]) / ref[i];
         sum_mine += m, sum_ref += ref[i];
         sq += d * d, sq_var += var[i] / (ref[i] * ref[i]);

@@ -115,7 +115,7 @@ std::vector<std::string> add_output_flags(CLI::App* cmd, OutputFlags& o) {
 void add_lightmap_flags(CLI::App* cmd, LightmapFlags& l, bool with_switch) {
   if (with_switch)
     cmd->add_flag("--lightmap", l.on,
-                  "Also bake a lightmap: NAME-lightmap.exr (half-float radiance; layers direct, indirect, error), "
+                  "Also bake a lightmap: NAME-lightmap.exr (half-float radiance; layers direct, indirect, error, coverage), "
                   "NAME-lightmap.png, NAME-baked.glb (TEXCOORD_1 and the lightmap; what sirad bake writes)");
   cmd->add_option("--texel-size", l.texel_size, "Lightmap texel side in the scene's units (default: from --texels)")
       ->check(finite_in(1e-9, 1e9));

@@ -143,8 +143,18 @@ LightmapFiles write_lightmap(const std::string& name, const Scene& scene, const 
   Attributes attrs = attributes;
   attrs.emplace_back("sirad.lightmap", std::string("radiance"));
   attrs.emplace_back("sirad.texel_size", atlas.texel_size);
+  if (lightmap.coverage.size() != lightmap.combined.pixels.size())
+    fail("cannot write {}-lightmap.exr: coverage of {} texels for {}", name, lightmap.coverage.size(), lightmap.combined.pixels.size());
+  Image coverage;
+  coverage.width = w, coverage.height = h;
+  coverage.pixels.reserve(lightmap.coverage.size());
+  for (float c : lightmap.coverage) coverage.pixels.emplace_back(c);
   write_exr_layers(files.exr,
-                   {{"", &lightmap.combined}, {"direct", &lightmap.direct}, {"indirect", &lightmap.indirect}, {"error", &lightmap.error}},
+                   {{"", &lightmap.combined},
+                    {"direct", &lightmap.direct},
+                    {"indirect", &lightmap.indirect},
+                    {"error", &lightmap.error},
+                    {"coverage", &coverage}},
                    attrs, ExrPixel::half);
   write_png(files.png, lightmap.combined, exposure);
   write_glb(files.glb, std::filesystem::path(files.exr).filename().string(), scene, atlas, lightmap, exposure, camera, aspect);

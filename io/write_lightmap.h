@@ -2,7 +2,9 @@
 //   - NAME-lightmap.exr: half-float linear radiance leaving each texel's surface (the light a
 //     camera sees there: emission plus the reflected light, the material's reflectance in it),
 //     the sum unprefixed (R, G, B) and the layers direct, indirect and error (the estimate of
-//     each texel's standard error, render/bake.h). Rows top first; texel (x, y) is at
+//     each texel's standard error, render/bake.h), and coverage (R = G = B: the share of the
+//     texel's samples kept; 0 where its value was filled from its neighbours: a gutter, or a
+//     face's part inside a solid or under a rug, which no camera sees). Rows top first; texel (x, y) is at
 //     TEXCOORD_1 ((x + 0.5) / width, (y + 0.5) / height).
 //   - NAME-lightmap.png: its tone map (times 2^exposure, clamped, sRGB), as the images' PNG.
 //   - NAME-baked.glb: the scene's faces (one mesh per object, one primitive per material) with

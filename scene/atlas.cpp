@@ -373,7 +373,8 @@ std::vector<std::vector<uint32_t>> file_charts(const Scene& scene, const std::ve
 }
 
 // The owners of the file's square of `side` texels (Atlas::owner, `width` wide): each texel the
-// chart whose faces cover most of its 4 x 4 points, then `gutter` rings around them. Returns the
+// chart whose faces hold its centre, else the one that covers most of its 4 x 4 points, then
+// `gutter` rings around them. Returns the
 // texels of the faces; counts in `shared` those that a second chart covers 4 points of.
 std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, const std::vector<std::array<glm::dvec2, 3>>& uv, int side,
                             int width, int gutter, std::vector<uint32_t>& owner, std::size_t& shared) {
@@ -391,17 +392,23 @@ std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, co
       const int y0 = std::clamp(static_cast<int>(std::floor(lo.y)), 0, side - 1), y1 = std::clamp(static_cast<int>(std::floor(hi.y)), 0, side - 1);
       for (int y = y0; y <= y1; ++y)
         for (int x = x0; x <= x1; ++x) {
+          // A chart that holds the texel's centre comes first (as Cycles and engines' bakers
+          // rasterise: where islands touch, the texel is the one its centre lies in), then the
+          // count of its 16 points.
           int count = 0;
           for (int s = 0; s < 16; ++s) count += inside2(q, {x + (s % 4 + 0.5) / 4, y + (s / 4 + 0.5) / 4});
-          if (count == 0) continue;
+          const bool centre = inside2(q, {x + 0.5, y + 0.5});
+          if (count == 0 && !centre) continue;
           const std::size_t k = static_cast<std::size_t>(y) * static_cast<std::size_t>(side) + static_cast<std::size_t>(x);
           if (here[k] == 0) touched.push_back(static_cast<uint32_t>(k));
-          here[k] = static_cast<uint16_t>(std::min(16, here[k] + count));
+          // The score: 17 for the centre, and the points (at most 16 over the chart's faces).
+          const int points = std::min(16, here[k] % 17 + count);
+          here[k] = static_cast<uint16_t>((here[k] >= 17 || centre ? 17 : 0) + std::max(points, 1));
         }
     }
     for (uint32_t k : touched) {
       const std::size_t at = (k / static_cast<uint32_t>(side)) * static_cast<std::size_t>(width) + k % static_cast<uint32_t>(side);
-      if (best[k] >= 4 && here[k] >= 4) contested[k] = 1;
+      if (best[k] % 17 >= 4 && here[k] % 17 >= 4) contested[k] = 1;
       if (here[k] > best[k]) best[k] = here[k], owner[at] = static_cast<uint32_t>(c);
       here[k] = 0;
     }

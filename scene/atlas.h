@@ -15,7 +15,8 @@
 // the file says, unless told otherwise (AtlasOptions::file_layout):
 //   - The file's unit UV square becomes the atlas's top-left file_side x file_side texels; its
 //     charts are the faces joined by corners at the same place with the same UV (a UV island,
-//     curved or not), and a texel is the chart's that covers most of it (16 points tried) or,
+//     curved or not), and a texel is the chart's that holds its centre (as bakers rasterise),
+//     else the one that covers most of it (16 points tried: a texel on an island's rim), or,
 //     within `gutter` texels of one, the nearest chart's (ring by ring, lowest chart first).
 //   - The faces the file gives no place (back sides of two-sided faces, which share their
 //     front's UV; faces without TEXCOORD_1 or with no area or corners outside [0, 1] in it) get

@@ -61,6 +61,7 @@ struct Baked {
       image->pixels.assign(static_cast<std::size_t>(atlas.width) * atlas.height, glm::vec3(0.0f));
     }
     map.coverage.assign(map.combined.pixels.size(), 1.0f);
+    for (std::size_t i = 0; i < map.coverage.size(); i += 3) map.coverage[i] = 0.25f * static_cast<float>(i % 5);
     for (int y = 0; y < atlas.height; ++y)
       for (int x = 0; x < atlas.width; ++x) {
         map.direct.at(x, y) = glm::vec3(0.01f * x, 0.02f * y, 0.5f);
@@ -77,12 +78,15 @@ TEST_F(LightmapFiles, TheExrHoldsEachLayerAsHalfFloats) {
   const auto files = write_lightmap(name, b.q.scene, b.atlas, b.map, 0.0f, nullptr, 1.5, {{"sirad.test", int64_t{7}}});
   EXPECT_EQ(files.exr, name + "-lightmap.exr");
   EXPECT_TRUE(std::filesystem::is_regular_file(files.png));
+  Image coverage;  // the share of each texel's samples kept, in all three channels
+  coverage.width = b.atlas.width, coverage.height = b.atlas.height;
+  for (std::size_t i = 0; i < b.map.coverage.size(); ++i) coverage.pixels.emplace_back(b.map.coverage[i]);
   Imf::InputFile in(files.exr.c_str());
   const auto dw = in.header().dataWindow();
   ASSERT_EQ(dw.max.x - dw.min.x + 1, b.atlas.width);
   ASSERT_EQ(dw.max.y - dw.min.y + 1, b.atlas.height);
   const std::vector<std::pair<std::string, const Image*>> layers = {
-      {"", &b.map.combined}, {"direct.", &b.map.direct}, {"indirect.", &b.map.indirect}, {"error.", &b.map.error}};
+      {"", &b.map.combined}, {"direct.", &b.map.direct}, {"indirect.", &b.map.indirect}, {"error.", &b.map.error}, {"coverage.", &coverage}};
   Imf::FrameBuffer frame;
   std::vector<std::vector<float>> got(layers.size() * 3, std::vector<float>(b.map.combined.pixels.size()));
   for (std::size_t l = 0; l < layers.size(); ++l)
