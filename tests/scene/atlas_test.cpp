@@ -306,6 +306,39 @@ TEST(Atlas, TheFilesLightmapUvIsKept) {
   expect_sound(s, own);
 }
 
+// Two islands that touch inside texel (0, 0) of an 8-texel square: the first covers its left
+// 49 % (8 of its 16 points), the second the rest and its centre (8 points as well). The texel is
+// the second's, as a baker that rasterises texel centres (Cycles) has it.
+TEST(Atlas, ATexelIsTheIslandsThatHoldsItsCentre) {
+  Scene s;
+  s.name = "two islands";
+  s.materials = {Material{"white", glm::vec3(0.5f), glm::vec3(0.0f)}};
+  const auto island = [&](float x0, double u0, double u1) {
+    quad(s, {x0, 0, 0}, {x0 + 1, 0, 0}, {x0 + 1, 1, 0}, {x0, 1, 0});
+    for (std::size_t t = s.triangles.size() - 2; t < s.triangles.size(); ++t) {
+      std::array<glm::dvec3, 3> p;
+      std::array<glm::dvec2, 3> uv;
+      for (std::size_t k = 0; k < 3; ++k) {
+        p[k] = glm::dvec3(s.triangles[t].p[k]);
+        uv[k] = {u0 + (p[k].x - x0) * (u1 - u0), p[k].y / 8};
+      }
+      UvMap map;
+      ASSERT_TRUE(make_uv_map(p, uv, map));
+      s.triangles[t].uv_map = static_cast<uint32_t>(s.uv_maps.size());
+      s.uv_maps.push_back(map);
+    }
+  };
+  island(0, 0, 0.49 / 8);
+  island(3, 0.49 / 8, 3.0 / 8);
+  const double uv_area = 3.0 / 8 / 8;
+  const Atlas a = make_atlas(s, {.texel_size = std::sqrt(2 / uv_area) / 7.9, .gutter = 0});
+  ASSERT_EQ(a.file_side, 8);
+  ASSERT_EQ(a.charts.size(), 2u);
+  EXPECT_EQ(a.owner[0], a.chart_of[2]);  // the second island's
+  EXPECT_EQ(a.owner[1], a.chart_of[2]);
+  EXPECT_EQ(a.chart_of[0], 0u);
+}
+
 // Faces the file's square does not hold (the back side of a two-sided face, which shares its
 // front's UV; a face whose UV leaves the square) get sirad's charts in shelves below it, at its
 // texel size; the file's faces keep their UV, only squeezed by the square's share of the height.
