@@ -28,6 +28,11 @@ namespace {
 // of its texels.
 constexpr double kChartAngleDegrees = 2.0;
 
+// The most texels the file's faces' UV bounds may hold in all (each is rasterised over its
+// bounds), per texel of the square (a layout whose islands do not overlap holds about 2: a
+// triangle's bounds are twice its area) and per face (its bounds' rim).
+constexpr double kMaxFileBoundsPerTexel = 8, kMaxFileBoundsPerFace = 16;
+
 // From a budget, the texel size grows by this until the atlas fits max_side, at most this often.
 constexpr double kGrow = 1.25;
 constexpr int kMaxTries = 64;
@@ -522,6 +527,21 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
            o.texel_size, o.max_side, o.max_side, scene.name, total);
     if (tries == kMaxTries) fail("atlas: {} does not fit an atlas of {} x {} texels", scene.name, o.max_side, o.max_side);
     texel = texel > 0 ? texel * kGrow : extent / o.max_side;
+  }
+  if (file) {
+    // The file's faces are rasterised over their bounds (and the bake indexes them so): bounded
+    // whatever the file's UV says (islands laid over each other, slivers across the square).
+    double bounds = 0, most = double(side) * side * kMaxFileBoundsPerTexel;
+    for (std::size_t i = 0; i < n; ++i)
+      if (placed[i]) {
+        most += kMaxFileBoundsPerFace;
+        const glm::dvec2 a = glm::min(uv[i][0], glm::min(uv[i][1], uv[i][2])), b = glm::max(uv[i][0], glm::max(uv[i][1], uv[i][2]));
+        bounds += (std::floor(b.x * side) - std::floor(a.x * side) + 1) * (std::floor(b.y * side) - std::floor(a.y * side) + 1);
+      }
+    if (bounds > most)
+      fail("atlas: {}: the faces of its TEXCOORD_1 span {:.3g} texels in their bounds at {} x {} (more than {:.3g}: islands laid "
+           "over each other, or slivers across the square); --own-atlas lays the lightmap out in sirad's charts",
+           scene.name, bounds, side, side, most);
   }
   atlas.texel_size = file ? std::sqrt(placed_area / uv_area) / side : texel;
   atlas.file_side = side;

@@ -112,8 +112,9 @@ Scene cut_at_contacts(const Scene& scene);
 // The atlas of `scene` (every triangle, unlit ones included: they are surfaces a viewer sees),
 // in the file's layout where it has one and options.file_layout.
 // Faces are not joined across an edge that lies along a contact segment (cut_at_contacts).
-// Throws sirad::Error for options out of range, or a texel size that needs an atlas wider or
-// taller than max_side (naming the size it would take).
+// Throws sirad::Error for options out of range, a texel size that needs an atlas wider or
+// taller than max_side (naming the size it would take), or a file's UV set whose faces' bounds
+// hold more than 8 times the square's texels and 16 a face (islands laid over each other).
 Atlas make_atlas(const Scene& scene, const AtlasOptions& options);
 
 }  // namespace sirad

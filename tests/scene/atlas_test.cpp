@@ -373,6 +373,22 @@ TEST(Atlas, FacesTheFilesSquareDoesNotHoldGoBelowIt) {
   EXPECT_EQ(b.charts.size(), 2u);
   EXPECT_GE(b.shared_texels, 48u * 48);
   EXPECT_LE(b.shared_texels, 50u * 50);
+
+  // Every face laid over the whole square (a hostile file): its faces' bounds hold 12 times the
+  // square: refused before any is rasterised, naming the way out.
+  Scene all = cube();
+  for (Triangle& t : all.triangles) {
+    UvMap map;
+    ASSERT_TRUE(make_uv_map({glm::dvec3(t.p[0]), glm::dvec3(t.p[1]), glm::dvec3(t.p[2])}, {glm::dvec2(0, 0), glm::dvec2(1, 0), glm::dvec2(0, 1)}, map));
+    t.uv_map = static_cast<uint32_t>(all.uv_maps.size());
+    all.uv_maps.push_back(map);
+  }
+  try {
+    make_atlas(all, {.texel_size = 0.02, .gutter = 1});
+    ADD_FAILURE() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--own-atlas"), std::string::npos) << e.what();
+  }
 }
 
 // The apartment with a lightmap UV set made by Blender's Lightmap Pack (every face an island,
