@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
+#include <numbers>
 #include <unordered_map>
 
 #include <glm/geometric.hpp>
@@ -142,7 +142,7 @@ struct Record {
 
 // A block's corners lie in one plane within this (a curved chart of the file's layout is
 // interpolated only where it is flat within 2 degrees, as sirad's charts are).
-const double kCacheFlat = std::cos(2.0 * 3.14159265358979323846 / 180.0);
+const double kCacheFlat = std::cos(2.0 * std::numbers::pi / 180.0);
 
 class ChartCache {
  public:
@@ -225,14 +225,16 @@ class ChartCache {
 // changing its four texels in proportion to their weights; kSeamPasses passes over all seams in
 // order (on a floor's diagonal seam 16 passes left 1.1 % between the sides, 64 leave 0.02 %;
 // points half a texel apart left 0.6 %, the grids being turned to each other). A texel changes
-// only within a lookup's reach of a seam (1.5 texels).
+// only within a lookup's reach of a seam (1.5 texels). At most kMaxSeamPoints points in all
+// (about 150 MB; a seam's points past that, in the atlas's order, are not matched).
 constexpr double kSeamPoints = 0.25;
 constexpr int kSeamPasses = 64;
+constexpr std::size_t kMaxSeamPoints = std::size_t{1} << 21;
 
 // One side of a seam point: the four texels of its bilinear lookup and their weights.
 struct Footprint {
-  std::array<std::size_t, 4> texel{};
-  std::array<double, 4> w{};
+  std::array<uint32_t, 4> texel{};
+  std::array<float, 4> w{};
   bool ok = false;
 };
 
@@ -250,8 +252,8 @@ Footprint footprint(const Atlas& atlas, const std::vector<float>& coverage, uint
   for (std::size_t k = 0; k < 4; ++k) {
     const std::size_t t = static_cast<std::size_t>(j + static_cast<int>(k >> 1)) * static_cast<std::size_t>(atlas.width) +
                           static_cast<std::size_t>(i + static_cast<int>(k & 1));
-    f.texel[k] = t;
-    f.w[k] = ((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy);
+    f.texel[k] = static_cast<uint32_t>(t);
+    f.w[k] = static_cast<float>(((k & 1) ? fx : 1 - fx) * ((k >> 1) ? fy : 1 - fy));
     if (f.w[k] > 0 && atlas.owner[t] != chart) return f;  // another chart's texel: no lookup here
   }
   double sampled = 0;
@@ -269,7 +271,7 @@ void match_seams(Lightmap& m, const Atlas& atlas) {
     const glm::dvec2 b0 = glm::dvec2(seam.uv_b[0]) * size, b1 = glm::dvec2(seam.uv_b[1]) * size;
     const double length = std::max(glm::length(a1 - a0), glm::length(b1 - b0));
     const int n = std::clamp(static_cast<int>(std::ceil(length / kSeamPoints)), 1, 1 << 16);
-    for (int s = 0; s < n; ++s) {
+    for (int s = 0; s < n && points.size() < kMaxSeamPoints; ++s) {
       const double t = (s + 0.5) / n;
       std::array<Footprint, 2> p = {footprint(atlas, m.coverage, atlas.chart_of[seam.a], a0 + t * (a1 - a0)),
                                     footprint(atlas, m.coverage, atlas.chart_of[seam.b], b0 + t * (b1 - b0))};
@@ -283,11 +285,14 @@ void match_seams(Lightmap& m, const Atlas& atlas) {
       std::array<glm::dvec3, 2> look{};
       std::array<double, 2> norm{};
       for (std::size_t side = 0; side < 2; ++side)
-        for (std::size_t k = 0; k < 4; ++k) look[side] += p[side].w[k] * glm::dvec3(v[p[side].texel[k]]), norm[side] += p[side].w[k] * p[side].w[k];
+        for (std::size_t k = 0; k < 4; ++k) {
+          const double w = p[side].w[k];
+          look[side] += w * glm::dvec3(v[p[side].texel[k]]), norm[side] += w * w;
+        }
       const glm::dvec3 mean = 0.5 * (look[0] + look[1]);
       for (std::size_t side = 0; side < 2; ++side)
         for (std::size_t k = 0; k < 4; ++k)
-          v[p[side].texel[k]] += glm::vec3(p[side].w[k] * (mean - look[side]) / norm[side]);
+          v[p[side].texel[k]] += glm::vec3(double(p[side].w[k]) * (mean - look[side]) / norm[side]);
     }
   // The layers follow the sum: direct and indirect scaled by the texel's change (the change in
   // the indirect light where the texel had none).

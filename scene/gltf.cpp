@@ -337,7 +337,7 @@ class GltfReader {
         } else {
           x = (at[0] | (at[1] << 8)) / 65535.0;
         }
-        if (!std::isfinite(x) || std::abs(x) > 1e6) fail("{}: {}: TEXCOORD_1 of vertex {} is not finite", path_, what, i);
+        if (!std::isfinite(x) || std::abs(x) > 1e6) fail("{}: {}: TEXCOORD_1 of vertex {} is not finite or beyond 1e6", path_, what, i);
         uv[i][k] = x;
       }
     return uv;
