@@ -59,7 +59,7 @@ void bake(const OutputFlags& o, const std::string& out, const Meshed& m, const s
   std::printf("lightmap %dx%d texels of %.4g (%s), %zu charts (%.0f %% of the atlas), %d samples a texel, %.2f s, "
               "relative error per texel %.3g %% (median; %.3g %% RMS) over %zu lit texels; the indirect light of %.0f %% of "
               "the texels from the cache\n",
-              atlas.width, atlas.height, atlas.texel_size, atlas.file_side > 0 ? "the scene's TEXCOORD_1" : "sirad's charts",
+              atlas.width, atlas.height, atlas.texel_size, atlas.file_width > 0 ? "the scene's TEXCOORD_1" : "sirad's charts",
               atlas.charts.size(), 100 * atlas.fill(), o.lightmap.samples, seconds,
               100 * median, 100 * rms, lit, covered > 0 ? 100.0 * static_cast<double>(lightmap.cached) / covered : 0.0);
 }

@@ -46,6 +46,8 @@ void write_glb(const std::string& path, const std::string& exr_name, const Scene
       {"sirad_background", gltf::triple(scene.background)},
       {"sirad_lightmap", tinygltf::Value(tinygltf::Value::Object{{"exr", tinygltf::Value(exr_name)},
                                                                   {"texcoord", tinygltf::Value(1)},
+                                                                  {"width", tinygltf::Value(atlas.width)},
+                                                                  {"height", tinygltf::Value(atlas.height)},
                                                                   {"units", tinygltf::Value(std::string("radiance"))},
                                                                   {"exposure", tinygltf::Value(static_cast<double>(exposure))}})}});
   m.extensionsUsed.push_back("KHR_materials_unlit");

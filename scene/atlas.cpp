@@ -377,13 +377,13 @@ std::vector<std::vector<uint32_t>> file_charts(const Scene& scene, const std::ve
   return charts;
 }
 
-// The owners of the file's square of `side` texels (Atlas::owner, `width` wide): each texel the
+// The owners of the file's sw x sh texels (Atlas::owner, `width` wide): each texel the
 // chart whose faces hold its centre, else the one that covers most of its 4 x 4 points, then
 // `gutter` rings around them. Returns the
 // texels of the faces; counts in `shared` those that a second chart covers 4 points of.
-std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, const std::vector<std::array<glm::dvec2, 3>>& uv, int side,
-                            int width, int gutter, std::vector<uint32_t>& owner, std::size_t& shared) {
-  const std::size_t texels = static_cast<std::size_t>(side) * static_cast<std::size_t>(side);
+std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, const std::vector<std::array<glm::dvec2, 3>>& uv, int sw,
+                            int sh, int width, int gutter, std::vector<uint32_t>& owner, std::size_t& shared) {
+  const std::size_t texels = static_cast<std::size_t>(sw) * static_cast<std::size_t>(sh);
   std::vector<uint16_t> best(texels, 0), here(texels, 0);
   std::vector<uint8_t> contested(texels, 0);
   std::vector<uint32_t> touched;
@@ -391,10 +391,10 @@ std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, co
     touched.clear();
     for (uint32_t t : charts[c]) {
       std::array<glm::dvec2, 3> q;
-      for (std::size_t k = 0; k < 3; ++k) q[k] = uv[t][k] * double(side);
+      for (std::size_t k = 0; k < 3; ++k) q[k] = uv[t][k] * glm::dvec2(sw, sh);
       const glm::dvec2 lo = glm::min(q[0], glm::min(q[1], q[2])), hi = glm::max(q[0], glm::max(q[1], q[2]));
-      const int x0 = std::clamp(static_cast<int>(std::floor(lo.x)), 0, side - 1), x1 = std::clamp(static_cast<int>(std::floor(hi.x)), 0, side - 1);
-      const int y0 = std::clamp(static_cast<int>(std::floor(lo.y)), 0, side - 1), y1 = std::clamp(static_cast<int>(std::floor(hi.y)), 0, side - 1);
+      const int x0 = std::clamp(static_cast<int>(std::floor(lo.x)), 0, sw - 1), x1 = std::clamp(static_cast<int>(std::floor(hi.x)), 0, sw - 1);
+      const int y0 = std::clamp(static_cast<int>(std::floor(lo.y)), 0, sh - 1), y1 = std::clamp(static_cast<int>(std::floor(hi.y)), 0, sh - 1);
       for (int y = y0; y <= y1; ++y)
         for (int x = x0; x <= x1; ++x) {
           // A chart that holds the texel's centre comes first (as Cycles and engines' bakers
@@ -404,7 +404,7 @@ std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, co
           for (int s = 0; s < 16; ++s) count += inside2(q, {x + (s % 4 + 0.5) / 4, y + (s / 4 + 0.5) / 4});
           const bool centre = inside2(q, {x + 0.5, y + 0.5});
           if (count == 0 && !centre) continue;
-          const std::size_t k = static_cast<std::size_t>(y) * static_cast<std::size_t>(side) + static_cast<std::size_t>(x);
+          const std::size_t k = static_cast<std::size_t>(y) * static_cast<std::size_t>(sw) + static_cast<std::size_t>(x);
           if (here[k] == 0) touched.push_back(static_cast<uint32_t>(k));
           // The score: 17 for the centre, and the points (at most 16 over the chart's faces).
           const int points = std::min(16, here[k] % 17 + count);
@@ -412,7 +412,7 @@ std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, co
         }
     }
     for (uint32_t k : touched) {
-      const std::size_t at = (k / static_cast<uint32_t>(side)) * static_cast<std::size_t>(width) + k % static_cast<uint32_t>(side);
+      const std::size_t at = (k / static_cast<uint32_t>(sw)) * static_cast<std::size_t>(width) + k % static_cast<uint32_t>(sw);
       if (best[k] % 17 >= 4 && here[k] % 17 >= 4) contested[k] = 1;
       if (here[k] > best[k]) best[k] = here[k], owner[at] = static_cast<uint32_t>(c);
       here[k] = 0;
@@ -424,15 +424,15 @@ std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, co
   std::vector<std::pair<std::size_t, uint32_t>> ring;
   for (int r = 0; r < gutter; ++r) {
     ring.clear();
-    for (int y = 0; y < side; ++y)
-      for (int x = 0; x < side; ++x) {
+    for (int y = 0; y < sh; ++y)
+      for (int x = 0; x < sw; ++x) {
         const std::size_t at = static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
         if (owner[at] != kNoChart) continue;
         uint32_t c = kNoChart;
         for (int dy = -1; dy <= 1; ++dy)
           for (int dx = -1; dx <= 1; ++dx) {
             const int a = x + dx, b = y + dy;
-            if (a >= 0 && a < side && b >= 0 && b < side)
+            if (a >= 0 && a < sw && b >= 0 && b < sh)
               c = std::min(c, owner[static_cast<std::size_t>(b) * static_cast<std::size_t>(width) + static_cast<std::size_t>(a)]);
           }
         if (c != kNoChart) ring.emplace_back(at, c);
@@ -499,25 +499,37 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
   }
 
   // Step 4: the texel size (given, or grown from the budget's until the atlas fits) and the
-  // packing: the file's square (its side from the texel size) with sirad's charts below it.
+  // packing: the file's UV square at sw x sh texels (the size the file names, unless a texel
+  // size is given; else from the texel size, in the named size's proportions or square) with
+  // sirad's charts below it.
   double texel = o.texel_size > 0 ? o.texel_size : std::sqrt(total / static_cast<double>(o.texel_budget));
-  int side = 0;
+  const bool named = file && scene.lightmap_size.has_value();
+  const double aspect = named ? double((*scene.lightmap_size)[0]) / (*scene.lightmap_size)[1] : 1.0;
+  int sw = 0, sh = 0;
+  // The file's mean texel at sw x sh.
+  const auto file_texel = [&] { return std::sqrt(placed_area / (uv_area * sw * sh)); };
   for (int tries = 0;; ++tries) {
     bool fits = texel > 0;
     if (fits && file) {
-      const double s = std::ceil(std::sqrt(placed_area / uv_area) / texel / 4) * 4;
-      fits = s <= o.max_side;
-      side = fits ? static_cast<int>(s) : 0;
+      double w = 0, h = 0;
+      if (named && o.texel_size == 0 && tries == 0) {
+        w = (*scene.lightmap_size)[0], h = (*scene.lightmap_size)[1];
+      } else {
+        h = std::max(4.0, std::ceil(std::sqrt(placed_area / (uv_area * aspect)) / texel / 4) * 4);
+        w = std::max(4.0, std::ceil(h * aspect / 4) * 4);
+      }
+      fits = w <= o.max_side && h <= o.max_side;
+      sw = fits ? static_cast<int>(w) : 0, sh = fits ? static_cast<int>(h) : 0;
     }
     int band_width = 0, band_height = 0;
     if (fits && !groups.empty()) {
-      const double own = file ? std::sqrt(placed_area / uv_area) / side : texel;
+      const double own = file ? file_texel() : texel;
       AtlasOptions below = o;
-      below.max_side = o.max_side - side;
-      fits = below.max_side >= 1 && place_own(scene, groups, normal, area, own, below, side, atlas.charts, band_width, band_height);
+      below.max_side = o.max_side - sh;
+      fits = below.max_side >= 1 && place_own(scene, groups, normal, area, own, below, sw, atlas.charts, band_width, band_height);
     }
     if (fits) {
-      atlas.width = std::max(side, band_width), atlas.height = side + band_height;
+      atlas.width = std::max(sw, band_width), atlas.height = sh + band_height;
       fits = atlas.width <= o.max_side && atlas.height <= o.max_side;
     }
     if (fits) break;
@@ -531,25 +543,25 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
   if (file) {
     // The file's faces are rasterised over their bounds (and the bake indexes them so): bounded
     // whatever the file's UV says (islands laid over each other, slivers across the square).
-    double bounds = 0, most = double(side) * side * kMaxFileBoundsPerTexel;
+    double bounds = 0, most = double(sw) * sh * kMaxFileBoundsPerTexel;
     for (std::size_t i = 0; i < n; ++i)
       if (placed[i]) {
         most += kMaxFileBoundsPerFace;
         const glm::dvec2 a = glm::min(uv[i][0], glm::min(uv[i][1], uv[i][2])), b = glm::max(uv[i][0], glm::max(uv[i][1], uv[i][2]));
-        bounds += (std::floor(b.x * side) - std::floor(a.x * side) + 1) * (std::floor(b.y * side) - std::floor(a.y * side) + 1);
+        bounds += (std::floor(b.x * sw) - std::floor(a.x * sw) + 1) * (std::floor(b.y * sh) - std::floor(a.y * sh) + 1);
       }
     if (bounds > most)
       fail("atlas: {}: the faces of its TEXCOORD_1 span {:.3g} texels in their bounds at {} x {} (more than {:.3g}: islands laid "
            "over each other, or slivers across the square); --own-atlas lays the lightmap out in sirad's charts",
-           scene.name, bounds, side, side, most);
+           scene.name, bounds, sw, sh, most);
   }
-  atlas.texel_size = file ? std::sqrt(placed_area / uv_area) / side : texel;
-  atlas.file_side = side;
+  atlas.texel_size = file ? file_texel() : texel;
+  atlas.file_width = sw, atlas.file_height = sh;
   atlas.owner.assign(static_cast<std::size_t>(atlas.width) * static_cast<std::size_t>(atlas.height), kNoChart);
 
   // Step 5: sirad's charts' UV (in texels) and texels, below the file's square.
   for (Chart& ch : atlas.charts) {
-    ch.y += side;
+    ch.y += sh;
     for (int y = ch.y; y < ch.y + ch.height; ++y)
       for (int x = ch.x; x < ch.x + ch.width; ++x) atlas.owner[static_cast<std::size_t>(y) * static_cast<std::size_t>(atlas.width) + static_cast<std::size_t>(x)] = static_cast<uint32_t>(&ch - atlas.charts.data());
     atlas.face_texels += static_cast<std::size_t>(ch.width - 2 * o.gutter) * static_cast<std::size_t>(ch.height - 2 * o.gutter);
@@ -560,13 +572,13 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
   if (file) {
     const std::size_t first = atlas.charts.size();
     const std::vector<std::vector<uint32_t>> islands = file_charts(scene, placed, uv);
-    std::vector<uint32_t> owner(static_cast<std::size_t>(atlas.width) * static_cast<std::size_t>(side), kNoChart);
-    atlas.face_texels += own_file_texels(islands, uv, side, atlas.width, o.gutter, owner, atlas.shared_texels);
+    std::vector<uint32_t> owner(static_cast<std::size_t>(atlas.width) * static_cast<std::size_t>(sh), kNoChart);
+    atlas.face_texels += own_file_texels(islands, uv, sw, sh, atlas.width, o.gutter, owner, atlas.shared_texels);
     for (std::size_t k = 0; k < owner.size(); ++k)
       if (owner[k] != kNoChart) atlas.owner[k] = static_cast<uint32_t>(first + owner[k]);
-    std::vector<std::array<int, 4>> bounds(islands.size(), {side, side, -1, -1});
-    for (int y = 0; y < side; ++y)
-      for (int x = 0; x < side; ++x)
+    std::vector<std::array<int, 4>> bounds(islands.size(), {sw, sh, -1, -1});
+    for (int y = 0; y < sh; ++y)
+      for (int x = 0; x < sw; ++x)
         if (const uint32_t c = owner[static_cast<std::size_t>(y) * static_cast<std::size_t>(atlas.width) + static_cast<std::size_t>(x)]; c != kNoChart) {
           auto& b = bounds[c];
           b = {std::min(b[0], x), std::min(b[1], y), std::max(b[2], x), std::max(b[3], y)};
@@ -579,10 +591,10 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
       for (uint32_t t : ch.triangles) {
         ch.normal += normal[t] * area[t], a += area[t];
         a_uv += 0.5 * std::abs(cross2(uv[t][0], uv[t][1], uv[t][2]));
-        for (auto& q : uv[t]) q *= double(side);
+        for (auto& q : uv[t]) q *= glm::dvec2(sw, sh);
       }
       ch.normal = glm::length(ch.normal) > 0 ? glm::normalize(ch.normal) : glm::dvec3(0, 0, 1);
-      ch.texel = std::sqrt(a / a_uv) / side;
+      ch.texel = std::sqrt(a / (a_uv * sw * sh));
       const auto& b = bounds[c];
       if (b[2] >= 0) ch.x = b[0], ch.y = b[1], ch.width = b[2] - b[0] + 1, ch.height = b[3] - b[1] + 1;
       atlas.charts.push_back(std::move(ch));

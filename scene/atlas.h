@@ -13,7 +13,7 @@
 //     a chart never reaches another.
 // A scene whose file has its own lightmap UV set (glTF TEXCOORD_1: Scene::uv_maps) is laid out as
 // the file says, unless told otherwise (AtlasOptions::file_layout):
-//   - The file's unit UV square becomes the atlas's top-left file_side x file_side texels; its
+//   - The file's unit UV square becomes the atlas's top-left file_width x file_height texels; its
 //     charts are the faces joined by corners at the same place with the same UV (a UV island,
 //     curved or not), and a texel is the chart's that holds its centre (as bakers rasterise),
 //     else the one that covers most of it (16 points tried: a texel on an island's rim), or,
@@ -22,8 +22,9 @@
 //     front's UV; faces without TEXCOORD_1 or with no area or corners outside [0, 1] in it) get
 //     sirad's own charts, packed in shelves below the square at the file's mean texel size. With
 //     none, the layout is the file's exactly.
-//   - file_side is the texel size's (the file's UV area against its faces' area) or the
-//     budget's square root, whole blocks of 4.
+//   - Its size is the one the file names (Scene::lightmap_size: a glb sirad baked) unless a
+//     texel size is given; else the texel size's (the file's UV area against its faces' area),
+//     in the named size's proportions or square, whole blocks of 4.
 // Texel (i, j) covers [i, i + 1) x [j, j + 1) in texel units, rows top first; a triangle
 // corner's UV is its texel position over the atlas size, as glTF's TEXCOORD_1 takes it (u right,
 // v down). Plain geometry: no rays, no radiosity.
@@ -87,9 +88,9 @@ struct Atlas {
   std::vector<std::array<glm::vec2, 3>> uv;     // per scene triangle, its corners' UV in [0, 1]
   // Per texel, rows top first: the chart whose texel it is (its faces' or its gutter's), or kNoChart.
   std::vector<uint32_t> owner;
-  // The file's layout: its UV square's side in texels (0: sirad's own layout), and the texels
+  // The file's layout: its UV square's size in texels (0: sirad's own layout), and the texels
   // more than one chart covers a quarter of (overlapping islands in the file's UV set).
-  int file_side = 0;
+  int file_width = 0, file_height = 0;
   std::size_t shared_texels = 0;
   std::vector<Seam> seams;
   // The texels of the charts' faces (in sirad's layout their rectangles, gutters left out; in

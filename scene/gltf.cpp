@@ -81,6 +81,15 @@ class GltfReader {
            "surfaces (give a mesh an emissive material, e.g. Blender's Emission strength)",
            path_, m_.lights.size(), m_.lights.size() == 1 ? "" : "s");
     if (m_.scenes.empty()) fail("{}: no scene", path_);
+    if (m_.asset.extras.Has("sirad_lightmap")) {  // a glb sirad baked: its lightmap's size
+      const tinygltf::Value& l = m_.asset.extras.Get("sirad_lightmap");
+      if (l.IsObject() && l.Has("width") && l.Has("height")) {
+        const tinygltf::Value &w = l.Get("width"), &h = l.Get("height");
+        if (!w.IsInt() || !h.IsInt() || w.Get<int>() < 1 || w.Get<int>() > 16384 || h.Get<int>() < 1 || h.Get<int>() > 16384)
+          fail("{}: the asset's sirad_lightmap width and height are not whole numbers in 1..16384", path_);
+        scene_.lightmap_size = std::array<int, 2>{w.Get<int>(), h.Get<int>()};
+      }
+    }
     if (m_.asset.extras.Has("sirad_background"))
       scene_.background = glm::vec3(sirad_triple(m_.asset.extras.Get("sirad_background"), "the asset's sirad_background", 0.0, 3.0e38));
     const int which = m_.defaultScene >= 0 ? m_.defaultScene : 0;

@@ -82,6 +82,9 @@ struct Scene {
   // The file's lightmap UV maps (Triangle::uv_map; glTF TEXCOORD_1). Neither they nor
   // Triangle::back travel in encode_scene: only the bake reads them.
   std::vector<UvMap> uv_maps;
+  // The lightmap's size in texels (width, height) where the file names it (a glb sirad baked:
+  // its asset's sirad_lightmap), so that a rebake keeps its texels where they were.
+  std::optional<std::array<int, 2>> lightmap_size;
   std::optional<Camera> camera;     // from the file's `# sirad camera` line or built-in
   // The camera's width / height where the file says (glTF aspectRatio): the default image shape.
   std::optional<double> camera_aspect;

@@ -2,6 +2,7 @@
 // with its layers, the glb's faces at their atlas UV in TEXCOORD_0 and TEXCOORD_1, its unlit
 // materials showing the embedded PNG, the two sides of a two-sided face apart, and the refusals.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -176,8 +177,8 @@ TEST_F(LightmapFiles, TheGlbCarriesTheAtlasUvAndShowsTheLightmap) {
 
 // A baked glb read back as a scene (a rebake after an edit in Blender): its materials are the
 // extras' (no warning about the lightmap texture as a base colour), its faces one-sided (the
-// sides were pulled apart), and its atlas is its TEXCOORD_1: every face at the UV it was baked
-// at, no faces below the square.
+// sides were pulled apart), and its atlas is its TEXCOORD_1 at the size it names: every face at
+// the UV it was baked at, the same texels, no faces below.
 TEST_F(LightmapFiles, ABakedGlbRebakesInItsOwnLayout) {
   Baked b;
   const std::string name = (dir_ / "scene").string();
@@ -186,9 +187,14 @@ TEST_F(LightmapFiles, ABakedGlbRebakesInItsOwnLayout) {
   for (const std::string& w : again.warnings) EXPECT_EQ(w.find("texture"), std::string::npos) << w;
   ASSERT_EQ(again.triangles.size(), b.q.scene.triangles.size());
   EXPECT_EQ(again.materials.at(again.triangles[0].material).reflectance, glm::vec3(0.5f));
-  const Atlas a = make_atlas(again, {.texel_size = 0.25, .gutter = 1});
-  EXPECT_GT(a.file_side, 0);
-  EXPECT_EQ(a.height, a.file_side);
+  ASSERT_TRUE(again.lightmap_size.has_value());
+  EXPECT_EQ(*again.lightmap_size, (std::array<int, 2>{b.atlas.width, b.atlas.height}));
+  ASSERT_NE(b.atlas.width, b.atlas.height);  // a rectangle: its proportions must come back
+  const Atlas a = make_atlas(again, {.gutter = 1});
+  EXPECT_EQ(a.file_width, b.atlas.width);
+  EXPECT_EQ(a.file_height, b.atlas.height);
+  EXPECT_EQ(a.width, b.atlas.width);
+  EXPECT_EQ(a.height, b.atlas.height);
   std::set<std::array<long, 6>> baked;
   const auto key = [](const std::array<glm::vec2, 3>& uv) {
     std::array<long, 6> k;
@@ -199,6 +205,10 @@ TEST_F(LightmapFiles, ABakedGlbRebakesInItsOwnLayout) {
   };
   for (const auto& uv : b.atlas.uv) baked.insert(key(uv));
   for (const auto& uv : a.uv) EXPECT_EQ(baked.count(key(uv)), 1u);
+  // A texel size asked for: the file's proportions at that size (to whole blocks of 4).
+  const Atlas finer = make_atlas(again, {.texel_size = b.atlas.texel_size / 2, .gutter = 1});
+  EXPECT_NEAR(double(finer.file_width) / finer.file_height, double(b.atlas.width) / b.atlas.height, 8.0 / finer.file_height);
+  EXPECT_GT(finer.file_height, b.atlas.height);
 }
 
 TEST_F(LightmapFiles, WhatHalfFloatsCannotHoldOrAnotherAtlasIsRefused) {

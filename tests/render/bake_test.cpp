@@ -236,7 +236,7 @@ TEST(Bake, AFilesFoldedLayoutBakesEachTexelOnItsOwnFace) {
   std::vector<glm::vec3> b(mesh.size(), glm::vec3(2.0f));
   const FinalGather gather(mesh, b, {.seed = 4});
   const Atlas atlas = make_atlas(scene, {.texel_size = 0.02, .gutter = 1});
-  ASSERT_EQ(atlas.file_side, 200);
+  ASSERT_EQ(atlas.file_width, 200);
   ASSERT_EQ(atlas.charts.size(), 1u);
   const Lightmap m = bake_lightmap(scene, atlas, gather, 4);
   // Whether texel (x, y) lies on a face of the net (50 texels a face).
@@ -304,11 +304,11 @@ TEST(Bake, TheTwoSidesOfASeamAgree) {
   for (std::size_t j = 0; j < mesh.size(); ++j) b[j] = mesh.emission(j);
   const FinalGather gather(mesh, b, {.seed = 5});
   const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.1, .gutter = 1});
-  ASSERT_GT(atlas.file_side, 60);
+  ASSERT_GT(atlas.file_width, 60);
   ASSERT_EQ(atlas.seams.size(), 1u);  // the light's diagonal is one place in its island
   const Lightmap raw = bake_lightmap(q.scene, atlas, gather, 64, 1, false);
   const Lightmap matched = bake_lightmap(q.scene, atlas, gather, 64, 1, true);
-  const double side = atlas.file_side;
+  const double side = atlas.file_width;
   // The bilinear lookup of `m` at UV `uv` (texel centres at half-integers).
   const auto lookup = [&](const Lightmap& m, const glm::dvec2& uv) {
     const double x = uv.x * side - 0.5, y = uv.y * side - 0.5;

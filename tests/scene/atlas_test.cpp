@@ -277,7 +277,8 @@ TEST(Atlas, TheFilesLightmapUvIsKept) {
   test::give_cube_net_uv(s);
   ASSERT_EQ(s.uv_maps.size(), 12u);
   const Atlas a = make_atlas(s, {.texel_size = 0.02, .gutter = 1});
-  EXPECT_EQ(a.file_side, 200);
+  EXPECT_EQ(a.file_width, 200);
+  EXPECT_EQ(a.file_height, 200);
   EXPECT_EQ(a.width, 200);
   EXPECT_EQ(a.height, 200);
   EXPECT_NEAR(a.texel_size, 0.02, 1e-12);
@@ -301,7 +302,7 @@ TEST(Atlas, TheFilesLightmapUvIsKept) {
   EXPECT_EQ(owner(10, 160), kNoChart);  // below the ceiling
 
   const Atlas own = make_atlas(s, {.texel_size = 0.02, .gutter = 1, .file_layout = false});
-  EXPECT_EQ(own.file_side, 0);
+  EXPECT_EQ(own.file_width, 0);
   EXPECT_EQ(own.charts.size(), 6u);
   expect_sound(s, own);
 }
@@ -332,7 +333,7 @@ TEST(Atlas, ATexelIsTheIslandsThatHoldsItsCentre) {
   island(3, 0.49 / 8, 3.0 / 8);
   const double uv_area = 3.0 / 8 / 8;
   const Atlas a = make_atlas(s, {.texel_size = std::sqrt(2 / uv_area) / 7.9, .gutter = 0});
-  ASSERT_EQ(a.file_side, 8);
+  ASSERT_EQ(a.file_width, 8);
   ASSERT_EQ(a.charts.size(), 2u);
   EXPECT_EQ(a.owner[0], a.chart_of[2]);  // the second island's
   EXPECT_EQ(a.owner[1], a.chart_of[2]);
@@ -349,7 +350,7 @@ TEST(Atlas, FacesTheFilesSquareDoesNotHoldGoBelowIt) {
   s.triangles[0].back = s.triangles[1].back = true;                       // the floor
   s.uv_maps[s.triangles[2].uv_map].uv0.x += 2;                            // the ceiling's first half
   const Atlas a = make_atlas(s, {.texel_size = 0.02, .gutter = 1});
-  EXPECT_EQ(a.file_side, 200);
+  EXPECT_EQ(a.file_width, 200);
   EXPECT_EQ(a.width, 200);
   ASSERT_GE(a.height, 200 + 50);
   ASSERT_EQ(a.charts.size(), 3u);  // the floor, the ceiling's half, the rest in the file's layout
@@ -400,7 +401,7 @@ TEST(Atlas, BlendersLightmapPackIsTheLayout) {
   const std::string path = std::string(SIRAD_SOURCE_DIR) + "/tests/data/blender/apartment-uv2.glb";
   const Scene s = import_gltf(path, {});
   const Atlas a = make_atlas(s, {.texel_budget = uint64_t{1} << 18});
-  ASSERT_GT(a.file_side, 0);
+  ASSERT_GT(a.file_width, 0);
   EXPECT_EQ(a.shared_texels, 0u);
   EXPECT_GT(a.seams.size(), 100u);
   // The file's triangles by their TEXCOORD_1 (Lightmap Pack's islands do not overlap, so a
@@ -451,13 +452,13 @@ TEST(Atlas, BlendersLightmapPackIsTheLayout) {
     ++fronts;
     std::array<glm::dvec2, 3> uv;
     for (std::size_t k = 0; k < 3; ++k)
-      uv[k] = {double(a.uv[t][k].x) * a.width / a.file_side, double(a.uv[t][k].y) * a.height / a.file_side};
+      uv[k] = {double(a.uv[t][k].x) * a.width / a.file_width, double(a.uv[t][k].y) * a.height / a.file_height};
     found += file.count(key_of(uv));  // a piece cut by the import (gaps) is no triangle of the file
   }
   EXPECT_GT(found, fronts / 2) << found << " of " << fronts << " faces";
   bool backs = false;
   for (const Triangle& t : s.triangles) backs = backs || t.back;
-  EXPECT_EQ(a.height > a.file_side, backs);
+  EXPECT_EQ(a.height > a.file_height, backs);
 }
 
 }  // namespace
