@@ -269,6 +269,24 @@ TEST_F(GltfFiles, TheLightmapUvSetIsEachTrianglesMap) {
   refused(with_uv(floats, 5126, false, "VEC3", 2));
   refused(with_uv(floats, 5126, false, "VEC2", 2));
   refused(with_uv(shorts, 5123, false, "VEC2", 3));  // unsigned shorts that are not normalized
+  // The lightmap's size a baked glb names: read, or refused when it is no size.
+  const std::string sized = with_uv(floats, 5126, false, "VEC2", 3);
+  const auto with_asset = [&](const std::string& extras) {
+    std::string text = sized;
+    const std::string asset = R"("asset": {"version": "2.0"})";
+    text.replace(text.find(asset), asset.size(), R"("asset": {"version": "2.0", "extras": {"sirad_lightmap": )" + extras + "}}");
+    return text;
+  };
+  EXPECT_EQ(load_scene(write("sized.gltf", with_asset(R"({"width": 64, "height": 48})"))).lightmap_size, (std::array<int, 2>{64, 48}));
+  EXPECT_FALSE(load_scene(write("unsized.gltf", sized)).lightmap_size.has_value());
+  for (const char* bad : {R"({"width": 0, "height": 48})", R"({"width": 64.5, "height": 48})", R"({"width": 64, "height": 99999})"}) {
+    try {
+      load_scene(write("badsize.gltf", with_asset(bad)));
+      ADD_FAILURE() << bad << ": accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("sirad_lightmap width and height are not whole numbers in 1..16384"), std::string::npos) << e.what();
+    }
+  }
   std::vector<unsigned char> flat(24, 0);
   const Scene s = load_scene(write("flat-uv.gltf", with_uv(flat, 5126, false, "VEC2", 3)));
   EXPECT_EQ(s.triangles[0].uv_map, kNoUvMap);
