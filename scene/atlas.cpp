@@ -33,6 +33,10 @@ constexpr double kChartAngleDegrees = 2.0;
 // triangle's bounds are twice its area) and per face (its bounds' rim).
 constexpr double kMaxFileBoundsPerTexel = 8, kMaxFileBoundsPerFace = 16;
 
+// An edge that more faces than this share (a fan of coincident faces, a hostile file) joins no
+// chart and is no seam: each face it has looks at the others, so this bounds that work.
+constexpr std::size_t kMaxEdgeFaces = 16;
+
 // From a budget, the texel size grows by this until the atlas fits max_side, at most this often.
 constexpr double kGrow = 1.25;
 constexpr int kMaxTries = 64;
@@ -55,8 +59,9 @@ bool along(const std::vector<ContactSegment>& segments, const glm::dvec3& a, con
 }
 
 // The triangles' charts: those of one object grown across shared edges (corners at the same
-// float positions) within kChartAngleDegrees of the chart's first face, where the edge is not
-// along a contact segment of either face (a wall's foot). Each chart's triangles in scene order.
+// float positions, at most kMaxEdgeFaces faces) within kChartAngleDegrees of the chart's first
+// face, where the edge is not along a contact segment of either face (a wall's foot). Each
+// chart's triangles in scene order.
 // The faces' shared edges: each corner's vertex (its float position), and per edge (its two
 // vertices, lower first) the faces that have it; with each face's contact segments.
 struct Edges {
@@ -119,7 +124,9 @@ std::vector<std::vector<uint32_t>> find_charts(const Scene& scene, const std::ve
       queue.pop_back();
       for (std::size_t k = 0; k < 3; ++k) {
         const uint32_t a = ids[t][k], b = ids[t][(k + 1) % 3];
-        for (const uint32_t f : e.faces[{std::min(a, b), std::max(a, b)}]) {
+        const std::vector<uint32_t>& sharing = e.faces[{std::min(a, b), std::max(a, b)}];
+        if (sharing.size() > kMaxEdgeFaces) continue;
+        for (const uint32_t f : sharing) {
           if (taken[f] || !fits(f) || e.at_contact(t, f, a, b)) continue;
           taken[f] = true;
           charts.back().push_back(f);
@@ -616,7 +623,7 @@ Atlas make_atlas(const Scene& scene, const AtlasOptions& o) {
   // atlas (two charts, or two places of one).
   const double cos_bound = std::cos(kChartAngleDegrees * std::numbers::pi / 180.0);
   for (const auto& [edge, faces] : edges.faces)
-    for (std::size_t x = 0; x < faces.size(); ++x)
+    for (std::size_t x = 0; x < faces.size() && faces.size() <= kMaxEdgeFaces; ++x)
       for (std::size_t y = x + 1; y < faces.size(); ++y) {
         const uint32_t t = faces[x], f = faces[y];
         const Triangle &a = scene.triangles[t], &b = scene.triangles[f];

@@ -340,6 +340,20 @@ TEST(Atlas, ATexelIsTheIslandsThatHoldsItsCentre) {
   EXPECT_EQ(a.chart_of[0], 0u);
 }
 
+// An edge shared by more than 16 faces (a fan of coincident faces: a hostile file, where each
+// face looking at every other would take time quadratic in their number) joins nothing: 17
+// copies of a triangle are 17 charts, 16 are one.
+TEST(Atlas, AnEdgeOfManyFacesJoinsNoChart) {
+  for (int copies : {16, 17}) {
+    Scene s;
+    s.name = "fan";
+    s.materials = {Material{"white", glm::vec3(0.5f), glm::vec3(0.0f)}};
+    for (int i = 0; i < copies; ++i) s.triangles.push_back({.p = {glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(0, 1, 0)}});
+    const Atlas a = make_atlas(s, {.texel_size = 0.1, .gutter = 1});
+    EXPECT_EQ(a.charts.size(), copies == 16 ? 1u : 17u) << copies;
+  }
+}
+
 // Faces the file's square does not hold (the back side of a two-sided face, which shares its
 // front's UV; a face whose UV leaves the square) get sirad's charts in shelves below it, at its
 // texel size; the file's faces keep their UV, only squeezed by the square's share of the height.
