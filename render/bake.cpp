@@ -12,6 +12,7 @@
 #include "scene/rays.h"
 #include "util/error.h"
 #include "util/parallel.h"
+#include "util/polygon.h"
 
 namespace sirad {
 
@@ -27,16 +28,6 @@ struct Flat {
   glm::dvec3 normal, rho, emission;
   uint32_t object = 0;
 };
-
-// Barycentric coordinates of point x in triangle q (false when x lies outside it).
-bool inside(const std::array<glm::dvec2, 3>& q, const glm::dvec2& x, glm::dvec3& w) {
-  const double d = (q[1].y - q[2].y) * (q[0].x - q[2].x) + (q[2].x - q[1].x) * (q[0].y - q[2].y);
-  if (d == 0.0) return false;
-  w.x = ((q[1].y - q[2].y) * (x.x - q[2].x) + (q[2].x - q[1].x) * (x.y - q[2].y)) / d;
-  w.y = ((q[2].y - q[0].y) * (x.x - q[2].x) + (q[0].x - q[2].x) * (x.y - q[2].y)) / d;
-  w.z = 1.0 - w.x - w.y;
-  return w.x >= 0.0 && w.y >= 0.0 && w.z >= 0.0;
-}
 
 // A chart's flat triangles by texel: those whose bounds reach each texel of its rectangle, so
 // that a point finds its triangle among a few (a UV island of a curved surface has thousands).
@@ -69,7 +60,7 @@ class FlatIndex {
     if (chart_.width <= 0 || chart_.height <= 0) return nullptr;
     const std::size_t cell = static_cast<std::size_t>(clamp_y(at.y)) * static_cast<std::size_t>(chart_.width) + static_cast<std::size_t>(clamp_x(at.x));
     for (uint32_t k = start_[cell]; k < start_[cell + 1]; ++k)
-      if (inside(flat_[items_[k]].q, at, w)) return &flat_[items_[k]];
+      if (in_triangle(flat_[items_[k]].q, at, w)) return &flat_[items_[k]];
     return nullptr;
   }
 

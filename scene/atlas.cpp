@@ -345,11 +345,6 @@ void own_uv(const Scene& scene, const std::vector<Chart>& charts, int gutter, st
       }
 }
 
-bool inside2(const std::array<glm::dvec2, 3>& q, const glm::dvec2& x) {
-  const double a = cross2(q[0], q[1], x), b = cross2(q[1], q[2], x), c = cross2(q[2], q[0], x);
-  return (a >= 0 && b >= 0 && c >= 0) || (a <= 0 && b <= 0 && c <= 0);
-}
-
 // The file's charts: its placed faces joined by corners at the same place with the same UV.
 std::vector<std::vector<uint32_t>> file_charts(const Scene& scene, const std::vector<uint8_t>& placed,
                                                const std::vector<std::array<glm::dvec2, 3>>& uv) {
@@ -408,8 +403,9 @@ std::size_t own_file_texels(const std::vector<std::vector<uint32_t>>& charts, co
           // rasterise: where islands touch, the texel is the one its centre lies in), then the
           // count of its 16 points.
           int count = 0;
-          for (int s = 0; s < 16; ++s) count += inside2(q, {x + (s % 4 + 0.5) / 4, y + (s / 4 + 0.5) / 4});
-          const bool centre = inside2(q, {x + 0.5, y + 0.5});
+          glm::dvec3 w;
+          for (int s = 0; s < 16; ++s) count += in_triangle(q, {x + (s % 4 + 0.5) / 4, y + (s / 4 + 0.5) / 4}, w);
+          const bool centre = in_triangle(q, {x + 0.5, y + 0.5}, w);
           if (count == 0 && !centre) continue;
           const std::size_t k = static_cast<std::size_t>(y) * static_cast<std::size_t>(sw) + static_cast<std::size_t>(x);
           if (here[k] == 0) touched.push_back(static_cast<uint32_t>(k));

@@ -179,4 +179,13 @@ void split_convex(std::span<const glm::dvec3> p, const glm::dvec3& o, const glm:
   }
 }
 
+bool in_triangle(const std::array<glm::dvec2, 3>& q, const glm::dvec2& x, glm::dvec3& w) {
+  const double d = (q[1].y - q[2].y) * (q[0].x - q[2].x) + (q[2].x - q[1].x) * (q[0].y - q[2].y);
+  if (d == 0.0) return false;
+  w.x = ((q[1].y - q[2].y) * (x.x - q[2].x) + (q[2].x - q[1].x) * (x.y - q[2].y)) / d;
+  w.y = ((q[2].y - q[0].y) * (x.x - q[2].x) + (q[0].x - q[2].x) * (x.y - q[2].y)) / d;
+  w.z = 1.0 - w.x - w.y;
+  return w.x >= 0.0 && w.y >= 0.0 && w.z >= 0.0;
+}
+
 }  // namespace sirad

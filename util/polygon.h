@@ -31,6 +31,11 @@ std::vector<std::array<uint32_t, 3>> triangulate_polygon(std::span<const glm::ve
 // corners. Collinear or too few points give fewer than 3 indices.
 std::vector<std::size_t> convex_hull(std::span<const glm::dvec2> q, double flat);
 
+// Whether point x lies in triangle q (its edges included), with x's barycentric coordinates in
+// `w`; false for a triangle with no area. The lightmap's atlas (which chart a texel is) and its
+// bake (which face a sample lands on) ask the same question of the same UV triangles.
+bool in_triangle(const std::array<glm::dvec2, 3>& q, const glm::dvec2& x, glm::dvec3& w);
+
 // Splits the convex polygon `p` by the plane dot(x - o, m) = 0 into the parts where it is >= 0
 // (`in`) and <= 0 (`out`), corners kept in p's order (a corner on the plane goes to both).
 void split_convex(std::span<const glm::dvec3> p, const glm::dvec3& o, const glm::dvec3& m, std::vector<glm::dvec3>& in,

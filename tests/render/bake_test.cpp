@@ -40,6 +40,24 @@ std::vector<glm::vec3> lit_left_dark_right(const PatchMesh& mesh) {
   return radiosity;
 }
 
+// A floor (rho 0.5, 4 x 4 at z = 0 facing +z; triangles 0 and 1) under a unit square light
+// (E 1, rho 0; triangles 2 and 3) at height 1, facing down.
+QuadScene floor_under_square_light() {
+  QuadScene q;
+  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
+  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(1.0f));
+  q.quad({-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}, floor);
+  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, light);
+  return q;
+}
+
+// The solution B = E of `mesh`.
+std::vector<glm::vec3> emission_only(const PatchMesh& mesh) {
+  std::vector<glm::vec3> b(mesh.size());
+  for (std::size_t j = 0; j < mesh.size(); ++j) b[j] = mesh.emission(j);
+  return b;
+}
+
 // A floor (rho 0.5, 4 x 4 at z = 0 facing +z) under a unit square light (E 1, rho 0) at height 1,
 // facing down; the solution B = E (the floor sees no floor: nothing of B's reflected part
 // reaches a floor point, so any floor value would do). A floor texel's value is rho E F over
@@ -50,15 +68,9 @@ std::vector<glm::vec3> lit_left_dark_right(const PatchMesh& mesh) {
 // sample each of the k terms is at most 1 / k of that bound (their MIS weights count k), so the
 // same bound holds.
 TEST(Bake, AFloorsTexelsUnderASquareLightMatchTheClosedForm) {
-  QuadScene q;
-  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
-  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(1.0f));
-  q.quad({-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}, floor);
-  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, light);
+  QuadScene q = floor_under_square_light();
   const PatchMesh mesh = mesh_scene(q.scene, {.target_patches = 400});
-  std::vector<glm::vec3> b(mesh.size());
-  for (std::size_t j = 0; j < mesh.size(); ++j) b[j] = mesh.emission(j);
-  const FinalGather gather(mesh, b, {.seed = 5});
+  const FinalGather gather(mesh, emission_only(mesh), {.seed = 5});
   const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.5, .gutter = 2});
   const int samples = 256;
   for (int lights : {1, 4}) {  // 4 emitter samples a sample: the counts' MIS stays unbiased
@@ -279,11 +291,7 @@ TEST(Bake, AFilesFoldedLayoutBakesEachTexelOnItsOwnFace) {
 // two bilinear grids turned to each other can differ a little), and texels beyond a lookup's
 // reach of the seam (1.5 texels) keep their bits.
 TEST(Bake, TheTwoSidesOfASeamAgree) {
-  QuadScene q;
-  const uint32_t floor = q.material(glm::vec3(0.5f), glm::vec3(0.0f));
-  const uint32_t light = q.material(glm::vec3(0.0f), glm::vec3(1.0f));
-  q.quad({-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}, floor);
-  q.quad({-0.5f, -0.5f, 1}, {-0.5f, 0.5f, 1}, {0.5f, 0.5f, 1}, {0.5f, -0.5f, 1}, light);
+  QuadScene q = floor_under_square_light();
   // Islands: the floor's first triangle at [0.05, 0.45]^2, its second turned (u from y, v from
   // x) at [0.55, 0.95] x [0.05, 0.45], the light at [0.05, 0.45] x [0.55, 0.95].
   const auto first = [](const glm::dvec3& p) { return glm::dvec2(0.05 + (p.x + 2) / 10, 0.05 + (p.y + 2) / 10); };
@@ -300,9 +308,7 @@ TEST(Bake, TheTwoSidesOfASeamAgree) {
     q.scene.uv_maps.push_back(map);
   }
   const PatchMesh mesh = mesh_scene(q.scene, {.target_patches = 400});
-  std::vector<glm::vec3> b(mesh.size());
-  for (std::size_t j = 0; j < mesh.size(); ++j) b[j] = mesh.emission(j);
-  const FinalGather gather(mesh, b, {.seed = 5});
+  const FinalGather gather(mesh, emission_only(mesh), {.seed = 5});
   const Atlas atlas = make_atlas(q.scene, {.texel_size = 0.1, .gutter = 1});
   ASSERT_GT(atlas.file_width, 60);
   ASSERT_EQ(atlas.seams.size(), 1u);  // the light's diagonal is one place in its island
